@@ -1,0 +1,177 @@
+/*
+ * coslam/ekfslam.h - EKF-SLAM with unknown data association in statically
+ * sized arrays (Thrun, Burgard, Fox, "Probabilistic Robotics", ch. 10).
+ *
+ * State x = (x_r, y_r, theta_r, m_1x, m_1y, ..., m_Lx, m_Ly), size 3 + 2L,
+ * covariance P (3 + 2L)^2, both stored with the fixed stride EKFSLAM_DIM so
+ * that adding or removing a landmark never moves the other entries.
+ *
+ * Update, per camera frame:
+ *   1. every landmark near the sensor gets its expected sighting and
+ *      innovation covariance S = H P H^T + Q (H touches the robot and that
+ *      landmark only, so S costs O(1) per landmark);
+ *   2. association, same signature only, inside the chi-square gate:
+ *      EKFSLAM_ASSOC_NN: Mahalanobis nearest neighbour ranked by likelihood
+ *      (a tight landmark beats a vague one at the same distance), greedy with
+ *      mutual exclusion;
+ *      EKFSLAM_ASSOC_JCBB (default): joint compatibility branch and bound
+ *      (Neira and Tardos 2001): the largest set of pairings whose joint
+ *      innovation passes the chi-square gate of 2k dof, ties broken by the
+ *      smaller joint Mahalanobis distance. Individual NN fails at loop
+ *      closure, where the robot's pose error is shared by all sightings of a
+ *      frame; JCBB does not. The search is capped at jcbb_max_nodes
+ *      (counted when hit; the best hypothesis found so far is used);
+ *   3. matched sightings are applied one after the other, each relinearised
+ *      at the current state, in the symmetric Joseph form computed in
+ *      O(D^2) thanks to the sparsity of H;
+ *   4. negative evidence as in Fast-SLAM: a tentative landmark that should
+ *      have been seen but was not loses evidence and is removed when it runs
+ *      out (its rows and columns are deleted);
+ *   5. an unmatched sighting outside the ambiguity band starts a landmark,
+ *      with its cross-covariances to the whole state: P_mm = G_r P_rr G_r^T +
+ *      G_z Q G_z^T + w8 I, P_m* = G_r P_r*.
+ *
+ * Memory: sizeof(ekfslam_t) ~ 8 * EKFSLAM_DIM^2 bytes (137 KB for 64
+ * landmarks, 2.1 MB for 256). Never allocates.
+ * Time: predict O(L); update O(L + S * L_near + S * L^2) for S sightings.
+ */
+#ifndef COSLAM_EKFSLAM_H
+#define COSLAM_EKFSLAM_H
+
+#include <stdint.h>
+
+#include "coslam/config.h"
+#include "coslam/cov2.h"
+#include "coslam/cov3.h"
+#include "coslam/landmark.h"
+#include "coslam/map_estimate.h"
+#include "coslam/motion.h"
+#include "coslam/slam_params.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/** Fixed stride (and maximum size) of the state. */
+#define EKFSLAM_DIM (3 + 2 * COSLAM_MAX_LANDMARKS)
+
+typedef enum {
+    EKFSLAM_ASSOC_NN = 1,
+    EKFSLAM_ASSOC_JCBB = 2,
+} ekfslam_assoc_t;
+
+typedef struct {
+    slam_params_t slam;
+    uint8_t robot_id;          /**< own provenance bit, < COSLAM_MAX_ROBOTS */
+    ekfslam_assoc_t assoc;
+    uint32_t jcbb_max_nodes;   /**< search budget per update (>= 1) */
+} ekfslam_config_t;
+
+/** Per-landmark bookkeeping beside the state (same meaning as in landmark_t). */
+typedef struct {
+    uint32_t id;
+    float exist;
+    uint16_t n_obs;
+    uint16_t src_mask;
+    uint8_t signature;
+} ekfslam_meta_t;
+
+typedef struct {
+    uint32_t predictions;
+    uint32_t updates;
+    uint32_t landmarks_added;
+    uint32_t landmarks_removed;
+    uint32_t lm_capacity_drops;       /**< state full: sighting not mapped */
+    uint32_t sighting_capacity_drops; /**< sightings beyond COSLAM_MAX_SIGHTINGS */
+    uint32_t export_capacity_drops;
+    uint32_t rejected_sightings;
+    uint32_t rejected_controls;
+    uint32_t numeric_faults;          /**< update skipped: S not PD, degenerate geometry */
+    uint32_t jcbb_budget_hits;        /**< JCBB searches cut at jcbb_max_nodes */
+} ekfslam_counters_t;
+
+/** Largest joint innovation handled by JCBB (2 rows per sighting). */
+#define EKFSLAM_JCBB_DIM (2 * COSLAM_MAX_SIGHTINGS)
+
+typedef struct {
+    lm_expect_t expect[COSLAM_MAX_LANDMARKS];
+    uint8_t near[COSLAM_MAX_LANDMARKS];
+    uint8_t matched[COSLAM_MAX_LANDMARKS];
+    assoc_pair_t pairs[COSLAM_MAX_SIGHTINGS * COSLAM_MAX_LANDMARKS];
+    uint8_t n_near[COSLAM_MAX_SIGHTINGS];
+    int32_t assign[COSLAM_MAX_SIGHTINGS];
+    /* JCBB search state */
+    int32_t cand_begin[COSLAM_MAX_SIGHTINGS + 1]; /**< candidates of sighting i: pairs[begin[i] .. begin[i+1]) */
+    int32_t hyp[COSLAM_MAX_SIGHTINGS];
+    int32_t hyp_pair[COSLAM_MAX_SIGHTINGS];       /**< pair index of the k-th pairing */
+    double chol[EKFSLAM_JCBB_DIM][EKFSLAM_JCBB_DIM]; /**< Cholesky factor of the joint S */
+    double y[EKFSLAM_JCBB_DIM];                   /**< L^-1 nu */
+    double chi2_joint[COSLAM_MAX_SIGHTINGS + 1];
+    int32_t best[COSLAM_MAX_SIGHTINGS];
+    int best_pairings;
+    double best_d2;
+    uint32_t nodes;
+    double pht[EKFSLAM_DIM][2];
+    double k[EKFSLAM_DIM][2];
+    uint16_t order[COSLAM_MAX_LANDMARKS];
+} ekfslam_scratch_t;
+
+typedef struct {
+    ekfslam_config_t cfg;
+    uint16_t n_lm;
+    uint32_t next_id;
+    ekfslam_counters_t ctr;
+    double x[EKFSLAM_DIM];
+    double p[EKFSLAM_DIM * EKFSLAM_DIM];   /**< row-major, stride EKFSLAM_DIM */
+    ekfslam_meta_t meta[COSLAM_MAX_LANDMARKS];
+    ekfslam_scratch_t scratch;
+} ekfslam_t;
+
+/** Defaults: slam_params_default(), robot 0, JCBB with a 20000-node budget. */
+ekfslam_config_t ekfslam_config_default(void);
+
+/** Start at pose0 with P = diag(w6, w6, w7) and no landmarks. E_ARG on a bad config. O(1). */
+coslam_status_t ekfslam_init(ekfslam_t *ekf, const ekfslam_config_t *cfg, pose2_t pose0);
+
+/** Prediction with an odometry increment. Non-finite: E_NUMERIC, counted, no change. O(L). */
+coslam_status_t ekfslam_predict(ekfslam_t *ekf, odo_increment_t u);
+
+/** Update with one camera frame's sightings; return codes as fastslam_update(). */
+coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z, int n);
+
+/** Robot pose and its covariance. O(1). */
+void ekfslam_pose(const ekfslam_t *ekf, pose2_t *pose, cov3_t *cov);
+
+/** Landmark j (0 <= j < n_lm): mean and marginal covariance. O(1). */
+void ekfslam_landmark(const ekfslam_t *ekf, uint16_t j, point2_t *mean, cov2_t *cov);
+
+/** P entry (r, c) of the current state. */
+double ekfslam_p(const ekfslam_t *ekf, int r, int c);
+
+/**
+ * Export the map estimate: the pose with P_rr and every confirmed landmark
+ * with its marginal covariance, ordered by identity. E_CAPACITY (counted)
+ * if more confirmed landmarks than COSLAM_MAX_MSG_LANDMARKS. O(L log L).
+ */
+coslam_status_t ekfslam_export(ekfslam_t *ekf, map_estimate_t *out);
+
+/**
+ * Add a landmark at `mean` whose error relative to the robot is Gaussian:
+ * mean = pose (+) m_body with m_body having covariance cov_body (robot
+ * frame). Cross-covariances with the state follow from the pose part, like
+ * a sighting in Cartesian form (used by the map merge). O(L).
+ */
+coslam_status_t ekfslam_add_landmark_body(ekfslam_t *ekf, point2_t m_body, cov2_t cov_body,
+                                          const ekfslam_meta_t *meta);
+
+/** Remove landmark j, deleting its rows and columns. O(L). */
+void ekfslam_remove_landmark(ekfslam_t *ekf, uint16_t j);
+
+/** A fresh landmark identity (never 0). */
+uint32_t ekfslam_new_id(ekfslam_t *ekf);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* COSLAM_EKFSLAM_H */

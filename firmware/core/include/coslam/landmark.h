@@ -1,0 +1,131 @@
+/*
+ * coslam/landmark.h - one point landmark as a 2-D Gaussian (a Fast-SLAM
+ * particle's landmark EKF), its bookkeeping (identity, existence evidence,
+ * provenance), and the helpers both filters use to associate sightings.
+ *
+ * All functions O(1) unless noted; no memory beyond their arguments.
+ */
+#ifndef COSLAM_LANDMARK_H
+#define COSLAM_LANDMARK_H
+
+#include <stdint.h>
+
+#include "coslam/config.h"
+#include "coslam/cov2.h"
+#include "coslam/cov3.h"
+#include "coslam/observe.h"
+#include "coslam/pose2.h"
+#include "coslam/slam_params.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct {
+    point2_t mean;      /**< [m], map frame */
+    cov2_t cov;         /**< [m^2] */
+    uint32_t id;        /**< identity, shared by the copies of this landmark in
+                             all particles (inherited through resampling) */
+    float exist;        /**< existence evidence, see slam_params_t */
+    uint16_t n_obs;     /**< sightings fused into it (saturates at 65535) */
+    uint16_t src_mask;  /**< provenance: bit k set = holds information from robot k */
+    uint8_t signature;  /**< landmark class, see sighting_t */
+    uint8_t reserved_;
+} landmark_t;
+
+/** What a landmark is expected to look like from a pose. */
+typedef struct {
+    sighting_t zhat;    /**< predicted sighting */
+    double h_lm[2][2];  /**< d zhat / d landmark */
+    double h_pose[2][3];/**< d zhat / d pose */
+    cov2_t s;           /**< innovation covariance H Sigma H^T + Q (+ pose term) */
+    cov2_t s_inv;
+    double log_norm;    /**< -log(2 pi sqrt(det S)) */
+} lm_expect_t;
+
+/**
+ * Start a landmark from a sighting taken at `pose` (treated as exact, as in
+ * a Fast-SLAM particle): mean from the inverse model, covariance
+ * G_z Q G_z^T + w8 I. Returns COSLAM_E_NOT_PD if the result is not PD.
+ */
+coslam_status_t landmark_init(landmark_t *lm, const slam_params_t *params, pose2_t pose,
+                              sighting_t z, uint32_t id, uint16_t src_mask);
+
+/**
+ * Fill `e` for landmark `lm` seen from `pose`. S = H_m Sigma H_m^T + Q
+ * (+ H_p pose_cov H_p^T if pose_cov is not NULL, the Fast-SLAM 2.0 form).
+ * Returns E_DEGENERATE (landmark on the robot) or E_NOT_PD.
+ */
+coslam_status_t landmark_expect(const landmark_t *lm, const slam_params_t *params, pose2_t pose,
+                                const cov3_t *pose_cov, lm_expect_t *e);
+
+/** Squared Mahalanobis distance and log-likelihood of z under e. */
+double landmark_mahalanobis2(const lm_expect_t *e, sighting_t z);
+double landmark_log_lik(const lm_expect_t *e, double d2);
+
+/**
+ * EKF update of the landmark with sighting z given the pose is known
+ * (Joseph form, so the covariance stays symmetric PD). `e` must come from
+ * landmark_expect() at the same pose without pose covariance.
+ */
+void landmark_update(landmark_t *lm, const slam_params_t *params, const lm_expect_t *e, sighting_t z);
+
+/** 1 if the predicted sighting lies inside the sensor footprint (with margin). */
+int landmark_should_be_seen(const slam_params_t *params, sighting_t zhat);
+
+/** Positive evidence on an existence counter: the landmark was sighted. */
+void exist_hit(float *exist, const slam_params_t *params);
+
+/** Negative evidence; returns 1 if the landmark should now be removed. */
+int exist_miss(float *exist, const slam_params_t *params);
+
+int landmark_is_confirmed(const landmark_t *lm, const slam_params_t *params);
+
+/** A gated (sighting, landmark) candidate pair and its score (log-likelihood). */
+typedef struct {
+    double score;
+    int32_t sighting;
+    int32_t landmark;
+} assoc_pair_t;
+
+/** How a sighting relates to one landmark (assoc_classify). */
+typedef enum {
+    ASSOC_FAR = 0,          /**< d2 >= new_landmark_chi2: surely another object */
+    ASSOC_NEAR = 1,         /**< plausible but not admissible as a match */
+    ASSOC_ADMISSIBLE = 2,   /**< d2 < gate_chi2 and log-likelihood >= new_landmark_log_lik */
+} assoc_class_t;
+
+/**
+ * Classify a (sighting, landmark) pair from its squared Mahalanobis distance
+ * d2 and log-likelihood ll. A match must pass the chi-square gate AND be
+ * more likely than a new landmark (Thrun et al. 2005, sec. 13.8: the
+ * maximum-likelihood rule with the new-landmark likelihood p0), so the
+ * acceptance distance shrinks when the innovation covariance is large, as at
+ * a loop closure with an uncertain pose.
+ */
+assoc_class_t assoc_classify(const slam_params_t *params, double d2, double ll);
+
+/**
+ * Decide whether unpaired sighting i starts a new landmark: yes if every
+ * landmark it could plausibly be (admissible or near) was taken by another
+ * sighting of the frame (a distinct object beside it); no if some plausible
+ * landmark is left (the sighting is ambiguous and dropped). n_near[i] counts
+ * the ASSOC_NEAR landmarks of sighting i. O(P ns).
+ */
+int assoc_unpaired_is_new(const assoc_pair_t *pairs, int n_pairs, int i, const int32_t *assign, int ns,
+                          const uint8_t *n_near);
+
+/**
+ * Greedy maximum-likelihood assignment with mutual exclusion: pairs are
+ * taken in decreasing score; a pair is accepted if neither its sighting nor
+ * its landmark is taken yet. `pairs` (only gated pairs) is sorted in place.
+ * assign[i] receives the landmark of sighting i, or -1.
+ * O(P log P + P ns) time for P pairs and ns sightings, no memory.
+ */
+void assoc_greedy(assoc_pair_t *pairs, int n_pairs, int ns, int32_t *assign);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* COSLAM_LANDMARK_H */

@@ -1,0 +1,103 @@
+/*
+ * coslam/slam_params.h - the noise model (the paper's eight weights, eq. 6)
+ * and the parameters both filters share: sensor footprint for negative
+ * evidence, association gates, landmark existence bookkeeping.
+ *
+ * The eight weights, as this project defines them (docs/noise-model.md):
+ *   w1 range_var_m2            Q = diag(w1, w2), range [m^2]
+ *   w2 bearing_var_rad2                           bearing [rad^2]
+ *   w3 odo_xy_var_m2_per_m     R = diag(w3 s, w3 s, w4 s) on an odometry
+ *   w4 odo_theta_var_rad2_per_m    increment (robot frame), where s is the
+ *                              wheel travel of the increment [m]:
+ *                              s = |(dx, dy)| + base_radius_m |dtheta|.
+ *                              The paper adds R once per step; scaling by the
+ *                              travel keeps the model independent of the
+ *                              odometry rate and zero when the robot stands.
+ *   w5 lm_process_var_m2_per_m landmark random-walk variance added per metre
+ *                              of wheel travel (0 for static landmarks).
+ *   w6 init_xy_var_m2          initial pose covariance P0 = diag(w6, w6, w7)
+ *   w7 init_theta_var_rad2
+ *   w8 lm_init_var_m2          variance added to a new landmark's covariance
+ *                              on top of the propagated sighting noise
+ *                              (unmodelled initialisation error).
+ * range_var_per_m2 is an optional ninth term: range variance growing with the
+ * square of the range, as for a camera that infers distance from blob size.
+ */
+#ifndef COSLAM_SLAM_PARAMS_H
+#define COSLAM_SLAM_PARAMS_H
+
+#include "coslam/status.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define SLAM_NOISE_N_WEIGHTS 8
+
+typedef struct {
+    double range_var_m2;             /**< w1 */
+    double bearing_var_rad2;         /**< w2 */
+    double odo_xy_var_m2_per_m;      /**< w3 */
+    double odo_theta_var_rad2_per_m; /**< w4 */
+    double lm_process_var_m2_per_m;  /**< w5 */
+    double init_xy_var_m2;           /**< w6 */
+    double init_theta_var_rad2;      /**< w7 */
+    double lm_init_var_m2;           /**< w8 */
+    double range_var_per_m2;         /**< extra: range variance += this * range^2 [1] */
+} slam_noise_t;
+
+typedef struct {
+    slam_noise_t noise;
+    /** Converts rotation to wheel travel in the motion noise [m]; Robotino: 0.132. */
+    double base_radius_m;
+
+    /* Sensor footprint: where a landmark "should be seen" (negative evidence). */
+    double sensor_min_range_m;
+    double sensor_max_range_m;
+    double sensor_fov_rad;           /**< full field of view, centred on the x axis */
+    /** Landmarks count as "should be seen" only inside this fraction of the
+     *  range and half-FOV, so that estimates near the border are not punished. */
+    double visibility_margin;
+
+    /* Data association */
+    /** Squared Mahalanobis gate for matching a sighting to a landmark (2 dof). */
+    double gate_chi2;
+    /** A sighting unmatched but closer than this (squared Mahalanobis) to some
+     *  landmark is ambiguous and dropped instead of starting a new landmark.
+     *  Set equal to gate_chi2 to disable the ambiguity band. */
+    double new_landmark_chi2;
+    /** Fast-SLAM: log of the likelihood p0 assigned to a sighting that starts
+     *  a new landmark (or is dropped), [log(1/(m rad))]. */
+    double new_landmark_log_lik;
+
+    /* Landmark existence (counter in "hits"): a landmark starts at exist_init,
+     * gains exist_hit per sighting, loses exist_miss each update in which it
+     * should have been seen but was not. Tentative while below
+     * exist_confirm: a tentative landmark whose evidence falls below zero is
+     * removed. Confirmed landmarks never fall below exist_confirm (occlusion
+     * by obstacles must not erase a mapped landmark). Capped at exist_max. */
+    float exist_init;
+    float exist_hit;
+    float exist_miss;
+    float exist_confirm;
+    float exist_max;
+} slam_params_t;
+
+/** The noise weights as an array w[0..7] = (w1..w8), for calibration. */
+void slam_noise_to_array(const slam_noise_t *noise, double w[SLAM_NOISE_N_WEIGHTS]);
+void slam_noise_from_array(slam_noise_t *noise, const double w[SLAM_NOISE_N_WEIGHTS]);
+
+/**
+ * Defaults for the simulated Robotino with the paper's camera: range sd
+ * 0.05 m, bearing sd 2 deg, 50 deg FOV, 0.3-5 m range. See docs/noise-model.md.
+ */
+slam_params_t slam_params_default(void);
+
+/** COSLAM_OK if every field is finite and inside its domain, else COSLAM_E_ARG. */
+coslam_status_t slam_params_validate(const slam_params_t *p);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* COSLAM_SLAM_PARAMS_H */

@@ -1,0 +1,56 @@
+/*
+ * coslam/status.h - the one status enum of the firmware, and the assert hook.
+ *
+ * Convention: 0 is success, every error is negative and named. Expected
+ * conditions (bad input, full pool, rejected message) return a code; broken
+ * invariants (a NULL state pointer, a corrupted index) hit COSLAM_ASSERT,
+ * which the integrator may redefine (default: the C library's assert, which
+ * compiles out under NDEBUG).
+ */
+#ifndef COSLAM_STATUS_H
+#define COSLAM_STATUS_H
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum {
+    COSLAM_OK = 0,
+    COSLAM_E_ARG = -1,          /**< argument out of its documented domain */
+    COSLAM_E_CAPACITY = -2,     /**< a fixed-size pool is full (counter bumped) */
+    COSLAM_E_NUMERIC = -3,      /**< NaN/Inf input or a result that is not finite */
+    COSLAM_E_NOT_PD = -4,       /**< a covariance is not positive definite */
+    COSLAM_E_EMPTY = -5,        /**< nothing to do / nothing to report */
+    COSLAM_E_DEGENERATE = -6,   /**< geometry with no unique answer */
+    COSLAM_E_STALE = -7,        /**< inputs too far apart in time */
+    /* map message codec (map_msg.h) */
+    COSLAM_E_MSG_TRUNCATED = -20,
+    COSLAM_E_MSG_MAGIC = -21,
+    COSLAM_E_MSG_VERSION = -22,
+    COSLAM_E_MSG_LENGTH = -23,
+    COSLAM_E_MSG_CRC = -24,
+    COSLAM_E_MSG_COUNT = -25,
+    COSLAM_E_MSG_NONFINITE = -26,
+    COSLAM_E_MSG_COVARIANCE = -27,
+    COSLAM_E_MSG_FIELD = -28,
+    COSLAM_E_MSG_DUPLICATE = -29,
+    /* merge (map_merge.h) */
+    COSLAM_E_MERGE_SELF = -40,
+    COSLAM_E_MERGE_STALE = -41,
+    COSLAM_E_MERGE_REPLAY = -42,
+    COSLAM_E_UNSUPPORTED = -90, /**< feature or hardware not available */
+} coslam_status_t;
+
+/** A short, static, human-readable name for a status ("E_CAPACITY", ...). */
+const char *coslam_status_str(coslam_status_t status);
+
+#ifndef COSLAM_ASSERT
+#include <assert.h>
+#define COSLAM_ASSERT(x) assert(x)
+#endif
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* COSLAM_STATUS_H */

@@ -1,0 +1,704 @@
+#include "coslam/ekfslam.h"
+
+#include <math.h>
+#include <string.h>
+
+#define D_ EKFSLAM_DIM
+#define P_(e, r, c) ((e)->p[(long)(r) * D_ + (c)])
+
+ekfslam_config_t ekfslam_config_default(void)
+{
+    ekfslam_config_t c;
+    c.slam = slam_params_default();
+    c.robot_id = 0;
+    c.assoc = EKFSLAM_ASSOC_JCBB;
+    c.jcbb_max_nodes = 20000U;
+    return c;
+}
+
+uint32_t ekfslam_new_id(ekfslam_t *ekf)
+{
+    const uint32_t id = ekf->next_id++;
+    if (ekf->next_id == 0U) {
+        ekf->next_id = 1U;
+    }
+    return id;
+}
+
+static int dim(const ekfslam_t *ekf)
+{
+    return 3 + 2 * (int)ekf->n_lm;
+}
+
+coslam_status_t ekfslam_init(ekfslam_t *ekf, const ekfslam_config_t *cfg, pose2_t pose0)
+{
+    COSLAM_ASSERT(ekf != 0 && cfg != 0);
+    if (slam_params_validate(&cfg->slam) != COSLAM_OK || cfg->robot_id >= COSLAM_MAX_ROBOTS ||
+        (cfg->assoc != EKFSLAM_ASSOC_NN && cfg->assoc != EKFSLAM_ASSOC_JCBB) || cfg->jcbb_max_nodes < 1U ||
+        !pose2_is_finite(pose0)) {
+        return COSLAM_E_ARG;
+    }
+    ekf->cfg = *cfg;
+    ekf->n_lm = 0;
+    ekf->next_id = 1U;
+    memset(&ekf->ctr, 0, sizeof ekf->ctr);
+    ekf->x[0] = pose0.x;
+    ekf->x[1] = pose0.y;
+    ekf->x[2] = angle_wrap(pose0.theta);
+    for (int r = 0; r < 3; ++r) {
+        for (int c = 0; c < 3; ++c) {
+            P_(ekf, r, c) = 0.0;
+        }
+    }
+    P_(ekf, 0, 0) = cfg->slam.noise.init_xy_var_m2;
+    P_(ekf, 1, 1) = cfg->slam.noise.init_xy_var_m2;
+    P_(ekf, 2, 2) = cfg->slam.noise.init_theta_var_rad2;
+    return COSLAM_OK;
+}
+
+static pose2_t robot_pose(const ekfslam_t *ekf)
+{
+    const pose2_t p = {ekf->x[0], ekf->x[1], ekf->x[2]};
+    return p;
+}
+
+void ekfslam_pose(const ekfslam_t *ekf, pose2_t *pose, cov3_t *cov)
+{
+    *pose = robot_pose(ekf);
+    for (int r = 0; r < 3; ++r) {
+        for (int c = 0; c < 3; ++c) {
+            cov->m[r][c] = P_(ekf, r, c);
+        }
+    }
+}
+
+void ekfslam_landmark(const ekfslam_t *ekf, uint16_t j, point2_t *mean, cov2_t *cov)
+{
+    COSLAM_ASSERT(j < ekf->n_lm);
+    const int a = 3 + 2 * j;
+    mean->x = ekf->x[a];
+    mean->y = ekf->x[a + 1];
+    *cov = cov2_make(P_(ekf, a, a), 0.5 * (P_(ekf, a, a + 1) + P_(ekf, a + 1, a)), P_(ekf, a + 1, a + 1));
+}
+
+double ekfslam_p(const ekfslam_t *ekf, int r, int c)
+{
+    return P_(ekf, r, c);
+}
+
+coslam_status_t ekfslam_predict(ekfslam_t *ekf, odo_increment_t u)
+{
+    if (!motion_is_finite(u)) {
+        ekf->ctr.rejected_controls++;
+        return COSLAM_E_NUMERIC;
+    }
+    const slam_params_t *sp = &ekf->cfg.slam;
+    const pose2_t pose = robot_pose(ekf);
+    double g[3][3];
+    double v[3][3];
+    motion_jacobians(pose, u, g, v);
+    const pose2_t np = motion_apply(pose, u);
+    ekf->x[0] = np.x;
+    ekf->x[1] = np.y;
+    ekf->x[2] = np.theta;
+    const int d = dim(ekf);
+    /* P_rr = G P_rr G^T + V R V^T */
+    cov3_t prr;
+    for (int r = 0; r < 3; ++r) {
+        for (int c = 0; c < 3; ++c) {
+            prr.m[r][c] = P_(ekf, r, c);
+        }
+    }
+    prr = cov3_add(cov3_congruence(g, prr), cov3_congruence(v, motion_noise_cov(sp, u)));
+    for (int r = 0; r < 3; ++r) {
+        for (int c = 0; c < 3; ++c) {
+            P_(ekf, r, c) = prr.m[r][c];
+        }
+    }
+    /* P_rm = G P_rm, P_mr = P_rm^T */
+    for (int c = 3; c < d; ++c) {
+        const double a0 = P_(ekf, 0, c);
+        const double a1 = P_(ekf, 1, c);
+        const double a2 = P_(ekf, 2, c);
+        for (int r = 0; r < 3; ++r) {
+            const double val = g[r][0] * a0 + g[r][1] * a1 + g[r][2] * a2;
+            P_(ekf, r, c) = val;
+            P_(ekf, c, r) = val;
+        }
+    }
+    const double w5 = sp->noise.lm_process_var_m2_per_m;
+    if (w5 > 0.0) {
+        const double add = w5 * motion_travel_m(u, sp->base_radius_m);
+        for (int c = 3; c < d; ++c) {
+            P_(ekf, c, c) += add;
+        }
+    }
+    ekf->ctr.predictions++;
+    return COSLAM_OK;
+}
+
+/* Expected sighting of landmark j with the full innovation covariance
+ * S = H P H^T + Q, H = [H_r 0 .. H_m .. 0]. */
+static coslam_status_t expect_landmark(const ekfslam_t *ekf, uint16_t j, lm_expect_t *e)
+{
+    const slam_params_t *sp = &ekf->cfg.slam;
+    const pose2_t pose = robot_pose(ekf);
+    const int a = 3 + 2 * j;
+    const point2_t m = {ekf->x[a], ekf->x[a + 1]};
+    const coslam_status_t st = observe_jacobians(pose, m, e->h_pose, e->h_lm);
+    if (st != COSLAM_OK) {
+        return st;
+    }
+    e->zhat = observe_predict(pose, m);
+    e->zhat.signature = ekf->meta[j].signature;
+    /* H P H^T over the five non-zero columns */
+    int idx[5] = {0, 1, 2, a, a + 1};
+    double h[2][5];
+    for (int q = 0; q < 2; ++q) {
+        h[q][0] = e->h_pose[q][0];
+        h[q][1] = e->h_pose[q][1];
+        h[q][2] = e->h_pose[q][2];
+        h[q][3] = e->h_lm[q][0];
+        h[q][4] = e->h_lm[q][1];
+    }
+    double s[2][2] = {{0.0, 0.0}, {0.0, 0.0}};
+    for (int r1 = 0; r1 < 5; ++r1) {
+        for (int r2 = 0; r2 < 5; ++r2) {
+            const double pv = P_(ekf, idx[r1], idx[r2]);
+            for (int q1 = 0; q1 < 2; ++q1) {
+                for (int q2 = 0; q2 < 2; ++q2) {
+                    s[q1][q2] += h[q1][r1] * pv * h[q2][r2];
+                }
+            }
+        }
+    }
+    const cov2_t sc = cov2_add(cov2_make(s[0][0], 0.5 * (s[0][1] + s[1][0]), s[1][1]),
+                               observe_noise(sp, e->zhat.range_m));
+    if (cov2_inverse(sc, &e->s_inv) != COSLAM_OK) {
+        return COSLAM_E_NOT_PD;
+    }
+    e->s = sc;
+    e->log_norm = -log(COSLAM_TWO_PI * sqrt(cov2_det(sc)));
+    return COSLAM_OK;
+}
+
+/*
+ * EKF update of the whole state with one sighting of landmark j.
+ * With PHt = P H^T (D x 2), S = H PHt + Q, K = PHt S^-1:
+ *   x += K nu
+ *   P = (I - K H) P (I - K H)^T + K Q K^T
+ *     = P - K PHt^T - PHt K^T + K S K^T          (Joseph form, O(D^2))
+ */
+static coslam_status_t update_one(ekfslam_t *ekf, uint16_t j, sighting_t z)
+{
+    lm_expect_t e;
+    coslam_status_t st = expect_landmark(ekf, j, &e);
+    if (st != COSLAM_OK) {
+        ekf->ctr.numeric_faults++;
+        return st;
+    }
+    const int d = dim(ekf);
+    const int a = 3 + 2 * j;
+    double(*pht)[2] = ekf->scratch.pht;
+    double(*k)[2] = ekf->scratch.k;
+    for (int r = 0; r < d; ++r) {
+        const double *row = &ekf->p[(long)r * D_];
+        for (int q = 0; q < 2; ++q) {
+            pht[r][q] = row[0] * e.h_pose[q][0] + row[1] * e.h_pose[q][1] + row[2] * e.h_pose[q][2] +
+                        row[a] * e.h_lm[q][0] + row[a + 1] * e.h_lm[q][1];
+        }
+    }
+    const cov2_t si = e.s_inv;
+    for (int r = 0; r < d; ++r) {
+        k[r][0] = pht[r][0] * si.xx + pht[r][1] * si.xy;
+        k[r][1] = pht[r][0] * si.xy + pht[r][1] * si.yy;
+    }
+    double nu[2];
+    observe_innovation(z, e.zhat, nu);
+    for (int r = 0; r < d; ++r) {
+        ekf->x[r] += k[r][0] * nu[0] + k[r][1] * nu[1];
+    }
+    ekf->x[2] = angle_wrap(ekf->x[2]);
+    const cov2_t s = e.s;
+    for (int r = 0; r < d; ++r) {
+        /* ks = K_r S */
+        const double ks0 = k[r][0] * s.xx + k[r][1] * s.xy;
+        const double ks1 = k[r][0] * s.xy + k[r][1] * s.yy;
+        for (int c = r; c < d; ++c) {
+            const double delta = k[r][0] * pht[c][0] + k[r][1] * pht[c][1] + pht[r][0] * k[c][0] +
+                                 pht[r][1] * k[c][1] - (ks0 * k[c][0] + ks1 * k[c][1]);
+            const double val = P_(ekf, r, c) - delta;
+            P_(ekf, r, c) = val;
+            P_(ekf, c, r) = val;
+        }
+    }
+    return COSLAM_OK;
+}
+
+coslam_status_t ekfslam_add_landmark_body(ekfslam_t *ekf, point2_t m_body, cov2_t cov_body,
+                                          const ekfslam_meta_t *meta)
+{
+    if (ekf->n_lm >= COSLAM_MAX_LANDMARKS) {
+        ekf->ctr.lm_capacity_drops++;
+        return COSLAM_E_CAPACITY;
+    }
+    if (!cov2_is_finite(cov_body) || !isfinite(m_body.x) || !isfinite(m_body.y)) {
+        ekf->ctr.numeric_faults++;
+        return COSLAM_E_NUMERIC;
+    }
+    const pose2_t pose = robot_pose(ekf);
+    double gr[2][3];
+    double gb[2][2];
+    pose2_apply_jacobians(pose, m_body, gr, gb);
+    const int d = dim(ekf);
+    const int a = d; /* new rows/columns a, a+1 */
+    const point2_t m = pose2_apply(pose, m_body);
+    /* P_m* = G_r P_r* for all existing columns */
+    for (int c = 0; c < d; ++c) {
+        for (int q = 0; q < 2; ++q) {
+            const double val = gr[q][0] * P_(ekf, 0, c) + gr[q][1] * P_(ekf, 1, c) + gr[q][2] * P_(ekf, 2, c);
+            P_(ekf, a + q, c) = val;
+            P_(ekf, c, a + q) = val;
+        }
+    }
+    double prr[3][3];
+    for (int r = 0; r < 3; ++r) {
+        for (int c = 0; c < 3; ++c) {
+            prr[r][c] = P_(ekf, r, c);
+        }
+    }
+    const cov2_t pmm = cov2_add(cov2_from_3x3(gr, prr),
+                                cov2_congruence(gb, cov_body));
+    P_(ekf, a, a) = pmm.xx;
+    P_(ekf, a, a + 1) = pmm.xy;
+    P_(ekf, a + 1, a) = pmm.xy;
+    P_(ekf, a + 1, a + 1) = pmm.yy;
+    ekf->x[a] = m.x;
+    ekf->x[a + 1] = m.y;
+    ekf->meta[ekf->n_lm] = *meta;
+    ekf->n_lm++;
+    return COSLAM_OK;
+}
+
+void ekfslam_remove_landmark(ekfslam_t *ekf, uint16_t j)
+{
+    COSLAM_ASSERT(j < ekf->n_lm);
+    const uint16_t last = (uint16_t)(ekf->n_lm - 1);
+    if (j != last) {
+        const int d = dim(ekf);
+        const int a = 3 + 2 * j;
+        const int b = 3 + 2 * last;
+        ekf->x[a] = ekf->x[b];
+        ekf->x[a + 1] = ekf->x[b + 1];
+        /* rows first, then columns: the (a, a) block ends up as (b, b) */
+        for (int q = 0; q < 2; ++q) {
+            memcpy(&ekf->p[(long)(a + q) * D_], &ekf->p[(long)(b + q) * D_], (size_t)d * sizeof(double));
+        }
+        for (int r = 0; r < d; ++r) {
+            P_(ekf, r, a) = P_(ekf, r, b);
+            P_(ekf, r, a + 1) = P_(ekf, r, b + 1);
+        }
+        ekf->meta[j] = ekf->meta[last];
+    }
+    ekf->n_lm = last;
+}
+
+/* ---- Joint compatibility branch and bound ------------------------------ */
+
+/* Cross block S_ab = H_a P H_b^T of the joint innovation covariance for the
+ * landmarks ja and jb (the Q term belongs to the diagonal blocks only). */
+static void joint_block(const ekfslam_t *ekf, uint16_t ja, uint16_t jb, double s[2][2])
+{
+    const lm_expect_t *ea = &ekf->scratch.expect[ja];
+    const lm_expect_t *eb = &ekf->scratch.expect[jb];
+    const int ia[5] = {0, 1, 2, 3 + 2 * ja, 4 + 2 * ja};
+    const int ib[5] = {0, 1, 2, 3 + 2 * jb, 4 + 2 * jb};
+    double ha[2][5];
+    double hb[2][5];
+    for (int q = 0; q < 2; ++q) {
+        for (int r = 0; r < 3; ++r) {
+            ha[q][r] = ea->h_pose[q][r];
+            hb[q][r] = eb->h_pose[q][r];
+        }
+        ha[q][3] = ea->h_lm[q][0];
+        ha[q][4] = ea->h_lm[q][1];
+        hb[q][3] = eb->h_lm[q][0];
+        hb[q][4] = eb->h_lm[q][1];
+    }
+    /* t = P_(ia, ib) Hb^T (5 x 2), then Ha t */
+    double t[5][2];
+    for (int r1 = 0; r1 < 5; ++r1) {
+        for (int q = 0; q < 2; ++q) {
+            double acc = 0.0;
+            for (int r2 = 0; r2 < 5; ++r2) {
+                acc += P_(ekf, ia[r1], ib[r2]) * hb[q][r2];
+            }
+            t[r1][q] = acc;
+        }
+    }
+    for (int q1 = 0; q1 < 2; ++q1) {
+        for (int q2 = 0; q2 < 2; ++q2) {
+            double acc = 0.0;
+            for (int r1 = 0; r1 < 5; ++r1) {
+                acc += ha[q1][r1] * t[r1][q2];
+            }
+            s[q1][q2] = acc;
+        }
+    }
+}
+
+/*
+ * Try to extend the hypothesis of k pairings (Cholesky factor L of its joint
+ * S in chol[0..2k), y = L^-1 nu) by pair `pi`. Writes rows 2k, 2k+1 and
+ * returns the new joint squared Mahalanobis distance, or INFINITY if the
+ * joint covariance is not positive definite.
+ */
+static double jcbb_extend(ekfslam_t *ekf, const sighting_t *z, int k, int pi)
+{
+    ekfslam_scratch_t *sc = &ekf->scratch;
+    const assoc_pair_t *pa = &sc->pairs[pi];
+    const uint16_t ja = (uint16_t)pa->landmark;
+    const lm_expect_t *ea = &sc->expect[ja];
+    const int n = 2 * k;
+    double(*l)[EKFSLAM_JCBB_DIM] = sc->chol;
+    /* w = L^-1 c, c = S_(H, a); stored as the new rows' left part */
+    for (int q = 0; q < 2; ++q) {
+        for (int r = 0; r < n; ++r) {
+            l[n + q][r] = 0.0;
+        }
+    }
+    for (int b = 0; b < k; ++b) {
+        double s[2][2];
+        joint_block(ekf, (uint16_t)sc->pairs[sc->hyp_pair[b]].landmark, ja, s);
+        for (int q1 = 0; q1 < 2; ++q1) {
+            for (int q2 = 0; q2 < 2; ++q2) {
+                l[n + q2][2 * b + q1] = s[q1][q2]; /* c^T for now */
+            }
+        }
+    }
+    for (int q = 0; q < 2; ++q) {
+        for (int r = 0; r < n; ++r) {
+            double acc = l[n + q][r];
+            for (int m = 0; m < r; ++m) {
+                acc -= l[r][m] * l[n + q][m];
+            }
+            l[n + q][r] = acc / l[r][r];
+        }
+    }
+    /* Schur complement d' = S_aa - w^T w and its 2x2 Cholesky */
+    double d00 = ea->s.xx;
+    double d01 = ea->s.xy;
+    double d11 = ea->s.yy;
+    for (int r = 0; r < n; ++r) {
+        d00 -= l[n][r] * l[n][r];
+        d01 -= l[n][r] * l[n + 1][r];
+        d11 -= l[n + 1][r] * l[n + 1][r];
+    }
+    if (!(d00 > 0.0)) {
+        return INFINITY;
+    }
+    const double l00 = sqrt(d00);
+    const double l10 = d01 / l00;
+    const double rem = d11 - l10 * l10;
+    if (!(rem > 0.0)) {
+        return INFINITY;
+    }
+    const double l11 = sqrt(rem);
+    l[n][n] = l00;
+    l[n][n + 1] = 0.0;
+    l[n + 1][n] = l10;
+    l[n + 1][n + 1] = l11;
+    /* y_a = l^-1 (nu_a - w^T y) */
+    double nu[2];
+    observe_innovation(z[pa->sighting], ea->zhat, nu);
+    double d2 = 0.0;
+    for (int r = 0; r < n; ++r) {
+        nu[0] -= l[n][r] * sc->y[r];
+        nu[1] -= l[n + 1][r] * sc->y[r];
+        d2 += sc->y[r] * sc->y[r];
+    }
+    const double y0 = nu[0] / l00;
+    const double y1 = (nu[1] - l10 * y0) / l11;
+    sc->y[n] = y0;
+    sc->y[n + 1] = y1;
+    return d2 + y0 * y0 + y1 * y1;
+}
+
+static int landmark_in_hyp(const ekfslam_scratch_t *sc, int ns, int32_t j)
+{
+    for (int i = 0; i < ns; ++i) {
+        if (sc->hyp[i] == j) {
+            return 1;
+        }
+    }
+    return 0;
+}
+
+static void jcbb_search(ekfslam_t *ekf, const sighting_t *z, int ns, int i, int k, double d2)
+{
+    ekfslam_scratch_t *sc = &ekf->scratch;
+    if (sc->nodes >= ekf->cfg.jcbb_max_nodes) {
+        return;
+    }
+    sc->nodes++;
+    if (i == ns) {
+        if (k > sc->best_pairings || (k == sc->best_pairings && d2 < sc->best_d2)) {
+            sc->best_pairings = k;
+            sc->best_d2 = d2;
+            for (int q = 0; q < ns; ++q) {
+                sc->best[q] = sc->hyp[q];
+            }
+        }
+        return;
+    }
+    for (int pi = sc->cand_begin[i]; pi < sc->cand_begin[i + 1]; ++pi) {
+        const int32_t j = sc->pairs[pi].landmark;
+        if (landmark_in_hyp(sc, i, j)) {
+            continue;
+        }
+        const double d2n = jcbb_extend(ekf, z, k, pi);
+        if (d2n < sc->chi2_joint[k + 1]) {
+            sc->hyp[i] = j;
+            sc->hyp_pair[k] = pi;
+            jcbb_search(ekf, z, ns, i + 1, k + 1, d2n);
+            sc->hyp[i] = -1;
+        }
+    }
+    /* leave sighting i unpaired only if that can still tie or beat the best */
+    if (k + (ns - i - 1) >= sc->best_pairings) {
+        sc->hyp[i] = -1;
+        jcbb_search(ekf, z, ns, i + 1, k, d2);
+    }
+}
+
+/* Chi-square quantiles for 2, 4, ..., 2 ns dof at the confidence of the
+ * individual gate (Wilson-Hilferty, inverted at 2 dof to find the normal
+ * quantile, so that the 1-pair joint gate equals gate_chi2). */
+static void jcbb_thresholds(ekfslam_t *ekf, int ns)
+{
+    const double g = ekf->cfg.slam.gate_chi2;
+    const double h2 = 2.0 / 9.0 / 2.0;
+    const double zq = (cbrt(g / 2.0) - 1.0 + h2) / sqrt(h2);
+    ekf->scratch.chi2_joint[0] = 0.0;
+    ekf->scratch.chi2_joint[1] = g;
+    for (int k = 2; k <= ns; ++k) {
+        const double dof = 2.0 * k;
+        const double h = 2.0 / (9.0 * dof);
+        const double t = 1.0 - h + zq * sqrt(h);
+        ekf->scratch.chi2_joint[k] = dof * t * t * t;
+    }
+}
+
+/* Order the candidate pairs by sighting, then by individual distance, and
+ * run the search; result in scratch.assign. */
+static void jcbb_associate(ekfslam_t *ekf, const sighting_t *z, int ns, int n_pairs)
+{
+    ekfslam_scratch_t *sc = &ekf->scratch;
+    /* insertion sort by (sighting, -score): pair counts are small */
+    for (int a = 1; a < n_pairs; ++a) {
+        const assoc_pair_t v = sc->pairs[a];
+        int b = a - 1;
+        while (b >= 0 && (sc->pairs[b].sighting > v.sighting ||
+                          (sc->pairs[b].sighting == v.sighting && sc->pairs[b].score < v.score))) {
+            sc->pairs[b + 1] = sc->pairs[b];
+            --b;
+        }
+        sc->pairs[b + 1] = v;
+    }
+    int pi = 0;
+    for (int i = 0; i <= ns; ++i) {
+        while (pi < n_pairs && sc->pairs[pi].sighting < i) {
+            ++pi;
+        }
+        sc->cand_begin[i] = pi;
+    }
+    sc->cand_begin[ns] = n_pairs;
+    jcbb_thresholds(ekf, ns);
+    for (int i = 0; i < ns; ++i) {
+        sc->hyp[i] = -1;
+        sc->best[i] = -1;
+    }
+    sc->best_pairings = 0;
+    sc->best_d2 = 0.0;
+    sc->nodes = 0U;
+    jcbb_search(ekf, z, ns, 0, 0, 0.0);
+    if (sc->nodes >= ekf->cfg.jcbb_max_nodes) {
+        ekf->ctr.jcbb_budget_hits++;
+    }
+    for (int i = 0; i < ns; ++i) {
+        sc->assign[i] = sc->best[i];
+    }
+}
+
+coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
+{
+    COSLAM_ASSERT(ekf != 0 && (z_in != 0 || n_in == 0));
+    const slam_params_t *sp = &ekf->cfg.slam;
+    ekfslam_scratch_t *sc = &ekf->scratch;
+    coslam_status_t result = COSLAM_OK;
+    sighting_t z[COSLAM_MAX_SIGHTINGS];
+    int ns = 0;
+    double max_range_m = sp->sensor_max_range_m;
+    for (int i = 0; i < n_in; ++i) {
+        if (!sighting_is_valid(&z_in[i])) {
+            ekf->ctr.rejected_sightings++;
+            if (result == COSLAM_OK) {
+                result = COSLAM_E_NUMERIC;
+            }
+            continue;
+        }
+        if (ns >= COSLAM_MAX_SIGHTINGS) {
+            ekf->ctr.sighting_capacity_drops++;
+            result = COSLAM_E_CAPACITY;
+            continue;
+        }
+        z[ns] = z_in[i];
+        if (z[ns].range_m > max_range_m) {
+            max_range_m = z[ns].range_m;
+        }
+        sc->n_near[ns] = 0U;
+        ++ns;
+    }
+    ekf->ctr.updates++;
+
+    /* 1-2. expectations and gated, likelihood-ranked candidate pairs */
+    const pose2_t pose = robot_pose(ekf);
+    int n_pairs = 0;
+    for (uint16_t j = 0; j < ekf->n_lm; ++j) {
+        const int a = 3 + 2 * j;
+        const double dx = ekf->x[a] - pose.x;
+        const double dy = ekf->x[a + 1] - pose.y;
+        const double reach = max_range_m + 3.0 * sqrt(P_(ekf, a, a) + P_(ekf, a + 1, a + 1) + P_(ekf, 0, 0) +
+                                                      P_(ekf, 1, 1)) + 0.5;
+        sc->near[j] = 0;
+        sc->matched[j] = 0;
+        if (dx * dx + dy * dy > reach * reach) {
+            continue;
+        }
+        if (expect_landmark(ekf, j, &sc->expect[j]) != COSLAM_OK) {
+            ekf->ctr.numeric_faults++;
+            continue;
+        }
+        sc->near[j] = 1;
+        for (int i = 0; i < ns; ++i) {
+            if (z[i].signature != ekf->meta[j].signature) {
+                continue;
+            }
+            const double d2 = landmark_mahalanobis2(&sc->expect[j], z[i]);
+            const double ll = landmark_log_lik(&sc->expect[j], d2);
+            const assoc_class_t cls = assoc_classify(sp, d2, ll);
+            if (cls == ASSOC_ADMISSIBLE) {
+                assoc_pair_t *pr = &sc->pairs[n_pairs++];
+                pr->score = ll;
+                pr->sighting = i;
+                pr->landmark = j;
+            } else if (cls == ASSOC_NEAR && sc->n_near[i] < UINT8_MAX) {
+                sc->n_near[i]++;
+            }
+        }
+    }
+    if (ekf->cfg.assoc == EKFSLAM_ASSOC_JCBB) {
+        jcbb_associate(ekf, z, ns, n_pairs);
+    } else {
+        assoc_greedy(sc->pairs, n_pairs, ns, sc->assign);
+    }
+    /* decide now which unpaired sightings start landmarks (needs the pairs) */
+    uint8_t make_new[COSLAM_MAX_SIGHTINGS];
+    for (int i = 0; i < ns; ++i) {
+        make_new[i] = sc->assign[i] < 0 && assoc_unpaired_is_new(sc->pairs, n_pairs, i, sc->assign, ns, sc->n_near);
+    }
+
+    /* 3. sequential updates, relinearised at the current state */
+    for (int i = 0; i < ns; ++i) {
+        const int32_t j = sc->assign[i];
+        if (j < 0) {
+            continue;
+        }
+        if (update_one(ekf, (uint16_t)j, z[i]) == COSLAM_OK) {
+            ekfslam_meta_t *m = &ekf->meta[j];
+            exist_hit(&m->exist, sp);
+            if (m->n_obs < UINT16_MAX) {
+                m->n_obs++;
+            }
+        }
+        sc->matched[j] = 1;
+    }
+
+    /* 4. negative evidence, highest index first (removal swaps in the last) */
+    for (int j = (int)ekf->n_lm - 1; j >= 0; --j) {
+        if (!sc->near[j] || sc->matched[j]) {
+            continue;
+        }
+        if (landmark_should_be_seen(sp, sc->expect[j].zhat) && exist_miss(&ekf->meta[j].exist, sp)) {
+            ekfslam_remove_landmark(ekf, (uint16_t)j);
+            ekf->ctr.landmarks_removed++;
+        }
+    }
+
+    /* 5. new landmarks: the sighting in Cartesian form in the robot frame */
+    for (int i = 0; i < ns; ++i) {
+        if (!make_new[i]) {
+            continue;
+        }
+        const pose2_t origin = {0.0, 0.0, 0.0};
+        double gz[2][2];
+        observe_inverse_jacobians(origin, z[i], 0, gz);
+        cov2_t cb = cov2_congruence(gz, observe_noise(sp, z[i].range_m));
+        cb.xx += sp->noise.lm_init_var_m2;
+        cb.yy += sp->noise.lm_init_var_m2;
+        ekfslam_meta_t meta;
+        meta.id = ekf->next_id; /* committed below only if the add succeeds */
+        meta.exist = sp->exist_init;
+        meta.n_obs = 1;
+        meta.src_mask = (uint16_t)(1U << ekf->cfg.robot_id);
+        meta.signature = z[i].signature;
+        const coslam_status_t st = ekfslam_add_landmark_body(ekf, observe_inverse(origin, z[i]), cb, &meta);
+        if (st == COSLAM_OK) {
+            (void)ekfslam_new_id(ekf);
+            ekf->ctr.landmarks_added++;
+        } else if (st == COSLAM_E_CAPACITY) {
+            result = COSLAM_E_CAPACITY;
+        }
+    }
+    return result;
+}
+
+coslam_status_t ekfslam_export(ekfslam_t *ekf, map_estimate_t *out)
+{
+    const slam_params_t *sp = &ekf->cfg.slam;
+    uint16_t *order = ekf->scratch.order;
+    coslam_status_t result = COSLAM_OK;
+    ekfslam_pose(ekf, &out->pose, &out->pose_cov);
+    int n = 0;
+    for (uint16_t j = 0; j < ekf->n_lm; ++j) {
+        if (ekf->meta[j].exist >= sp->exist_confirm) {
+            order[n++] = j;
+        }
+    }
+    /* by identity (insertion sort: L is small and exports are rare) */
+    for (int i = 1; i < n; ++i) {
+        const uint16_t v = order[i];
+        int k = i - 1;
+        while (k >= 0 && ekf->meta[order[k]].id > ekf->meta[v].id) {
+            order[k + 1] = order[k];
+            --k;
+        }
+        order[k + 1] = v;
+    }
+    if (n > COSLAM_MAX_MSG_LANDMARKS) {
+        ekf->ctr.export_capacity_drops += (uint32_t)(n - COSLAM_MAX_MSG_LANDMARKS);
+        n = COSLAM_MAX_MSG_LANDMARKS;
+        result = COSLAM_E_CAPACITY;
+    }
+    for (int i = 0; i < n; ++i) {
+        const uint16_t j = order[i];
+        map_landmark_t *o = &out->lm[i];
+        ekfslam_landmark(ekf, j, &o->mean, &o->cov);
+        o->id = ekf->meta[j].id;
+        o->n_obs = ekf->meta[j].n_obs;
+        o->src_mask = ekf->meta[j].src_mask;
+        o->signature = ekf->meta[j].signature;
+    }
+    out->n_landmarks = (uint16_t)n;
+    return result;
+}

@@ -1,0 +1,218 @@
+#include "coslam/landmark.h"
+
+#include <math.h>
+
+coslam_status_t landmark_init(landmark_t *lm, const slam_params_t *params, pose2_t pose,
+                              sighting_t z, uint32_t id, uint16_t src_mask)
+{
+    double gz[2][2];
+    observe_inverse_jacobians(pose, z, 0, gz);
+    const cov2_t q = observe_noise(params, z.range_m);
+    const double w8 = params->noise.lm_init_var_m2;
+    cov2_t c = cov2_congruence(gz, q);
+    c.xx += w8;
+    c.yy += w8;
+    if (!cov2_is_pd(c)) {
+        return COSLAM_E_NOT_PD;
+    }
+    lm->mean = observe_inverse(pose, z);
+    lm->cov = c;
+    lm->id = id;
+    lm->exist = params->exist_init;
+    lm->n_obs = 1;
+    lm->src_mask = src_mask;
+    lm->signature = z.signature;
+    lm->reserved_ = 0;
+    return COSLAM_OK;
+}
+
+coslam_status_t landmark_expect(const landmark_t *lm, const slam_params_t *params, pose2_t pose,
+                                const cov3_t *pose_cov, lm_expect_t *e)
+{
+    const coslam_status_t st = observe_jacobians(pose, lm->mean, e->h_pose, e->h_lm);
+    if (st != COSLAM_OK) {
+        return st;
+    }
+    e->zhat = observe_predict(pose, lm->mean);
+    e->zhat.signature = lm->signature;
+    cov2_t s = cov2_add(cov2_congruence(e->h_lm, lm->cov), observe_noise(params, e->zhat.range_m));
+    if (pose_cov != 0) {
+        cov3_t pc = *pose_cov;
+        s = cov2_add(s, cov2_from_3x3(e->h_pose, pc.m));
+    }
+    if (cov2_inverse(s, &e->s_inv) != COSLAM_OK) {
+        return COSLAM_E_NOT_PD;
+    }
+    e->s = s;
+    e->log_norm = -log(COSLAM_TWO_PI * sqrt(cov2_det(s)));
+    return COSLAM_OK;
+}
+
+double landmark_mahalanobis2(const lm_expect_t *e, sighting_t z)
+{
+    double nu[2];
+    observe_innovation(z, e->zhat, nu);
+    const cov2_t *si = &e->s_inv;
+    return nu[0] * (si->xx * nu[0] + si->xy * nu[1]) + nu[1] * (si->xy * nu[0] + si->yy * nu[1]);
+}
+
+double landmark_log_lik(const lm_expect_t *e, double d2)
+{
+    return e->log_norm - 0.5 * d2;
+}
+
+void landmark_update(landmark_t *lm, const slam_params_t *params, const lm_expect_t *e, sighting_t z)
+{
+    double nu[2];
+    observe_innovation(z, e->zhat, nu);
+    /* K = Sigma H^T S^-1 (2x2) */
+    const cov2_t sg = lm->cov;
+    const double (*h)[2] = e->h_lm;
+    const double pht[2][2] = {
+        {sg.xx * h[0][0] + sg.xy * h[0][1], sg.xx * h[1][0] + sg.xy * h[1][1]},
+        {sg.xy * h[0][0] + sg.yy * h[0][1], sg.xy * h[1][0] + sg.yy * h[1][1]},
+    };
+    const cov2_t si = e->s_inv;
+    double k[2][2];
+    for (int r = 0; r < 2; ++r) {
+        k[r][0] = pht[r][0] * si.xx + pht[r][1] * si.xy;
+        k[r][1] = pht[r][0] * si.xy + pht[r][1] * si.yy;
+    }
+    lm->mean.x += k[0][0] * nu[0] + k[0][1] * nu[1];
+    lm->mean.y += k[1][0] * nu[0] + k[1][1] * nu[1];
+    /* Joseph form: (I - K H) Sigma (I - K H)^T + K Q K^T */
+    double a[2][2];
+    for (int r = 0; r < 2; ++r) {
+        for (int c = 0; c < 2; ++c) {
+            a[r][c] = (r == c ? 1.0 : 0.0) - (k[r][0] * h[0][c] + k[r][1] * h[1][c]);
+        }
+    }
+    const cov2_t q = observe_noise(params, e->zhat.range_m);
+    lm->cov = cov2_add(cov2_congruence(a, sg), cov2_congruence(k, q));
+    if (lm->n_obs < UINT16_MAX) {
+        lm->n_obs++;
+    }
+}
+
+int landmark_should_be_seen(const slam_params_t *params, sighting_t zhat)
+{
+    const double m = params->visibility_margin;
+    return zhat.range_m >= params->sensor_min_range_m / m && zhat.range_m <= params->sensor_max_range_m * m &&
+           fabs(zhat.bearing_rad) <= 0.5 * params->sensor_fov_rad * m;
+}
+
+void exist_hit(float *exist, const slam_params_t *params)
+{
+    const float v = *exist + params->exist_hit;
+    *exist = v > params->exist_max ? params->exist_max : v;
+}
+
+int exist_miss(float *exist, const slam_params_t *params)
+{
+    if (*exist >= params->exist_confirm) {
+        /* confirmed: may weaken down to the confirmation level, never below */
+        const float v = *exist - params->exist_miss;
+        *exist = v < params->exist_confirm ? params->exist_confirm : v;
+        return 0;
+    }
+    *exist -= params->exist_miss;
+    return *exist < 0.0f;
+}
+
+int landmark_is_confirmed(const landmark_t *lm, const slam_params_t *params)
+{
+    return lm->exist >= params->exist_confirm;
+}
+
+/* heap sort, descending by score (the heap keeps the minimum on top) */
+static void pair_sift_down(assoc_pair_t *a, int start, int end)
+{
+    int root = start;
+    while (2 * root + 1 <= end) {
+        int child = 2 * root + 1;
+        int sw = root;
+        if (a[sw].score > a[child].score) {
+            sw = child;
+        }
+        if (child + 1 <= end && a[sw].score > a[child + 1].score) {
+            sw = child + 1;
+        }
+        if (sw == root) {
+            return;
+        }
+        const assoc_pair_t t = a[root];
+        a[root] = a[sw];
+        a[sw] = t;
+        root = sw;
+    }
+}
+
+void assoc_greedy(assoc_pair_t *pairs, int n_pairs, int ns, int32_t *assign)
+{
+    for (int i = 0; i < ns; ++i) {
+        assign[i] = -1;
+    }
+    for (int start = n_pairs / 2 - 1; start >= 0; --start) {
+        pair_sift_down(pairs, start, n_pairs - 1);
+    }
+    for (int end = n_pairs - 1; end > 0; --end) {
+        const assoc_pair_t t = pairs[0];
+        pairs[0] = pairs[end];
+        pairs[end] = t;
+        pair_sift_down(pairs, 0, end - 1);
+    }
+    int n_assigned = 0;
+    for (int p = 0; p < n_pairs && n_assigned < ns; ++p) {
+        const int i = pairs[p].sighting;
+        const int j = pairs[p].landmark;
+        if (assign[i] >= 0) {
+            continue;
+        }
+        int taken = 0;
+        for (int k = 0; k < ns; ++k) {
+            if (assign[k] == j) {
+                taken = 1;
+                break;
+            }
+        }
+        if (!taken) {
+            assign[i] = j;
+            ++n_assigned;
+        }
+    }
+}
+
+assoc_class_t assoc_classify(const slam_params_t *params, double d2, double ll)
+{
+    if (!(d2 < params->new_landmark_chi2)) {
+        return ASSOC_FAR;
+    }
+    if (d2 < params->gate_chi2 && ll >= params->new_landmark_log_lik) {
+        return ASSOC_ADMISSIBLE;
+    }
+    return ASSOC_NEAR;
+}
+
+int assoc_unpaired_is_new(const assoc_pair_t *pairs, int n_pairs, int i, const int32_t *assign, int ns,
+                          const uint8_t *n_near)
+{
+    if (n_near[i] != 0U) {
+        return 0;
+    }
+    for (int p = 0; p < n_pairs; ++p) {
+        if (pairs[p].sighting != i) {
+            continue;
+        }
+        int taken = 0;
+        for (int q = 0; q < ns; ++q) {
+            if (q != i && assign[q] == pairs[p].landmark) {
+                taken = 1;
+                break;
+            }
+        }
+        if (!taken) {
+            return 0;
+        }
+    }
+    return 1;
+}

@@ -1,0 +1,30 @@
+#include "coslam/status.h"
+
+const char *coslam_status_str(coslam_status_t status)
+{
+    switch (status) {
+    case COSLAM_OK: return "OK";
+    case COSLAM_E_ARG: return "E_ARG";
+    case COSLAM_E_CAPACITY: return "E_CAPACITY";
+    case COSLAM_E_NUMERIC: return "E_NUMERIC";
+    case COSLAM_E_NOT_PD: return "E_NOT_PD";
+    case COSLAM_E_EMPTY: return "E_EMPTY";
+    case COSLAM_E_DEGENERATE: return "E_DEGENERATE";
+    case COSLAM_E_STALE: return "E_STALE";
+    case COSLAM_E_MSG_TRUNCATED: return "E_MSG_TRUNCATED";
+    case COSLAM_E_MSG_MAGIC: return "E_MSG_MAGIC";
+    case COSLAM_E_MSG_VERSION: return "E_MSG_VERSION";
+    case COSLAM_E_MSG_LENGTH: return "E_MSG_LENGTH";
+    case COSLAM_E_MSG_CRC: return "E_MSG_CRC";
+    case COSLAM_E_MSG_COUNT: return "E_MSG_COUNT";
+    case COSLAM_E_MSG_NONFINITE: return "E_MSG_NONFINITE";
+    case COSLAM_E_MSG_COVARIANCE: return "E_MSG_COVARIANCE";
+    case COSLAM_E_MSG_FIELD: return "E_MSG_FIELD";
+    case COSLAM_E_MSG_DUPLICATE: return "E_MSG_DUPLICATE";
+    case COSLAM_E_MERGE_SELF: return "E_MERGE_SELF";
+    case COSLAM_E_MERGE_STALE: return "E_MERGE_STALE";
+    case COSLAM_E_MERGE_REPLAY: return "E_MERGE_REPLAY";
+    case COSLAM_E_UNSUPPORTED: return "E_UNSUPPORTED";
+    }
+    return "E_UNKNOWN";
+}

@@ -1,0 +1,166 @@
+#define _POSIX_C_SOURCE 199309L
+#include "slam_run.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+run_opts_t run_opts_default(run_filter_t filter)
+{
+    run_opts_t o;
+    memset(&o, 0, sizeof o);
+    o.filter = filter;
+    o.n_particles = COSLAM_MAX_PARTICLES < 100 ? COSLAM_MAX_PARTICLES : 100;
+    o.params = slam_params_default();
+    o.filter_seed = 12345U;
+    o.gate_m = 1.0;
+    o.min_seen = 5;
+    return o;
+}
+
+static double now_us(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec * 1e6 + (double)ts.tv_nsec * 1e-3;
+}
+
+void run_trace_free(run_trace_t *trace)
+{
+    free(trace->t);
+    free(trace->est);
+    free(trace->truth);
+    memset(trace, 0, sizeof *trace);
+}
+
+int run_synth(const synth_config_t *scfg, const run_opts_t *opts, run_result_t *res)
+{
+    return run_synth_traced(scfg, opts, res, NULL);
+}
+
+int run_synth_traced(const synth_config_t *scfg, const run_opts_t *opts, run_result_t *res, run_trace_t *trace)
+{
+    memset(res, 0, sizeof *res);
+    synth_world_t *w = malloc(sizeof *w);
+    synth_step_t *st = malloc(sizeof *st);
+    fastslam_t *fs = NULL;
+    ekfslam_t *ekf = NULL;
+    if (w == NULL || st == NULL) {
+        free(w);
+        free(st);
+        return -1;
+    }
+    synth_init(w, scfg);
+    if (trace != NULL) {
+        memset(trace, 0, sizeof *trace);
+        trace->t = malloc(sizeof(double) * (size_t)w->n_steps);
+        trace->est = malloc(sizeof(pose2_t) * (size_t)w->n_steps);
+        trace->truth = malloc(sizeof(pose2_t) * (size_t)w->n_steps);
+    }
+    const pose2_t start = synth_start_pose(scfg);
+    if (opts->filter == RUN_EKFSLAM) {
+        ekf = malloc(sizeof *ekf);
+        ekfslam_config_t c = ekfslam_config_default();
+        c.slam = opts->params;
+        if (ekf == NULL || ekfslam_init(ekf, &c, start) != COSLAM_OK) {
+            free(ekf);
+            free(w);
+            free(st);
+            return -1;
+        }
+    } else {
+        fs = malloc(sizeof *fs);
+        fastslam_config_t c = fastslam_config_default();
+        c.slam = opts->params;
+        c.n_particles = (uint16_t)opts->n_particles;
+        if (opts->ess_fraction > 0.0) {
+            c.resample_ess_fraction = opts->ess_fraction;
+        }
+        c.proposal = opts->filter == RUN_FASTSLAM2 ? FASTSLAM_PROPOSAL_OPTIMAL : FASTSLAM_PROPOSAL_MOTION;
+        if (fs == NULL || fastslam_init(fs, &c, start, opts->filter_seed) != COSLAM_OK) {
+            free(fs);
+            free(w);
+            free(st);
+            return -1;
+        }
+    }
+    pose2_t odo = start;
+    double se = 0.0;
+    double se_h = 0.0;
+    double se_odo = 0.0;
+    double nees_sum = 0.0;
+    double t_sum = 0.0;
+    pose2_t est = start;
+    cov3_t cov = cov3_zero();
+    while (synth_next(w, st)) {
+        const double t0 = now_us();
+        coslam_status_t s1;
+        coslam_status_t s2 = COSLAM_OK;
+        if (ekf != NULL) {
+            s1 = ekfslam_predict(ekf, st->u);
+            if (st->is_frame) {
+                s2 = ekfslam_update(ekf, st->z, st->n_z);
+            }
+        } else {
+            s1 = fastslam_predict(fs, st->u);
+            if (st->is_frame) {
+                s2 = fastslam_update(fs, st->z, st->n_z);
+                res->ess_mean += fs->last_ess / fs->cfg.n_particles;
+            }
+        }
+        const double dt = now_us() - t0;
+        t_sum += dt;
+        if (dt > res->step_us_max) {
+            res->step_us_max = dt;
+        }
+        if (s1 == COSLAM_E_CAPACITY || s2 == COSLAM_E_CAPACITY) {
+            res->capacity_errors++;
+        }
+        if (ekf != NULL) {
+            ekfslam_pose(ekf, &est, &cov);
+        } else {
+            fastslam_pose_estimate(fs, &est, &cov);
+        }
+        odo = motion_apply(odo, st->u);
+        const double ex = est.x - st->true_pose.x;
+        const double ey = est.y - st->true_pose.y;
+        const double eh = angle_wrap(est.theta - st->true_pose.theta);
+        se += ex * ex + ey * ey;
+        se_h += eh * eh;
+        const double ox = odo.x - st->true_pose.x;
+        const double oy = odo.y - st->true_pose.y;
+        se_odo += ox * ox + oy * oy;
+        if (trace != NULL && trace->n < w->n_steps) {
+            trace->t[trace->n] = st->t_s;
+            trace->est[trace->n] = est;
+            trace->truth[trace->n] = st->true_pose;
+            trace->n++;
+        }
+        res->n_steps++;
+        if (st->is_frame) {
+            res->n_frames++;
+            nees_sum += nees_pose(est, cov, st->true_pose);
+        }
+        res->final_pos_err_m = sqrt(ex * ex + ey * ey);
+    }
+    res->pose_nees_final = nees_pose(est, cov, st->true_pose);
+    res->pose_nees_mean = res->n_frames > 0 ? nees_sum / res->n_frames : 0.0;
+    res->pose_rmse_m = sqrt(se / res->n_steps);
+    res->heading_rmse_rad = sqrt(se_h / res->n_steps);
+    res->odo_rmse_m = sqrt(se_odo / res->n_steps);
+    res->step_us_mean = t_sum / res->n_steps;
+    if (ekf != NULL) {
+        (void)ekfslam_export(ekf, &res->estimate);
+    } else {
+        (void)fastslam_export(fs, &res->estimate);
+        res->resamples = fs->ctr.resamples;
+        res->ess_mean /= res->n_frames > 0 ? res->n_frames : 1;
+    }
+    eval_map(&res->estimate, w->lm, w->n_seen, w->n_lm, opts->min_seen, opts->gate_m, &res->map);
+    free(fs);
+    free(ekf);
+    free(w);
+    free(st);
+    return 0;
+}

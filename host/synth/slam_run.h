@@ -1,0 +1,70 @@
+/*
+ * slam_run.h - drive a filter of the core through a synthetic run and
+ * measure it against ground truth. Shared by the core tests and the
+ * benchmark so both measure the same thing.
+ */
+#ifndef COSLAM_TEST_SLAM_RUN_H
+#define COSLAM_TEST_SLAM_RUN_H
+
+#include "coslam/ekfslam.h"
+#include "coslam/fastslam.h"
+#include "stats.h"
+#include "synth.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum { RUN_FASTSLAM1 = 1, RUN_FASTSLAM2 = 2, RUN_EKFSLAM = 3 } run_filter_t;
+
+typedef struct {
+    run_filter_t filter;
+    int n_particles;            /**< Fast-SLAM only */
+    slam_params_t params;       /**< the filter's model (usually = the truth's) */
+    uint64_t filter_seed;
+    double gate_m;              /**< landmark matching gate for evaluation */
+    int min_seen;               /**< a true landmark counts as missed only if seen this often */
+    double ess_fraction;        /**< Fast-SLAM resampling threshold (0: default) */
+} run_opts_t;
+
+typedef struct {
+    int n_steps;
+    int n_frames;
+    double pose_rmse_m;         /**< position RMSE over all steps */
+    double heading_rmse_rad;
+    double final_pos_err_m;
+    double odo_rmse_m;          /**< dead reckoning position RMSE on the same run */
+    double pose_nees_final;     /**< NEES (3 dof) at the last step */
+    double pose_nees_mean;      /**< NEES averaged over the frames */
+    map_eval_t map;
+    double step_us_mean;        /**< wall time per control step (predict + update) */
+    double step_us_max;
+    uint32_t capacity_errors;
+    uint32_t resamples;         /**< Fast-SLAM resampling events */
+    double ess_mean;            /**< Fast-SLAM mean ESS fraction after updates */
+    map_estimate_t estimate;    /**< final exported map */
+} run_result_t;
+
+/** Per-step trajectories of a run (heap arrays, free with run_trace_free). */
+typedef struct {
+    int n;
+    double *t;
+    pose2_t *est;
+    pose2_t *truth;
+} run_trace_t;
+
+run_opts_t run_opts_default(run_filter_t filter);
+
+/** Run one synthetic episode. Returns 0 on success. Allocates the filter state
+ *  on the heap (this is host test code). */
+int run_synth(const synth_config_t *scfg, const run_opts_t *opts, run_result_t *res);
+
+/** As run_synth, also recording the estimated and true paths into `trace`. */
+int run_synth_traced(const synth_config_t *scfg, const run_opts_t *opts, run_result_t *res, run_trace_t *trace);
+void run_trace_free(run_trace_t *trace);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif

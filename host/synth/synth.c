@@ -1,0 +1,133 @@
+#include "synth.h"
+
+#include <math.h>
+#include <string.h>
+
+synth_config_t synth_config_default(uint64_t seed, int n_landmarks)
+{
+    synth_config_t c;
+    memset(&c, 0, sizeof c);
+    c.seed = seed;
+    c.n_landmarks = n_landmarks;
+    c.n_signatures = 1;
+    c.loop_radius_m = 4.0;
+    c.ring_half_width_m = 3.0;
+    c.min_separation_m = 0.5;
+    c.loops = 1.25;
+    c.speed_mps = 0.3;
+    c.dt_s = 0.1;
+    c.camera_every = 2;
+    c.p_detect = 0.9;
+    c.clutter_per_frame = 0.0;
+    c.truth = slam_params_default();
+    return c;
+}
+
+pose2_t synth_start_pose(const synth_config_t *cfg)
+{
+    const pose2_t p = {cfg->loop_radius_m, 0.0, COSLAM_PI / 2.0};
+    return p;
+}
+
+void synth_init(synth_world_t *w, const synth_config_t *cfg)
+{
+    memset(w, 0, sizeof *w);
+    w->cfg = *cfg;
+    rng_seed(&w->rng, cfg->seed);
+    const int want = cfg->n_landmarks < SYNTH_MAX_LANDMARKS ? cfg->n_landmarks : SYNTH_MAX_LANDMARKS;
+    const double r_in = cfg->loop_radius_m - cfg->ring_half_width_m;
+    const double r_out = cfg->loop_radius_m + cfg->ring_half_width_m;
+    /* relax the separation if the ring is too crowded for it */
+    double sep = cfg->min_separation_m;
+    int tries = 0;
+    while (w->n_lm < want) {
+        /* uniform in the ring (area-weighted radius) */
+        const double u = rng_uniform(&w->rng);
+        const double rad = sqrt(r_in * r_in + u * (r_out * r_out - r_in * r_in));
+        const double ang = COSLAM_TWO_PI * rng_uniform(&w->rng);
+        const point2_t p = {rad * cos(ang), rad * sin(ang)};
+        int ok = 1;
+        for (int j = 0; j < w->n_lm && ok; ++j) {
+            const double dx = p.x - w->lm[j].x;
+            const double dy = p.y - w->lm[j].y;
+            ok = dx * dx + dy * dy >= sep * sep;
+        }
+        if (ok) {
+            w->sig[w->n_lm] = (uint8_t)(cfg->n_signatures > 1 ? rng_below(&w->rng, (uint32_t)cfg->n_signatures) : 0);
+            w->lm[w->n_lm++] = p;
+        } else if (++tries > 200000) {
+            sep *= 0.9;
+            tries = 0;
+        }
+    }
+    w->pose = synth_start_pose(cfg);
+    const double length = cfg->loops * COSLAM_TWO_PI * cfg->loop_radius_m;
+    w->n_steps = (int)ceil(length / (cfg->speed_mps * cfg->dt_s));
+}
+
+static int poisson(rng_t *rng, double mean)
+{
+    if (mean <= 0.0) {
+        return 0;
+    }
+    const double l = exp(-mean);
+    int k = 0;
+    double p = 1.0;
+    do {
+        ++k;
+        p *= rng_uniform(rng);
+    } while (p > l && k < 1000);
+    return k - 1;
+}
+
+int synth_next(synth_world_t *w, synth_step_t *s)
+{
+    const synth_config_t *c = &w->cfg;
+    if (w->step >= w->n_steps) {
+        return 0;
+    }
+    /* true motion: a circular arc; the odometry reports it with noise */
+    const odo_increment_t u_true =
+        motion_from_body_velocity(c->speed_mps, 0.0, c->speed_mps / c->loop_radius_m, c->dt_s);
+    s->u = motion_sample(&c->truth, u_true, &w->rng);
+    w->pose = motion_apply(w->pose, u_true);
+    w->step++;
+    s->true_pose = w->pose;
+    s->t_s = w->step * c->dt_s;
+    s->n_z = 0;
+    s->is_frame = (w->step % c->camera_every) == 0;
+    if (!s->is_frame) {
+        return 1;
+    }
+    const slam_params_t *sp = &c->truth;
+    for (int j = 0; j < w->n_lm && s->n_z < SYNTH_MAX_Z; ++j) {
+        const sighting_t zt = observe_predict(w->pose, w->lm[j]);
+        if (zt.range_m < sp->sensor_min_range_m || zt.range_m > sp->sensor_max_range_m ||
+            fabs(zt.bearing_rad) > 0.5 * sp->sensor_fov_rad) {
+            continue;
+        }
+        if (rng_uniform(&w->rng) >= c->p_detect) {
+            continue;
+        }
+        const cov2_t q = observe_noise(sp, zt.range_m);
+        sighting_t z;
+        z.range_m = zt.range_m + sqrt(q.xx) * rng_gauss(&w->rng);
+        z.bearing_rad = angle_wrap(zt.bearing_rad + sqrt(q.yy) * rng_gauss(&w->rng));
+        z.signature = w->sig[j];
+        s->z[s->n_z] = z;
+        s->true_id[s->n_z] = j;
+        s->n_z++;
+        w->n_seen[j]++;
+    }
+    const int n_clutter = poisson(&w->rng, c->clutter_per_frame);
+    for (int k = 0; k < n_clutter && s->n_z < SYNTH_MAX_Z; ++k) {
+        sighting_t z;
+        z.range_m = sp->sensor_min_range_m + rng_uniform(&w->rng) * (sp->sensor_max_range_m - sp->sensor_min_range_m);
+        z.bearing_rad = (rng_uniform(&w->rng) - 0.5) * sp->sensor_fov_rad;
+        z.signature = (uint8_t)(c->n_signatures > 1 ? rng_below(&w->rng, (uint32_t)c->n_signatures) : 0);
+        s->z[s->n_z] = z;
+        s->true_id[s->n_z] = -1;
+        s->n_z++;
+    }
+    return 1;
+}

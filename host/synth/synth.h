@@ -1,0 +1,91 @@
+/*
+ * synth.h - seeded synthetic runs for the core tests and benchmarks.
+ *
+ * A robot drives `loops` times around a circle of radius loop_radius_m at
+ * constant speed among n_landmarks point landmarks scattered (uniform, with
+ * a minimum separation) in a ring of +- ring_half_width_m around the path.
+ * Landmarks are non-unique: every sighting carries signature 0 (or one of
+ * n_signatures classes) and the true identity is kept only for evaluation.
+ *
+ * Each control step yields a noisy odometry increment drawn from the
+ * project's motion model (so the filter's model is the truth's model), and
+ * every camera_every steps a camera frame: every landmark inside the sensor
+ * footprint is detected with probability p_detect and sighted with the
+ * range-bearing noise of the observation model; clutter_per_frame false
+ * sightings (Poisson mean) are added uniformly over the footprint.
+ */
+#ifndef COSLAM_TEST_SYNTH_H
+#define COSLAM_TEST_SYNTH_H
+
+#include <stdint.h>
+
+#include "coslam/config.h"
+#include "coslam/motion.h"
+#include "coslam/observe.h"
+#include "coslam/pose2.h"
+#include "coslam/rng.h"
+#include "coslam/slam_params.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define SYNTH_MAX_LANDMARKS 2048
+#define SYNTH_MAX_Z 64
+
+typedef struct {
+    uint64_t seed;
+    int n_landmarks;
+    int n_signatures;           /**< 1 = all landmarks alike */
+    double loop_radius_m;
+    double ring_half_width_m;
+    double min_separation_m;
+    double loops;               /**< turns around the circle */
+    double speed_mps;
+    double dt_s;
+    int camera_every;           /**< a camera frame every k control steps */
+    double p_detect;
+    double clutter_per_frame;
+    slam_params_t truth;        /**< noise and sensor footprint of the truth */
+} synth_config_t;
+
+typedef struct {
+    odo_increment_t u;          /**< measured (noisy) odometry of this step */
+    pose2_t true_pose;          /**< true pose after the step */
+    double t_s;
+    int is_frame;
+    int n_z;
+    sighting_t z[SYNTH_MAX_Z];
+    int32_t true_id[SYNTH_MAX_Z]; /**< index of the true landmark, -1 for clutter */
+} synth_step_t;
+
+typedef struct {
+    synth_config_t cfg;
+    rng_t rng;
+    int n_lm;
+    point2_t lm[SYNTH_MAX_LANDMARKS];
+    uint8_t sig[SYNTH_MAX_LANDMARKS];
+    int n_seen[SYNTH_MAX_LANDMARKS]; /**< detections so far */
+    pose2_t pose;
+    int step;
+    int n_steps;
+} synth_world_t;
+
+/** Paper-scale defaults: radius 4 m, 1.25 loops at 0.3 m/s, 10 Hz odometry,
+ *  5 Hz camera, p_detect 0.9, no clutter, slam_params_default() noise. */
+synth_config_t synth_config_default(uint64_t seed, int n_landmarks);
+
+/** Build the world (landmarks, start pose (R, 0, pi/2) on the circle). */
+void synth_init(synth_world_t *w, const synth_config_t *cfg);
+
+/** Advance one control step; returns 0 when the run is over. */
+int synth_next(synth_world_t *w, synth_step_t *s);
+
+/** Start pose of the run (the filters start here: the map frame is the world). */
+pose2_t synth_start_pose(const synth_config_t *cfg);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif
