@@ -59,6 +59,22 @@
 #define COSLAM_MAX_EXPORT_IDS (4 * COSLAM_MAX_LANDMARKS)
 #endif
 
+/** Occupancy grid size in cells (x, y) and cell edge [mm] (log-odds grid). */
+#ifndef COSLAM_GRID_CELLS_X
+#define COSLAM_GRID_CELLS_X 200
+#endif
+#ifndef COSLAM_GRID_CELLS_Y
+#define COSLAM_GRID_CELLS_Y 200
+#endif
+#ifndef COSLAM_GRID_CELL_MM
+#define COSLAM_GRID_CELL_MM 50
+#endif
+
+/** Range readings in one laser scan (URG-04LX: 682 steps; UTM-30LX: 1081). */
+#ifndef COSLAM_MAX_SCAN_POINTS
+#define COSLAM_MAX_SCAN_POINTS 1081
+#endif
+
 /** Robots in a team; bounds robot ids and the per-landmark provenance mask. */
 #ifndef COSLAM_MAX_ROBOTS
 #define COSLAM_MAX_ROBOTS 16
@@ -82,6 +98,15 @@
 #endif
 #if COSLAM_MAX_EXPORT_IDS < COSLAM_MAX_LANDMARKS
 #error "COSLAM_MAX_EXPORT_IDS must be at least COSLAM_MAX_LANDMARKS"
+#endif
+#if COSLAM_GRID_CELLS_X < 8 || COSLAM_GRID_CELLS_X > 4096 || COSLAM_GRID_CELLS_Y < 8 || COSLAM_GRID_CELLS_Y > 4096
+#error "COSLAM_GRID_CELLS_X/Y must be in [8, 4096]"
+#endif
+#if COSLAM_GRID_CELL_MM < 5 || COSLAM_GRID_CELL_MM > 1000
+#error "COSLAM_GRID_CELL_MM must be in [5, 1000]"
+#endif
+#if COSLAM_MAX_SCAN_POINTS < 16 || COSLAM_MAX_SCAN_POINTS > 4096
+#error "COSLAM_MAX_SCAN_POINTS must be in [16, 4096]"
 #endif
 #if COSLAM_MAX_ROBOTS < 2 || COSLAM_MAX_ROBOTS > 16
 #error "COSLAM_MAX_ROBOTS must be in [2, 16] (provenance is a 16-bit mask)"
