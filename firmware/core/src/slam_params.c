@@ -44,7 +44,7 @@ slam_params_t slam_params_default(void)
     p.sensor_fov_rad = 50.0 * 3.14159265358979323846 / 180.0;
     p.visibility_margin = 0.9;
     p.gate_chi2 = 9.21;           /* 99 % of chi-square, 2 dof */
-    p.new_landmark_chi2 = 13.82;  /* 99.9 % */
+    p.new_landmark_chi2 = 25.0;   /* 5 sigma: nearer sightings are ambiguous, not new */
     p.new_landmark_log_lik = -1.0;
     p.exist_init = 1.0f;
     p.exist_hit = 1.0f;

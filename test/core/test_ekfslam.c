@@ -1,0 +1,339 @@
+/* EKF-SLAM against an independent dense implementation, Monte Carlo checks
+ * of landmark initialisation, state bookkeeping, JCBB versus NN, bad input. */
+#include "test_util.h"
+
+#include <string.h>
+
+#include "coslam/ekfslam.h"
+#include "coslam/rng.h"
+
+static ekfslam_t g_ekf;
+
+#define PE(e, r, c) ((e)->p[(long)(r) * EKFSLAM_DIM + (c)])
+
+static ekfslam_config_t config(void)
+{
+    ekfslam_config_t c = ekfslam_config_default();
+    c.slam.noise.range_var_m2 = 0.01;
+    c.slam.noise.range_var_per_m2 = 0.0;
+    c.slam.noise.bearing_var_rad2 = 0.0025;
+    c.slam.noise.init_xy_var_m2 = 0.04;
+    c.slam.noise.init_theta_var_rad2 = 0.01;
+    return c;
+}
+
+/* --- small dense helpers (independent of the code under test) ---------- */
+#define N5 7 /* robot + 2 landmarks */
+
+static void dense_kalman(int n, double p[N5][N5], double x[N5], double h[2][N5], const double nu[2],
+                         const double q[2][2])
+{
+    double pht[N5][2];
+    for (int r = 0; r < n; ++r) {
+        for (int c = 0; c < 2; ++c) {
+            pht[r][c] = 0.0;
+            for (int k = 0; k < n; ++k) {
+                pht[r][c] += p[r][k] * h[c][k];
+            }
+        }
+    }
+    double s[2][2];
+    for (int a = 0; a < 2; ++a) {
+        for (int b = 0; b < 2; ++b) {
+            s[a][b] = q[a][b];
+            for (int k = 0; k < n; ++k) {
+                s[a][b] += h[a][k] * pht[k][b];
+            }
+        }
+    }
+    const double det = s[0][0] * s[1][1] - s[0][1] * s[1][0];
+    const double si[2][2] = {{s[1][1] / det, -s[0][1] / det}, {-s[1][0] / det, s[0][0] / det}};
+    double k[N5][2];
+    for (int r = 0; r < n; ++r) {
+        k[r][0] = pht[r][0] * si[0][0] + pht[r][1] * si[1][0];
+        k[r][1] = pht[r][0] * si[0][1] + pht[r][1] * si[1][1];
+        x[r] += k[r][0] * nu[0] + k[r][1] * nu[1];
+    }
+    double np[N5][N5];
+    for (int r = 0; r < n; ++r) {
+        for (int c = 0; c < n; ++c) {
+            np[r][c] = p[r][c] - (k[r][0] * pht[c][0] + k[r][1] * pht[c][1]);
+        }
+    }
+    memcpy(p, np, sizeof np);
+}
+
+static void test_predict_analytic(void **state)
+{
+    (void)state;
+    ekfslam_config_t c = config();
+    const pose2_t p0 = {1.0, 2.0, 0.3};
+    assert_int_equal(ekfslam_init(&g_ekf, &c, p0), COSLAM_OK);
+    const sighting_t z = {2.0, 0.2, 0};
+    assert_int_equal(ekfslam_update(&g_ekf, &z, 1), COSLAM_OK);
+    assert_int_equal(g_ekf.n_lm, 1);
+    double prm[3][2];
+    cov3_t prr;
+    for (int r = 0; r < 3; ++r) {
+        for (int k = 0; k < 3; ++k) {
+            prr.m[r][k] = PE(&g_ekf, r, k);
+        }
+        prm[r][0] = PE(&g_ekf, r, 3);
+        prm[r][1] = PE(&g_ekf, r, 4);
+    }
+    const odo_increment_t u = {0.3, -0.1, 0.2};
+    double g[3][3];
+    double v[3][3];
+    motion_jacobians(p0, u, g, v);
+    const cov3_t expect = cov3_add(cov3_congruence(g, prr), cov3_congruence(v, motion_noise_cov(&c.slam, u)));
+    assert_int_equal(ekfslam_predict(&g_ekf, u), COSLAM_OK);
+    const pose2_t np = motion_apply(p0, u);
+    ASSERT_NEAR(g_ekf.x[0], np.x, 1e-12);
+    ASSERT_NEAR(g_ekf.x[2], np.theta, 1e-12);
+    for (int r = 0; r < 3; ++r) {
+        for (int k = 0; k < 3; ++k) {
+            ASSERT_NEAR(PE(&g_ekf, r, k), expect.m[r][k], 1e-12);
+        }
+        for (int k = 0; k < 2; ++k) {
+            const double want = g[r][0] * prm[0][k] + g[r][1] * prm[1][k] + g[r][2] * prm[2][k];
+            ASSERT_NEAR(PE(&g_ekf, r, 3 + k), want, 1e-12);
+            ASSERT_NEAR(PE(&g_ekf, 3 + k, r), want, 1e-12);
+        }
+    }
+}
+
+/* One sighting of a known landmark against a dense textbook EKF update. */
+static void test_update_against_dense(void **state)
+{
+    (void)state;
+    ekfslam_config_t c = config();
+    const pose2_t p0 = {0.5, -0.2, 0.4};
+    assert_int_equal(ekfslam_init(&g_ekf, &c, p0), COSLAM_OK);
+    const sighting_t z0[2] = {{2.0, 0.3, 0}, {3.0, -0.25, 1}};
+    assert_int_equal(ekfslam_update(&g_ekf, z0, 2), COSLAM_OK);
+    assert_int_equal(g_ekf.n_lm, 2);
+    const odo_increment_t u = {0.2, 0.05, 0.05};
+    assert_int_equal(ekfslam_predict(&g_ekf, u), COSLAM_OK);
+    /* copy the state into the dense reference */
+    double p[N5][N5];
+    double x[N5];
+    for (int r = 0; r < N5; ++r) {
+        x[r] = g_ekf.x[r];
+        for (int k = 0; k < N5; ++k) {
+            p[r][k] = PE(&g_ekf, r, k);
+        }
+    }
+    /* sighting of landmark 1 (signature 1), slightly off the prediction */
+    const pose2_t pose = {x[0], x[1], x[2]};
+    const point2_t m = {x[5], x[6]};
+    const sighting_t zhat = observe_predict(pose, m);
+    const sighting_t z = {zhat.range_m + 0.03, zhat.bearing_rad - 0.02, 1};
+    double hp[2][3];
+    double hm[2][2];
+    assert_int_equal(observe_jacobians(pose, m, hp, hm), COSLAM_OK);
+    double h[2][N5] = {{0}};
+    for (int q = 0; q < 2; ++q) {
+        h[q][0] = hp[q][0];
+        h[q][1] = hp[q][1];
+        h[q][2] = hp[q][2];
+        h[q][5] = hm[q][0];
+        h[q][6] = hm[q][1];
+    }
+    const double nu[2] = {0.03, -0.02};
+    const double q[2][2] = {{0.01, 0.0}, {0.0, 0.0025}};
+    dense_kalman(N5, p, x, h, nu, q);
+    assert_int_equal(ekfslam_update(&g_ekf, &z, 1), COSLAM_OK);
+    assert_int_equal(g_ekf.n_lm, 2);
+    for (int r = 0; r < N5; ++r) {
+        ASSERT_NEAR(g_ekf.x[r], x[r], 1e-10);
+        for (int k = 0; k < N5; ++k) {
+            ASSERT_NEAR(PE(&g_ekf, r, k), p[r][k], 1e-10);
+            ASSERT_NEAR(PE(&g_ekf, r, k), PE(&g_ekf, k, r), 0.0); /* exactly symmetric */
+        }
+    }
+}
+
+/* Landmark initialisation: the covariance block and the cross-covariance
+ * with the robot against a Monte Carlo of 10^5 samples of the robot pose
+ * and the sighting noise. */
+static void test_add_landmark_monte_carlo(void **state)
+{
+    (void)state;
+    ekfslam_config_t c = config();
+    c.slam.noise.init_xy_var_m2 = 0.01;
+    c.slam.noise.init_theta_var_rad2 = 0.0025;
+    const pose2_t p0 = {1.0, 2.0, 0.7};
+    assert_int_equal(ekfslam_init(&g_ekf, &c, p0), COSLAM_OK);
+    const sighting_t z = {2.5, -0.4, 0};
+    assert_int_equal(ekfslam_update(&g_ekf, &z, 1), COSLAM_OK);
+    rng_t rng;
+    rng_seed(&rng, 77U);
+    const int n = 100000;
+    double sxx = 0, sxy = 0, syy = 0, sxr[2][3] = {{0}};
+    const point2_t m0 = observe_inverse(p0, z);
+    for (int i = 0; i < n; ++i) {
+        const double d[3] = {0.1 * rng_gauss(&rng), 0.1 * rng_gauss(&rng), 0.05 * rng_gauss(&rng)};
+        const pose2_t p = {p0.x + d[0], p0.y + d[1], p0.theta + d[2]};
+        const sighting_t zs = {z.range_m + 0.1 * rng_gauss(&rng), z.bearing_rad + 0.05 * rng_gauss(&rng), 0};
+        const point2_t m = observe_inverse(p, zs);
+        const double ex = m.x - m0.x;
+        const double ey = m.y - m0.y;
+        sxx += ex * ex;
+        sxy += ex * ey;
+        syy += ey * ey;
+        for (int k = 0; k < 3; ++k) {
+            sxr[0][k] += ex * d[k];
+            sxr[1][k] += ey * d[k];
+        }
+    }
+    /* linearisation + sampling: agreement within 5 % of the scale */
+    const double scale = sqrt(PE(&g_ekf, 3, 3) * PE(&g_ekf, 4, 4));
+    ASSERT_NEAR(PE(&g_ekf, 3, 3), sxx / n, 0.05 * scale);
+    ASSERT_NEAR(PE(&g_ekf, 3, 4), sxy / n, 0.05 * scale);
+    ASSERT_NEAR(PE(&g_ekf, 4, 4), syy / n, 0.05 * scale);
+    for (int k = 0; k < 3; ++k) {
+        const double sk = sqrt(PE(&g_ekf, k, k));
+        ASSERT_NEAR(PE(&g_ekf, 3, k), sxr[0][k] / n, 0.05 * sqrt(PE(&g_ekf, 3, 3)) * sk);
+        ASSERT_NEAR(PE(&g_ekf, 4, k), sxr[1][k] / n, 0.05 * sqrt(PE(&g_ekf, 4, 4)) * sk);
+    }
+}
+
+static void test_remove_keeps_the_rest(void **state)
+{
+    (void)state;
+    ekfslam_config_t c = config();
+    c.slam.exist_confirm = c.slam.exist_init;
+    const pose2_t p0 = {0.0, 0.0, 0.0};
+    assert_int_equal(ekfslam_init(&g_ekf, &c, p0), COSLAM_OK);
+    const sighting_t z[3] = {{2.0, 0.3, 0}, {3.0, -0.25, 1}, {1.5, 0.1, 2}};
+    assert_int_equal(ekfslam_update(&g_ekf, z, 3), COSLAM_OK);
+    const odo_increment_t u = {0.1, 0.0, 0.02};
+    assert_int_equal(ekfslam_predict(&g_ekf, u), COSLAM_OK);
+    assert_int_equal(g_ekf.n_lm, 3);
+    double before[9][9];
+    for (int r = 0; r < 9; ++r) {
+        for (int k = 0; k < 9; ++k) {
+            before[r][k] = PE(&g_ekf, r, k);
+        }
+    }
+    const uint32_t id2 = g_ekf.meta[2].id;
+    ekfslam_remove_landmark(&g_ekf, 1);
+    assert_int_equal(g_ekf.n_lm, 2);
+    assert_int_equal(g_ekf.meta[1].id, id2);
+    /* new index map: 0 -> 0, 1 <- old 2 */
+    const int map[7] = {0, 1, 2, 3, 4, 7, 8};
+    for (int r = 0; r < 7; ++r) {
+        for (int k = 0; k < 7; ++k) {
+            ASSERT_NEAR(PE(&g_ekf, r, k), before[map[r]][map[k]], 0.0);
+        }
+    }
+}
+
+static void test_capacity_and_bad_input(void **state)
+{
+    (void)state;
+    ekfslam_config_t c = config();
+    c.slam.exist_confirm = c.slam.exist_init;
+    const pose2_t p0 = {0.0, 0.0, 0.0};
+    assert_int_equal(ekfslam_init(&g_ekf, &c, p0), COSLAM_OK);
+    for (int i = 0; g_ekf.n_lm < COSLAM_MAX_LANDMARKS; ++i) {
+        const sighting_t z = {1.0 + 0.4 * (i % 10), -0.4 + 0.8 * (double)(i / 10) / (COSLAM_MAX_LANDMARKS / 10.0),
+                              (uint8_t)(i % 7)};
+        assert_int_equal(ekfslam_update(&g_ekf, &z, 1), COSLAM_OK);
+        assert_true(i < 4 * COSLAM_MAX_LANDMARKS);
+    }
+    const sighting_t extra = {0.35, 0.0, 200};
+    assert_int_equal(ekfslam_update(&g_ekf, &extra, 1), COSLAM_E_CAPACITY);
+    assert_int_equal(g_ekf.ctr.lm_capacity_drops, 1);
+    assert_int_equal(g_ekf.n_lm, COSLAM_MAX_LANDMARKS);
+    const double x0 = g_ekf.x[0];
+    const sighting_t bad[2] = {{NAN, 0.0, 0}, {1.0, -INFINITY, 0}};
+    assert_int_equal(ekfslam_update(&g_ekf, bad, 2), COSLAM_E_NUMERIC);
+    assert_int_equal(g_ekf.ctr.rejected_sightings, 2);
+    const odo_increment_t nan_u = {0.0, NAN, 0.0};
+    assert_int_equal(ekfslam_predict(&g_ekf, nan_u), COSLAM_E_NUMERIC);
+    ASSERT_NEAR(g_ekf.x[0], x0, 0.0);
+    static map_estimate_t est;
+    const coslam_status_t st = ekfslam_export(&g_ekf, &est);
+    assert_true(st == COSLAM_OK || st == COSLAM_E_CAPACITY);
+    assert_true(est.n_landmarks <= COSLAM_MAX_MSG_LANDMARKS);
+    /* bad configurations */
+    c.assoc = (ekfslam_assoc_t)7;
+    assert_int_equal(ekfslam_init(&g_ekf, &c, p0), COSLAM_E_ARG);
+    c = config();
+    c.slam.gate_chi2 = NAN;
+    assert_int_equal(ekfslam_init(&g_ekf, &c, p0), COSLAM_E_ARG);
+}
+
+/*
+ * JCBB against greedy NN. Landmarks L1 (3, 0), L2 (3, 0.6) and L3 (2, -2),
+ * known to 1 cm and uncorrelated with the robot, whose position is uncertain
+ * (sd 0.3 m) and whose true position is 0.4 m lower than estimated. The
+ * sighting of L1 then lands nearer L2; only the sighting of L3, paired
+ * jointly, reveals the shift. NN takes L2 individually; JCBB must not.
+ */
+static void setup_jcbb_case(ekfslam_assoc_t assoc, sighting_t z[2])
+{
+    ekfslam_config_t c = config();
+    c.assoc = assoc;
+    c.slam.noise.range_var_m2 = 0.0004;
+    c.slam.noise.bearing_var_rad2 = 0.0001;
+    c.slam.new_landmark_log_lik = -20.0;
+    c.slam.gate_chi2 = 16.0;
+    c.slam.new_landmark_chi2 = 30.0;
+    c.slam.exist_confirm = c.slam.exist_init;
+    const pose2_t p0 = {0.0, 0.0, 0.0};
+    assert_int_equal(ekfslam_init(&g_ekf, &c, p0), COSLAM_OK);
+    const point2_t lms[3] = {{3.0, 0.0}, {3.0, 0.6}, {2.0, -2.0}};
+    for (int j = 0; j < 3; ++j) {
+        const pose2_t origin = {0.0, 0.0, 0.0};
+        ekfslam_meta_t meta = {(uint32_t)(j + 1), 5.0f, 5, 1, 0};
+        assert_int_equal(ekfslam_add_landmark_body(&g_ekf, pose2_apply_inverse(origin, lms[j]),
+                                                   cov2_make(1e-4, 0.0, 1e-4), &meta),
+                         COSLAM_OK);
+    }
+    /* decorrelate: robot position sd 0.3, heading sd 0.001, landmarks 1 cm */
+    const int d = 3 + 2 * 3;
+    for (int r = 0; r < d; ++r) {
+        for (int k = 0; k < d; ++k) {
+            PE(&g_ekf, r, k) = 0.0;
+        }
+    }
+    PE(&g_ekf, 0, 0) = 0.09;
+    PE(&g_ekf, 1, 1) = 0.09;
+    PE(&g_ekf, 2, 2) = 1e-6;
+    for (int r = 3; r < d; ++r) {
+        PE(&g_ekf, r, r) = 1e-4;
+    }
+    const pose2_t truth = {0.0, -0.4, 0.0};
+    z[0] = observe_predict(truth, lms[0]);
+    z[1] = observe_predict(truth, lms[2]);
+}
+
+static void test_jcbb_beats_nn(void **state)
+{
+    (void)state;
+    sighting_t z[2];
+    setup_jcbb_case(EKFSLAM_ASSOC_NN, z);
+    assert_int_equal(ekfslam_update(&g_ekf, z, 2), COSLAM_OK);
+    assert_int_equal(g_ekf.meta[g_ekf.scratch.assign[0]].id, 2); /* NN: the wrong L2 */
+    setup_jcbb_case(EKFSLAM_ASSOC_JCBB, z);
+    assert_int_equal(ekfslam_update(&g_ekf, z, 2), COSLAM_OK);
+    assert_int_equal(g_ekf.meta[g_ekf.scratch.assign[0]].id, 1);
+    assert_int_equal(g_ekf.meta[g_ekf.scratch.assign[1]].id, 3);
+    ASSERT_NEAR(g_ekf.x[1], -0.4, 0.05); /* and the pose is corrected */
+    assert_int_equal(g_ekf.ctr.jcbb_budget_hits, 0);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_predict_analytic),
+        cmocka_unit_test(test_update_against_dense),
+        cmocka_unit_test(test_add_landmark_monte_carlo),
+        cmocka_unit_test(test_remove_keeps_the_rest),
+        cmocka_unit_test(test_capacity_and_bad_input),
+        cmocka_unit_test(test_jcbb_beats_nn),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}

@@ -1,0 +1,428 @@
+/* Fast-SLAM white-box and API tests: resampling, mixture export, identities,
+ * association rules, negative evidence, capacity and bad input, the 2.0
+ * proposal against the analytic EKF update, reproducibility. */
+#include "test_util.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+#include "coslam/fastslam.h"
+#include "slam_run.h"
+
+static fastslam_t g_fs;
+static fastslam_t g_fs2;
+
+static fastslam_config_t config(uint16_t n)
+{
+    fastslam_config_t c = fastslam_config_default();
+    c.n_particles = n;
+    return c;
+}
+
+static landmark_t make_lm(double x, double y, cov2_t c, uint32_t id, float exist)
+{
+    landmark_t lm;
+    memset(&lm, 0, sizeof lm);
+    lm.mean.x = x;
+    lm.mean.y = y;
+    lm.cov = c;
+    lm.id = id;
+    lm.exist = exist;
+    lm.n_obs = 5;
+    lm.src_mask = 1;
+    return lm;
+}
+
+static void test_resampling_counts(void **state)
+{
+    (void)state;
+    const uint16_t n = 10;
+    const fastslam_config_t c = config(n);
+    const double w[10] = {0.31, 0.02, 0.17, 0.0, 0.05, 0.15, 0.1, 0.07, 0.08, 0.05};
+    double expected_mean[10] = {0};
+    const int trials = 4000;
+    for (int t = 0; t < trials; ++t) {
+        const pose2_t p0 = {0.0, 0.0, 0.0};
+        assert_int_equal(fastslam_init(&g_fs, &c, p0, (uint64_t)t), COSLAM_OK);
+        for (uint16_t k = 0; k < n; ++k) {
+            fastslam_particle_t *p = &g_fs.particles[k];
+            p->pose.x = k;
+            p->log_w = w[k] > 0.0 ? log(w[k]) : -INFINITY;
+            p->n_lm = 1;
+            p->lm[0] = make_lm(k, 0.0, cov2_make(1, 0, 1), 100U + k, 3.0f);
+        }
+        fastslam_resample(&g_fs);
+        int copies[10] = {0};
+        for (uint16_t k = 0; k < n; ++k) {
+            const fastslam_particle_t *p = &g_fs.particles[k];
+            const int src = (int)p->pose.x;
+            assert_true(src >= 0 && src < 10);
+            /* the map travelled with the pose */
+            assert_int_equal(p->n_lm, 1);
+            assert_int_equal(p->lm[0].id, 100U + (uint32_t)src);
+            ASSERT_NEAR(p->log_w, 0.0, 0.0);
+            copies[src]++;
+        }
+        int total = 0;
+        for (int k = 0; k < 10; ++k) {
+            /* low-variance sampling: floor(N w) <= copies <= ceil(N w) */
+            assert_true(copies[k] >= (int)floor(n * w[k] - 1e-9));
+            assert_true(copies[k] <= (int)ceil(n * w[k] + 1e-9));
+            total += copies[k];
+            expected_mean[k] += copies[k];
+        }
+        assert_int_equal(total, n);
+    }
+    /* weight mass is preserved in expectation: E[copies] = N w */
+    for (int k = 0; k < 10; ++k) {
+        ASSERT_NEAR(expected_mean[k] / trials, n * w[k], 0.05);
+    }
+}
+
+static void test_export_moment_match(void **state)
+{
+    (void)state;
+    const fastslam_config_t c = config(4);
+    const pose2_t p0 = {0.0, 0.0, 0.0};
+    assert_int_equal(fastslam_init(&g_fs, &c, p0, 1U), COSLAM_OK);
+    const double w[4] = {0.4, 0.3, 0.2, 0.1};
+    const double theta[4] = {3.1, -3.1, 3.0, 2.9}; /* around the +-pi seam */
+    const cov2_t ca = cov2_make(0.02, 0.005, 0.03);
+    const cov2_t cb = cov2_make(0.04, -0.01, 0.02);
+    for (int k = 0; k < 4; ++k) {
+        fastslam_particle_t *p = &g_fs.particles[k];
+        p->log_w = log(w[k]);
+        p->pose.x = 1.0 + 0.1 * k;
+        p->pose.y = -0.5 * k;
+        p->pose.theta = theta[k];
+        p->n_lm = 0;
+        /* id 5 in particles 0, 1, 2 (weight 0.9) */
+        if (k < 3) {
+            p->lm[p->n_lm++] = make_lm(2.0 + 0.1 * k, 1.0 - 0.2 * k, (k % 2) ? ca : cb, 5U, 3.0f);
+        }
+        /* id 6 only in particle 3 (weight 0.1 < 0.5): not exported */
+        if (k == 3) {
+            p->lm[p->n_lm++] = make_lm(9.0, 9.0, ca, 6U, 5.0f);
+        }
+        /* id 7 everywhere but tentative: not exported */
+        p->lm[p->n_lm++] = make_lm(-3.0, 0.0, ca, 7U, 1.0f);
+    }
+    static map_estimate_t est;
+    assert_int_equal(fastslam_export(&g_fs, &est), COSLAM_OK);
+    assert_int_equal(est.n_landmarks, 1);
+    const map_landmark_t *l = &est.lm[0];
+    assert_int_equal(l->id, 5);
+    /* direct mixture computation */
+    double W = 0.0, mx = 0.0, my = 0.0;
+    for (int k = 0; k < 3; ++k) {
+        W += w[k];
+        mx += w[k] * (2.0 + 0.1 * k);
+        my += w[k] * (1.0 - 0.2 * k);
+    }
+    mx /= W;
+    my /= W;
+    double cxx = 0.0, cxy = 0.0, cyy = 0.0;
+    for (int k = 0; k < 3; ++k) {
+        const cov2_t ck = (k % 2) ? ca : cb;
+        const double dx = 2.0 + 0.1 * k - mx;
+        const double dy = 1.0 - 0.2 * k - my;
+        cxx += w[k] * (ck.xx + dx * dx);
+        cxy += w[k] * (ck.xy + dx * dy);
+        cyy += w[k] * (ck.yy + dy * dy);
+    }
+    ASSERT_NEAR(l->mean.x, mx, 1e-12);
+    ASSERT_NEAR(l->mean.y, my, 1e-12);
+    ASSERT_NEAR(l->cov.xx, cxx / W, 1e-12);
+    ASSERT_NEAR(l->cov.xy, cxy / W, 1e-12);
+    ASSERT_NEAR(l->cov.yy, cyy / W, 1e-12);
+    /* pose: circular mean of the heading across the seam */
+    double ss = 0.0, sc = 0.0;
+    for (int k = 0; k < 4; ++k) {
+        ss += w[k] * sin(theta[k]);
+        sc += w[k] * cos(theta[k]);
+    }
+    ASSERT_NEAR(angle_wrap(est.pose.theta - atan2(ss, sc)), 0.0, 1e-12);
+    ASSERT_NEAR(est.pose.x, 0.4 * 1.0 + 0.3 * 1.1 + 0.2 * 1.2 + 0.1 * 1.3, 1e-12);
+    double vth = 0.0;
+    for (int k = 0; k < 4; ++k) {
+        const double d = angle_wrap(theta[k] - est.pose.theta);
+        vth += w[k] * d * d;
+    }
+    ASSERT_NEAR(est.pose_cov.m[2][2], vth, 1e-12);
+    assert_true(vth < 0.05); /* not the naive variance of values near +-pi */
+}
+
+static void test_new_landmark_identity_shared(void **state)
+{
+    (void)state;
+    const fastslam_config_t c = config(50);
+    const pose2_t p0 = {0.0, 0.0, 0.0};
+    assert_int_equal(fastslam_init(&g_fs, &c, p0, 3U), COSLAM_OK);
+    const sighting_t z[2] = {{2.0, 0.1, 0}, {3.0, -0.2, 0}};
+    assert_int_equal(fastslam_update(&g_fs, z, 2), COSLAM_OK);
+    for (uint16_t k = 0; k < 50; ++k) {
+        assert_int_equal(g_fs.particles[k].n_lm, 2);
+        assert_int_equal(g_fs.particles[k].lm[0].id, g_fs.particles[0].lm[0].id);
+        assert_int_equal(g_fs.particles[k].lm[1].id, g_fs.particles[0].lm[1].id);
+    }
+    assert_true(g_fs.particles[0].lm[0].id != g_fs.particles[0].lm[1].id);
+    assert_int_equal(g_fs.ctr.landmarks_added, 2);
+}
+
+static void test_mutual_exclusion(void **state)
+{
+    (void)state;
+    const fastslam_config_t c = config(20);
+    const pose2_t p0 = {0.0, 0.0, 0.0};
+    assert_int_equal(fastslam_init(&g_fs, &c, p0, 4U), COSLAM_OK);
+    const sighting_t one = {2.0, 0.0, 0};
+    assert_int_equal(fastslam_update(&g_fs, &one, 1), COSLAM_OK);
+    /* two sightings a few cm apart, both compatible with the one landmark:
+     * one is matched, the other is a distinct object beside it */
+    const sighting_t two[2] = {{2.0, 0.0, 0}, {2.0, 0.02, 0}};
+    assert_int_equal(fastslam_update(&g_fs, two, 2), COSLAM_OK);
+    for (uint16_t k = 0; k < 20; ++k) {
+        assert_int_equal(g_fs.particles[k].n_lm, 2);
+        assert_int_equal(g_fs.particles[k].lm[0].n_obs, 2);
+        assert_int_equal(g_fs.particles[k].lm[1].n_obs, 1);
+    }
+    /* signatures separate: a sighting of another class never matches */
+    const sighting_t other = {2.0, 0.0, 1};
+    assert_int_equal(fastslam_update(&g_fs, &other, 1), COSLAM_OK);
+    assert_int_equal(g_fs.particles[0].n_lm, 3);
+    assert_int_equal(g_fs.particles[0].lm[2].signature, 1);
+}
+
+static void test_negative_evidence(void **state)
+{
+    (void)state;
+    fastslam_config_t c = config(10);
+    c.slam.exist_init = 1.0f;
+    c.slam.exist_miss = 1.0f;
+    c.slam.exist_hit = 1.0f;
+    c.slam.exist_confirm = 3.0f;
+    const pose2_t p0 = {0.0, 0.0, 0.0};
+    assert_int_equal(fastslam_init(&g_fs, &c, p0, 5U), COSLAM_OK);
+    /* a real landmark, seen three times (confirmed), and a clutter sighting once */
+    const sighting_t real = {2.0, 0.1, 0};
+    const sighting_t both[2] = {{2.0, 0.1, 0}, {3.0, -0.3, 0}};
+    assert_int_equal(fastslam_update(&g_fs, &real, 1), COSLAM_OK);
+    assert_int_equal(fastslam_update(&g_fs, &real, 1), COSLAM_OK);
+    assert_int_equal(fastslam_update(&g_fs, both, 2), COSLAM_OK);
+    assert_int_equal(g_fs.particles[0].n_lm, 2);
+    /* the clutter is in view but not seen again: 1 -> 0 -> removed */
+    assert_int_equal(fastslam_update(&g_fs, &real, 1), COSLAM_OK);
+    assert_int_equal(g_fs.particles[0].n_lm, 2);
+    assert_int_equal(fastslam_update(&g_fs, &real, 1), COSLAM_OK);
+    for (uint16_t k = 0; k < 10; ++k) {
+        assert_int_equal(g_fs.particles[k].n_lm, 1);
+    }
+    /* the confirmed landmark survives any number of misses (occlusion) */
+    for (int i = 0; i < 30; ++i) {
+        assert_int_equal(fastslam_update(&g_fs, NULL, 0), COSLAM_OK);
+    }
+    assert_int_equal(g_fs.particles[0].n_lm, 1);
+    static map_estimate_t est;
+    assert_int_equal(fastslam_export(&g_fs, &est), COSLAM_OK);
+    assert_int_equal(est.n_landmarks, 1);
+    assert_true(g_fs.ctr.landmarks_removed >= 10U);
+    /* a landmark out of view is not punished */
+    const pose2_t far = {0.0, 0.0, 0.0};
+    assert_int_equal(fastslam_init(&g_fs, &c, far, 6U), COSLAM_OK);
+    const sighting_t side = {2.0, 0.3, 0};
+    assert_int_equal(fastslam_update(&g_fs, &side, 1), COSLAM_OK);
+    const odo_increment_t turn = {0.0, 0.0, 1.5}; /* face away */
+    c.slam.noise.odo_theta_var_rad2_per_m = 0.0;
+    assert_int_equal(fastslam_predict(&g_fs, turn), COSLAM_OK);
+    for (int i = 0; i < 5; ++i) {
+        assert_int_equal(fastslam_update(&g_fs, NULL, 0), COSLAM_OK);
+    }
+    assert_int_equal(g_fs.particles[0].n_lm, 1);
+}
+
+static void test_capacity_and_bad_input(void **state)
+{
+    (void)state;
+    fastslam_config_t c = config(5);
+    c.slam.exist_confirm = c.slam.exist_init; /* confirmed at once: no removal while filling */
+    const pose2_t p0 = {0.0, 0.0, 0.0};
+    assert_int_equal(fastslam_init(&g_fs, &c, p0, 7U), COSLAM_OK);
+    /* fill the map with well separated landmarks, one per update */
+    int added = 0;
+    for (int i = 0; added < COSLAM_MAX_LANDMARKS; ++i) {
+        const sighting_t z = {1.0 + 0.5 * (i % 8), -0.4 + 0.8 * (i / 8) / (COSLAM_MAX_LANDMARKS / 8.0), 0};
+        const coslam_status_t st = fastslam_update(&g_fs, &z, 1);
+        assert_int_equal(st, COSLAM_OK);
+        added = g_fs.particles[0].n_lm;
+        assert_true(i < 4 * COSLAM_MAX_LANDMARKS);
+    }
+    const fastslam_particle_t before = g_fs.particles[0];
+    const uint32_t drops = g_fs.ctr.lm_capacity_drops;
+    const sighting_t far = {0.35, 0.0, 5};
+    assert_int_equal(fastslam_update(&g_fs, &far, 1), COSLAM_E_CAPACITY);
+    assert_int_equal(g_fs.ctr.lm_capacity_drops, drops + 5U);
+    assert_int_equal(g_fs.particles[0].n_lm, COSLAM_MAX_LANDMARKS);
+    for (int j = 0; j < COSLAM_MAX_LANDMARKS; ++j) {
+        assert_int_equal(g_fs.particles[0].lm[j].id, before.lm[j].id);
+    }
+    /* too many sightings in one update: processed up to capacity, rest counted */
+    assert_int_equal(fastslam_init(&g_fs, &c, p0, 8U), COSLAM_OK);
+    sighting_t many[COSLAM_MAX_SIGHTINGS + 3];
+    for (int i = 0; i < COSLAM_MAX_SIGHTINGS + 3; ++i) {
+        many[i].range_m = 1.0 + 0.2 * i;
+        many[i].bearing_rad = 0.0;
+        many[i].signature = (uint8_t)i;
+    }
+    assert_int_equal(fastslam_update(&g_fs, many, COSLAM_MAX_SIGHTINGS + 3), COSLAM_E_CAPACITY);
+    assert_int_equal(g_fs.ctr.sighting_capacity_drops, 3);
+    assert_int_equal(g_fs.particles[0].n_lm, COSLAM_MAX_SIGHTINGS);
+    /* NaN sightings and odometry are rejected, counted, and change nothing */
+    const fastslam_particle_t snap = g_fs.particles[0];
+    const sighting_t bad[3] = {{NAN, 0.0, 0}, {1.0, INFINITY, 0}, {-1.0, 0.0, 0}};
+    assert_int_equal(fastslam_update(&g_fs, bad, 3), COSLAM_E_NUMERIC);
+    assert_int_equal(g_fs.ctr.rejected_sightings, 3);
+    const odo_increment_t nan_u = {NAN, 0.0, 0.0};
+    assert_int_equal(fastslam_predict(&g_fs, nan_u), COSLAM_E_NUMERIC);
+    assert_int_equal(g_fs.ctr.rejected_controls, 1);
+    assert_int_equal(g_fs.particles[0].n_lm, snap.n_lm);
+    ASSERT_NEAR(g_fs.particles[0].pose.x, snap.pose.x, 0.0);
+    /* invalid configurations are refused */
+    c.n_particles = 0;
+    assert_int_equal(fastslam_init(&g_fs, &c, p0, 1U), COSLAM_E_ARG);
+    c = config(5);
+    c.slam.noise.range_var_m2 = -1.0;
+    assert_int_equal(fastslam_init(&g_fs, &c, p0, 1U), COSLAM_E_ARG);
+    c = config(5);
+    c.resample_ess_fraction = 1.5;
+    assert_int_equal(fastslam_init(&g_fs, &c, p0, 1U), COSLAM_E_ARG);
+}
+
+/*
+ * Fast-SLAM 2.0: with one particle and a known landmark, the pose drawn
+ * from the improved proposal must be distributed as the EKF posterior of
+ * the pose (mean and covariance), computed here independently.
+ */
+static void test_fs2_proposal_matches_ekf(void **state)
+{
+    (void)state;
+    fastslam_config_t c = config(1);
+    c.proposal = FASTSLAM_PROPOSAL_OPTIMAL;
+    c.slam.noise.odo_xy_var_m2_per_m = 0.01;
+    c.slam.noise.odo_theta_var_rad2_per_m = 0.01;
+    c.slam.noise.range_var_m2 = 0.0004;
+    c.slam.noise.range_var_per_m2 = 0.0;
+    c.slam.noise.bearing_var_rad2 = 0.0004;
+    const pose2_t p0 = {0.0, 0.0, 0.0};
+    const odo_increment_t u = {1.0, 0.0, 0.0};
+    const landmark_t lm = make_lm(3.0, 1.0, cov2_make(1e-4, 0.0, 1e-4), 9U, 5.0f);
+    /* the measured sighting disagrees with the odometry by a few cm */
+    const pose2_t truth = {1.05, -0.03, 0.02};
+    const sighting_t z = observe_predict(truth, lm.mean);
+    /* analytic EKF update of the pose prior N(pose0 (+) u, V R V^T) */
+    double g[3][3];
+    double v[3][3];
+    motion_jacobians(p0, u, g, v);
+    const cov3_t prior = cov3_congruence(v, motion_noise_cov(&c.slam, u));
+    const pose2_t mu0 = motion_apply(p0, u);
+    lm_expect_t e;
+    assert_int_equal(landmark_expect(&lm, &c.slam, mu0, &prior, &e), COSLAM_OK);
+    double nu[2];
+    observe_innovation(z, e.zhat, nu);
+    double k[3][2];
+    double cht[3][2];
+    for (int r = 0; r < 3; ++r) {
+        for (int q = 0; q < 2; ++q) {
+            cht[r][q] = 0.0;
+            for (int m = 0; m < 3; ++m) {
+                cht[r][q] += prior.m[r][m] * e.h_pose[q][m];
+            }
+        }
+        k[r][0] = cht[r][0] * e.s_inv.xx + cht[r][1] * e.s_inv.xy;
+        k[r][1] = cht[r][0] * e.s_inv.xy + cht[r][1] * e.s_inv.yy;
+    }
+    const double mean[3] = {mu0.x + k[0][0] * nu[0] + k[0][1] * nu[1], mu0.y + k[1][0] * nu[0] + k[1][1] * nu[1],
+                            mu0.theta + k[2][0] * nu[0] + k[2][1] * nu[1]};
+    double post[3][3];
+    for (int r = 0; r < 3; ++r) {
+        for (int q = 0; q < 3; ++q) {
+            post[r][q] = prior.m[r][q] - (k[r][0] * cht[q][0] + k[r][1] * cht[q][1]);
+        }
+    }
+    /* Monte Carlo over independent single-particle filters */
+    const int trials = 20000;
+    double s[3] = {0, 0, 0};
+    double ss[3][3] = {{0}};
+    for (int t = 0; t < trials; ++t) {
+        assert_int_equal(fastslam_init(&g_fs, &c, p0, 1000U + (uint64_t)t), COSLAM_OK);
+        assert_int_equal(fastslam_particle_add(&g_fs, 0, &lm), COSLAM_OK);
+        assert_int_equal(fastslam_predict(&g_fs, u), COSLAM_OK);
+        assert_int_equal(fastslam_update(&g_fs, &z, 1), COSLAM_OK);
+        const pose2_t p = g_fs.particles[0].pose;
+        const double d[3] = {p.x - mean[0], p.y - mean[1], angle_wrap(p.theta - mean[2])};
+        for (int r = 0; r < 3; ++r) {
+            s[r] += d[r];
+            for (int q = 0; q < 3; ++q) {
+                ss[r][q] += d[r] * d[q];
+            }
+        }
+    }
+    for (int r = 0; r < 3; ++r) {
+        ASSERT_NEAR(s[r] / trials, 0.0, 5.0 * sqrt(post[r][r] / trials));
+        ASSERT_NEAR(ss[r][r] / trials, post[r][r], 0.05 * post[r][r]);
+    }
+    ASSERT_NEAR(ss[0][2] / trials, post[0][2], 0.05 * sqrt(post[0][0] * post[2][2]));
+    /* the proposal moved the pose well away from the odometry-only mean */
+    assert_true(fabs(mean[0] - mu0.x) > 10.0 * sqrt(post[0][0] / trials));
+}
+
+static void test_reproducible(void **state)
+{
+    (void)state;
+    synth_config_t sc = synth_config_default(11U, 20);
+    sc.loops = 0.5;
+    static synth_world_t w;
+    static synth_step_t st;
+    for (int variant = 0; variant < 2; ++variant) {
+        fastslam_config_t c = config(30);
+        c.proposal = variant ? FASTSLAM_PROPOSAL_OPTIMAL : FASTSLAM_PROPOSAL_MOTION;
+        synth_init(&w, &sc);
+        assert_int_equal(fastslam_init(&g_fs, &c, synth_start_pose(&sc), 99U), COSLAM_OK);
+        assert_int_equal(fastslam_init(&g_fs2, &c, synth_start_pose(&sc), 99U), COSLAM_OK);
+        while (synth_next(&w, &st)) {
+            fastslam_predict(&g_fs, st.u);
+            fastslam_predict(&g_fs2, st.u);
+            if (st.is_frame) {
+                fastslam_update(&g_fs, st.z, st.n_z);
+                fastslam_update(&g_fs2, st.z, st.n_z);
+            }
+        }
+        static map_estimate_t a;
+        static map_estimate_t b;
+        memset(&a, 0, sizeof a);
+        memset(&b, 0, sizeof b);
+        fastslam_export(&g_fs, &a);
+        fastslam_export(&g_fs2, &b);
+        assert_true(a.n_landmarks > 0);
+        assert_int_equal(a.n_landmarks, b.n_landmarks);
+        assert_memory_equal(&a.pose, &b.pose, sizeof a.pose);
+        for (int i = 0; i < a.n_landmarks; ++i) {
+            assert_memory_equal(&a.lm[i].mean, &b.lm[i].mean, sizeof a.lm[i].mean);
+            assert_memory_equal(&a.lm[i].cov, &b.lm[i].cov, sizeof a.lm[i].cov);
+        }
+    }
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_resampling_counts),
+        cmocka_unit_test(test_export_moment_match),
+        cmocka_unit_test(test_new_landmark_identity_shared),
+        cmocka_unit_test(test_mutual_exclusion),
+        cmocka_unit_test(test_negative_evidence),
+        cmocka_unit_test(test_capacity_and_bad_input),
+        cmocka_unit_test(test_fs2_proposal_matches_ekf),
+        cmocka_unit_test(test_reproducible),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}

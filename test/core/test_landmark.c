@@ -1,0 +1,227 @@
+/* Landmark EKF, existence bookkeeping and the association helpers. */
+#include "test_util.h"
+
+#include "coslam/landmark.h"
+
+static slam_params_t params(void)
+{
+    slam_params_t p = slam_params_default();
+    p.noise.range_var_m2 = 0.01;
+    p.noise.range_var_per_m2 = 0.0;
+    p.noise.bearing_var_rad2 = 0.0025;
+    p.noise.lm_init_var_m2 = 0.0;
+    return p;
+}
+
+static void test_init_hand_computed(void **state)
+{
+    (void)state;
+    slam_params_t p = params();
+    const pose2_t pose = {1.0, 1.0, COSLAM_PI / 2.0};
+    const sighting_t z = {2.0, 0.0, 3};
+    landmark_t lm;
+    assert_int_equal(landmark_init(&lm, &p, pose, z, 7U, 0x4U), COSLAM_OK);
+    ASSERT_NEAR(lm.mean.x, 1.0, 1e-12);
+    ASSERT_NEAR(lm.mean.y, 3.0, 1e-12);
+    /* G_z = [[0, -2], [1, 0]]: cov = diag(4 * 0.0025, 0.01) */
+    ASSERT_NEAR(lm.cov.xx, 0.01, 1e-15);
+    ASSERT_NEAR(lm.cov.xy, 0.0, 1e-15);
+    ASSERT_NEAR(lm.cov.yy, 0.01, 1e-15);
+    assert_int_equal(lm.id, 7);
+    assert_int_equal(lm.src_mask, 0x4);
+    assert_int_equal(lm.signature, 3);
+    assert_int_equal(lm.n_obs, 1);
+    /* w8 adds to both axes */
+    p.noise.lm_init_var_m2 = 0.5;
+    assert_int_equal(landmark_init(&lm, &p, pose, z, 7U, 0x4U), COSLAM_OK);
+    ASSERT_NEAR(lm.cov.xx, 0.51, 1e-12);
+    ASSERT_NEAR(lm.cov.yy, 0.51, 1e-12);
+}
+
+static void test_kalman_update_hand_computed(void **state)
+{
+    (void)state;
+    const slam_params_t p = params();
+    const pose2_t pose = {0.0, 0.0, 0.0};
+    landmark_t lm;
+    lm.mean.x = 2.0;
+    lm.mean.y = 0.0;
+    lm.cov = cov2_make(0.04, 0.0, 0.09);
+    lm.n_obs = 1;
+    lm.signature = 0;
+    lm_expect_t e;
+    assert_int_equal(landmark_expect(&lm, &p, pose, NULL, &e), COSLAM_OK);
+    /* H = [[1, 0], [0, 0.5]], S = diag(0.05, 0.025) */
+    ASSERT_NEAR(e.s.xx, 0.05, 1e-15);
+    ASSERT_NEAR(e.s.xy, 0.0, 1e-15);
+    ASSERT_NEAR(e.s.yy, 0.025, 1e-15);
+    const sighting_t z = {2.1, 0.05, 0};
+    const double d2 = landmark_mahalanobis2(&e, z);
+    ASSERT_NEAR(d2, 0.3, 1e-12);
+    ASSERT_NEAR(landmark_log_lik(&e, d2), -log(COSLAM_TWO_PI * sqrt(0.05 * 0.025)) - 0.15, 1e-12);
+    landmark_update(&lm, &p, &e, z);
+    /* K = diag(0.8, 1.8), nu = (0.1, 0.05) */
+    ASSERT_NEAR(lm.mean.x, 2.08, 1e-12);
+    ASSERT_NEAR(lm.mean.y, 0.09, 1e-12);
+    ASSERT_NEAR(lm.cov.xx, 0.008, 1e-15);
+    ASSERT_NEAR(lm.cov.xy, 0.0, 1e-15);
+    ASSERT_NEAR(lm.cov.yy, 0.009, 1e-15);
+    assert_int_equal(lm.n_obs, 2);
+}
+
+/* The update against the information form: Sigma'^-1 = Sigma^-1 + H^T Q^-1 H
+ * for a general (rotated, correlated) case. */
+static void test_kalman_update_information_form(void **state)
+{
+    (void)state;
+    const slam_params_t p = params();
+    const pose2_t pose = {0.3, -0.2, 0.7};
+    landmark_t lm;
+    lm.mean.x = 1.9;
+    lm.mean.y = 1.4;
+    lm.cov = cov2_make(0.05, 0.02, 0.03);
+    lm.n_obs = 1;
+    lm.signature = 0;
+    lm_expect_t e;
+    assert_int_equal(landmark_expect(&lm, &p, pose, NULL, &e), COSLAM_OK);
+    const cov2_t prior = lm.cov;
+    landmark_update(&lm, &p, &e, e.zhat);
+    cov2_t prior_inv;
+    cov2_t post_inv;
+    assert_int_equal(cov2_inverse(prior, &prior_inv), COSLAM_OK);
+    assert_int_equal(cov2_inverse(lm.cov, &post_inv), COSLAM_OK);
+    const cov2_t qinv = cov2_make(1.0 / 0.01, 0.0, 1.0 / 0.0025);
+    double ht[2][2] = {{e.h_lm[0][0], e.h_lm[1][0]}, {e.h_lm[0][1], e.h_lm[1][1]}};
+    const cov2_t info = cov2_add(prior_inv, cov2_congruence(ht, qinv));
+    ASSERT_NEAR(post_inv.xx, info.xx, 1e-9 * info.xx);
+    ASSERT_NEAR(post_inv.xy, info.xy, 1e-9 * fabs(info.xx));
+    ASSERT_NEAR(post_inv.yy, info.yy, 1e-9 * info.yy);
+    /* a sighting equal to the prediction leaves the mean */
+    ASSERT_NEAR(lm.mean.x, 1.9, 1e-12);
+    ASSERT_NEAR(lm.mean.y, 1.4, 1e-12);
+}
+
+static void test_existence(void **state)
+{
+    (void)state;
+    slam_params_t p = params();
+    p.exist_init = 1.0f;
+    p.exist_hit = 1.0f;
+    p.exist_miss = 1.0f;
+    p.exist_confirm = 3.0f;
+    p.exist_max = 5.0f;
+    float e = p.exist_init;
+    assert_int_equal(exist_miss(&e, &p), 0); /* 1 -> 0 */
+    assert_int_equal(exist_miss(&e, &p), 1); /* 0 -> -1: removed */
+    e = p.exist_init;
+    exist_hit(&e, &p);
+    exist_hit(&e, &p); /* 3: confirmed */
+    landmark_t lm;
+    lm.exist = e;
+    assert_true(landmark_is_confirmed(&lm, &p));
+    for (int i = 0; i < 10; ++i) {
+        exist_hit(&e, &p);
+    }
+    ASSERT_NEAR(e, 5.0, 0.0); /* capped */
+    for (int i = 0; i < 10; ++i) {
+        assert_int_equal(exist_miss(&e, &p), 0); /* confirmed landmarks are never removed */
+    }
+    ASSERT_NEAR(e, 3.0, 0.0);
+}
+
+static void test_should_be_seen(void **state)
+{
+    (void)state;
+    slam_params_t p = params();
+    p.sensor_min_range_m = 0.3;
+    p.sensor_max_range_m = 5.0;
+    p.sensor_fov_rad = 1.0;
+    p.visibility_margin = 0.9;
+    sighting_t z = {2.0, 0.0, 0};
+    assert_true(landmark_should_be_seen(&p, z));
+    z.bearing_rad = 0.46; /* > 0.45 = 0.5 * 0.9 */
+    assert_false(landmark_should_be_seen(&p, z));
+    z.bearing_rad = -0.44;
+    assert_true(landmark_should_be_seen(&p, z));
+    z.range_m = 4.6; /* > 4.5 */
+    assert_false(landmark_should_be_seen(&p, z));
+    z.range_m = 0.32; /* < 0.3 / 0.9 */
+    assert_false(landmark_should_be_seen(&p, z));
+}
+
+static void test_greedy_mutual_exclusion(void **state)
+{
+    (void)state;
+    /* sighting 0 prefers landmark 5 (score 3) over 6 (score 1); sighting 1
+     * likes landmark 5 even more (score 4) and has no other option. */
+    assoc_pair_t pairs[3] = {{3.0, 0, 5}, {1.0, 0, 6}, {4.0, 1, 5}};
+    int32_t assign[2];
+    assoc_greedy(pairs, 3, 2, assign);
+    assert_int_equal(assign[1], 5);
+    assert_int_equal(assign[0], 6);
+    /* a sighting with no pair stays unassigned; two sightings, one landmark */
+    assoc_pair_t pairs2[2] = {{2.0, 0, 1}, {2.5, 2, 1}};
+    int32_t a3[3];
+    assoc_greedy(pairs2, 2, 3, a3);
+    assert_int_equal(a3[0], -1);
+    assert_int_equal(a3[1], -1);
+    assert_int_equal(a3[2], 1);
+    /* larger random instances: the result is a matching (no landmark twice) */
+    assoc_pair_t big[64];
+    int n = 0;
+    for (int i = 0; i < 8; ++i) {
+        for (int j = 0; j < 8; ++j) {
+            if ((i * 7 + j * 3) % 4 != 0) {
+                big[n].score = (double)((i * 13 + j * 29) % 17);
+                big[n].sighting = i;
+                big[n].landmark = j;
+                ++n;
+            }
+        }
+    }
+    int32_t ab[8];
+    assoc_greedy(big, n, 8, ab);
+    for (int i = 0; i < 8; ++i) {
+        for (int k = i + 1; k < 8; ++k) {
+            assert_true(ab[i] < 0 || ab[i] != ab[k]);
+        }
+    }
+}
+
+static void test_classify_and_new(void **state)
+{
+    (void)state;
+    slam_params_t p = params();
+    p.gate_chi2 = 9.21;
+    p.new_landmark_chi2 = 25.0;
+    p.new_landmark_log_lik = -1.0;
+    assert_int_equal(assoc_classify(&p, 1.0, 0.0), ASSOC_ADMISSIBLE);
+    assert_int_equal(assoc_classify(&p, 1.0, -2.0), ASSOC_NEAR);   /* less likely than a new landmark */
+    assert_int_equal(assoc_classify(&p, 10.0, 5.0), ASSOC_NEAR);   /* outside the gate */
+    assert_int_equal(assoc_classify(&p, 30.0, 5.0), ASSOC_FAR);
+    assert_int_equal(assoc_classify(&p, NAN, 5.0), ASSOC_FAR);
+    /* sighting 0 is paired with landmark 3; sighting 1 could only be landmark 3
+     * (taken): a distinct object -> new. Sighting 2 has a free candidate -> ambiguous. */
+    assoc_pair_t pairs[4] = {{1.0, 0, 3}, {0.5, 1, 3}, {0.2, 2, 4}, {0.1, 2, 3}};
+    const int32_t assign[3] = {3, -1, -1};
+    const uint8_t n_near[3] = {0, 0, 0};
+    assert_true(assoc_unpaired_is_new(pairs, 4, 1, assign, 3, n_near));
+    assert_false(assoc_unpaired_is_new(pairs, 4, 2, assign, 3, n_near));
+    /* a near-but-inadmissible landmark makes a sighting ambiguous */
+    const uint8_t n_near2[3] = {0, 1, 0};
+    assert_false(assoc_unpaired_is_new(pairs, 4, 1, assign, 3, n_near2));
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_init_hand_computed),
+        cmocka_unit_test(test_kalman_update_hand_computed),
+        cmocka_unit_test(test_kalman_update_information_form),
+        cmocka_unit_test(test_existence),
+        cmocka_unit_test(test_should_be_seen),
+        cmocka_unit_test(test_greedy_mutual_exclusion),
+        cmocka_unit_test(test_classify_and_new),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
