@@ -15,6 +15,8 @@
 extern "C" {
 #endif
 
+#define RUN_MAX_CKPT 128
+
 typedef enum { RUN_FASTSLAM1 = 1, RUN_FASTSLAM2 = 2, RUN_EKFSLAM = 3 } run_filter_t;
 
 typedef struct {
@@ -25,6 +27,8 @@ typedef struct {
     double gate_m;              /**< landmark matching gate for evaluation */
     int min_seen;               /**< a true landmark counts as missed only if seen this often */
     double ess_fraction;        /**< Fast-SLAM resampling threshold (0: default) */
+    int stop_after_steps;       /**< end the run early (0: run to the end) */
+    int nees_every;             /**< pose NEES checkpoint period in steps (0: 50) */
 } run_opts_t;
 
 typedef struct {
@@ -36,6 +40,8 @@ typedef struct {
     double odo_rmse_m;          /**< dead reckoning position RMSE on the same run */
     double pose_nees_final;     /**< NEES (3 dof) at the last step */
     double pose_nees_mean;      /**< NEES averaged over the frames */
+    int n_ckpt;
+    double pose_nees_ckpt[RUN_MAX_CKPT]; /**< pose NEES every nees_every steps */
     map_eval_t map;
     double step_us_mean;        /**< wall time per control step (predict + update) */
     double step_us_max;

@@ -53,7 +53,11 @@ void synth_init(synth_world_t *w, const synth_config_t *cfg)
             ok = dx * dx + dy * dy >= sep * sep;
         }
         if (ok) {
-            w->sig[w->n_lm] = (uint8_t)(cfg->n_signatures > 1 ? rng_below(&w->rng, (uint32_t)cfg->n_signatures) : 0);
+            if (cfg->n_signatures <= 0) {
+                w->sig[w->n_lm] = (uint8_t)(w->n_lm % 256);
+            } else {
+                w->sig[w->n_lm] = (uint8_t)(cfg->n_signatures > 1 ? rng_below(&w->rng, (uint32_t)cfg->n_signatures) : 0);
+            }
             w->lm[w->n_lm++] = p;
         } else if (++tries > 200000) {
             sep *= 0.9;
@@ -124,7 +128,8 @@ int synth_next(synth_world_t *w, synth_step_t *s)
         sighting_t z;
         z.range_m = sp->sensor_min_range_m + rng_uniform(&w->rng) * (sp->sensor_max_range_m - sp->sensor_min_range_m);
         z.bearing_rad = (rng_uniform(&w->rng) - 0.5) * sp->sensor_fov_rad;
-        z.signature = (uint8_t)(c->n_signatures > 1 ? rng_below(&w->rng, (uint32_t)c->n_signatures) : 0);
+        const uint32_t n_sig = c->n_signatures <= 0 ? 256U : (uint32_t)c->n_signatures;
+        z.signature = (uint8_t)rng_below(&w->rng, n_sig);
         s->z[s->n_z] = z;
         s->true_id[s->n_z] = -1;
         s->n_z++;

@@ -36,7 +36,8 @@ extern "C" {
 typedef struct {
     uint64_t seed;
     int n_landmarks;
-    int n_signatures;           /**< 1 = all landmarks alike */
+    int n_signatures;           /**< 1 = all landmarks alike; 0 = unique (index mod 256):
+                                     known data association, to test the filter maths alone */
     double loop_radius_m;
     double ring_half_width_m;
     double min_separation_m;

@@ -98,14 +98,14 @@ static void test_export_moment_match(void **state)
         p->n_lm = 0;
         /* id 5 in particles 0, 1, 2 (weight 0.9) */
         if (k < 3) {
-            p->lm[p->n_lm++] = make_lm(2.0 + 0.1 * k, 1.0 - 0.2 * k, (k % 2) ? ca : cb, 5U, 3.0f);
+            p->lm[p->n_lm++] = make_lm(2.0 + 0.1 * k, 1.0 - 0.2 * k, (k % 2) ? ca : cb, 5U, c.slam.exist_confirm);
         }
         /* id 6 only in particle 3 (weight 0.1 < 0.5): not exported */
         if (k == 3) {
-            p->lm[p->n_lm++] = make_lm(9.0, 9.0, ca, 6U, 5.0f);
+            p->lm[p->n_lm++] = make_lm(9.0, 9.0, ca, 6U, c.slam.exist_max);
         }
         /* id 7 everywhere but tentative: not exported */
-        p->lm[p->n_lm++] = make_lm(-3.0, 0.0, ca, 7U, 1.0f);
+        p->lm[p->n_lm++] = make_lm(-3.0, 0.0, ca, 7U, c.slam.exist_confirm - 1.0f);
     }
     static map_estimate_t est;
     assert_int_equal(fastslam_export(&g_fs, &est), COSLAM_OK);

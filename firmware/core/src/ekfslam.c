@@ -13,6 +13,7 @@ ekfslam_config_t ekfslam_config_default(void)
     c.robot_id = 0;
     c.assoc = EKFSLAM_ASSOC_JCBB;
     c.jcbb_max_nodes = 20000U;
+    c.fej = 1U;
     return c;
 }
 
@@ -33,7 +34,7 @@ static int dim(const ekfslam_t *ekf)
 coslam_status_t ekfslam_init(ekfslam_t *ekf, const ekfslam_config_t *cfg, pose2_t pose0)
 {
     COSLAM_ASSERT(ekf != 0 && cfg != 0);
-    if (slam_params_validate(&cfg->slam) != COSLAM_OK || cfg->robot_id >= COSLAM_MAX_ROBOTS ||
+    if (slam_params_validate(&cfg->slam) != COSLAM_OK || cfg->robot_id >= COSLAM_MAX_ROBOTS || cfg->fej > 1U ||
         (cfg->assoc != EKFSLAM_ASSOC_NN && cfg->assoc != EKFSLAM_ASSOC_JCBB) || cfg->jcbb_max_nodes < 1U ||
         !pose2_is_finite(pose0)) {
         return COSLAM_E_ARG;
@@ -45,6 +46,9 @@ coslam_status_t ekfslam_init(ekfslam_t *ekf, const ekfslam_config_t *cfg, pose2_
     ekf->x[0] = pose0.x;
     ekf->x[1] = pose0.y;
     ekf->x[2] = angle_wrap(pose0.theta);
+    ekf->pose_prior.x = ekf->x[0];
+    ekf->pose_prior.y = ekf->x[1];
+    ekf->pose_prior.theta = ekf->x[2];
     for (int r = 0; r < 3; ++r) {
         for (int c = 0; c < 3; ++c) {
             P_(ekf, r, c) = 0.0;
@@ -98,6 +102,13 @@ coslam_status_t ekfslam_predict(ekfslam_t *ekf, odo_increment_t u)
     double v[3][3];
     motion_jacobians(pose, u, g, v);
     const pose2_t np = motion_apply(pose, u);
+    if (ekf->cfg.fej) {
+        /* FEJ: the position rows of G use the displacement from the
+         * previous predicted pose, not from the updated one */
+        g[0][2] = -(np.y - ekf->pose_prior.y);
+        g[1][2] = np.x - ekf->pose_prior.x;
+    }
+    ekf->pose_prior = np;
     ekf->x[0] = np.x;
     ekf->x[1] = np.y;
     ekf->x[2] = np.theta;
@@ -145,9 +156,12 @@ static coslam_status_t expect_landmark(const ekfslam_t *ekf, uint16_t j, lm_expe
     const pose2_t pose = robot_pose(ekf);
     const int a = 3 + 2 * j;
     const point2_t m = {ekf->x[a], ekf->x[a + 1]};
-    const coslam_status_t st = observe_jacobians(pose, m, e->h_pose, e->h_lm);
-    if (st != COSLAM_OK) {
-        return st;
+    /* FEJ: linearise at the predicted pose and the landmark's first estimate */
+    const pose2_t lin_pose = ekf->cfg.fej ? ekf->pose_prior : pose;
+    const point2_t lin_m = ekf->cfg.fej ? ekf->lm_first[j] : m;
+    const coslam_status_t st = observe_jacobians(lin_pose, lin_m, e->h_pose, e->h_lm);
+    if (st != COSLAM_OK || observe_jacobians(pose, m, NULL, NULL) != COSLAM_OK) {
+        return COSLAM_E_DEGENERATE;
     }
     e->zhat = observe_predict(pose, m);
     e->zhat.signature = ekf->meta[j].signature;
@@ -275,6 +289,7 @@ coslam_status_t ekfslam_add_landmark_body(ekfslam_t *ekf, point2_t m_body, cov2_
     P_(ekf, a + 1, a + 1) = pmm.yy;
     ekf->x[a] = m.x;
     ekf->x[a + 1] = m.y;
+    ekf->lm_first[ekf->n_lm] = m;
     ekf->meta[ekf->n_lm] = *meta;
     ekf->n_lm++;
     return COSLAM_OK;
@@ -299,6 +314,7 @@ void ekfslam_remove_landmark(ekfslam_t *ekf, uint16_t j)
             P_(ekf, r, a + 1) = P_(ekf, r, b + 1);
         }
         ekf->meta[j] = ekf->meta[last];
+        ekf->lm_first[j] = ekf->lm_first[last];
     }
     ekf->n_lm = last;
 }

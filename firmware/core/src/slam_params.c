@@ -49,7 +49,7 @@ slam_params_t slam_params_default(void)
     p.exist_init = 1.0f;
     p.exist_hit = 1.0f;
     p.exist_miss = 1.0f;
-    p.exist_confirm = 3.0f;
+    p.exist_confirm = 5.0f;
     p.exist_max = 10.0f;
     return p;
 }

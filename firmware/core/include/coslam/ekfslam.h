@@ -65,6 +65,14 @@ typedef struct {
     uint8_t robot_id;          /**< own provenance bit, < COSLAM_MAX_ROBOTS */
     ekfslam_assoc_t assoc;
     uint32_t jcbb_max_nodes;   /**< search budget per update (>= 1) */
+    /** First-estimates Jacobians (Huang, Mourikis, Roumeliotis 2008): the
+     *  propagation Jacobian uses the previous *predicted* pose and the
+     *  measurement Jacobians the predicted pose and each landmark's first
+     *  estimate, so that the linearised system keeps the unobservable
+     *  directions of SLAM (global position and heading) unobservable. The
+     *  standard EKF gains spurious heading information and becomes
+     *  overconfident over a loop; FEJ removes most of that. */
+    uint8_t fej;
 } ekfslam_config_t;
 
 /** Per-landmark bookkeeping beside the state (same meaning as in landmark_t). */
@@ -122,12 +130,14 @@ typedef struct {
     uint32_t next_id;
     ekfslam_counters_t ctr;
     double x[EKFSLAM_DIM];
+    point2_t lm_first[COSLAM_MAX_LANDMARKS]; /**< first estimate of each landmark (FEJ) */
+    pose2_t pose_prior;                      /**< pose after the last prediction (FEJ) */
     double p[EKFSLAM_DIM * EKFSLAM_DIM];   /**< row-major, stride EKFSLAM_DIM */
     ekfslam_meta_t meta[COSLAM_MAX_LANDMARKS];
     ekfslam_scratch_t scratch;
 } ekfslam_t;
 
-/** Defaults: slam_params_default(), robot 0, JCBB with a 20000-node budget. */
+/** Defaults: slam_params_default(), robot 0, JCBB with a 20000-node budget, FEJ on. */
 ekfslam_config_t ekfslam_config_default(void);
 
 /** Start at pose0 with P = diag(w6, w6, w7) and no landmarks. E_ARG on a bad config. O(1). */
