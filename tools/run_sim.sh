@@ -5,6 +5,8 @@
 set -eu
 build=${1:-build}
 if [ -x "$build/host/sim/coslam-sim" ]; then
-  exec "$build/host/sim/coslam-sim" --out out/sim "$@"
+  exec "$build/host/sim/coslam-sim" --out out/sim
 fi
-exec "$build/host/demo/coslam-demo" --out out/demo
+"$build/host/demo/coslam-demo" --out out/demo
+/usr/bin/python3 tools/plot_run.py out/demo --title "coslam-demo: EKF-SLAM and Fast-SLAM 2.0 on a synthetic loop"
+echo "figures: out/demo/paths.png out/demo/errors.png"

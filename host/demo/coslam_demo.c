@@ -67,6 +67,8 @@ int main(int argc, char **argv)
     if (mkdir_p(out) != 0) { fprintf(stderr, "coslam-demo: cannot create %s: %s\n", out, strerror(errno)); return 1; }
     synth_config_t sc = synth_config_default(seed, n_lm);
     sc.n_signatures = 4;
+    sc.loop_radius_m = 2.5; /* paper scale, as in the core tests */
+    sc.ring_half_width_m = 2.0;
     const run_filter_t filters[2] = {RUN_EKFSLAM, RUN_FASTSLAM2};
     const char *names[2] = {"ekfslam", "fastslam2"};
     char path[1200];
