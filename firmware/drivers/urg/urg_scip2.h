@@ -249,8 +249,9 @@ coslam_status_t urg_scip2_start_md(urg_scip2_t *u, uint16_t first, uint16_t last
 /**
  * Read the next MD scan into *scan. Waits at most timeout_us for its first
  * byte (0: only what has already arrived). Returns COSLAM_OK (scan filled,
- * stats.scans_ok bumped); COSLAM_E_URG_TIMEOUT with nothing consumed if no
- * scan has begun (not an error: no counter); COSLAM_E_EMPTY if MD is not
+ * stats.scans_ok bumped); COSLAM_E_URG_TIMEOUT if no scan has begun (not an
+ * error: no counter; bytes of an earlier broken reply may have been
+ * discarded by the pending resynchronisation); COSLAM_E_EMPTY if MD is not
  * running; the corrupt-reply codes above, with scan->n_points = 0.
  * A scan-message status other than "99" (e.g. "5x" hardware trouble) is
  * COSLAM_E_URG_STATUS. When a finite MD ends (remaining 0), streaming stops.
