@@ -9,6 +9,7 @@
 
 #include "fake_serial.h"
 #include "coslam/pose2.h"
+#include "coslam/rng.h"
 #include "urg/urg_scip2.h"
 
 /* ---------------------------------------------------------------------------
@@ -667,6 +668,69 @@ static void test_stream_status_error(void **state)
     expect_scan04(&f->scan, 7);
 }
 
+/* Mutation fuzz: a small scan message with 1-4 random byte flips, deletions
+ * or insertions, then two good messages. Whatever the damage, every call
+ * returns, every failure is counted, and the last good message decodes
+ * exactly (the driver resynchronises). One driver instance for all rounds. */
+static void test_fuzz_mutated_messages(void **state)
+{
+    fixture_t *f = *state;
+    fake_add_str(&f->fake, 1, "MD0044007301000\n00P\n\n");
+    assert_int_equal(urg_scip2_start_md(&f->urg, 44, 73, 1, 0, 0), COSLAM_OK);
+    rng_t rng;
+    rng_seed(&rng, 0xF022);
+    uint32_t v[30];
+    const int rounds = COSLAM_TEST_FULL ? 50000 : 3000;
+    for (int round = 0; round < rounds; ++round) {
+        for (int i = 0; i < 30; ++i) v[i] = 20 + rng_below(&rng, 5000);
+        size_t n = build_scan(msg, "MD0044007301000", "99", 1000 + (uint32_t)round, v, 30, CORRUPT_NONE, 0);
+        const int n_mut = 1 + (int)rng_below(&rng, 4);
+        for (int m = 0; m < n_mut && n > 2; ++m) {
+            const size_t at = rng_below(&rng, (uint32_t)n);
+            switch (rng_below(&rng, 3)) {
+            case 0: msg[at] = (char)rng_below(&rng, 256); break;
+            case 1: memmove(msg + at, msg + at + 1, n - at - 1); --n; break;
+            default: memmove(msg + at + 1, msg + at, n - at); msg[at] = (char)rng_below(&rng, 256); ++n; break;
+            }
+        }
+        f->fake.stream_len = f->fake.pos = 0;
+        f->fake.n_segments = 0;
+        fake_add(&f->fake, 0, msg, n);
+        for (int k = 0; k < 2; ++k) {
+            n = build_scan(msg2, "MD0044007301000", "99", 5000 + (uint32_t)k, v, 30, CORRUPT_NONE, 0);
+            fake_add(&f->fake, 0, msg2, n);
+        }
+        const urg_scip2_stats_t before = *urg_scip2_stats(&f->urg);
+        uint32_t last_ok_stamp = 0;
+        int calls = 0, failures = 0;
+        coslam_status_t st;
+        while ((st = urg_scip2_read_scan(&f->urg, &f->scan, 0)) != COSLAM_E_URG_TIMEOUT) {
+            ASSERT_TRUE_MSG(++calls <= 12, "round %d: no end\n", round);
+            if (st == COSLAM_OK) {
+                last_ok_stamp = f->scan.raw_stamp_ms;
+            } else {
+                ++failures;
+            }
+        }
+        ASSERT_TRUE_MSG(last_ok_stamp == 5001, "round %d: last good stamp %u\n", round, last_ok_stamp);
+        assert_memory_equal(f->scan.range_mm, v, sizeof v);
+        const urg_scip2_stats_t *a = urg_scip2_stats(&f->urg);
+        const uint32_t errs = (a->err_checksum - before.err_checksum) + (a->err_line - before.err_line) +
+                              (a->err_garbage - before.err_garbage) + (a->err_echo - before.err_echo) +
+                              (a->err_status - before.err_status);
+        ASSERT_TRUE_MSG(errs == (uint32_t)failures, "round %d: %d failures, %u counted (sum %u line %u garbage %u echo %u status %u)\n", round, failures, errs, a->err_checksum - before.err_checksum, a->err_line - before.err_line, a->err_garbage - before.err_garbage, a->err_echo - before.err_echo, a->err_status - before.err_status);
+        assert_int_equal(f->fake.pos, f->fake.stream_len);
+    }
+    const urg_scip2_stats_t *a = urg_scip2_stats(&f->urg);
+    print_message("fuzz: %d rounds, ok %u, checksum %u, line %u, garbage %u, echo %u, status %u, resyncs %u\n", rounds,
+                  a->scans_ok, a->err_checksum, a->err_line, a->err_garbage, a->err_echo, a->err_status, a->resyncs);
+    /* the mutations did reach every class of check */
+    assert_true(a->err_checksum > 0 && a->err_line > 0 && a->err_garbage > 0 && a->err_echo > 0);
+    /* B always decodes (checked per round); A is lost only when the damage
+     * swallowed the empty line that ends the mutated message */
+    assert_true(a->scans_ok >= (uint32_t)rounds + (uint32_t)rounds / 2U);
+}
+
 static void test_init_args(void **state)
 {
     (void)state;
@@ -717,6 +781,7 @@ int main(void)
         T(test_qt_skips_scans_in_flight),
         T(test_md_refused_and_bad_args),
         T(test_stream_status_error),
+        T(test_fuzz_mutated_messages),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

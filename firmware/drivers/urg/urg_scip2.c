@@ -353,15 +353,21 @@ static coslam_status_t end_of_message(urg_scip2_t *u)
     return COSLAM_OK;
 }
 
-/* Record a sensor error status; the message's empty line is read. */
+/* An error status ends its reply: read the empty line, then record the
+ * status. If the reply goes on instead, it is malformed (most likely the
+ * status itself is damaged): that error is returned and counted, not the
+ * status, so one broken reply bumps one counter. */
 static coslam_status_t status_error(urg_scip2_t *u, const char status[3])
 {
+    const coslam_status_t st = end_of_message(u);
+    if (st != COSLAM_OK) {
+        return st;
+    }
     u->last_status[0] = status[0];
     u->last_status[1] = status[1];
     u->last_status[2] = '\0';
     u->stats.err_status++;
-    const coslam_status_t st = end_of_message(u);
-    return st != COSLAM_OK ? st : COSLAM_E_URG_STATUS;
+    return COSLAM_E_URG_STATUS;
 }
 
 /* ------------------------------------------------------------------------
