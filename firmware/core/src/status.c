@@ -24,6 +24,14 @@ const char *coslam_status_str(coslam_status_t status)
     case COSLAM_E_MERGE_SELF: return "E_MERGE_SELF";
     case COSLAM_E_MERGE_STALE: return "E_MERGE_STALE";
     case COSLAM_E_MERGE_REPLAY: return "E_MERGE_REPLAY";
+    case COSLAM_E_URG_TIMEOUT: return "E_URG_TIMEOUT";
+    case COSLAM_E_URG_IO: return "E_URG_IO";
+    case COSLAM_E_URG_CHECKSUM: return "E_URG_CHECKSUM";
+    case COSLAM_E_URG_LINE: return "E_URG_LINE";
+    case COSLAM_E_URG_GARBAGE: return "E_URG_GARBAGE";
+    case COSLAM_E_URG_ECHO: return "E_URG_ECHO";
+    case COSLAM_E_URG_STATUS: return "E_URG_STATUS";
+    case COSLAM_E_URG_FIELD: return "E_URG_FIELD";
     case COSLAM_E_UNSUPPORTED: return "E_UNSUPPORTED";
     }
     return "E_UNKNOWN";

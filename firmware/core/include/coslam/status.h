@@ -38,6 +38,15 @@ typedef enum {
     COSLAM_E_MERGE_SELF = -40,
     COSLAM_E_MERGE_STALE = -41,
     COSLAM_E_MERGE_REPLAY = -42,
+    /* laser range finder driver (urg_scip2.h) */
+    COSLAM_E_URG_TIMEOUT = -60,   /**< no reply / reply stopped arriving within the timeout */
+    COSLAM_E_URG_IO = -61,        /**< the serial HAL reported an error (closed, I/O) */
+    COSLAM_E_URG_CHECKSUM = -62,  /**< a reply line failed its SCIP sum check */
+    COSLAM_E_URG_LINE = -63,      /**< a reply line has the wrong length or is missing */
+    COSLAM_E_URG_GARBAGE = -64,   /**< bytes that cannot be SCIP (non-ASCII, overlong line) */
+    COSLAM_E_URG_ECHO = -65,      /**< the reply does not echo the command sent */
+    COSLAM_E_URG_STATUS = -66,    /**< the sensor answered with an error status */
+    COSLAM_E_URG_FIELD = -67,     /**< a VV/PP/II field is missing or unparsable */
     COSLAM_E_UNSUPPORTED = -90, /**< feature or hardware not available */
 } coslam_status_t;
 

@@ -1,0 +1,787 @@
+/* SCIP 2.0 driver against a scripted fake serial: byte-exact command frames,
+ * byte-exact replies (published examples where they exist), split reads at
+ * every byte, and each corruption class counted with the driver recovering
+ * on the next message. */
+#include <stdlib.h>
+#include <string.h>
+
+#include "test_util.h"
+
+#include "fake_serial.h"
+#include "coslam/pose2.h"
+#include "coslam/rng.h"
+#include "urg/urg_scip2.h"
+
+/* ---------------------------------------------------------------------------
+ * A reply encoder written for the tests (independent of the driver code).
+ * ------------------------------------------------------------------------ */
+
+static char sum_of(const char *s, size_t n)
+{
+    unsigned v = 0;
+    for (size_t i = 0; i < n; ++i) v += (unsigned char)s[i];
+    return (char)((v & 0x3FU) + 0x30U);
+}
+
+static void enc(char *out, uint32_t v, int n_chars)
+{
+    for (int i = 0; i < n_chars; ++i) {
+        out[i] = (char)(((v >> (6 * (n_chars - 1 - i))) & 0x3FU) + 0x30U);
+    }
+}
+
+typedef enum { CORRUPT_NONE, CORRUPT_SUM, CORRUPT_SHORT_LINE, CORRUPT_GARBAGE, CORRUPT_DROP_LINE,
+               CORRUPT_EXTRA_LINE, CORRUPT_STAMP_LEN } corrupt_t;
+
+/* A scan message "echo LF status LF stamp LF data... LF LF" into out; the
+ * corruption (if any) hits data line `bad_line`. Returns its length. */
+static size_t build_scan(char *out, const char *echo, const char *status, uint32_t stamp_ms, const uint32_t *vals,
+                         size_t n, corrupt_t corrupt, size_t bad_line)
+{
+    size_t k = 0;
+    k += (size_t)sprintf(out + k, "%s\n%s%c\n", echo, status, sum_of(status, 2));
+    char st[5];
+    enc(st, stamp_ms, 4);
+    st[4] = sum_of(st, 4);
+    memcpy(out + k, st, 5);
+    k += 5;
+    if (corrupt == CORRUPT_STAMP_LEN) {
+        out[k++] = '0';
+    }
+    out[k++] = '\n';
+    static char data[3 * 4096];
+    for (size_t i = 0; i < n; ++i) enc(data + 3 * i, vals[i], 3);
+    const size_t total = 3 * n;
+    size_t line = 0;
+    for (size_t off = 0; off < total; off += 64, ++line) {
+        size_t len = total - off < 64 ? total - off : 64;
+        const char *p = data + off;
+        if (line == bad_line && corrupt == CORRUPT_DROP_LINE) continue;
+        if (line == bad_line && corrupt == CORRUPT_SHORT_LINE) len -= 1;
+        memcpy(out + k, p, len);
+        char s = sum_of(p, len);
+        if (line == bad_line && corrupt == CORRUPT_SUM) s = (char)(s == '0' ? '1' : s - 1);
+        if (line == bad_line && corrupt == CORRUPT_GARBAGE) out[k + 5] = (char)0xFF;
+        out[k + len] = s;
+        out[k + len + 1] = '\n';
+        k += len + 2;
+        if (line == bad_line && corrupt == CORRUPT_EXTRA_LINE) {
+            memcpy(out + k, "0000\n", 5); /* "000" + its sum '0'... a 4th data line */
+            out[k + 3] = sum_of("000", 3);
+            k += 5;
+        }
+    }
+    out[k++] = '\n';
+    out[k] = '\0';
+    return k;
+}
+
+#define N04 682 /* URG-04LX: steps 44..725 */
+static uint32_t vals04[N04];
+static char msg[16384];
+static char msg2[16384];
+
+static void fill_vals(uint32_t seed)
+{
+    for (size_t i = 0; i < N04; ++i) {
+        vals04[i] = (uint32_t)((i * 37U + seed * 101U) % 5600U) + 20U;
+    }
+    vals04[0] = 0;      /* error code 0 */
+    vals04[1] = 19;     /* highest error code */
+    vals04[2] = 20;     /* DMIN itself: a range */
+    vals04[3] = 5600;   /* DMAX */
+    vals04[4] = 262143; /* largest 18-bit value */
+}
+
+typedef struct {
+    fake_serial_t fake;
+    urg_scip2_t urg;
+    urg_scip2_scan_t scan;
+} fixture_t;
+
+static int setup(void **state)
+{
+    fixture_t *f = calloc(1, sizeof *f);
+    assert_non_null(f);
+    fake_init(&f->fake);
+    assert_int_equal(urg_scip2_init(&f->urg, &f->fake.dev, NULL), COSLAM_OK);
+    fill_vals(1);
+    *state = f;
+    return 0;
+}
+
+static int teardown(void **state)
+{
+    free(*state);
+    return 0;
+}
+
+static void assert_written(const fake_serial_t *f, const char *expect)
+{
+    const size_t n = strlen(expect);
+    ASSERT_TRUE_MSG(f->n_written == n && memcmp(f->written, expect, n) == 0, "written \"%.*s\" expected \"%s\"\n",
+                    (int)f->n_written, (const char *)f->written, expect);
+}
+
+/* start MD 44..725 and script its acknowledgement */
+static void start_md04(fixture_t *f, uint8_t n_scans)
+{
+    char echo[32];
+    sprintf(echo, "MD00440725010%02u\n00P\n\n", n_scans);
+    fake_add_str(&f->fake, 1, echo);
+    assert_int_equal(urg_scip2_start_md(&f->urg, 44, 725, 1, 0, n_scans), COSLAM_OK);
+    char frame[32];
+    sprintf(frame, "MD00440725010%02u\n", n_scans);
+    assert_written(&f->fake, frame);
+    assert_true(urg_scip2_is_streaming(&f->urg));
+}
+
+static void expect_scan04(const urg_scip2_scan_t *s, uint32_t stamp_ms)
+{
+    assert_int_equal(s->n_points, N04);
+    assert_int_equal(s->first_step, 44);
+    assert_int_equal(s->last_step, 725);
+    assert_int_equal(s->raw_stamp_ms, stamp_ms);
+    assert_memory_equal(s->range_mm, vals04, sizeof vals04);
+}
+
+/* ---------------------------------------------------------------------------
+ * Pure helpers against the specification's examples
+ * ------------------------------------------------------------------------ */
+
+static void test_checksum_and_decode_vectors(void **state)
+{
+    (void)state;
+    assert_int_equal(urg_scip2_checksum("00", 2), 'P');
+    assert_int_equal(urg_scip2_checksum("99", 2), 'b');
+    assert_int_equal(urg_scip2_checksum("DMIN:20", 7), '4');
+    assert_int_equal(urg_scip2_checksum("DMAX:5600", 9), '_');
+    assert_int_equal(urg_scip2_checksum("AMAX:725", 8), 'o');
+    assert_int_equal(urg_scip2_checksum("PROT:SCIP 2.0", 13), 'N');
+    assert_int_equal(urg_scip2_decode("1Dh", 3), 5432);     /* spec fig. 5 */
+    assert_int_equal(urg_scip2_decode("CB", 2), 1234);      /* spec fig. 3 */
+    assert_int_equal(urg_scip2_decode("m2@0", 4), 16000000); /* spec fig. 7 */
+    assert_int_equal(urg_scip2_decode("ooo", 3), 262143);
+    assert_int_equal(urg_scip2_decode("000", 3), 0);
+    assert_int_equal(urg_scip2_decode("0/0", 3), -1); /* '/' = 0x2F below the alphabet */
+    assert_int_equal(urg_scip2_decode("0p0", 3), -1); /* 'p' = 0x70 above it */
+    assert_int_equal(urg_scip2_decode("00000", 5), -1);
+    assert_int_equal(urg_scip2_decode("0", 0), -1);
+}
+
+static void test_angles_and_validity(void **state)
+{
+    (void)state;
+    const urg_scip2_params_t p = urg_scip2_params_urg04lx();
+    ASSERT_NEAR(urg_scip2_step_angle_rad(&p, 384), 0.0, 0.0);
+    ASSERT_NEAR(urg_scip2_step_angle_rad(&p, 44), -340.0 * 2.0 * COSLAM_PI / 1024.0, 1e-12);
+    ASSERT_NEAR(urg_scip2_step_angle_rad(&p, 725), 341.0 * 2.0 * COSLAM_PI / 1024.0, 1e-12);
+    /* 682 steps cover 681 * 360/1024 = 239.4 deg between first and last step */
+    ASSERT_NEAR((urg_scip2_step_angle_rad(&p, 725) - urg_scip2_step_angle_rad(&p, 44)) * 180.0 / COSLAM_PI,
+                681.0 * 360.0 / 1024.0, 1e-9);
+    ASSERT_NEAR(urg_scip2_step_angle_rad(&p, 640), COSLAM_PI / 2.0, 1e-12); /* 256 steps = 90 deg, left */
+    assert_false(urg_scip2_range_valid(&p, 0));
+    assert_false(urg_scip2_range_valid(&p, 19));
+    assert_true(urg_scip2_range_valid(&p, 20));
+    assert_true(urg_scip2_range_valid(&p, 5600));
+    assert_false(urg_scip2_range_valid(&p, 5601));
+}
+
+/* ---------------------------------------------------------------------------
+ * Commands: frames and replies
+ * ------------------------------------------------------------------------ */
+
+static void test_enter_scip2(void **state)
+{
+    fixture_t *f = *state;
+    fake_add_str(&f->fake, 0, "stale bytes from before\n"); /* dropped by the flush */
+    fake_add_str(&f->fake, 1, "SCIP2.0\n0\n\n");
+    assert_int_equal(urg_scip2_enter_scip2(&f->urg), COSLAM_OK);
+    assert_written(&f->fake, "SCIP2.0\n");
+    assert_int_equal(f->fake.n_flushes, 1);
+    /* already in SCIP 2.0: "0E" + sum 'e' */
+    fake_add_str(&f->fake, 2, "SCIP2.0\n0Ee\n\n");
+    f->fake.n_written = 0;
+    assert_int_equal(urg_scip2_enter_scip2(&f->urg), COSLAM_OK);
+    assert_written(&f->fake, "SCIP2.0\n");
+    /* no answer at all */
+    assert_int_equal(urg_scip2_enter_scip2(&f->urg), COSLAM_E_URG_TIMEOUT);
+    assert_int_equal(urg_scip2_stats(&f->urg)->err_timeout, 1);
+}
+
+static void test_version_published_example(void **state)
+{
+    fixture_t *f = *state;
+    fake_add_str(&f->fake, 1,
+                 "VV\n00P\nVEND:Hokuyo Automatic Co.,Ltd.;[\nPROD:SOKUIKI Sensor URG-04LX;[\n"
+                 "FIRM:3.1.00(18/Jan./2007);`\nPROT:SCIP 2.0;N\nSERI:H0614967;V\n\n");
+    urg_scip2_version_t v;
+    assert_int_equal(urg_scip2_read_version(&f->urg, &v), COSLAM_OK);
+    assert_written(&f->fake, "VV\n");
+    assert_string_equal(v.vendor, "Hokuyo Automatic Co.,Ltd.");
+    assert_string_equal(v.product, "SOKUIKI Sensor URG-04LX");
+    assert_string_equal(v.firmware, "3.1.00(18/Jan./2007)");
+    assert_string_equal(v.protocol, "SCIP 2.0");
+    assert_string_equal(v.serial, "H0614967");
+}
+
+static void test_params_published_example(void **state)
+{
+    fixture_t *f = *state;
+    fake_add_str(&f->fake, 1,
+                 "PP\n00P\nMODL:URG-04LX(Hokuyo Automatic Co.,Ltd.);N\nDMIN:20;4\nDMAX:5600;_\nARES:1024;\\\n"
+                 "AMIN:44;7\nAMAX:725;o\nAFRT:384;6\nSCAN:600;e\n\n");
+    urg_scip2_params_t p;
+    assert_int_equal(urg_scip2_read_params(&f->urg, &p), COSLAM_OK);
+    assert_written(&f->fake, "PP\n");
+    assert_string_equal(p.model, "URG-04LX(Hokuyo Automatic Co.,Ltd.)");
+    assert_int_equal(p.dmin_mm, 20);
+    assert_int_equal(p.dmax_mm, 5600);
+    assert_int_equal(p.ares, 1024);
+    assert_int_equal(p.amin, 44);
+    assert_int_equal(p.amax, 725);
+    assert_int_equal(p.afrt, 384);
+    assert_int_equal(p.scan_rpm, 600);
+    assert_int_equal(urg_scip2_params(&f->urg)->amax, 725);
+    assert_int_equal(p.amax - p.amin + 1, 682);
+}
+
+static void test_params_bad_fields(void **state)
+{
+    fixture_t *f = *state;
+    /* a field with a wrong sum: CHECKSUM, and the rest of the reply is
+     * discarded before the next command's reply is read */
+    fake_add_str(&f->fake, 1, "PP\n00P\nMODL:X;i\nDMIN:20;5\nDMAX:5600;_\n\n");
+    assert_int_equal(urg_scip2_read_params(&f->urg, NULL), COSLAM_E_URG_CHECKSUM);
+    assert_int_equal(urg_scip2_stats(&f->urg)->err_checksum, 1);
+    /* DMIN missing: FIELD */
+    char body[256];
+    sprintf(body, "PP\n00P\nMODL:X;%c\nDMAX:5600;_\nARES:1024;\\\nAMIN:44;7\nAMAX:725;o\nAFRT:384;6\nSCAN:600;e\n\n",
+            sum_of("MODL:X", 6));
+    fake_add_str(&f->fake, 2, body);
+    assert_int_equal(urg_scip2_read_params(&f->urg, NULL), COSLAM_E_URG_FIELD);
+    assert_int_equal(urg_scip2_stats(&f->urg)->err_field, 1);
+    assert_int_equal(urg_scip2_stats(&f->urg)->resyncs, 1);
+    /* a non-numeric DMIN: FIELD; the old parameters stay */
+    sprintf(body, "PP\n00P\nMODL:X;%c\nDMIN:2x;%c\nDMAX:5600;_\nARES:1024;\\\nAMIN:44;7\nAMAX:725;o\nAFRT:384;6\n"
+                  "SCAN:600;e\n\n",
+            sum_of("MODL:X", 6), sum_of("DMIN:2x", 7));
+    fake_add_str(&f->fake, 3, body);
+    assert_int_equal(urg_scip2_read_params(&f->urg, NULL), COSLAM_E_URG_FIELD);
+    assert_int_equal(urg_scip2_params(&f->urg)->dmin_mm, 20);
+}
+
+static void test_info_published_example(void **state)
+{
+    fixture_t *f = *state;
+    fake_add_str(&f->fake, 1,
+                 "II\n00P\nMODL:URG-04LX(Hokuyo Automatic Co.,Ltd.);N\nLASR:OFF;7\n"
+                 "SCSP:Initial(600[rpm])<-Default setting by user;A\nMESM:IDLE;:\n"
+                 "SBPS:19200[bps]<-Default setting by user;A\nTIME:081615;N\nSTAT:Sensor works well.;8\n\n");
+    urg_scip2_info_t info;
+    assert_int_equal(urg_scip2_read_info(&f->urg, &info), COSLAM_OK);
+    assert_written(&f->fake, "II\n");
+    assert_string_equal(info.laser, "OFF");
+    assert_int_equal(info.laser_on, 0);
+    assert_string_equal(info.mode, "IDLE");
+    assert_string_equal(info.time, "081615");
+    assert_string_equal(info.status, "Sensor works well.");
+}
+
+static void test_laser_on_off(void **state)
+{
+    fixture_t *f = *state;
+    fake_add_str(&f->fake, 1, "BM\n00P\n\n");
+    fake_add_str(&f->fake, 2, "BM\n02R\n\n"); /* already on: success */
+    fake_add_str(&f->fake, 3, "BM\n01Q\n\n"); /* laser malfunction */
+    fake_add_str(&f->fake, 4, "QT\n00P\n\n");
+    assert_int_equal(urg_scip2_laser_on(&f->urg), COSLAM_OK);
+    assert_int_equal(urg_scip2_laser_on(&f->urg), COSLAM_OK);
+    assert_int_equal(urg_scip2_laser_on(&f->urg), COSLAM_E_URG_STATUS);
+    assert_string_equal(urg_scip2_last_status(&f->urg), "01");
+    assert_int_equal(urg_scip2_laser_off(&f->urg), COSLAM_OK);
+    assert_written(&f->fake, "BM\nBM\nBM\nQT\n");
+    assert_int_equal(urg_scip2_stats(&f->urg)->err_status, 1);
+    assert_int_equal(urg_scip2_stats(&f->urg)->resyncs, 0);
+}
+
+static void test_write_failure_is_io(void **state)
+{
+    fixture_t *f = *state;
+    f->fake.write_result = HAL_E_CLOSED;
+    assert_int_equal(urg_scip2_laser_on(&f->urg), COSLAM_E_URG_IO);
+    f->fake.write_result = HAL_OK;
+    f->fake.read_result = HAL_E_IO;
+    assert_int_equal(urg_scip2_laser_on(&f->urg), COSLAM_E_URG_IO);
+    assert_int_equal(urg_scip2_stats(&f->urg)->err_io, 2);
+}
+
+/* ---------------------------------------------------------------------------
+ * Scans
+ * ------------------------------------------------------------------------ */
+
+static void test_gd_byte_exact(void **state)
+{
+    fixture_t *f = *state;
+    /* 3 points: 5432 ("1Dh"), 1234 ("0CB"), error code 0 ("000"); stamp
+     * 16,000,000 ms ("m2@0") */
+    fake_add_str(&f->fake, 1, "GD0044004601\n00P\nm2@0?\n1Dh0CB000R\n\n");
+    assert_int_equal(urg_scip2_get_scan(&f->urg, 44, 46, 1, &f->scan), COSLAM_OK);
+    assert_written(&f->fake, "GD0044004601\n");
+    assert_int_equal(f->scan.n_points, 3);
+    assert_int_equal(f->scan.range_mm[0], 5432);
+    assert_int_equal(f->scan.range_mm[1], 1234);
+    assert_int_equal(f->scan.range_mm[2], 0);
+    assert_int_equal(f->scan.raw_stamp_ms, 16000000);
+    assert_true(f->scan.stamp_us == 16000000ULL * 1000ULL);
+    /* polar: code 0 is NaN, or +inf (no return) on request */
+    const urg_scip2_params_t p = urg_scip2_params_urg04lx();
+    double r[3], a[3];
+    size_t n = 0;
+    assert_int_equal(urg_scip2_scan_polar(&p, &f->scan, 0, r, a, 3, &n), COSLAM_OK);
+    assert_int_equal(n, 3);
+    ASSERT_NEAR(r[0], 5.432, 1e-12);
+    ASSERT_NEAR(r[1], 1.234, 1e-12);
+    assert_true(isnan(r[2]));
+    ASSERT_NEAR(a[1], (45.0 - 384.0) * 2.0 * COSLAM_PI / 1024.0, 1e-12);
+    assert_int_equal(urg_scip2_scan_polar(&p, &f->scan, URG_SCIP2_POLAR_CODE0_NO_RETURN, r, a, 3, &n), COSLAM_OK);
+    assert_true(isinf(r[2]) && r[2] > 0);
+    assert_int_equal(urg_scip2_scan_polar(&p, &f->scan, 0, r, a, 2, &n), COSLAM_E_CAPACITY);
+    assert_int_equal(n, 0);
+}
+
+static void test_gd_laser_off_status(void **state)
+{
+    fixture_t *f = *state;
+    fake_add_str(&f->fake, 1, "GD0044072501\n10Q\n\n");
+    assert_int_equal(urg_scip2_get_scan(&f->urg, 44, 725, 1, &f->scan), COSLAM_E_URG_STATUS);
+    assert_string_equal(urg_scip2_last_status(&f->urg), "10");
+    assert_int_equal(f->scan.n_points, 0);
+    /* a full GD right after works */
+    const size_t n = build_scan(msg, "GD0044072501", "00", 1234, vals04, N04, CORRUPT_NONE, 0);
+    fake_add(&f->fake, 2, msg, n);
+    assert_int_equal(urg_scip2_get_scan(&f->urg, 44, 725, 1, &f->scan), COSLAM_OK);
+    expect_scan04(&f->scan, 1234);
+}
+
+static void test_md_scan_decodes(void **state)
+{
+    fixture_t *f = *state;
+    start_md04(f, 0);
+    const size_t n = build_scan(msg, "MD0044072501000", "99", 5000, vals04, N04, CORRUPT_NONE, 0);
+    fake_add(&f->fake, 1, msg, n);
+    assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_OK);
+    expect_scan04(&f->scan, 5000);
+    /* the data of 682 points spans 2046 chars = 31 full lines + 62 */
+    assert_int_equal(urg_scip2_stats(&f->urg)->scans_ok, 1);
+    /* point 340 is step 384, the front */
+    const urg_scip2_params_t p = urg_scip2_params_urg04lx();
+    ASSERT_NEAR(urg_scip2_step_angle_rad(&p, urg_scip2_point_step(&f->scan, 340)), 0.0, 0.0);
+    /* nothing more: an idle timeout, not an error */
+    assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_E_URG_TIMEOUT);
+    const urg_scip2_stats_t *s = urg_scip2_stats(&f->urg);
+    assert_int_equal(s->err_timeout + s->err_line + s->err_checksum + s->err_garbage + s->err_echo, 0);
+}
+
+static void test_md_every_split_point(void **state)
+{
+    fixture_t *f = *state;
+    start_md04(f, 0);
+    fill_vals(7);
+    const size_t n = build_scan(msg, "MD0044072501000", "99", 42, vals04, N04, CORRUPT_NONE, 0);
+    for (size_t cut = 1; cut < n; ++cut) {
+        fake_add(&f->fake, 1, msg, n);
+        f->fake.cut = f->fake.pos + cut; /* one read ends exactly at `cut` */
+        memset(&f->scan, 0xAB, sizeof f->scan);
+        const coslam_status_t st = urg_scip2_read_scan(&f->urg, &f->scan, 0);
+        ASSERT_TRUE_MSG(st == COSLAM_OK, "split at %zu: %s\n", cut, coslam_status_str(st));
+        expect_scan04(&f->scan, 42);
+        /* fake_add appends; the stream is consumed to its end each time */
+        assert_int_equal(f->fake.pos, f->fake.stream_len);
+        f->fake.stream_len = f->fake.pos = 0;
+        f->fake.n_segments = 0;
+        f->fake.cut = 0;
+    }
+    /* and one byte per read */
+    fake_add(&f->fake, 1, msg, n);
+    f->fake.max_chunk = 1;
+    assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_OK);
+    expect_scan04(&f->scan, 42);
+    assert_true(f->fake.n_reads >= n);
+    assert_int_equal(urg_scip2_stats(&f->urg)->scans_ok, n);
+}
+
+/* A corrupt scan followed by a good one: the first fails with `expect` and
+ * bumps `counter`, the second decodes. */
+static void corrupt_then_good(fixture_t *f, corrupt_t c, size_t bad_line, coslam_status_t expect,
+                              const uint32_t *counter)
+{
+    start_md04(f, 0);
+    size_t n = build_scan(msg, "MD0044072501000", "99", 100, vals04, N04, c, bad_line);
+    fake_add(&f->fake, 1, msg, n);
+    n = build_scan(msg2, "MD0044072501000", "99", 200, vals04, N04, CORRUPT_NONE, 0);
+    fake_add(&f->fake, 1, msg2, n);
+    const uint32_t before = *counter;
+    const coslam_status_t st = urg_scip2_read_scan(&f->urg, &f->scan, 0);
+    ASSERT_TRUE_MSG(st == expect, "got %s, expected %s\n", coslam_status_str(st), coslam_status_str(expect));
+    assert_int_equal(f->scan.n_points, 0);
+    assert_int_equal(*counter, before + 1);
+    assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_OK);
+    expect_scan04(&f->scan, 200);
+    assert_int_equal(urg_scip2_stats(&f->urg)->scans_ok, 1);
+    /* the stream is fully consumed: nothing left over */
+    assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_E_URG_TIMEOUT);
+}
+
+static void test_corrupt_checksum(void **state)
+{
+    fixture_t *f = *state;
+    corrupt_then_good(f, CORRUPT_SUM, 5, COSLAM_E_URG_CHECKSUM, &f->urg.stats.err_checksum);
+    assert_int_equal(urg_scip2_stats(&f->urg)->resyncs, 1);
+    /* lines 6..30 (64 chars + sum + LF) and line 31 (62 + sum + LF) */
+    assert_int_equal(urg_scip2_stats(&f->urg)->bytes_discarded, 25 * 66 + 64);
+}
+
+static void test_corrupt_checksum_last_line(void **state)
+{
+    fixture_t *f = *state;
+    corrupt_then_good(f, CORRUPT_SUM, 31, COSLAM_E_URG_CHECKSUM, &f->urg.stats.err_checksum);
+}
+
+static void test_short_line(void **state)
+{
+    fixture_t *f = *state;
+    corrupt_then_good(f, CORRUPT_SHORT_LINE, 3, COSLAM_E_URG_LINE, &f->urg.stats.err_line);
+}
+
+static void test_missing_line(void **state)
+{
+    fixture_t *f = *state;
+    /* the message ends early: detected at its empty line, no resync needed */
+    corrupt_then_good(f, CORRUPT_DROP_LINE, 31, COSLAM_E_URG_LINE, &f->urg.stats.err_line);
+    assert_int_equal(urg_scip2_stats(&f->urg)->resyncs, 0);
+}
+
+static void test_extra_line(void **state)
+{
+    fixture_t *f = *state;
+    corrupt_then_good(f, CORRUPT_EXTRA_LINE, 31, COSLAM_E_URG_LINE, &f->urg.stats.err_line);
+    assert_int_equal(urg_scip2_stats(&f->urg)->resyncs, 1);
+}
+
+static void test_garbage_in_line(void **state)
+{
+    fixture_t *f = *state;
+    corrupt_then_good(f, CORRUPT_GARBAGE, 10, COSLAM_E_URG_GARBAGE, &f->urg.stats.err_garbage);
+}
+
+static void test_stamp_line_length(void **state)
+{
+    fixture_t *f = *state;
+    corrupt_then_good(f, CORRUPT_STAMP_LEN, 0, COSLAM_E_URG_LINE, &f->urg.stats.err_line);
+}
+
+static void test_garbage_between_messages(void **state)
+{
+    fixture_t *f = *state;
+    start_md04(f, 0);
+    const uint8_t junk[] = {0x00, 0xFF, 0x93, 'x', 0x7F};
+    fake_add(&f->fake, 1, junk, sizeof junk);
+    size_t n = build_scan(msg, "MD0044072501000", "99", 100, vals04, N04, CORRUPT_NONE, 0);
+    fake_add(&f->fake, 1, msg, n); /* glued to the junk: lost with it */
+    n = build_scan(msg2, "MD0044072501000", "99", 200, vals04, N04, CORRUPT_NONE, 0);
+    fake_add(&f->fake, 1, msg2, n);
+    assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_E_URG_GARBAGE);
+    assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_OK);
+    expect_scan04(&f->scan, 200);
+    assert_int_equal(urg_scip2_stats(&f->urg)->err_garbage, 1);
+    /* an overlong line (no LF for > URG_SCIP2_LINE_MAX bytes) is garbage too */
+    char longline[300];
+    memset(longline, 'A', sizeof longline);
+    fake_add(&f->fake, 2, longline, sizeof longline);
+    fake_add_str(&f->fake, 2, "\n\n");
+    n = build_scan(msg, "MD0044072501000", "99", 300, vals04, N04, CORRUPT_NONE, 0);
+    fake_add(&f->fake, 2, msg, n);
+    f->fake.released = 1;
+    assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_E_URG_GARBAGE);
+    assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_OK);
+    expect_scan04(&f->scan, 300);
+}
+
+static void test_echo_mismatch_in_stream(void **state)
+{
+    fixture_t *f = *state;
+    start_md04(f, 0);
+    size_t n = build_scan(msg, "MD0044072001000", "99", 100, vals04, N04, CORRUPT_NONE, 0); /* other range */
+    fake_add(&f->fake, 1, msg, n);
+    n = build_scan(msg2, "MD0044072501000", "99", 200, vals04, N04, CORRUPT_NONE, 0);
+    fake_add(&f->fake, 1, msg2, n);
+    assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_E_URG_ECHO);
+    assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_OK);
+    expect_scan04(&f->scan, 200);
+    assert_int_equal(urg_scip2_stats(&f->urg)->err_echo, 1);
+}
+
+static void test_timeout_mid_message(void **state)
+{
+    fixture_t *f = *state;
+    start_md04(f, 0);
+    const size_t n = build_scan(msg, "MD0044072501000", "99", 100, vals04, N04, CORRUPT_NONE, 0);
+    fake_add(&f->fake, 1, msg, 1000);         /* the first 1000 bytes now */
+    fake_add(&f->fake, 2, msg + 1000, n - 1000); /* the rest only later */
+    const size_t n2 = build_scan(msg2, "MD0044072501000", "99", 200, vals04, N04, CORRUPT_NONE, 0);
+    fake_add(&f->fake, 2, msg2, n2);
+    assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_E_URG_TIMEOUT);
+    assert_int_equal(urg_scip2_stats(&f->urg)->err_timeout, 1);
+    /* nothing new yet: the pending resync cannot finish; idle, not counted */
+    assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_E_URG_TIMEOUT);
+    assert_int_equal(urg_scip2_stats(&f->urg)->err_timeout, 1);
+    f->fake.released = 1;
+    assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_OK);
+    expect_scan04(&f->scan, 200);
+    assert_int_equal(urg_scip2_stats(&f->urg)->resyncs, 1);
+    assert_int_equal(urg_scip2_stats(&f->urg)->bytes_discarded, n - 1000 - 1); /* all but its final LF */
+}
+
+static void test_dmin_error_codes(void **state)
+{
+    fixture_t *f = *state;
+    start_md04(f, 0);
+    for (uint32_t i = 0; i < 20; ++i) vals04[100 + i] = i; /* every error code */
+    vals04[200] = 5601;                                    /* beyond DMAX */
+    const size_t n = build_scan(msg, "MD0044072501000", "99", 1, vals04, N04, CORRUPT_NONE, 0);
+    fake_add(&f->fake, 1, msg, n);
+    assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_OK);
+    static double r[N04], a[N04];
+    size_t k = 0;
+    assert_int_equal(urg_scip2_scan_polar(urg_scip2_params(&f->urg), &f->scan, 0, r, a, N04, &k), COSLAM_OK);
+    assert_int_equal(k, N04);
+    for (size_t i = 100; i < 120; ++i) {
+        assert_true(isnan(r[i]));
+        ASSERT_NEAR(a[i], ((double)(44 + i) - 384.0) * 2.0 * COSLAM_PI / 1024.0, 1e-12);
+    }
+    assert_true(isnan(r[200]));
+    assert_true(isnan(r[0]) && isnan(r[1]));
+    ASSERT_NEAR(r[2], 0.020, 1e-15);
+    ASSERT_NEAR(r[3], 5.600, 1e-15);
+    assert_true(isnan(r[4]));
+    ASSERT_NEAR(r[5], vals04[5] / 1000.0, 1e-15);
+}
+
+static void test_timestamp_wrap(void **state)
+{
+    fixture_t *f = *state;
+    start_md04(f, 0);
+    const uint32_t raw[] = {16777000, 16777100, 84, 184, 100 /* backwards */, 200};
+    const uint64_t want_ms[] = {16777000, 16777100, 16777216ULL + 84, 16777216ULL + 184, 16777216ULL + 184,
+                                16777216ULL + 284};
+    for (size_t i = 0; i < 6; ++i) {
+        const size_t n = build_scan(msg, "MD0044072501000", "99", raw[i], vals04, N04, CORRUPT_NONE, 0);
+        fake_add(&f->fake, 1, msg, n);
+        assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_OK);
+        assert_int_equal(f->scan.raw_stamp_ms, raw[i]);
+        ASSERT_TRUE_MSG(f->scan.stamp_us == want_ms[i] * 1000ULL, "scan %zu: stamp %llu us, want %llu\n", i,
+                        (unsigned long long)f->scan.stamp_us, (unsigned long long)(want_ms[i] * 1000ULL));
+    }
+    assert_int_equal(urg_scip2_stats(&f->urg)->stamp_wraps, 1);
+    assert_int_equal(urg_scip2_stats(&f->urg)->stamp_backwards, 1);
+}
+
+static void test_md_finite_and_cluster(void **state)
+{
+    fixture_t *f = *state;
+    /* 2 scans of steps 44..53 in clusters of 3: points 44-46, 47-49, 50-52, 53 */
+    fake_add_str(&f->fake, 1, "MD0044005303002\n00P\n\n");
+    assert_int_equal(urg_scip2_start_md(&f->urg, 44, 53, 3, 0, 2), COSLAM_OK);
+    assert_written(&f->fake, "MD0044005303002\n");
+    const uint32_t v[4] = {100, 200, 300, 400};
+    size_t n = build_scan(msg, "MD0044005303001", "99", 10, v, 4, CORRUPT_NONE, 0);
+    fake_add(&f->fake, 1, msg, n);
+    n = build_scan(msg2, "MD0044005303000", "99", 110, v, 4, CORRUPT_NONE, 0);
+    fake_add(&f->fake, 1, msg2, n);
+    assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_OK);
+    assert_int_equal(f->scan.n_points, 4);
+    assert_int_equal(f->scan.remaining, 1);
+    assert_int_equal(f->scan.cluster, 3);
+    ASSERT_NEAR(urg_scip2_point_step(&f->scan, 0), 45.0, 0.0);
+    ASSERT_NEAR(urg_scip2_point_step(&f->scan, 2), 51.0, 0.0);
+    ASSERT_NEAR(urg_scip2_point_step(&f->scan, 3), 53.0, 0.0);
+    assert_true(urg_scip2_is_streaming(&f->urg));
+    assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_OK);
+    assert_int_equal(f->scan.remaining, 0);
+    assert_memory_equal(f->scan.range_mm, v, sizeof v);
+    assert_false(urg_scip2_is_streaming(&f->urg));
+    assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_E_EMPTY);
+}
+
+static void test_qt_skips_scans_in_flight(void **state)
+{
+    fixture_t *f = *state;
+    start_md04(f, 0);
+    /* two scans were already on the way when QT was sent */
+    size_t n = build_scan(msg, "MD0044072501000", "99", 1, vals04, N04, CORRUPT_NONE, 0);
+    fake_add(&f->fake, 2, msg, n);
+    fake_add(&f->fake, 2, msg, n);
+    fake_add_str(&f->fake, 2, "QT\n00P\n\n");
+    assert_int_equal(urg_scip2_laser_off(&f->urg), COSLAM_OK);
+    assert_false(urg_scip2_is_streaming(&f->urg));
+    assert_int_equal(urg_scip2_stats(&f->urg)->messages_skipped, 2);
+    assert_int_equal(f->fake.pos, f->fake.stream_len);
+    assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_E_EMPTY);
+    assert_int_equal(urg_scip2_get_scan(&f->urg, 44, 725, 1, &f->scan), COSLAM_E_URG_TIMEOUT); /* no reply scripted */
+}
+
+static void test_md_refused_and_bad_args(void **state)
+{
+    fixture_t *f = *state;
+    fake_add_str(&f->fake, 1, "MD0044072501000\n04T\n\n"); /* end step out of range */
+    assert_int_equal(urg_scip2_start_md(&f->urg, 44, 725, 1, 0, 0), COSLAM_E_URG_STATUS);
+    assert_string_equal(urg_scip2_last_status(&f->urg), "04");
+    assert_false(urg_scip2_is_streaming(&f->urg));
+    assert_int_equal(urg_scip2_start_md(&f->urg, 100, 99, 1, 0, 0), COSLAM_E_ARG);
+    assert_int_equal(urg_scip2_start_md(&f->urg, 0, 100, 100, 0, 0), COSLAM_E_ARG);
+    assert_int_equal(urg_scip2_start_md(&f->urg, 0, 100, 1, 10, 0), COSLAM_E_ARG);
+    assert_int_equal(urg_scip2_start_md(&f->urg, 0, 100, 1, 0, 100), COSLAM_E_ARG);
+    /* more points than COSLAM_MAX_SCAN_POINTS: refused and counted */
+    assert_int_equal(urg_scip2_start_md(&f->urg, 0, COSLAM_MAX_SCAN_POINTS, 1, 0, 0), COSLAM_E_CAPACITY);
+    assert_int_equal(urg_scip2_stats(&f->urg)->err_capacity, 1);
+    /* the same steps in clusters of 2 fit */
+    char ack[64];
+    sprintf(ack, "MD0000%04u02000\n00P\n\n", COSLAM_MAX_SCAN_POINTS);
+    fake_add_str(&f->fake, 2, ack);
+    assert_int_equal(urg_scip2_start_md(&f->urg, 0, COSLAM_MAX_SCAN_POINTS, 2, 0, 0), COSLAM_OK);
+    assert_int_equal(urg_scip2_get_scan(&f->urg, 0, 10, 1, &f->scan), COSLAM_E_ARG); /* GD while MD runs */
+    assert_int_equal(f->fake.n_writes, 2); /* refused calls sent nothing */
+}
+
+static void test_stream_status_error(void **state)
+{
+    fixture_t *f = *state;
+    start_md04(f, 0);
+    /* hardware trouble "50" in place of "99": reported, and the next scan works */
+    fake_add_str(&f->fake, 1, "MD0044072501000\n50U\n\n");
+    const size_t n = build_scan(msg, "MD0044072501000", "99", 7, vals04, N04, CORRUPT_NONE, 0);
+    fake_add(&f->fake, 1, msg, n);
+    assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_E_URG_STATUS);
+    assert_string_equal(urg_scip2_last_status(&f->urg), "50");
+    assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_OK);
+    expect_scan04(&f->scan, 7);
+}
+
+/* Mutation fuzz: a small scan message with 1-4 random byte flips, deletions
+ * or insertions, then two good messages. Whatever the damage, every call
+ * returns, every failure is counted, and the last good message decodes
+ * exactly (the driver resynchronises). One driver instance for all rounds. */
+static void test_fuzz_mutated_messages(void **state)
+{
+    fixture_t *f = *state;
+    fake_add_str(&f->fake, 1, "MD0044007301000\n00P\n\n");
+    assert_int_equal(urg_scip2_start_md(&f->urg, 44, 73, 1, 0, 0), COSLAM_OK);
+    rng_t rng;
+    rng_seed(&rng, 0xF022);
+    uint32_t v[30];
+    const int rounds = COSLAM_TEST_FULL ? 50000 : 3000;
+    for (int round = 0; round < rounds; ++round) {
+        for (int i = 0; i < 30; ++i) v[i] = 20 + rng_below(&rng, 5000);
+        size_t n = build_scan(msg, "MD0044007301000", "99", 1000 + (uint32_t)round, v, 30, CORRUPT_NONE, 0);
+        const int n_mut = 1 + (int)rng_below(&rng, 4);
+        for (int m = 0; m < n_mut && n > 2; ++m) {
+            const size_t at = rng_below(&rng, (uint32_t)n);
+            switch (rng_below(&rng, 3)) {
+            case 0: msg[at] = (char)rng_below(&rng, 256); break;
+            case 1: memmove(msg + at, msg + at + 1, n - at - 1); --n; break;
+            default: memmove(msg + at + 1, msg + at, n - at); msg[at] = (char)rng_below(&rng, 256); ++n; break;
+            }
+        }
+        f->fake.stream_len = f->fake.pos = 0;
+        f->fake.n_segments = 0;
+        fake_add(&f->fake, 0, msg, n);
+        for (int k = 0; k < 2; ++k) {
+            n = build_scan(msg2, "MD0044007301000", "99", 5000 + (uint32_t)k, v, 30, CORRUPT_NONE, 0);
+            fake_add(&f->fake, 0, msg2, n);
+        }
+        const urg_scip2_stats_t before = *urg_scip2_stats(&f->urg);
+        uint32_t last_ok_stamp = 0;
+        int calls = 0, failures = 0;
+        coslam_status_t st;
+        while ((st = urg_scip2_read_scan(&f->urg, &f->scan, 0)) != COSLAM_E_URG_TIMEOUT) {
+            ASSERT_TRUE_MSG(++calls <= 12, "round %d: no end\n", round);
+            if (st == COSLAM_OK) {
+                last_ok_stamp = f->scan.raw_stamp_ms;
+            } else {
+                ++failures;
+            }
+        }
+        ASSERT_TRUE_MSG(last_ok_stamp == 5001, "round %d: last good stamp %u\n", round, last_ok_stamp);
+        assert_memory_equal(f->scan.range_mm, v, sizeof v);
+        const urg_scip2_stats_t *a = urg_scip2_stats(&f->urg);
+        const uint32_t errs = (a->err_checksum - before.err_checksum) + (a->err_line - before.err_line) +
+                              (a->err_garbage - before.err_garbage) + (a->err_echo - before.err_echo) +
+                              (a->err_status - before.err_status);
+        ASSERT_TRUE_MSG(errs == (uint32_t)failures, "round %d: %d failures, %u counted (sum %u line %u garbage %u echo %u status %u)\n", round, failures, errs, a->err_checksum - before.err_checksum, a->err_line - before.err_line, a->err_garbage - before.err_garbage, a->err_echo - before.err_echo, a->err_status - before.err_status);
+        assert_int_equal(f->fake.pos, f->fake.stream_len);
+    }
+    const urg_scip2_stats_t *a = urg_scip2_stats(&f->urg);
+    print_message("fuzz: %d rounds, ok %u, checksum %u, line %u, garbage %u, echo %u, status %u, resyncs %u\n", rounds,
+                  a->scans_ok, a->err_checksum, a->err_line, a->err_garbage, a->err_echo, a->err_status, a->resyncs);
+    /* the mutations did reach every class of check */
+    assert_true(a->err_checksum > 0 && a->err_line > 0 && a->err_garbage > 0 && a->err_echo > 0);
+    /* B always decodes (checked per round); A is lost only when the damage
+     * swallowed the empty line that ends the mutated message */
+    assert_true(a->scans_ok >= (uint32_t)rounds + (uint32_t)rounds / 2U);
+}
+
+static void test_init_args(void **state)
+{
+    (void)state;
+    urg_scip2_t u;
+    fake_serial_t fk;
+    fake_init(&fk);
+    urg_scip2_config_t c;
+    urg_scip2_config_default(&c);
+    assert_int_equal(urg_scip2_init(NULL, &fk.dev, &c), COSLAM_E_ARG);
+    assert_int_equal(urg_scip2_init(&u, NULL, &c), COSLAM_E_ARG);
+    c.byte_timeout_us = 0;
+    assert_int_equal(urg_scip2_init(&u, &fk.dev, &c), COSLAM_E_ARG);
+    assert_int_equal(urg_scip2_read_scan(NULL, NULL, 0), COSLAM_E_ARG);
+    assert_int_equal(urg_scip2_laser_on(NULL), COSLAM_E_ARG);
+}
+
+int main(void)
+{
+#define T(fn) cmocka_unit_test_setup_teardown(fn, setup, teardown)
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_checksum_and_decode_vectors),
+        cmocka_unit_test(test_angles_and_validity),
+        cmocka_unit_test(test_init_args),
+        T(test_enter_scip2),
+        T(test_version_published_example),
+        T(test_params_published_example),
+        T(test_params_bad_fields),
+        T(test_info_published_example),
+        T(test_laser_on_off),
+        T(test_write_failure_is_io),
+        T(test_gd_byte_exact),
+        T(test_gd_laser_off_status),
+        T(test_md_scan_decodes),
+        T(test_md_every_split_point),
+        T(test_corrupt_checksum),
+        T(test_corrupt_checksum_last_line),
+        T(test_short_line),
+        T(test_missing_line),
+        T(test_extra_line),
+        T(test_garbage_in_line),
+        T(test_stamp_line_length),
+        T(test_garbage_between_messages),
+        T(test_echo_mismatch_in_stream),
+        T(test_timeout_mid_message),
+        T(test_dmin_error_codes),
+        T(test_timestamp_wrap),
+        T(test_md_finite_and_cluster),
+        T(test_qt_skips_scans_in_flight),
+        T(test_md_refused_and_bad_args),
+        T(test_stream_status_error),
+        T(test_fuzz_mutated_messages),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
