@@ -31,6 +31,21 @@ static int dim(const ekfslam_t *ekf)
     return 3 + 2 * (int)ekf->n_lm;
 }
 
+/* States in use: the pose and landmarks, plus the transform error tau at
+ * the reserved tail of the stride while a merge runs. */
+#define TAU_ EKFSLAM_STATE_MAX
+
+static int n_active(const ekfslam_t *ekf)
+{
+    return dim(ekf) + (ekf->merging ? 3 : 0);
+}
+
+static int active_idx(const ekfslam_t *ekf, int k)
+{
+    const int d = dim(ekf);
+    return k < d ? k : TAU_ + (k - d);
+}
+
 coslam_status_t ekfslam_init(ekfslam_t *ekf, const ekfslam_config_t *cfg, pose2_t pose0)
 {
     COSLAM_ASSERT(ekf != 0 && cfg != 0);
@@ -41,6 +56,7 @@ coslam_status_t ekfslam_init(ekfslam_t *ekf, const ekfslam_config_t *cfg, pose2_
     }
     ekf->cfg = *cfg;
     ekf->n_lm = 0;
+    ekf->merging = 0U;
     ekf->next_id = 1U;
     memset(&ekf->ctr, 0, sizeof ekf->ctr);
     ekf->x[0] = pose0.x;
@@ -249,13 +265,72 @@ static coslam_status_t update_one(ekfslam_t *ekf, uint16_t j, sighting_t z)
     return COSLAM_OK;
 }
 
-coslam_status_t ekfslam_add_landmark_body(ekfslam_t *ekf, point2_t m_body, cov2_t cov_body,
-                                          const ekfslam_meta_t *meta)
+/*
+ * Append a landmark at m (map frame) whose error is gr * (pose error) +
+ * gt * (tau error, only while merging) + noise (covariance `noise`, map
+ * frame), independent of the rest. Cross-covariances with every active
+ * state follow: P_m* = G P_(r,tau)*. O(D).
+ */
+static coslam_status_t add_landmark(ekfslam_t *ekf, point2_t m, double gr[2][3], double gt[2][3], cov2_t noise,
+                                    const ekfslam_meta_t *meta)
 {
     if (ekf->n_lm >= COSLAM_MAX_LANDMARKS) {
         ekf->ctr.lm_capacity_drops++;
         return COSLAM_E_CAPACITY;
     }
+    if (!cov2_is_finite(noise) || !isfinite(m.x) || !isfinite(m.y)) {
+        ekf->ctr.numeric_faults++;
+        return COSLAM_E_NUMERIC;
+    }
+    const int n_act = n_active(ekf);
+    const int a = dim(ekf); /* new rows/columns a, a+1 */
+    /* the sources: pose (0..2) and, if given, tau */
+    int src[6] = {0, 1, 2, TAU_, TAU_ + 1, TAU_ + 2};
+    double g[2][6];
+    for (int q = 0; q < 2; ++q) {
+        for (int r = 0; r < 3; ++r) {
+            g[q][r] = gr[q][r];
+            g[q][3 + r] = gt != 0 ? gt[q][r] : 0.0;
+        }
+    }
+    const int n_src = gt != 0 && ekf->merging ? 6 : 3;
+    for (int k = 0; k < n_act; ++k) {
+        const int col = active_idx(ekf, k);
+        for (int q = 0; q < 2; ++q) {
+            double val = 0.0;
+            for (int r = 0; r < n_src; ++r) {
+                val += g[q][r] * P_(ekf, src[r], col);
+            }
+            P_(ekf, a + q, col) = val;
+            P_(ekf, col, a + q) = val;
+        }
+    }
+    double pmm[2][2] = {{noise.xx, noise.xy}, {noise.xy, noise.yy}};
+    for (int q1 = 0; q1 < 2; ++q1) {
+        for (int q2 = 0; q2 < 2; ++q2) {
+            for (int r1 = 0; r1 < n_src; ++r1) {
+                for (int r2 = 0; r2 < n_src; ++r2) {
+                    pmm[q1][q2] += g[q1][r1] * P_(ekf, src[r1], src[r2]) * g[q2][r2];
+                }
+            }
+        }
+    }
+    const double sym = 0.5 * (pmm[0][1] + pmm[1][0]);
+    P_(ekf, a, a) = pmm[0][0];
+    P_(ekf, a, a + 1) = sym;
+    P_(ekf, a + 1, a) = sym;
+    P_(ekf, a + 1, a + 1) = pmm[1][1];
+    ekf->x[a] = m.x;
+    ekf->x[a + 1] = m.y;
+    ekf->lm_first[ekf->n_lm] = m;
+    ekf->meta[ekf->n_lm] = *meta;
+    ekf->n_lm++;
+    return COSLAM_OK;
+}
+
+coslam_status_t ekfslam_add_landmark_body(ekfslam_t *ekf, point2_t m_body, cov2_t cov_body,
+                                          const ekfslam_meta_t *meta)
+{
     if (!cov2_is_finite(cov_body) || !isfinite(m_body.x) || !isfinite(m_body.y)) {
         ekf->ctr.numeric_faults++;
         return COSLAM_E_NUMERIC;
@@ -264,35 +339,7 @@ coslam_status_t ekfslam_add_landmark_body(ekfslam_t *ekf, point2_t m_body, cov2_
     double gr[2][3];
     double gb[2][2];
     pose2_apply_jacobians(pose, m_body, gr, gb);
-    const int d = dim(ekf);
-    const int a = d; /* new rows/columns a, a+1 */
-    const point2_t m = pose2_apply(pose, m_body);
-    /* P_m* = G_r P_r* for all existing columns */
-    for (int c = 0; c < d; ++c) {
-        for (int q = 0; q < 2; ++q) {
-            const double val = gr[q][0] * P_(ekf, 0, c) + gr[q][1] * P_(ekf, 1, c) + gr[q][2] * P_(ekf, 2, c);
-            P_(ekf, a + q, c) = val;
-            P_(ekf, c, a + q) = val;
-        }
-    }
-    double prr[3][3];
-    for (int r = 0; r < 3; ++r) {
-        for (int c = 0; c < 3; ++c) {
-            prr[r][c] = P_(ekf, r, c);
-        }
-    }
-    const cov2_t pmm = cov2_add(cov2_from_3x3(gr, prr),
-                                cov2_congruence(gb, cov_body));
-    P_(ekf, a, a) = pmm.xx;
-    P_(ekf, a, a + 1) = pmm.xy;
-    P_(ekf, a + 1, a) = pmm.xy;
-    P_(ekf, a + 1, a + 1) = pmm.yy;
-    ekf->x[a] = m.x;
-    ekf->x[a + 1] = m.y;
-    ekf->lm_first[ekf->n_lm] = m;
-    ekf->meta[ekf->n_lm] = *meta;
-    ekf->n_lm++;
-    return COSLAM_OK;
+    return add_landmark(ekf, pose2_apply(pose, m_body), gr, 0, cov2_congruence(gb, cov_body), meta);
 }
 
 void ekfslam_remove_landmark(ekfslam_t *ekf, uint16_t j)
@@ -679,6 +726,284 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
     return result;
 }
 
+/* Jacobian of rel = R^T (m_j - p) w.r.t. (x, y, theta, m_jx, m_jy). */
+static void relative_jacobian(const ekfslam_t *ekf, uint16_t j, double jac[2][5], point2_t *rel)
+{
+    const pose2_t pose = robot_pose(ekf);
+    const int a = 3 + 2 * j;
+    const double c = cos(pose.theta);
+    const double s = sin(pose.theta);
+    const double dx = ekf->x[a] - pose.x;
+    const double dy = ekf->x[a + 1] - pose.y;
+    jac[0][0] = -c;
+    jac[0][1] = -s;
+    jac[0][2] = -s * dx + c * dy;
+    jac[0][3] = c;
+    jac[0][4] = s;
+    jac[1][0] = s;
+    jac[1][1] = -c;
+    jac[1][2] = -c * dx - s * dy;
+    jac[1][3] = -s;
+    jac[1][4] = c;
+    if (rel != 0) {
+        rel->x = c * dx + s * dy;
+        rel->y = -s * dx + c * dy;
+    }
+}
+
+/* Cov(R^T (m - p)) with the pose-landmark cross-covariance: J [P_pp P_pm;
+ * P_mp P_mm] J^T, J = [d rel / d pose, R^T]. */
+static cov2_t landmark_relative_cov(const ekfslam_t *ekf, uint16_t j)
+{
+    const int a = 3 + 2 * j;
+    double jac[2][5];
+    relative_jacobian(ekf, j, jac, 0);
+    const int idx[5] = {0, 1, 2, a, a + 1};
+    double o[2][2] = {{0.0, 0.0}, {0.0, 0.0}};
+    for (int r1 = 0; r1 < 5; ++r1) {
+        for (int r2 = 0; r2 < 5; ++r2) {
+            const double pv = P_(ekf, idx[r1], idx[r2]);
+            for (int q1 = 0; q1 < 2; ++q1) {
+                for (int q2 = 0; q2 < 2; ++q2) {
+                    o[q1][q2] += jac[q1][r1] * pv * jac[q2][r2];
+                }
+            }
+        }
+    }
+    return cov2_make(o[0][0], 0.5 * (o[0][1] + o[1][0]), o[1][1]);
+}
+
+void ekfslam_landmark_relative(const ekfslam_t *ekf, uint16_t j, point2_t *mean_body, cov2_t *cov_body)
+{
+    COSLAM_ASSERT(j < ekf->n_lm);
+    double jac[2][5];
+    relative_jacobian(ekf, j, jac, mean_body);
+    *cov_body = landmark_relative_cov(ekf, j);
+}
+
+/* Scalar EKF update z = sum_q h[q] x[idx[q]] + v (linearised) with
+ * innovation nu and noise variance r, over every active state, symmetric
+ * Joseph form. O(D^2). */
+static coslam_status_t scalar_update(ekfslam_t *ekf, const int *idx, const double *h, int nh, double nu, double r)
+{
+    const int n_act = n_active(ekf);
+    double(*pht)[2] = ekf->scratch.pht;
+    double(*k)[2] = ekf->scratch.k;
+    for (int kk = 0; kk < n_act; ++kk) {
+        const int row = active_idx(ekf, kk);
+        double acc = 0.0;
+        for (int q = 0; q < nh; ++q) {
+            acc += P_(ekf, row, idx[q]) * h[q];
+        }
+        pht[kk][0] = acc;
+    }
+    double s = r;
+    for (int q = 0; q < nh; ++q) {
+        double acc = 0.0;
+        for (int q2 = 0; q2 < nh; ++q2) {
+            acc += P_(ekf, idx[q], idx[q2]) * h[q2];
+        }
+        s += h[q] * acc;
+    }
+    if (!(s > 0.0) || !isfinite(s) || !isfinite(nu)) {
+        ekf->ctr.numeric_faults++;
+        return COSLAM_E_NOT_PD;
+    }
+    for (int kk = 0; kk < n_act; ++kk) {
+        k[kk][0] = pht[kk][0] / s;
+        ekf->x[active_idx(ekf, kk)] += k[kk][0] * nu;
+    }
+    ekf->x[2] = angle_wrap(ekf->x[2]);
+    for (int k1 = 0; k1 < n_act; ++k1) {
+        const int row = active_idx(ekf, k1);
+        for (int k2 = k1; k2 < n_act; ++k2) {
+            const int col = active_idx(ekf, k2);
+            /* P - K Ph^T - Ph K^T + K s K^T */
+            const double delta = k[k1][0] * pht[k2][0] + pht[k1][0] * k[k2][0] - k[k1][0] * s * k[k2][0];
+            const double val = P_(ekf, row, col) - delta;
+            P_(ekf, row, col) = val;
+            P_(ekf, col, row) = val;
+        }
+    }
+    return COSLAM_OK;
+}
+
+/* Unit eigenvector of a symmetric 2x2 for eigenvalue lam (axis e if a * I). */
+static void eigvec2(cov2_t a, double lam, int e, double *vx, double *vy)
+{
+    double x = a.xy;
+    double y = lam - a.xx;
+    const double ux = lam - a.yy;
+    const double uy = a.xy;
+    if (ux * ux + uy * uy > x * x + y * y) {
+        x = ux;
+        y = uy;
+    }
+    const double n = sqrt(x * x + y * y);
+    if (!(n > 0.0)) {
+        *vx = e == 0 ? 1.0 : 0.0;
+        *vy = e == 0 ? 0.0 : 1.0;
+        return;
+    }
+    *vx = x / n;
+    *vy = y / n;
+}
+
+coslam_status_t ekfslam_update_relative(ekfslam_t *ekf, uint16_t j, point2_t z_body, cov2_t info)
+{
+    COSLAM_ASSERT(j < ekf->n_lm);
+    if (!cov2_is_finite(info) || !isfinite(z_body.x) || !isfinite(z_body.y)) {
+        ekf->ctr.numeric_faults++;
+        return COSLAM_E_NUMERIC;
+    }
+    double lmin;
+    double lmax;
+    cov2_eigenvalues(info, &lmin, &lmax);
+    const double lam[2] = {lmax, lmin};
+    const int a = 3 + 2 * j;
+    const int idx[5] = {0, 1, 2, a, a + 1};
+    for (int e = 0; e < 2; ++e) {
+        if (!(lam[e] > 1e-12 * lmax) || !(lam[e] > 0.0)) {
+            continue; /* no information in this direction */
+        }
+        double vx;
+        double vy;
+        eigvec2(info, lam[e], e, &vx, &vy);
+        double jac[2][5];
+        point2_t rel;
+        relative_jacobian(ekf, j, jac, &rel);
+        double h[5];
+        for (int q = 0; q < 5; ++q) {
+            h[q] = vx * jac[0][q] + vy * jac[1][q];
+        }
+        const double nu = vx * (z_body.x - rel.x) + vy * (z_body.y - rel.y);
+        const coslam_status_t st = scalar_update(ekf, idx, h, 5, nu, 1.0 / lam[e]);
+        if (st != COSLAM_OK) {
+            return st;
+        }
+    }
+    return COSLAM_OK;
+}
+
+coslam_status_t ekfslam_merge_begin(ekfslam_t *ekf, const cov3_t *t_cov)
+{
+    if (ekf->merging) {
+        return COSLAM_E_ARG;
+    }
+    if (t_cov != 0 && !cov3_is_finite(*t_cov)) {
+        return COSLAM_E_NUMERIC;
+    }
+    const int d = dim(ekf);
+    for (int q = 0; q < 3; ++q) {
+        ekf->x[TAU_ + q] = 0.0;
+        for (int col = 0; col < d; ++col) {
+            P_(ekf, TAU_ + q, col) = 0.0;
+            P_(ekf, col, TAU_ + q) = 0.0;
+        }
+        for (int q2 = 0; q2 < 3; ++q2) {
+            P_(ekf, TAU_ + q, TAU_ + q2) = t_cov != 0 ? t_cov->m[q][q2] : 0.0;
+        }
+    }
+    ekf->merging = 1U;
+    return COSLAM_OK;
+}
+
+void ekfslam_merge_end(ekfslam_t *ekf)
+{
+    /* marginalising tau out of a Gaussian = forgetting its rows and columns */
+    ekf->merging = 0U;
+}
+
+static pose2_t merge_t_now(const ekfslam_t *ekf, pose2_t t_hat)
+{
+    pose2_t t = t_hat;
+    t.x += ekf->x[TAU_];
+    t.y += ekf->x[TAU_ + 1];
+    t.theta = angle_wrap(t.theta + ekf->x[TAU_ + 2]);
+    return t;
+}
+
+coslam_status_t ekfslam_merge_observe(ekfslam_t *ekf, uint16_t j, pose2_t t_hat, point2_t rel_other, cov2_t noise_other,
+                                      double inflate)
+{
+    COSLAM_ASSERT(j < ekf->n_lm);
+    if (!ekf->merging || !(inflate >= 1.0) || !isfinite(inflate)) {
+        return COSLAM_E_ARG;
+    }
+    const int a = 3 + 2 * j;
+    const int idx[8] = {0, 1, 2, a, a + 1, TAU_, TAU_ + 1, TAU_ + 2};
+    /* noise in the body frame, and its eigen-directions */
+    const double ct = cos(t_hat.theta);
+    const double st = sin(t_hat.theta);
+    double rt[2][2] = {{ct, -st}, {st, ct}};
+    const cov2_t noise = cov2_scale(cov2_congruence(rt, noise_other), inflate);
+    if (!cov2_is_pd(noise)) {
+        ekf->ctr.numeric_faults++;
+        return COSLAM_E_NOT_PD;
+    }
+    double lmin;
+    double lmax;
+    cov2_eigenvalues(noise, &lmin, &lmax);
+    const double lam[2] = {lmin, lmax};
+    for (int e = 0; e < 2; ++e) {
+        double vx;
+        double vy;
+        eigvec2(noise, lam[e], e, &vx, &vy);
+        /* residual R^T (m_j - p) - (t (+) rel), and its Jacobian */
+        double jac[2][5];
+        point2_t rel_self;
+        relative_jacobian(ekf, j, jac, &rel_self);
+        const pose2_t t = merge_t_now(ekf, t_hat);
+        const point2_t in_body = pose2_apply(t, rel_other);
+        double jt[2][3];
+        pose2_apply_jacobians(t, rel_other, jt, 0);
+        double h[8];
+        for (int q = 0; q < 5; ++q) {
+            h[q] = vx * jac[0][q] + vy * jac[1][q];
+        }
+        for (int q = 0; q < 3; ++q) {
+            h[5 + q] = -(vx * jt[0][q] + vy * jt[1][q]);
+        }
+        const double nu = -(vx * (rel_self.x - in_body.x) + vy * (rel_self.y - in_body.y));
+        const coslam_status_t s = scalar_update(ekf, idx, h, 8, nu, lam[e]);
+        if (s != COSLAM_OK) {
+            return s;
+        }
+    }
+    return COSLAM_OK;
+}
+
+coslam_status_t ekfslam_merge_add(ekfslam_t *ekf, pose2_t t_hat, point2_t rel_other, cov2_t noise_other,
+                                  const ekfslam_meta_t *meta)
+{
+    if (!ekf->merging) {
+        return COSLAM_E_ARG;
+    }
+    const pose2_t pose = robot_pose(ekf);
+    const pose2_t t = merge_t_now(ekf, t_hat);
+    const point2_t b = pose2_apply(t, rel_other);
+    double gr[2][3];
+    double gb[2][2];
+    pose2_apply_jacobians(pose, b, gr, gb);
+    double jt[2][3];
+    double jrel[2][2];
+    pose2_apply_jacobians(t, rel_other, jt, jrel);
+    /* d m / d tau = R_pose J_t; noise: R_pose R_t noise R_t^T R_pose^T */
+    double gt[2][3];
+    for (int q = 0; q < 2; ++q) {
+        for (int r = 0; r < 3; ++r) {
+            gt[q][r] = gb[q][0] * jt[0][r] + gb[q][1] * jt[1][r];
+        }
+    }
+    double rr[2][2];
+    for (int q = 0; q < 2; ++q) {
+        for (int r = 0; r < 2; ++r) {
+            rr[q][r] = gb[q][0] * jrel[0][r] + gb[q][1] * jrel[1][r];
+        }
+    }
+    return add_landmark(ekf, pose2_apply(pose, b), gr, gt, cov2_congruence(rr, noise_other), meta);
+}
+
 coslam_status_t ekfslam_export(ekfslam_t *ekf, map_estimate_t *out)
 {
     const slam_params_t *sp = &ekf->cfg.slam;
@@ -710,6 +1035,7 @@ coslam_status_t ekfslam_export(ekfslam_t *ekf, map_estimate_t *out)
         const uint16_t j = order[i];
         map_landmark_t *o = &out->lm[i];
         ekfslam_landmark(ekf, j, &o->mean, &o->cov);
+        o->cov_rel = landmark_relative_cov(ekf, j);
         o->id = ekf->meta[j].id;
         o->n_obs = ekf->meta[j].n_obs;
         o->src_mask = ekf->meta[j].src_mask;

@@ -560,6 +560,11 @@ static int export_slot(fastslam_export_scratch_t *t, uint32_t id, int insert)
             t->cxx[h] = 0.0;
             t->cxy[h] = 0.0;
             t->cyy[h] = 0.0;
+            t->rx[h] = 0.0;
+            t->ry[h] = 0.0;
+            t->rxx[h] = 0.0;
+            t->rxy[h] = 0.0;
+            t->ryy[h] = 0.0;
             t->nobs[h] = 0.0;
             t->src_mask[h] = 0U;
             t->signature[h] = 0U;
@@ -617,6 +622,9 @@ coslam_status_t fastslam_export(fastslam_t *fs, map_estimate_t *out)
             t->w[s] += w[k];
             t->mx[s] += w[k] * lm->mean.x;
             t->my[s] += w[k] * lm->mean.y;
+            const point2_t rel = pose2_apply_inverse(p->pose, lm->mean);
+            t->rx[s] += w[k] * rel.x;
+            t->ry[s] += w[k] * rel.y;
             t->nobs[s] += w[k] * (double)lm->n_obs;
             t->src_mask[s] |= lm->src_mask;
             t->signature[s] = lm->signature;
@@ -626,6 +634,8 @@ coslam_status_t fastslam_export(fastslam_t *fs, map_estimate_t *out)
         if (t->id[s] != 0U && t->w[s] > 0.0) {
             t->mx[s] /= t->w[s];
             t->my[s] /= t->w[s];
+            t->rx[s] /= t->w[s];
+            t->ry[s] /= t->w[s];
         }
     }
     /* pass 2: covariance = within-particle covariance + spread of the means */
@@ -645,6 +655,17 @@ coslam_status_t fastslam_export(fastslam_t *fs, map_estimate_t *out)
             t->cxx[s] += w[k] * (lm->cov.xx + dx * dx);
             t->cxy[s] += w[k] * (lm->cov.xy + dx * dy);
             t->cyy[s] += w[k] * (lm->cov.yy + dy * dy);
+            /* relative to this particle's pose, in its body frame */
+            const point2_t rel = pose2_apply_inverse(p->pose, lm->mean);
+            const double c = cos(p->pose.theta);
+            const double sn = sin(p->pose.theta);
+            double rt[2][2] = {{c, sn}, {-sn, c}}; /* R^T */
+            const cov2_t cr = cov2_congruence(rt, lm->cov);
+            const double ex = rel.x - t->rx[s];
+            const double ey = rel.y - t->ry[s];
+            t->rxx[s] += w[k] * (cr.xx + ex * ex);
+            t->rxy[s] += w[k] * (cr.xy + ex * ey);
+            t->ryy[s] += w[k] * (cr.yy + ey * ey);
         }
     }
     /* select: weight >= export_min_weight; keep the heaviest if too many */
@@ -669,6 +690,7 @@ coslam_status_t fastslam_export(fastslam_t *fs, map_estimate_t *out)
         o->mean.x = t->mx[s];
         o->mean.y = t->my[s];
         o->cov = cov2_make(t->cxx[s] * inv_w, t->cxy[s] * inv_w, t->cyy[s] * inv_w);
+        o->cov_rel = cov2_make(t->rxx[s] * inv_w, t->rxy[s] * inv_w, t->ryy[s] * inv_w);
         o->id = t->id[s];
         const double nobs = t->nobs[s] * inv_w + 0.5;
         o->n_obs = nobs >= 65535.0 ? (uint16_t)65535U : (uint16_t)nobs;

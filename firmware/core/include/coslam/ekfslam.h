@@ -52,8 +52,11 @@
 extern "C" {
 #endif
 
-/** Fixed stride (and maximum size) of the state. */
-#define EKFSLAM_DIM (3 + 2 * COSLAM_MAX_LANDMARKS)
+/** Largest state: pose and COSLAM_MAX_LANDMARKS landmarks. */
+#define EKFSLAM_STATE_MAX (3 + 2 * COSLAM_MAX_LANDMARKS)
+/** Fixed stride of x and P: the state plus 3 entries reserved for the
+ *  transform error a map merge carries while it runs (ekfslam_merge_*). */
+#define EKFSLAM_DIM (EKFSLAM_STATE_MAX + 3)
 
 typedef enum {
     EKFSLAM_ASSOC_NN = 1,
@@ -131,6 +134,7 @@ typedef struct {
     ekfslam_counters_t ctr;
     double x[EKFSLAM_DIM];
     point2_t lm_first[COSLAM_MAX_LANDMARKS]; /**< first estimate of each landmark (FEJ) */
+    uint8_t merging;                         /**< 1 between ekfslam_merge_begin and _end */
     pose2_t pose_prior;                      /**< pose after the last prediction (FEJ) */
     double p[EKFSLAM_DIM * EKFSLAM_DIM];   /**< row-major, stride EKFSLAM_DIM */
     ekfslam_meta_t meta[COSLAM_MAX_LANDMARKS];
@@ -173,6 +177,48 @@ coslam_status_t ekfslam_export(ekfslam_t *ekf, map_estimate_t *out);
  */
 coslam_status_t ekfslam_add_landmark_body(ekfslam_t *ekf, point2_t m_body, cov2_t cov_body,
                                           const ekfslam_meta_t *meta);
+
+/**
+ * Landmark j relative to the robot, in the robot's body frame:
+ * R(theta)^T (m_j - p) and its covariance including the pose-landmark
+ * cross-covariance. O(1).
+ */
+void ekfslam_landmark_relative(const ekfslam_t *ekf, uint16_t j, point2_t *mean_body, cov2_t *cov_body);
+
+/**
+ * EKF update with a direct observation of landmark j relative to the robot
+ * (body frame), z = R(theta)^T (m_j - p) + v, where the observation carries
+ * information `info` (the inverse of its covariance; it may be singular:
+ * only the directions with positive information update the state). Done as
+ * independent scalar updates along the eigenvectors of `info`, each
+ * relinearised. Used by the map merge. O(D^2).
+ */
+coslam_status_t ekfslam_update_relative(ekfslam_t *ekf, uint16_t j, point2_t z_body, cov2_t info);
+
+/*
+ * Map merge as a batch (used by map_merge.c). The incoming landmarks all
+ * share the error of the transform T between the robots; treating them as
+ * independent observations would count T's information once per
+ * landmark. So the merge appends T's error tau ~ N(0, t_cov) (additive on
+ * x, y, theta) to the state, processes every incoming landmark against it,
+ * and drops it at the end (marginalisation): duplicates and additions keep
+ * their correct correlations with T, the pose and each other.
+ *   ekfslam_merge_begin: append tau (t_cov NULL: exact transform).
+ *   ekfslam_merge_observe: own landmark j and an incoming one are the same
+ *     point: R(theta)^T (m_j - p) = (t_hat + tau) (+) rel_other + v, v with
+ *     covariance R_t noise_other R_t^T * inflate (inflate >= 1 scales the
+ *     noise for covariance intersection).
+ *   ekfslam_merge_add: append the incoming landmark at
+ *     p (+) ((t_hat + tau) (+) rel_other) with the matching cross-covariances.
+ *   ekfslam_merge_end: drop tau.
+ * rel_other and noise_other are in the sender's body frame. Each O(D^2) or O(D).
+ */
+coslam_status_t ekfslam_merge_begin(ekfslam_t *ekf, const cov3_t *t_cov);
+coslam_status_t ekfslam_merge_observe(ekfslam_t *ekf, uint16_t j, pose2_t t_hat, point2_t rel_other, cov2_t noise_other,
+                                      double inflate);
+coslam_status_t ekfslam_merge_add(ekfslam_t *ekf, pose2_t t_hat, point2_t rel_other, cov2_t noise_other,
+                                  const ekfslam_meta_t *meta);
+void ekfslam_merge_end(ekfslam_t *ekf);
 
 /** Remove landmark j, deleting its rows and columns. O(L). */
 void ekfslam_remove_landmark(ekfslam_t *ekf, uint16_t j);

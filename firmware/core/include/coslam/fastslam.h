@@ -112,6 +112,11 @@ typedef struct {
     double cxx[COSLAM_MAX_EXPORT_IDS];
     double cxy[COSLAM_MAX_EXPORT_IDS];
     double cyy[COSLAM_MAX_EXPORT_IDS];
+    double rx[COSLAM_MAX_EXPORT_IDS];       /**< relative (body-frame) mean */
+    double ry[COSLAM_MAX_EXPORT_IDS];
+    double rxx[COSLAM_MAX_EXPORT_IDS];      /**< relative covariance */
+    double rxy[COSLAM_MAX_EXPORT_IDS];
+    double ryy[COSLAM_MAX_EXPORT_IDS];
     double nobs[COSLAM_MAX_EXPORT_IDS];
     uint16_t src_mask[COSLAM_MAX_EXPORT_IDS];
     uint8_t signature[COSLAM_MAX_EXPORT_IDS];
@@ -171,7 +176,9 @@ void fastslam_pose_estimate(const fastslam_t *fs, pose2_t *mean, cov3_t *cov);
  *   W = sum_k w_k,  mean = sum_k w_k mu_k / W,
  *   cov = sum_k w_k (Sigma_k + (mu_k - mean)(mu_k - mean)^T) / W,
  * over the particles in which the landmark is confirmed; a landmark is
- * exported if W >= export_min_weight. Landmarks are ordered by identity.
+ * exported if W >= export_min_weight. cov_rel is the same mixture of the
+ * positions relative to each particle's own pose (R_k^T (mu_k - x_k), with
+ * covariance R_k^T Sigma_k R_k). Landmarks are ordered by identity.
  * Returns COSLAM_E_CAPACITY (counted) if the identity table or the message
  * overflowed, the heaviest landmarks being kept. O(N * M) time.
  */

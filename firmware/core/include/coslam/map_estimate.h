@@ -6,7 +6,17 @@
  *
  * Landmark correlations are dropped (paper sec. 2.1): each landmark is a
  * marginal Gaussian. The pose and landmarks are in the exporting robot's map
- * frame. sizeof(map_estimate_t) is about 48 * COSLAM_MAX_MSG_LANDMARKS bytes.
+ * frame. sizeof(map_estimate_t) is about 72 * COSLAM_MAX_MSG_LANDMARKS bytes.
+ *
+ * Each landmark carries two covariances. `cov` is its uncertainty in the map
+ * frame (for display and evaluation). `cov_rel` is the uncertainty of its
+ * position *relative to the robot*, expressed in the robot's body frame:
+ * Cov(R(theta)^T (m - p)). The map merge needs the latter: the receiver
+ * learns where the sender is from the mutual sightings, not from the
+ * sender's map frame, so the sender's absolute pose uncertainty must not
+ * enter - and the pose-landmark correlation, which the per-landmark marginal
+ * in the map frame has lost, is exactly what makes the relative position
+ * better known than either absolute one.
  */
 #ifndef COSLAM_MAP_ESTIMATE_H
 #define COSLAM_MAP_ESTIMATE_H
@@ -24,7 +34,8 @@ extern "C" {
 
 typedef struct {
     point2_t mean;      /**< [m], map frame */
-    cov2_t cov;         /**< [m^2] */
+    cov2_t cov;         /**< [m^2], map frame */
+    cov2_t cov_rel;     /**< [m^2], of the position relative to the robot, robot body frame */
     uint32_t id;        /**< exporter's landmark identity (stable across exports) */
     uint16_t n_obs;     /**< sightings fused into it */
     uint16_t src_mask;  /**< provenance bit mask over robot ids */

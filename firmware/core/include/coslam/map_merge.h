@@ -1,0 +1,248 @@
+/*
+ * coslam/map_merge.h - cooperative map merging from robot-to-robot
+ * sightings (paper sec. 2.1, eqs. 1-5), with the uncertainty of the
+ * transform carried into the merged landmarks.
+ *
+ * Pipeline, as the receiving robot ("self") runs it on a message from the
+ * sender ("other"):
+ *  1. merge_relative_pose: the other robot's pose in self's body frame from
+ *     the two mutual sightings alone (geometry below), with covariance.
+ *     merge_compensate then moves it to "now" with self's odometry since
+ *     its own sighting.
+ *  2. merge_transform_map: every incoming landmark once into self's body
+ *     frame, with covariance R Sigma_rel R^T + J_T Sigma_T J_T^T (paper eq.
+ *     3 corrected: eq. 3 as printed multiplies a 3x3 homogeneous T with a
+ *     2x2 Sigma; the rotation of a covariance is R Sigma R^T, and the
+ *     uncertainty of T itself must be added or the merged landmarks come
+ *     out biased and overconfident, as in the paper's Fig. 7).
+ *  3. merge_into_fastslam / merge_into_ekfslam: duplicates found by
+ *     nearest neighbour inside a Mahalanobis gate through a grid hash built
+ *     once over the incoming map (O(N M) over N particles, not O(N M^2));
+ *     one incoming landmark matches at most one own landmark; a match is
+ *     fused by the Kalman form of eqs. 4-5, an unmatched one is added.
+ *     Fast-SLAM: into every particle with that particle's pose. EKF-SLAM:
+ *     as Cartesian observations of the landmark relative to the robot pose
+ *     in the state, so the robot-landmark cross-covariances stay right.
+ *  5. Repeated meetings never count information twice: every landmark
+ *     carries a provenance mask (which robots' sightings it holds). A pair
+ *     whose masks are disjoint is independent and fused by the Kalman
+ *     update; a pair sharing any robot is fused by covariance intersection
+ *     (Julier and Uhlmann 1997), consistent for unknown correlation, so
+ *     re-merging information already fused cannot shrink the covariance.
+ *     Messages are accepted from a sender only with a sequence number
+ *     newer than the last merged one (merge_session_t).
+ *
+ * Geometry of the mutual sightings (both robots' markers at their centres):
+ *
+ *            other (O)            z_self,other  = (r1, b1): O seen from S,
+ *             ^  \  b2                            bearing in S's body frame
+ *      theta_O |   \  (O's x axis)  z_other,self = (r2, b2): S seen from O,
+ *             |  r  \                              bearing in O's body frame
+ *             |      \
+ *   S's x --> S ------ (b1 measured from S's x axis towards O)
+ *
+ *   O's position in S's frame:  t = r (cos b1, sin b1)
+ *   The ray O->S points along b1 + pi in S's frame and along b2 in O's
+ *   frame, so O's heading in S's frame is theta_O = b1 + pi - b2.
+ *   The range is measured twice: r = (r1/v1 + r2/v2) / (1/v1 + 1/v2),
+ *   variance 1 / (1/v1 + 1/v2).
+ *
+ * Memory: merge_scratch_t is caller-owned (about 100 * COSLAM_MAX_MSG_
+ * LANDMARKS bytes plus the grid). Nothing allocates.
+ */
+#ifndef COSLAM_MAP_MERGE_H
+#define COSLAM_MAP_MERGE_H
+
+#include <stdint.h>
+
+#include "coslam/config.h"
+#include "coslam/cov2.h"
+#include "coslam/cov3.h"
+#include "coslam/ekfslam.h"
+#include "coslam/fastslam.h"
+#include "coslam/map_estimate.h"
+#include "coslam/motion.h"
+#include "coslam/pose2.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/** Buckets of the merge grid hash (a power of two is not required). */
+#ifndef COSLAM_MERGE_GRID_BUCKETS
+#define COSLAM_MERGE_GRID_BUCKETS (2 * COSLAM_MAX_MSG_LANDMARKS)
+#endif
+
+/** A sighting of one robot by another, with its noise. */
+typedef struct {
+    double range_m;
+    double bearing_rad;
+    double range_var_m2;
+    double bearing_var_rad2;
+} robot_sighting_t;
+
+typedef struct {
+    /** Squared Mahalanobis gate for "these two landmarks are the same" (2 dof). */
+    double gate_chi2;
+    /** Cell edge of the grid hash [m]; landmarks farther apart than one cell
+     *  (in the receiver's body frame) are never taken as duplicates. */
+    double grid_cell_m;
+    /** 1: add the uncertainty of the transform (this project);
+     *  0: the paper's eq. 3, rotation of the covariance only (for comparison). */
+    uint8_t transform_uncertainty;
+    /** Fast-SLAM: multiply each particle's weight by how well its map agrees
+     *  with the incoming one (product of the duplicate pairs' likelihoods),
+     *  then resample if the ESS falls low. */
+    uint8_t reweight_particles;
+    /** Import only landmarks the sender sighted at least this often. */
+    uint16_t min_obs;
+} merge_config_t;
+
+/** Defaults: gate 9.21 (99 %), cell 1 m, full uncertainty, no reweighting, min_obs 1. */
+merge_config_t merge_config_default(void);
+
+/** The incoming map in self's body frame (output of merge_transform_map). */
+typedef struct {
+    uint16_t n;
+    point2_t mean[COSLAM_MAX_MSG_LANDMARKS];     /**< [m], self's body frame */
+    cov2_t cov[COSLAM_MAX_MSG_LANDMARKS];        /**< [m^2], same frame */
+    uint16_t src_mask[COSLAM_MAX_MSG_LANDMARKS];
+    uint16_t n_obs[COSLAM_MAX_MSG_LANDMARKS];
+    uint8_t signature[COSLAM_MAX_MSG_LANDMARKS];
+    uint32_t id[COSLAM_MAX_MSG_LANDMARKS];       /**< sender's identity (for logs) */
+    /* the same landmarks before the transform (for EKF-SLAM's batch form) */
+    point2_t rel[COSLAM_MAX_MSG_LANDMARKS];      /**< [m], sender's body frame */
+    cov2_t rel_cov[COSLAM_MAX_MSG_LANDMARKS];    /**< [m^2], sender's body frame, no transform term */
+    pose2_t t;                                   /**< the transform used (sender body in receiver body) */
+    cov3_t t_cov;                                /**< its covariance (zero in paper mode) */
+} merge_body_map_t;
+
+/** Gated duplicate candidate: own landmark, incoming landmark, distance. */
+typedef struct {
+    int32_t own;
+    int32_t in;
+    double d2;
+} merge_pair_t;
+
+/** Candidate pairs kept per map (beyond: counted as skipped). */
+#define MERGE_MAX_PAIRS (4 * COSLAM_MAX_MSG_LANDMARKS)
+
+/** Grid hash over a body map plus per-call scratch. Caller-owned. */
+typedef struct {
+    int32_t bucket_head[COSLAM_MERGE_GRID_BUCKETS];   /**< first entry, -1 empty */
+    int32_t next[COSLAM_MAX_MSG_LANDMARKS];            /**< chain */
+    int32_t cell_x[COSLAM_MAX_MSG_LANDMARKS];
+    int32_t cell_y[COSLAM_MAX_MSG_LANDMARKS];
+    /* per-particle / per-filter pairing */
+    int32_t match_of_in[COSLAM_MAX_MSG_LANDMARKS];     /**< own landmark index, -1 */
+    double match_d2[COSLAM_MAX_MSG_LANDMARKS];
+    point2_t world_mean[COSLAM_MAX_MSG_LANDMARKS];
+    cov2_t world_cov[COSLAM_MAX_MSG_LANDMARKS];
+    /* one own map seen from the robot (per particle for Fast-SLAM) */
+    point2_t own_body[COSLAM_MAX_LANDMARKS];
+    cov2_t own_cov[COSLAM_MAX_LANDMARKS];
+    uint8_t own_sig[COSLAM_MAX_LANDMARKS];
+    uint8_t own_used[COSLAM_MAX_LANDMARKS];
+    merge_pair_t pairs[MERGE_MAX_PAIRS];
+    uint32_t new_id[COSLAM_MAX_MSG_LANDMARKS];  /**< identities of added landmarks (shared by particles) */
+} merge_scratch_t;
+
+typedef struct {
+    uint32_t fused;         /**< duplicate pairs fused (summed over particles for Fast-SLAM) */
+    uint32_t fused_ci;      /**< of which by covariance intersection */
+    uint32_t added;         /**< incoming landmarks added (summed over particles) */
+    uint32_t capacity_drops;/**< landmarks that did not fit */
+    uint32_t skipped;       /**< incoming landmarks below min_obs or numerically unusable */
+} merge_stats_t;
+
+/** Per-robot record of what was merged from whom. */
+typedef struct {
+    uint32_t last_seq[COSLAM_MAX_ROBOTS];
+    uint8_t seen[COSLAM_MAX_ROBOTS];
+    uint32_t merges;
+    uint32_t rejected_replays;
+} merge_session_t;
+
+void merge_session_init(merge_session_t *s);
+
+/**
+ * Accept a message from `sender` with sequence `seq` only if newer than the
+ * last merged one (serial-number arithmetic, so the counter may wrap).
+ * Returns COSLAM_OK (and records it), COSLAM_E_MERGE_REPLAY (counted) or
+ * COSLAM_E_ARG. Call after the merge succeeded - or before, and accept that
+ * a failed merge consumes the number.
+ */
+coslam_status_t merge_session_accept(merge_session_t *s, uint8_t sender, uint32_t seq);
+
+/**
+ * Step 1. The other robot's pose in self's body frame from the two mutual
+ * sightings (geometry in the header comment) and its covariance by first-
+ * order propagation of the four measurement variances. E_NUMERIC for
+ * non-finite input, E_ARG for non-positive variances or ranges.
+ */
+coslam_status_t merge_relative_pose(const robot_sighting_t *self_sees_other, const robot_sighting_t *other_sees_self,
+                                    pose2_t *other_in_self, cov3_t *cov);
+
+/**
+ * Move a relative pose estimated at self's sighting time to now, given
+ * self's own motion since then (odometry increment u with covariance
+ * u_cov): other_in_self_now = u^-1 (+) other_in_self, covariance through
+ * the Jacobians. If the other robot may also have moved, pass its bound as
+ * extra_var_m2 (added to x and y) or refuse the merge upstream.
+ */
+void merge_compensate(pose2_t *other_in_self, cov3_t *cov, odo_increment_t u, const cov3_t *u_cov,
+                      double extra_var_m2);
+
+/**
+ * Step 2. Transform the incoming map estimate into self's body frame:
+ * each landmark's position relative to the sender (from the sender's pose
+ * and landmark means) is moved by other_in_self; its covariance is
+ * R cov_rel R^T (+ J_T t_cov J_T^T when transform_uncertainty is set).
+ * Landmarks below min_obs are skipped (counted in stats).
+ * O(M). E_MSG_COVARIANCE if a resulting covariance is not PD.
+ */
+coslam_status_t merge_transform_map(const map_estimate_t *in, pose2_t other_in_self, const cov3_t *t_cov,
+                                    const merge_config_t *cfg, merge_body_map_t *out, merge_stats_t *stats);
+
+/**
+ * Step 3-4 for Fast-SLAM: into every particle. O(N (M_own + M_in)).
+ * Returns E_CAPACITY (counted in stats and in the filter's counters) if some
+ * particle's map could not hold every new landmark; the rest is merged.
+ */
+coslam_status_t merge_into_fastslam(fastslam_t *fs, const merge_body_map_t *bm, const merge_config_t *cfg,
+                                    merge_scratch_t *scratch, merge_stats_t *stats);
+
+/**
+ * Step 3-4 for EKF-SLAM, as one batch: the transform error joins the
+ * state for the duration of the merge (ekfslam_merge_begin), every
+ * duplicate is an EKF update of "own landmark j relative to the robot =
+ * the incoming landmark moved by T", every new landmark is appended with
+ * its cross-covariances to the pose, T and the rest, and T's error is
+ * marginalised out at the end. Duplicates of overlapping provenance get
+ * their noise scaled by 1/(1-w), w the covariance-intersection weight of
+ * the two relative marginals (w -> 1: nothing new, no update).
+ * O(M_in D^2).
+ */
+coslam_status_t merge_into_ekfslam(ekfslam_t *ekf, const merge_body_map_t *bm, const merge_config_t *cfg,
+                                   merge_scratch_t *scratch, merge_stats_t *stats);
+
+/**
+ * Paper eqs. 4-5, the Kalman form of fusing two estimates of one point:
+ *   K = S_a (S_a + S_b)^-1,  x = a + K (b - a),  S = S_a - K S_a.
+ * E_NOT_PD if S_a + S_b is not positive definite. O(1).
+ */
+coslam_status_t merge_fuse_kalman(point2_t a, cov2_t sa, point2_t b, cov2_t sb, point2_t *x, cov2_t *s);
+
+/**
+ * Covariance intersection of two estimates of unknown correlation:
+ *   S^-1 = w S_a^-1 + (1 - w) S_b^-1,  x = S (w S_a^-1 a + (1 - w) S_b^-1 b),
+ * with w in [0, 1] minimising det(S) (golden-section search). *w_out may be
+ * NULL. O(1).
+ */
+coslam_status_t merge_fuse_ci(point2_t a, cov2_t sa, point2_t b, cov2_t sb, point2_t *x, cov2_t *s, double *w_out);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* COSLAM_MAP_MERGE_H */
