@@ -38,6 +38,13 @@ typedef enum {
     COSLAM_E_MERGE_SELF = -40,
     COSLAM_E_MERGE_STALE = -41,
     COSLAM_E_MERGE_REPLAY = -42,
+    /* CAN drive driver (firmware/drivers/cia402) */
+    COSLAM_E_DRIVE_TIMEOUT = -60,  /**< a drive did not answer in time (SDO, boot-up) */
+    COSLAM_E_DRIVE_ABORT = -61,    /**< the drive aborted an SDO transfer (abort code kept) */
+    COSLAM_E_DRIVE_FAULT = -62,    /**< a drive fault is latched; the base is stopped */
+    COSLAM_E_DRIVE_BUS = -63,      /**< the CAN HAL reported an error (HAL status kept) */
+    COSLAM_E_DRIVE_STATE = -64,    /**< not allowed now (busy, not started, not enabled) */
+    COSLAM_E_DRIVE_PROTOCOL = -65, /**< a malformed or unexpected CANopen frame */
     COSLAM_E_UNSUPPORTED = -90, /**< feature or hardware not available */
 } coslam_status_t;
 
