@@ -96,6 +96,7 @@ coslam_status_t cia402_omni_start(cia402_omni_t *o, uint64_t now_us)
     o->meas_mask = 0;
     o->odo_running = 0;
     o->odo_last_us = 0;
+    o->odo_pending_us = 0;
     memset(&o->odo_acc, 0, sizeof o->odo_acc);
     memset(&o->fault, 0, sizeof o->fault);
     o->fault.wheel = -1;
@@ -103,25 +104,44 @@ coslam_status_t cia402_omni_start(cia402_omni_t *o, uint64_t now_us)
     return COSLAM_OK;
 }
 
-/* A new velocity of wheel k, valid from stamp_us: integrate the previous
- * speeds up to the stamp, then switch (zero-order hold between events). */
+/* Integrate from odo_last_us to odo_pending_us, the stamp of the newest
+ * wheel speeds: trapezoidal rule on the motor speeds (exact for speeds
+ * that ramp linearly between samples; forward kinematics is linear, so this
+ * is the mean body velocity), held constant along an exact arc. */
+static void odo_flush(cia402_omni_t *o)
+{
+    if (!o->odo_running || o->odo_pending_us <= o->odo_last_us) return;
+    const double dt_s = (double)(o->odo_pending_us - o->odo_last_us) * 1e-6;
+    double mean[OMNI_WHEELS];
+    for (int k = 0; k < OMNI_WHEELS; ++k) mean[k] = 0.5 * (o->odo_prev_rpm[k] + o->meas_rpm[k]);
+    odo_increment_t inc;
+    if (omni_kinematics_odometry(&o->cfg.kinematics, mean, dt_s, &inc) == COSLAM_OK) {
+        o->odo_acc = omni_kinematics_compose(o->odo_acc, inc);
+    } else {
+        o->odo_errors++;
+    }
+    memcpy(o->odo_prev_rpm, o->meas_rpm, sizeof o->meas_rpm);
+    o->odo_last_us = o->odo_pending_us;
+}
+
+/* A new velocity of wheel k, sampled at stamp_us. Speeds sampled at the
+ * same stamp (the three drives answer the same cycle) form one sample. */
 static void on_wheel_speed(cia402_omni_t *o, int k, uint64_t stamp_us)
 {
-    if (o->odo_running && stamp_us > o->odo_last_us) {
-        const double dt_s = (double)(stamp_us - o->odo_last_us) * 1e-6;
-        odo_increment_t inc;
-        if (omni_kinematics_odometry(&o->cfg.kinematics, o->meas_rpm, dt_s, &inc) == COSLAM_OK) {
-            o->odo_acc = omni_kinematics_compose(o->odo_acc, inc);
-        } else {
-            o->odo_errors++;
-        }
-        o->odo_last_us = stamp_us;
+    if (o->odo_running && stamp_us > o->odo_pending_us) {
+        odo_flush(o);
+        o->odo_pending_us = stamp_us;
     }
     o->meas_rpm[k] = (double)o->drive[k].velocity_actual * o->cfg.velocity_unit_rpm;
+    /* a late member of a sample already integrated up to (a take came
+     * between the three TPDOs of one cycle) still starts the next interval */
+    if (o->odo_running && stamp_us == o->odo_last_us) o->odo_prev_rpm[k] = o->meas_rpm[k];
     o->meas_mask = (uint8_t)(o->meas_mask | (1u << k));
     if (!o->odo_running && o->meas_mask == (1u << OMNI_WHEELS) - 1u) {
         o->odo_running = 1;
         o->odo_last_us = stamp_us;
+        o->odo_pending_us = stamp_us;
+        memcpy(o->odo_prev_rpm, o->meas_rpm, sizeof o->meas_rpm);
     }
 }
 
@@ -281,6 +301,7 @@ coslam_status_t cia402_omni_take_odometry(cia402_omni_t *o, odo_increment_t *u, 
     memset(u, 0, sizeof *u);
     if (until_us != NULL) *until_us = 0;
     if (!o->odo_running) return COSLAM_E_EMPTY;
+    odo_flush(o);
     *u = o->odo_acc;
     if (until_us != NULL) *until_us = o->odo_last_us;
     memset(&o->odo_acc, 0, sizeof o->odo_acc);

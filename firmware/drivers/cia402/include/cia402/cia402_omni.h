@@ -22,12 +22,15 @@
  * 0, velocity commands are refused (COSLAM_E_DRIVE_FAULT), and the first
  * fault is reported by cia402_omni_get_fault() until cia402_omni_fault_reset().
  *
- * Odometry: each TPDO (velocity actual of one wheel) is an event at its
- * receive stamp; between events the body velocity from the latest three
- * wheel speeds is held and integrated exactly (omni_kinematics_odometry),
- * and the pieces are concatenated. Integration starts once all three
- * wheels have reported. cia402_omni_take_odometry() hands out the
- * accumulated increment and the stamp it reaches.
+ * Odometry: each TPDO (velocity actual of one wheel) is a speed sample at
+ * its receive stamp; samples with the same stamp form one sample of all
+ * wheels. Between two sample stamps the motor speeds are averaged
+ * (trapezoidal rule: exact for linear ramps, where holding the older
+ * sample would lag by half a TPDO period), turned into a body velocity and
+ * integrated exactly along the arc (omni_kinematics_odometry); the pieces
+ * are concatenated (omni_kinematics_compose). Integration starts once all
+ * three wheels have reported. cia402_omni_take_odometry() hands out the
+ * increment accumulated up to the newest sample stamp, and that stamp.
  *
  * Memory: sizeof(cia402_omni_t) is about 900 bytes; poll is O(frames).
  */
@@ -76,10 +79,12 @@ typedef struct {
     cia402_drive_t drive[OMNI_WHEELS];
     int enabled_goal;                     /**< 1 if enable was requested */
     double cmd_rpm[OMNI_WHEELS];          /**< commanded motor speeds after saturation */
-    double meas_rpm[OMNI_WHEELS];         /**< last measured motor speeds */
+    double meas_rpm[OMNI_WHEELS];         /**< last measured motor speeds (at odo_pending_us) */
     uint8_t meas_mask;                    /**< bit k: wheel k reported since start */
     int odo_running;
+    double odo_prev_rpm[OMNI_WHEELS];     /**< motor speeds at odo_last_us */
     uint64_t odo_last_us;                 /**< integrated up to here */
+    uint64_t odo_pending_us;              /**< stamp of the newest sample */
     odo_increment_t odo_acc;              /**< since the last take */
     cia402_omni_fault_t fault;
     /* counters since init */
