@@ -516,6 +516,7 @@ TEST_F(EndToEnd, FaultOnOneDriveStopsAllAndIsReported)
         },
         50);
     EXPECT_LE(t_report, 2000u); // the EMCY is read at the next poll
+    std::printf("EMCY -> fault reported after %.1f ms\n", t_report / 1000.0);
     cia402_omni_fault_t rep;
     ASSERT_EQ(cia402_omni_get_fault(&omni, &rep), COSLAM_OK);
     EXPECT_EQ(rep.wheel, 1);
@@ -568,6 +569,7 @@ TEST_F(EndToEnd, HeartbeatLossStopsAll)
     EXPECT_EQ(rep.wheel, 2);
     // TPDOs stop too, and the PDO timeout (100 ms) is shorter than the heartbeat's (250 ms)
     EXPECT_EQ(rep.info.reason, CIA402_FAULT_PDO_TIMEOUT);
+    std::printf("silent drive -> PDO timeout reported after %.1f ms\n", t_report / 1000.0);
     EXPECT_GE(t_report, 90000u);
     EXPECT_LE(t_report, 115000u);
     run_ms(500);
@@ -595,6 +597,7 @@ TEST_F(EndToEnd, HeartbeatConsumerAloneDetectsLoss)
     ASSERT_EQ(cia402_omni_get_fault(&omni, &rep), COSLAM_OK);
     EXPECT_EQ(rep.wheel, 0);
     EXPECT_EQ(rep.info.reason, CIA402_FAULT_HEARTBEAT);
+    std::printf("silent drive -> heartbeat loss reported after %.1f ms\n", t_report / 1000.0);
     EXPECT_GT(t_report, 150000u); // last heartbeat up to 100 ms before going silent
     EXPECT_LE(t_report, 252000u);
 }
