@@ -255,6 +255,9 @@ static void test_bus_errors(void **state)
     g_fc.receive_status = HAL_E_CORRUPT;
     assert_int_equal(cia402_omni_poll(&g_o, t), COSLAM_OK);
     assert_int_equal(g_o.rx_errors, 1);
+    g_fc.receive_status = HAL_E_BUSY; /* "retry": not an error */
+    assert_int_equal(cia402_omni_poll(&g_o, t), COSLAM_OK);
+    assert_int_equal(g_o.rx_errors, 1);
     g_fc.receive_status = HAL_E_CLOSED;
     assert_int_equal(cia402_omni_poll(&g_o, t), COSLAM_E_DRIVE_FAULT);
     cia402_omni_fault_t rep;

@@ -254,6 +254,14 @@ static void test_wrappers(void **state)
     assert_false(hal_can_filter_match(&flt, &f));
     flt.flags = HAL_CAN_FLAG_EXT;
     assert_true(hal_can_filter_match(&flt, &f));
+    /* the null backend */
+    hal_can_t *null_can = hal_can_null();
+    f = frame(0x1, 0, 0, NULL);
+    assert_int_equal(hal_can_send(null_can, &f, 0), HAL_E_UNSUPPORTED);
+    assert_int_equal(hal_can_receive(null_can, &f, 1000), HAL_E_UNSUPPORTED);
+    assert_int_equal(hal_can_get_status(null_can, &st), HAL_E_UNSUPPORTED);
+    assert_int_equal(hal_can_set_filters(null_can, NULL, 0), HAL_E_UNSUPPORTED);
+    hal_can_close(null_can);
     /* status names */
     assert_string_equal(hal_status_str(HAL_E_NOT_FOUND), "HAL_E_NOT_FOUND");
 }

@@ -182,6 +182,14 @@ static inline void hal_can_close(hal_can_t *d)
     if (d != NULL && d->ops != NULL && d->ops->close != NULL) d->ops->close(d);
 }
 
+/** The null backend (no CAN hardware): every operation returns HAL_E_UNSUPPORTED. */
+static inline hal_can_t *hal_can_null(void)
+{
+    static const hal_can_ops_t null_ops = {NULL, NULL, NULL, NULL, NULL};
+    static hal_can_t null_dev = {&null_ops, NULL};
+    return &null_dev;
+}
+
 #ifdef __cplusplus
 }
 #endif

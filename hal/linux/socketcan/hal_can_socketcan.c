@@ -354,6 +354,7 @@ hal_status_t hal_can_socketcan_open_fd(hal_can_socketcan_t *sc, int fd)
     }
     if (fd < 0) {
         sc->fd = -1;
+        sc->can.ops = NULL;
         return HAL_E_ARG;
     }
     init_state(sc, fd, 0);

@@ -196,7 +196,7 @@ coslam_status_t cia402_omni_poll(cia402_omni_t *o, uint64_t now_us)
             dispatch(o, &f);
             continue;
         }
-        if (s == HAL_E_TIMEOUT) break;
+        if (s == HAL_E_TIMEOUT || s == HAL_E_BUSY) break; /* nothing now */
         if (s == HAL_E_OVERFLOW) {
             o->rx_overflows++;
             continue;
