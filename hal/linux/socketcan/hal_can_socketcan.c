@@ -375,7 +375,7 @@ hal_status_t hal_can_socketcan_open(hal_can_socketcan_t *sc, const char *ifname)
         const int e = errno;
         return (e == EAFNOSUPPORT || e == EPROTONOSUPPORT) ? HAL_E_UNSUPPORTED : HAL_E_IO;
     }
-    hal_status_t st = HAL_OK;
+    hal_status_t st;
     struct ifreq ifr;
     memset(&ifr, 0, sizeof ifr);
     memcpy(ifr.ifr_name, ifname, len + 1u);

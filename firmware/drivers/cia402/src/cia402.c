@@ -49,14 +49,10 @@ uint16_t cia402_controlword_for(cia402_state_t state, cia402_goal_t goal)
         return goal == CIA402_GOAL_ENABLED ? CIA402_CW_SWITCH_ON                         /* 3 */
              : goal == CIA402_GOAL_QUICK_STOP ? CIA402_CW_QUICK_STOP                     /* 7 */
                                               : CIA402_CW_DISABLE_VOLTAGE;               /* 7 */
-    case CIA402_STATE_SWITCHED_ON:
-        return goal == CIA402_GOAL_ENABLED ? CIA402_CW_ENABLE_OPERATION                  /* 4 */
-             : goal == CIA402_GOAL_QUICK_STOP ? CIA402_CW_QUICK_STOP                     /* 10 */
-                                              : CIA402_CW_DISABLE_VOLTAGE;               /* 10 */
-    case CIA402_STATE_OPERATION_ENABLED:
-        return goal == CIA402_GOAL_ENABLED ? CIA402_CW_ENABLE_OPERATION                  /* hold */
-             : goal == CIA402_GOAL_QUICK_STOP ? CIA402_CW_QUICK_STOP                     /* 11 */
-                                              : CIA402_CW_DISABLE_VOLTAGE;               /* 9 */
+    case CIA402_STATE_SWITCHED_ON:       /* transitions 4, 10, 10 */
+    case CIA402_STATE_OPERATION_ENABLED: /* hold, 11, 9 */
+        return goal == CIA402_GOAL_ENABLED ? CIA402_CW_ENABLE_OPERATION
+             : goal == CIA402_GOAL_QUICK_STOP ? CIA402_CW_QUICK_STOP : CIA402_CW_DISABLE_VOLTAGE;
     case CIA402_STATE_QUICK_STOP_ACTIVE:
         /* stay in the quick stop (the drive ends it in SWITCH_ON_DISABLED),
          * or leave it at once by disabling the voltage (12) */
