@@ -32,6 +32,12 @@ const char *coslam_status_str(coslam_status_t status)
     case COSLAM_E_URG_ECHO: return "E_URG_ECHO";
     case COSLAM_E_URG_STATUS: return "E_URG_STATUS";
     case COSLAM_E_URG_FIELD: return "E_URG_FIELD";
+    case COSLAM_E_DRIVE_TIMEOUT: return "E_DRIVE_TIMEOUT";
+    case COSLAM_E_DRIVE_ABORT: return "E_DRIVE_ABORT";
+    case COSLAM_E_DRIVE_FAULT: return "E_DRIVE_FAULT";
+    case COSLAM_E_DRIVE_BUS: return "E_DRIVE_BUS";
+    case COSLAM_E_DRIVE_STATE: return "E_DRIVE_STATE";
+    case COSLAM_E_DRIVE_PROTOCOL: return "E_DRIVE_PROTOCOL";
     case COSLAM_E_UNSUPPORTED: return "E_UNSUPPORTED";
     }
     return "E_UNKNOWN";

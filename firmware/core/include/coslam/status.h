@@ -47,6 +47,13 @@ typedef enum {
     COSLAM_E_URG_ECHO = -65,      /**< the reply does not echo the command sent */
     COSLAM_E_URG_STATUS = -66,    /**< the sensor answered with an error status */
     COSLAM_E_URG_FIELD = -67,     /**< a VV/PP/II field is missing or unparsable */
+    /* CAN drive driver (firmware/drivers/cia402) */
+    COSLAM_E_DRIVE_TIMEOUT = -70,  /**< a drive did not answer in time (SDO, boot-up) */
+    COSLAM_E_DRIVE_ABORT = -71,    /**< the drive aborted an SDO transfer (abort code kept) */
+    COSLAM_E_DRIVE_FAULT = -72,    /**< a drive fault is latched; the base is stopped */
+    COSLAM_E_DRIVE_BUS = -73,      /**< the CAN HAL reported an error (HAL status kept) */
+    COSLAM_E_DRIVE_STATE = -74,    /**< not allowed now (busy, not started, not enabled) */
+    COSLAM_E_DRIVE_PROTOCOL = -75, /**< a malformed or unexpected CANopen frame */
     COSLAM_E_UNSUPPORTED = -90, /**< feature or hardware not available */
 } coslam_status_t;
 

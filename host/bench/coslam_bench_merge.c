@@ -1,0 +1,234 @@
+/*
+ * coslam-bench-merge - time of the map merge into Fast-SLAM for
+ * (particles N, landmarks M) = (100, 64), (1000, 256), (1000, 1024), and
+ * into EKF-SLAM for M = 64, 256. Own maps hold M landmarks; the incoming
+ * map holds M landmarks, half of them duplicates of own ones. Also times a
+ * naive all-pairs duplicate search (O(N M^2), the paper's complexity) for
+ * comparison. Built against a core with 2048 landmarks per map and 1024
+ * per message. Writes <out>/merge_time.{md,json}.
+ *   coslam-bench-merge [--out DIR] [--reps N]
+ */
+#define _POSIX_C_SOURCE 200809L
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+
+#include "coslam/map_merge.h"
+
+static double now_us(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec * 1e6 + (double)ts.tv_nsec * 1e-3;
+}
+
+static fastslam_t g_fs;
+static ekfslam_t g_ekf;
+static merge_scratch_t g_sc;
+static merge_body_map_t g_bm;
+static map_estimate_t g_in;
+
+/* M landmarks on a jittered grid 0.7 m apart (distinct, 4 classes). */
+static point2_t site(int i, rng_t *r)
+{
+    const int cols = 48;
+    point2_t p = {0.7 * (i % cols) - 16.0 + 0.1 * rng_gauss(r), 0.7 * (i / cols) - 8.0 + 0.1 * rng_gauss(r)};
+    return p;
+}
+
+static void build_incoming(int m, rng_t *r)
+{
+    memset(&g_in, 0, sizeof g_in);
+    g_in.pose.x = 0.0;
+    g_in.pose.y = 0.0;
+    g_in.pose.theta = 0.0;
+    g_in.pose_cov = cov3_diag(0.01, 0.01, 0.001);
+    g_in.n_landmarks = (uint16_t)m;
+    for (int i = 0; i < m; ++i) {
+        map_landmark_t *l = &g_in.lm[i];
+        /* even: a duplicate of own landmark i; odd: a new one beyond the own grid */
+        l->mean = site(i % 2 == 0 ? i : m + i, r);
+        l->cov = cov2_make(0.01, 0.0, 0.01);
+        l->cov_rel = l->cov;
+        l->id = (uint32_t)(i + 1);
+        l->n_obs = 10;
+        l->src_mask = 2;
+        l->signature = (uint8_t)(i % 4);
+        if (i % 2 == 1) {
+            l->signature = (uint8_t)((m + i) % 4);
+        }
+    }
+}
+
+static double naive_pairs_us(int n_particles, int m)
+{
+    /* all pairs per particle: the paper's O(N M^2) */
+    const double t0 = now_us();
+    volatile double sink = 0.0;
+    for (int k = 0; k < n_particles; ++k) {
+        const fastslam_particle_t *p = &g_fs.particles[k];
+        for (uint16_t i = 0; i < g_bm.n; ++i) {
+            double best = INFINITY;
+            for (uint16_t j = 0; j < p->n_lm; ++j) {
+                double d2;
+                const point2_t w = pose2_apply(p->pose, g_bm.mean[i]);
+                if (cov2_mahalanobis2(cov2_add(p->lm[j].cov, g_bm.cov[i]), w.x - p->lm[j].mean.x,
+                                      w.y - p->lm[j].mean.y, &d2) == COSLAM_OK &&
+                    d2 < best) {
+                    best = d2;
+                }
+            }
+            sink += best;
+        }
+    }
+    (void)m;
+    (void)sink;
+    return now_us() - t0;
+}
+
+int main(int argc, char **argv)
+{
+    const char *out = "out/bench";
+    int reps = 3;
+    for (int i = 1; i < argc; ++i) {
+        if (!strcmp(argv[i], "--out") && i + 1 < argc) out = argv[++i];
+        else if (!strcmp(argv[i], "--reps") && i + 1 < argc) reps = atoi(argv[++i]);
+        else { fprintf(stderr, "usage: coslam-bench-merge [--out DIR] [--reps N]\n"); return 2; }
+    }
+    if (mkdir(out, 0775) != 0 && errno != EEXIST) {
+        fprintf(stderr, "coslam-bench-merge: cannot create %s: %s\n", out, strerror(errno));
+        return 1;
+    }
+    const int cases[3][2] = {{100, 64}, {1000, 256}, {1000, 1024}};
+    double fs_us[3];
+    double naive_us[3];
+    rng_t r;
+    rng_seed(&r, 1U);
+    const merge_config_t mc = merge_config_default();
+    for (int c = 0; c < 3; ++c) {
+        const int n = cases[c][0];
+        const int m = cases[c][1];
+        double best = INFINITY;
+        for (int rep = 0; rep < reps; ++rep) {
+            fastslam_config_t fc = fastslam_config_default();
+            fc.n_particles = (uint16_t)n;
+            const pose2_t p0 = {0.0, 0.0, 0.0};
+            fastslam_init(&g_fs, &fc, p0, 1U);
+            for (uint16_t k = 0; k < n; ++k) {
+                rng_seed(&r, 7U); /* every particle holds the same map */
+                for (int j = 0; j < m; ++j) {
+                    landmark_t lm;
+                    memset(&lm, 0, sizeof lm);
+                    lm.mean = site(j, &r);
+                    lm.cov = cov2_make(0.01, 0.0, 0.01);
+                    lm.id = (uint32_t)(j + 1);
+                    lm.exist = 10.0f;
+                    lm.n_obs = 10;
+                    lm.src_mask = 1;
+                    lm.signature = (uint8_t)(j % 4);
+                    fastslam_particle_add(&g_fs, k, &lm);
+                }
+            }
+            rng_seed(&r, 7U);
+            build_incoming(m, &r);
+            const pose2_t t = {0.0, 0.0, 0.0};
+            const cov3_t tc = cov3_diag(1e-4, 1e-4, 1e-5);
+            merge_stats_t st;
+            memset(&st, 0, sizeof st);
+            const double t0 = now_us();
+            merge_transform_map(&g_in, t, &tc, &mc, &g_bm, &st);
+            merge_into_fastslam(&g_fs, &g_bm, &mc, &g_sc, &st);
+            const double dt = now_us() - t0;
+            best = dt < best ? dt : best;
+            if (rep == 0 && (st.fused != (uint32_t)(n * (m / 2)) || st.added != (uint32_t)(n * (m / 2)))) {
+                fprintf(stderr, "coslam-bench-merge: N=%d M=%d fused %u added %u (expected %d each)\n", n, m,
+                        st.fused, st.added, n * (m / 2));
+            }
+        }
+        fs_us[c] = best;
+        /* the naive search on the state before a merge */
+        fastslam_config_t fc = fastslam_config_default();
+        fc.n_particles = (uint16_t)n;
+        const pose2_t p0 = {0.0, 0.0, 0.0};
+        fastslam_init(&g_fs, &fc, p0, 1U);
+        for (uint16_t k = 0; k < n; ++k) {
+            rng_seed(&r, 7U);
+            for (int j = 0; j < m; ++j) {
+                landmark_t lm;
+                memset(&lm, 0, sizeof lm);
+                lm.mean = site(j, &r);
+                lm.cov = cov2_make(0.01, 0.0, 0.01);
+                lm.id = (uint32_t)(j + 1);
+                lm.exist = 10.0f;
+                fastslam_particle_add(&g_fs, k, &lm);
+            }
+        }
+        naive_us[c] = naive_pairs_us(n, m);
+        fprintf(stderr, ".");
+    }
+    /* EKF-SLAM */
+    const int ekf_m[2] = {64, 256};
+    double ekf_us[2];
+    for (int c = 0; c < 2; ++c) {
+        const int m = ekf_m[c];
+        ekfslam_config_t ec = ekfslam_config_default();
+        const pose2_t p0 = {0.0, 0.0, 0.0};
+        ekfslam_init(&g_ekf, &ec, p0);
+        rng_seed(&r, 7U);
+        for (int j = 0; j < m; ++j) {
+            ekfslam_meta_t meta = {(uint32_t)(j + 1), 10.0f, 10, 1, (uint8_t)(j % 4)};
+            ekfslam_add_landmark_body(&g_ekf, site(j, &r), cov2_make(0.01, 0.0, 0.01), &meta);
+        }
+        rng_seed(&r, 7U);
+        build_incoming(m, &r);
+        const pose2_t t = {0.0, 0.0, 0.0};
+        const cov3_t tc = cov3_diag(1e-4, 1e-4, 1e-5);
+        merge_stats_t st;
+        memset(&st, 0, sizeof st);
+        const double t0 = now_us();
+        merge_transform_map(&g_in, t, &tc, &mc, &g_bm, &st);
+        merge_into_ekfslam(&g_ekf, &g_bm, &mc, &g_sc, &st);
+        ekf_us[c] = now_us() - t0;
+        fprintf(stderr, ".");
+    }
+    fprintf(stderr, "\n");
+    char path[1024];
+    snprintf(path, sizeof path, "%s/merge_time.md", out);
+    FILE *md = fopen(path, "w");
+    snprintf(path, sizeof path, "%s/merge_time.json", out);
+    FILE *js = fopen(path, "w");
+    if (!md || !js) {
+        fprintf(stderr, "coslam-bench-merge: cannot write into %s\n", out);
+        return 1;
+    }
+    FILE *sinks[2] = {stdout, md};
+    for (int k = 0; k < 2; ++k) {
+        FILE *o = sinks[k];
+        fprintf(o, "Map merge time (transform + duplicates + fusion), best of %d runs; M own landmarks per particle, "
+                   "M incoming (half duplicates).\n\n", reps);
+        fprintf(o, "| Fast-SLAM (N, M) | merge [ms] | per particle and landmark [ns] | naive all-pairs duplicate search "
+                   "alone [ms] |\n|---|---|---|---|\n");
+        for (int c = 0; c < 3; ++c) {
+            fprintf(o, "| (%d, %d) | %.2f | %.1f | %.1f |\n", cases[c][0], cases[c][1], fs_us[c] / 1000.0,
+                    1000.0 * fs_us[c] / ((double)cases[c][0] * cases[c][1]), naive_us[c] / 1000.0);
+        }
+        fprintf(o, "\n| EKF-SLAM M | merge [ms] |\n|---|---|\n");
+        for (int c = 0; c < 2; ++c) {
+            fprintf(o, "| %d | %.2f |\n", ekf_m[c], ekf_us[c] / 1000.0);
+        }
+    }
+    fprintf(js, "{\"fastslam\": [");
+    for (int c = 0; c < 3; ++c) {
+        fprintf(js, "%s{\"particles\": %d, \"landmarks\": %d, \"merge_us\": %.1f, \"naive_search_us\": %.1f}",
+                c ? ", " : "", cases[c][0], cases[c][1], fs_us[c], naive_us[c]);
+    }
+    fprintf(js, "], \"ekfslam\": [{\"landmarks\": 64, \"merge_us\": %.1f}, {\"landmarks\": 256, \"merge_us\": %.1f}]}\n",
+            ekf_us[0], ekf_us[1]);
+    fclose(md);
+    fclose(js);
+    return 0;
+}

@@ -1,0 +1,525 @@
+/* Map merge: the relative pose from mutual sightings (hand computation and
+ * Monte Carlo), the transformed landmark covariance (Monte Carlo), eqs. 4-5
+ * against the information form, covariance intersection, merging into both
+ * filters, repeated meetings, replay rejection. */
+#include "test_util.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+#include "coslam/map_merge.h"
+#include "coslam/rng.h"
+
+static fastslam_t g_fs;
+static ekfslam_t g_ekf;
+static merge_scratch_t g_sc;
+static merge_body_map_t g_bm;
+static map_estimate_t g_msg;
+
+/* Sightings each robot takes of the other, from their true poses. */
+static void mutual(pose2_t self, pose2_t other, robot_sighting_t *s_o, robot_sighting_t *o_s)
+{
+    const point2_t po = {other.x, other.y};
+    const point2_t ps = {self.x, self.y};
+    const sighting_t a = observe_predict(self, po);
+    const sighting_t b = observe_predict(other, ps);
+    s_o->range_m = a.range_m;
+    s_o->bearing_rad = a.bearing_rad;
+    o_s->range_m = b.range_m;
+    o_s->bearing_rad = b.bearing_rad;
+    s_o->range_var_m2 = 0.0025;
+    o_s->range_var_m2 = 0.0016;
+    s_o->bearing_var_rad2 = 0.0012;
+    o_s->bearing_var_rad2 = 0.0009;
+}
+
+static void test_relative_pose_hand(void **state)
+{
+    (void)state;
+    /* self at the origin facing +x; other at (3, 4) facing -x: both see a
+     * 3-4-5 triangle, at bearing atan2(4, 3) each (other looks back at
+     * (-3, -4), which in its frame turned by pi is (3, 4)). */
+    const robot_sighting_t s_o = {5.0, atan2(4.0, 3.0), 0.01, 0.001};
+    const robot_sighting_t o_s = {5.0, atan2(4.0, 3.0), 0.01, 0.001};
+    pose2_t t;
+    cov3_t c;
+    assert_int_equal(merge_relative_pose(&s_o, &o_s, &t, &c), COSLAM_OK);
+    ASSERT_NEAR(t.x, 3.0, 1e-12);
+    ASSERT_NEAR(t.y, 4.0, 1e-12);
+    ASSERT_NEAR(angle_wrap(t.theta - COSLAM_PI), 0.0, 1e-12);
+    /* the range is fused: equal variances -> half the variance along the ray */
+    const double along = (3.0 * 3.0 * c.m[0][0] + 2 * 3.0 * 4.0 * c.m[0][1] + 4.0 * 4.0 * c.m[1][1]) / 25.0;
+    ASSERT_NEAR(along, 0.005, 1e-12);
+    /* heading variance: both bearings */
+    ASSERT_NEAR(c.m[2][2], 0.002, 1e-15);
+    /* random configurations are recovered exactly from exact sightings */
+    rng_t r;
+    rng_seed(&r, 5U);
+    for (int i = 0; i < 200; ++i) {
+        const pose2_t self = {rng_normal(&r, 0, 3), rng_normal(&r, 0, 3), angle_wrap(rng_normal(&r, 0, 3))};
+        const pose2_t other = {rng_normal(&r, 0, 3), rng_normal(&r, 0, 3), angle_wrap(rng_normal(&r, 0, 3))};
+        robot_sighting_t a;
+        robot_sighting_t b;
+        mutual(self, other, &a, &b);
+        if (a.range_m < 0.1) {
+            continue;
+        }
+        assert_int_equal(merge_relative_pose(&a, &b, &t, &c), COSLAM_OK);
+        const pose2_t want = pose2_between(self, other);
+        ASSERT_NEAR(t.x, want.x, 1e-9);
+        ASSERT_NEAR(t.y, want.y, 1e-9);
+        ASSERT_NEAR(angle_wrap(t.theta - want.theta), 0.0, 1e-9);
+    }
+    /* bad input */
+    robot_sighting_t bad = s_o;
+    bad.range_m = NAN;
+    assert_int_equal(merge_relative_pose(&bad, &o_s, &t, &c), COSLAM_E_NUMERIC);
+    bad = s_o;
+    bad.range_var_m2 = 0.0;
+    assert_int_equal(merge_relative_pose(&bad, &o_s, &t, &c), COSLAM_E_ARG);
+}
+
+/* Monte Carlo agreement, within 10 % of sqrt(C_ii C_jj) per entry. */
+static void assert_mc3(const cov3_t *analytic, const double mc[3][3])
+{
+    for (int i = 0; i < 3; ++i) {
+        for (int k = 0; k < 3; ++k) {
+            const double scale = sqrt(analytic->m[i][i] * analytic->m[k][k]);
+            ASSERT_NEAR(mc[i][k], analytic->m[i][k], 0.10 * scale);
+        }
+    }
+}
+
+static void test_relative_pose_monte_carlo(void **state)
+{
+    (void)state;
+    const pose2_t self = {0.3, -0.2, 0.4};
+    const pose2_t other = {2.1, 0.9, -2.6};
+    robot_sighting_t a;
+    robot_sighting_t b;
+    mutual(self, other, &a, &b);
+    pose2_t t;
+    cov3_t c;
+    assert_int_equal(merge_relative_pose(&a, &b, &t, &c), COSLAM_OK);
+    rng_t r;
+    rng_seed(&r, 9U);
+    const int n = 10000;
+    double mc[3][3] = {{0}};
+    for (int i = 0; i < n; ++i) {
+        robot_sighting_t an = a;
+        robot_sighting_t bn = b;
+        an.range_m += sqrt(a.range_var_m2) * rng_gauss(&r);
+        an.bearing_rad += sqrt(a.bearing_var_rad2) * rng_gauss(&r);
+        bn.range_m += sqrt(b.range_var_m2) * rng_gauss(&r);
+        bn.bearing_rad += sqrt(b.bearing_var_rad2) * rng_gauss(&r);
+        pose2_t ts;
+        cov3_t cs;
+        assert_int_equal(merge_relative_pose(&an, &bn, &ts, &cs), COSLAM_OK);
+        const double d[3] = {ts.x - t.x, ts.y - t.y, angle_wrap(ts.theta - t.theta)};
+        for (int p = 0; p < 3; ++p) {
+            for (int q = 0; q < 3; ++q) {
+                mc[p][q] += d[p] * d[q] / n;
+            }
+        }
+    }
+    assert_mc3(&c, mc);
+    /* motion compensation: covariance of u^-1 (+) T against Monte Carlo */
+    const odo_increment_t u = {0.3, 0.1, 0.2};
+    const cov3_t ucov = cov3_diag(0.0004, 0.0004, 0.0009);
+    pose2_t tc = t;
+    cov3_t cc = c;
+    merge_compensate(&tc, &cc, u, &ucov, 0.0);
+    const pose2_t up = {u.dx, u.dy, u.dtheta};
+    const pose2_t want = pose2_compose(pose2_inverse(up), t);
+    ASSERT_NEAR(tc.x, want.x, 1e-12);
+    ASSERT_NEAR(tc.theta, want.theta, 1e-12);
+    double l[3][3];
+    double lu[3][3];
+    assert_int_equal(cov3_cholesky(c, l), COSLAM_OK);
+    assert_int_equal(cov3_cholesky(ucov, lu), COSLAM_OK);
+    double mc2[3][3] = {{0}};
+    for (int i = 0; i < n; ++i) {
+        const double g1[3] = {rng_gauss(&r), rng_gauss(&r), rng_gauss(&r)};
+        const double g2[3] = {rng_gauss(&r), rng_gauss(&r), rng_gauss(&r)};
+        pose2_t ts = t;
+        odo_increment_t us = u;
+        ts.x += l[0][0] * g1[0];
+        ts.y += l[1][0] * g1[0] + l[1][1] * g1[1];
+        ts.theta += l[2][0] * g1[0] + l[2][1] * g1[1] + l[2][2] * g1[2];
+        us.dx += lu[0][0] * g2[0];
+        us.dy += lu[1][1] * g2[1];
+        us.dtheta += lu[2][2] * g2[2];
+        const pose2_t ups = {us.dx, us.dy, us.dtheta};
+        const pose2_t rs = pose2_compose(pose2_inverse(ups), ts);
+        const double d[3] = {rs.x - tc.x, rs.y - tc.y, angle_wrap(rs.theta - tc.theta)};
+        for (int p = 0; p < 3; ++p) {
+            for (int q = 0; q < 3; ++q) {
+                mc2[p][q] += d[p] * d[q] / n;
+            }
+        }
+    }
+    assert_mc3(&cc, mc2);
+}
+
+/* A transformed landmark: R cov_rel R^T + J_T C_T J_T^T against sampling
+ * the transform and the relative position. */
+static void test_transformed_landmark_monte_carlo(void **state)
+{
+    (void)state;
+    const pose2_t t = {2.0, 1.0, 2.5};
+    cov3_t tc = cov3_zero();
+    tc.m[0][0] = 0.004;
+    tc.m[1][1] = 0.006;
+    tc.m[2][2] = 0.003;
+    tc.m[0][2] = tc.m[2][0] = 0.001;
+    memset(&g_msg, 0, sizeof g_msg);
+    g_msg.pose.x = 5.0;
+    g_msg.pose.y = -1.0;
+    g_msg.pose.theta = 0.7;
+    g_msg.n_landmarks = 1;
+    map_landmark_t *l = &g_msg.lm[0];
+    const point2_t rel = {2.5, -1.2};
+    l->mean = pose2_apply(g_msg.pose, rel);
+    l->cov = cov2_make(0.02, 0.0, 0.02);
+    l->cov_rel = cov2_make(0.01, 0.004, 0.02);
+    l->id = 1;
+    l->n_obs = 9;
+    l->src_mask = 2;
+    merge_config_t cfg = merge_config_default();
+    merge_stats_t st;
+    memset(&st, 0, sizeof st);
+    assert_int_equal(merge_transform_map(&g_msg, t, &tc, &cfg, &g_bm, &st), COSLAM_OK);
+    assert_int_equal(g_bm.n, 1);
+    const point2_t want = pose2_apply(t, rel);
+    ASSERT_NEAR(g_bm.mean[0].x, want.x, 1e-12);
+    ASSERT_NEAR(g_bm.mean[0].y, want.y, 1e-12);
+    rng_t r;
+    rng_seed(&r, 13U);
+    double lt[3][3];
+    assert_int_equal(cov3_cholesky(tc, lt), COSLAM_OK);
+    double lr[3];
+    assert_int_equal(cov2_cholesky(l->cov_rel, lr), COSLAM_OK);
+    const int n = 10000;
+    double sxx = 0, sxy = 0, syy = 0;
+    for (int i = 0; i < n; ++i) {
+        const double g[5] = {rng_gauss(&r), rng_gauss(&r), rng_gauss(&r), rng_gauss(&r), rng_gauss(&r)};
+        pose2_t ts = t;
+        ts.x += lt[0][0] * g[0];
+        ts.y += lt[1][0] * g[0] + lt[1][1] * g[1];
+        ts.theta += lt[2][0] * g[0] + lt[2][1] * g[1] + lt[2][2] * g[2];
+        const point2_t rs = {rel.x + lr[0] * g[3], rel.y + lr[1] * g[3] + lr[2] * g[4]};
+        const point2_t p = pose2_apply(ts, rs);
+        sxx += (p.x - want.x) * (p.x - want.x) / n;
+        sxy += (p.x - want.x) * (p.y - want.y) / n;
+        syy += (p.y - want.y) * (p.y - want.y) / n;
+    }
+    const cov2_t c = g_bm.cov[0];
+    const double scale = sqrt(c.xx * c.yy);
+    ASSERT_NEAR(sxx, c.xx, 0.10 * c.xx);
+    ASSERT_NEAR(syy, c.yy, 0.10 * c.yy);
+    ASSERT_NEAR(sxy, c.xy, 0.10 * scale);
+    /* paper mode: the rotated map-frame covariance only, smaller here */
+    cfg.transform_uncertainty = 0;
+    assert_int_equal(merge_transform_map(&g_msg, t, &tc, &cfg, &g_bm, &st), COSLAM_OK);
+    ASSERT_NEAR(g_bm.cov[0].xx + g_bm.cov[0].yy, 0.04, 1e-12); /* trace is rotation invariant */
+    assert_true(g_bm.cov[0].xx + g_bm.cov[0].yy < c.xx + c.yy);
+    /* min_obs filters */
+    cfg = merge_config_default();
+    cfg.min_obs = 10;
+    memset(&st, 0, sizeof st);
+    assert_int_equal(merge_transform_map(&g_msg, t, &tc, &cfg, &g_bm, &st), COSLAM_OK);
+    assert_int_equal(g_bm.n, 0);
+    assert_int_equal(st.skipped, 1);
+}
+
+static void test_fusion_rules(void **state)
+{
+    (void)state;
+    const point2_t a = {1.0, 2.0};
+    const point2_t b = {1.3, 1.8};
+    const cov2_t sa = cov2_make(0.04, 0.01, 0.03);
+    const cov2_t sb = cov2_make(0.02, -0.005, 0.05);
+    point2_t x;
+    cov2_t s;
+    assert_int_equal(merge_fuse_kalman(a, sa, b, sb, &x, &s), COSLAM_OK);
+    /* information form: S^-1 = Sa^-1 + Sb^-1, x = S (Sa^-1 a + Sb^-1 b) */
+    cov2_t ia;
+    cov2_t ib;
+    cov2_t si;
+    assert_int_equal(cov2_inverse(sa, &ia), COSLAM_OK);
+    assert_int_equal(cov2_inverse(sb, &ib), COSLAM_OK);
+    const cov2_t info = cov2_add(ia, ib);
+    assert_int_equal(cov2_inverse(info, &si), COSLAM_OK);
+    ASSERT_NEAR(s.xx, si.xx, 1e-14);
+    ASSERT_NEAR(s.xy, si.xy, 1e-14);
+    ASSERT_NEAR(s.yy, si.yy, 1e-14);
+    const double vx = ia.xx * a.x + ia.xy * a.y + ib.xx * b.x + ib.xy * b.y;
+    const double vy = ia.xy * a.x + ia.yy * a.y + ib.xy * b.x + ib.yy * b.y;
+    ASSERT_NEAR(x.x, si.xx * vx + si.xy * vy, 1e-12);
+    ASSERT_NEAR(x.y, si.xy * vx + si.yy * vy, 1e-12);
+    /* covariance intersection: of an estimate with itself, nothing changes */
+    double w;
+    assert_int_equal(merge_fuse_ci(a, sa, a, sa, &x, &s, &w), COSLAM_OK);
+    ASSERT_NEAR(s.xx, sa.xx, 1e-9);
+    ASSERT_NEAR(s.yy, sa.yy, 1e-9);
+    ASSERT_NEAR(x.x, a.x, 1e-9);
+    /* re-fusing a piece of information already in a Kalman result adds nothing */
+    point2_t k;
+    cov2_t sk;
+    assert_int_equal(merge_fuse_kalman(a, sa, b, sb, &k, &sk), COSLAM_OK);
+    assert_int_equal(merge_fuse_ci(k, sk, b, sb, &x, &s, &w), COSLAM_OK);
+    ASSERT_NEAR(w, 1.0, 1e-6);
+    ASSERT_NEAR(s.xx, sk.xx, 1e-9);
+    ASSERT_NEAR(s.yy, sk.yy, 1e-9);
+    /* CI of two different estimates: inside both ellipses' information, and
+     * consistent for any correlation: S >= the Kalman result */
+    assert_int_equal(merge_fuse_ci(a, sa, b, sb, &x, &s, &w), COSLAM_OK);
+    assert_true(w > 0.0 && w < 1.0);
+    double lo;
+    double hi;
+    cov2_eigenvalues(cov2_add(s, cov2_scale(si, -1.0)), &lo, &hi);
+    assert_true(lo > -1e-12);
+    /* not PD */
+    assert_int_equal(merge_fuse_kalman(a, cov2_make(-1, 0, -1), b, cov2_make(0.5, 0, 0.5), &x, &s), COSLAM_E_NOT_PD);
+}
+
+static void test_session_replay(void **state)
+{
+    (void)state;
+    merge_session_t s;
+    merge_session_init(&s);
+    assert_int_equal(merge_session_accept(&s, 1, 10U), COSLAM_OK);
+    assert_int_equal(merge_session_accept(&s, 1, 10U), COSLAM_E_MERGE_REPLAY);
+    assert_int_equal(merge_session_accept(&s, 1, 9U), COSLAM_E_MERGE_REPLAY);
+    assert_int_equal(merge_session_accept(&s, 1, 11U), COSLAM_OK);
+    assert_int_equal(merge_session_accept(&s, 2, 5U), COSLAM_OK); /* senders are separate */
+    /* the counter may wrap */
+    assert_int_equal(merge_session_accept(&s, 3, 0xFFFFFFFFU), COSLAM_OK);
+    assert_int_equal(merge_session_accept(&s, 3, 2U), COSLAM_OK);
+    assert_int_equal(s.rejected_replays, 2);
+    assert_int_equal(merge_session_accept(&s, COSLAM_MAX_ROBOTS, 1U), COSLAM_E_ARG);
+}
+
+/* An incoming map with one landmark that the receiver knows and one it does
+ * not, built in the receiver's body frame with an exact transform. */
+static void incoming_two(pose2_t robot, point2_t known_world, point2_t new_world, uint16_t src)
+{
+    memset(&g_bm, 0, sizeof g_bm);
+    g_bm.n = 2;
+    const point2_t pts[2] = {known_world, new_world};
+    for (int i = 0; i < 2; ++i) {
+        g_bm.mean[i] = pose2_apply_inverse(robot, pts[i]);
+        g_bm.cov[i] = cov2_make(0.01, 0.0, 0.01);
+        g_bm.rel[i] = g_bm.mean[i]; /* identity transform */
+        g_bm.rel_cov[i] = g_bm.cov[i];
+        g_bm.src_mask[i] = src;
+        g_bm.n_obs[i] = 7;
+        g_bm.signature[i] = 0;
+        g_bm.id[i] = 100U + (uint32_t)i;
+    }
+    g_bm.t.x = 0.0;
+    g_bm.t.y = 0.0;
+    g_bm.t.theta = 0.0;
+    g_bm.t_cov = cov3_zero();
+}
+
+static void test_merge_into_fastslam(void **state)
+{
+    (void)state;
+    fastslam_config_t c = fastslam_config_default();
+    c.n_particles = 20;
+    c.robot_id = 0;
+    const pose2_t p0 = {0.0, 0.0, 0.0};
+    assert_int_equal(fastslam_init(&g_fs, &c, p0, 3U), COSLAM_OK);
+    const landmark_t own = {{2.0, 0.0}, {0.02, 0.0, 0.02}, 1U, 6.0f, 8, 1, 0, 0};
+    for (uint16_t k = 0; k < 20; ++k) {
+        g_fs.particles[k].pose.theta = 0.3;
+        assert_int_equal(fastslam_particle_add(&g_fs, k, &own), COSLAM_OK);
+    }
+    const pose2_t robot = {0.0, 0.0, 0.3};
+    const point2_t known = {2.05, 0.02};
+    const point2_t fresh = {-1.0, 3.0};
+    incoming_two(robot, known, fresh, 0x2U);
+    merge_config_t mc = merge_config_default();
+    merge_stats_t st;
+    memset(&st, 0, sizeof st);
+    assert_int_equal(merge_into_fastslam(&g_fs, &g_bm, &mc, &g_sc, &st), COSLAM_OK);
+    assert_int_equal(st.fused, 20);
+    assert_int_equal(st.added, 20);
+    assert_int_equal(st.fused_ci, 0);
+    point2_t want;
+    cov2_t want_c;
+    assert_int_equal(merge_fuse_kalman(own.mean, own.cov, known, cov2_make(0.01, 0.0, 0.01), &want, &want_c),
+                     COSLAM_OK);
+    for (uint16_t k = 0; k < 20; ++k) {
+        const fastslam_particle_t *p = &g_fs.particles[k];
+        assert_int_equal(p->n_lm, 2);
+        ASSERT_NEAR(p->lm[0].mean.x, want.x, 1e-9);
+        ASSERT_NEAR(p->lm[0].cov.xx, want_c.xx, 1e-12); /* eqs. 4-5 */
+        assert_int_equal(p->lm[0].src_mask, 0x3);
+        assert_int_equal(p->lm[0].n_obs, 15);
+        ASSERT_NEAR(p->lm[1].mean.x, fresh.x, 1e-9);
+        assert_int_equal(p->lm[1].id, g_fs.particles[0].lm[1].id); /* one identity across particles */
+    }
+    /* the same map again (a second meeting, nothing new): provenance overlaps,
+     * covariance intersection, and the covariances do not shrink */
+    const double before = g_fs.particles[0].lm[0].cov.xx;
+    const double before_new = g_fs.particles[0].lm[1].cov.xx;
+    memset(&st, 0, sizeof st);
+    assert_int_equal(merge_into_fastslam(&g_fs, &g_bm, &mc, &g_sc, &st), COSLAM_OK);
+    assert_int_equal(st.fused, 40);
+    assert_int_equal(st.fused_ci, 40);
+    assert_int_equal(st.added, 0);
+    ASSERT_NEAR(g_fs.particles[0].lm[0].cov.xx, before, 1e-9);
+    ASSERT_NEAR(g_fs.particles[0].lm[1].cov.xx, before_new, 1e-9);
+    assert_int_equal(g_fs.particles[0].n_lm, 2);
+    /* capacity: a full map reports and keeps what it has */
+    for (uint16_t k = 0; k < 20; ++k) {
+        while (g_fs.particles[k].n_lm < COSLAM_MAX_LANDMARKS) {
+            landmark_t far = own;
+            far.mean.x = 100.0 + g_fs.particles[k].n_lm;
+            far.signature = 9;
+            assert_int_equal(fastslam_particle_add(&g_fs, k, &far), COSLAM_OK);
+        }
+    }
+    const point2_t fresh2 = {-3.0, -3.0};
+    incoming_two(robot, known, fresh2, 0x4U);
+    memset(&st, 0, sizeof st);
+    assert_int_equal(merge_into_fastslam(&g_fs, &g_bm, &mc, &g_sc, &st), COSLAM_E_CAPACITY);
+    assert_int_equal(st.capacity_drops, 20);
+    assert_int_equal(g_fs.particles[3].n_lm, COSLAM_MAX_LANDMARKS);
+}
+
+static void test_merge_into_ekfslam(void **state)
+{
+    (void)state;
+    ekfslam_config_t c = ekfslam_config_default();
+    c.robot_id = 0;
+    c.slam.noise.init_xy_var_m2 = 0.01;
+    c.slam.noise.init_theta_var_rad2 = 0.001;
+    c.slam.exist_confirm = c.slam.exist_init;
+    const pose2_t p0 = {0.0, 0.0, 0.3};
+    assert_int_equal(ekfslam_init(&g_ekf, &c, p0), COSLAM_OK);
+    const sighting_t z = {2.0, -0.3, 0};
+    assert_int_equal(ekfslam_update(&g_ekf, &z, 1), COSLAM_OK);
+    point2_t own_rel;
+    cov2_t own_rel_cov;
+    ekfslam_landmark_relative(&g_ekf, 0, &own_rel, &own_rel_cov);
+    const point2_t known = pose2_apply(p0, own_rel);
+    const point2_t fresh = {-1.0, 3.0};
+    incoming_two(p0, known, fresh, 0x2U);
+    g_bm.mean[0].x += 0.05;
+    g_bm.rel[0].x += 0.05;
+    merge_config_t mc = merge_config_default();
+    merge_stats_t st;
+    memset(&st, 0, sizeof st);
+    assert_int_equal(merge_into_ekfslam(&g_ekf, &g_bm, &mc, &g_sc, &st), COSLAM_OK);
+    assert_int_equal(st.fused, 1);
+    assert_int_equal(st.added, 1);
+    assert_int_equal(g_ekf.n_lm, 2);
+    /* the fused relative position is the Kalman fusion of the two relative estimates */
+    point2_t want;
+    cov2_t want_c;
+    assert_int_equal(merge_fuse_kalman(own_rel, own_rel_cov, g_bm.mean[0], g_bm.cov[0], &want, &want_c), COSLAM_OK);
+    point2_t rel;
+    cov2_t rc;
+    ekfslam_landmark_relative(&g_ekf, 0, &rel, &rc);
+    ASSERT_NEAR(rel.x, want.x, 1e-6);
+    ASSERT_NEAR(rel.y, want.y, 1e-6);
+    ASSERT_NEAR(rc.xx, want_c.xx, 1e-6);
+    ASSERT_NEAR(rc.yy, want_c.yy, 1e-6);
+    /* the added landmark is correlated with the pose exactly like a sighting:
+     * relative covariance = the incoming covariance */
+    ekfslam_landmark_relative(&g_ekf, 1, &rel, &rc);
+    ASSERT_NEAR(rel.x, g_bm.mean[1].x, 1e-9);
+    ASSERT_NEAR(rc.xx, 0.01, 1e-9);
+    ASSERT_NEAR(rc.yy, 0.01, 1e-9);
+    assert_true(fabs(ekfslam_p(&g_ekf, 0, 5)) > 1e-6); /* cross-covariance with x */
+    assert_int_equal(g_ekf.meta[1].src_mask, 0x2);
+    /* the same map again: covariance intersection, no shrinking */
+    const double before0 = ekfslam_p(&g_ekf, 3, 3);
+    const double before1 = ekfslam_p(&g_ekf, 5, 5);
+    memset(&st, 0, sizeof st);
+    assert_int_equal(merge_into_ekfslam(&g_ekf, &g_bm, &mc, &g_sc, &st), COSLAM_OK);
+    assert_int_equal(st.fused_ci, 2);
+    assert_int_equal(g_ekf.n_lm, 2);
+    ASSERT_NEAR(ekfslam_p(&g_ekf, 3, 3), before0, 0.02 * before0);
+    ASSERT_NEAR(ekfslam_p(&g_ekf, 5, 5), before1, 0.02 * before1);
+}
+
+/* EKF cov_rel against a Monte Carlo of the joint Gaussian of the state. */
+static void test_relative_covariance(void **state)
+{
+    (void)state;
+    ekfslam_config_t c = ekfslam_config_default();
+    c.slam.noise.init_xy_var_m2 = 0.02;
+    c.slam.noise.init_theta_var_rad2 = 0.01;
+    const pose2_t p0 = {1.0, 0.5, 0.8};
+    assert_int_equal(ekfslam_init(&g_ekf, &c, p0), COSLAM_OK);
+    const sighting_t z = {3.0, 0.2, 0};
+    assert_int_equal(ekfslam_update(&g_ekf, &z, 1), COSLAM_OK);
+    point2_t rel;
+    cov2_t rc;
+    ekfslam_landmark_relative(&g_ekf, 0, &rel, &rc);
+    /* sample (x, y, th, mx, my) from N(x, P) */
+    double l[5][5] = {{0}};
+    for (int j = 0; j < 5; ++j) {
+        double d = ekfslam_p(&g_ekf, j, j);
+        for (int k = 0; k < j; ++k) {
+            d -= l[j][k] * l[j][k];
+        }
+        l[j][j] = sqrt(d);
+        for (int i = j + 1; i < 5; ++i) {
+            double s = ekfslam_p(&g_ekf, i, j);
+            for (int k = 0; k < j; ++k) {
+                s -= l[i][k] * l[j][k];
+            }
+            l[i][j] = s / l[j][j];
+        }
+    }
+    rng_t r;
+    rng_seed(&r, 21U);
+    const int n = 20000;
+    double sxx = 0, sxy = 0, syy = 0;
+    for (int i = 0; i < n; ++i) {
+        double g[5];
+        double x[5];
+        for (int k = 0; k < 5; ++k) {
+            g[k] = rng_gauss(&r);
+        }
+        for (int a = 0; a < 5; ++a) {
+            x[a] = g_ekf.x[a];
+            for (int k = 0; k <= a; ++k) {
+                x[a] += l[a][k] * g[k];
+            }
+        }
+        const pose2_t ps = {x[0], x[1], x[2]};
+        const point2_t ms = {x[3], x[4]};
+        const point2_t q = pose2_apply_inverse(ps, ms);
+        sxx += (q.x - rel.x) * (q.x - rel.x) / n;
+        sxy += (q.x - rel.x) * (q.y - rel.y) / n;
+        syy += (q.y - rel.y) * (q.y - rel.y) / n;
+    }
+    ASSERT_NEAR(sxx, rc.xx, 0.10 * rc.xx);
+    ASSERT_NEAR(syy, rc.yy, 0.10 * rc.yy);
+    ASSERT_NEAR(sxy, rc.xy, 0.10 * sqrt(rc.xx * rc.yy));
+    /* and the exported relative covariance is that one */
+    static map_estimate_t est;
+    c.slam.exist_confirm = c.slam.exist_init;
+    ekfslam_export(&g_ekf, &est);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_relative_pose_hand),
+        cmocka_unit_test(test_relative_pose_monte_carlo),
+        cmocka_unit_test(test_transformed_landmark_monte_carlo),
+        cmocka_unit_test(test_fusion_rules),
+        cmocka_unit_test(test_session_replay),
+        cmocka_unit_test(test_merge_into_fastslam),
+        cmocka_unit_test(test_merge_into_ekfslam),
+        cmocka_unit_test(test_relative_covariance),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
