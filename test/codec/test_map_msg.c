@@ -36,8 +36,10 @@ enum {
     W_SEQ = 12, W_STAMP = 16, W_X = 24, W_Y = 32, W_TH = 40,
     W_PXX = 48, W_PXY = 56, W_PXT = 64, W_PYY = 72, W_PYT = 80, W_PTT = 88,
     W_RANGE = 96, W_BEARING = 104, W_RVAR = 112, W_BVAR = 120, W_SSTAMP = 128,
-    W_N = 136, W_LM = 138, W_LM_SIZE = 49,
-    L_X = 0, L_Y = 8, L_XX = 16, L_XY = 24, L_YY = 32, L_ID = 40, L_NOBS = 44, L_MASK = 46, L_SIG = 48,
+    W_N = 136, W_LM = 138, W_LM_SIZE = 73,
+    L_X = 0, L_Y = 8, L_XX = 16, L_XY = 24, L_YY = 32, L_RXX = 40, L_RXY = 48, L_RYY = 56,
+    L_ID = 64, L_NOBS = 68, L_MASK = 70, L_SIG = 72,
+    L_N_F64 = 8, /* f64 fields per landmark: mean (2), cov (3), cov_rel (3) */
 };
 
 /* ---------------------------------------------------------------------------
@@ -131,6 +133,9 @@ static size_t raw_encode(const map_msg_t *m, uint8_t *buf)
         wr_f64(p + L_XX, l->cov.xx);
         wr_f64(p + L_XY, l->cov.xy);
         wr_f64(p + L_YY, l->cov.yy);
+        wr_f64(p + L_RXX, l->cov_rel.xx);
+        wr_f64(p + L_RXY, l->cov_rel.xy);
+        wr_f64(p + L_RYY, l->cov_rel.yy);
         wr_u32(p + L_ID, l->id);
         wr_u16(p + L_NOBS, l->n_obs);
         wr_u16(p + L_MASK, l->src_mask);
@@ -197,6 +202,12 @@ static void make_msg(map_msg_t *m, uint16_t n, uint64_t seed)
         l->cov.xx = sx * sx;
         l->cov.yy = sy * sy;
         l->cov.xy = rho * sx * sy;
+        /* relative covariance: drawn independently, so a codec that mixed
+         * up cov and cov_rel would not round-trip */
+        const double rx = uni(&r, 1e-3, 0.3), ry = uni(&r, 1e-3, 0.3), rr = uni(&r, -0.95, 0.95);
+        l->cov_rel.xx = rx * rx;
+        l->cov_rel.yy = ry * ry;
+        l->cov_rel.xy = rr * rx * ry;
         l->id = id;
         id += 1u + (uint32_t)(rng_next_u64(&r) % 1000u);
         l->n_obs = (uint16_t)(1u + rng_next_u64(&r) % 500u);
@@ -247,6 +258,9 @@ static void assert_msg_equal(const map_msg_t *a, const map_msg_t *b)
         ASSERT_SAME_F64(x->cov.xx, y->cov.xx);
         ASSERT_SAME_F64(x->cov.xy, y->cov.xy);
         ASSERT_SAME_F64(x->cov.yy, y->cov.yy);
+        ASSERT_SAME_F64(x->cov_rel.xx, y->cov_rel.xx);
+        ASSERT_SAME_F64(x->cov_rel.xy, y->cov_rel.xy);
+        ASSERT_SAME_F64(x->cov_rel.yy, y->cov_rel.yy);
         assert_int_equal(x->id, y->id);
         assert_int_equal(x->n_obs, y->n_obs);
         assert_int_equal(x->src_mask, y->src_mask);
@@ -257,8 +271,11 @@ static void assert_msg_equal(const map_msg_t *a, const map_msg_t *b)
 /* Message-sized scratch objects (too big for comfortable stack use in CI
  * thread stacks of the large profile): static, reset by each test. */
 static map_msg_t g_a, g_b, g_sentinel;
-static uint8_t g_buf[MAP_MSG_MAX_BYTES + 64];
-static uint8_t g_buf2[MAP_MSG_MAX_BYTES + 64];
+/* Slack past the largest message: one extra landmark (test_reject_count) and
+ * up to 16 inserted or appended bytes (the mutation fuzz), plus margin. */
+#define BUF_SLACK (MAP_MSG_LANDMARK_BYTES + 64U)
+static uint8_t g_buf[MAP_MSG_MAX_BYTES + BUF_SLACK];
+static uint8_t g_buf2[MAP_MSG_MAX_BYTES + BUF_SLACK];
 
 /* Decode a copy of bytes held in an exact-size heap block (so ASan sees any
  * read past the end), into a sentinel-filled output; on error assert the
@@ -331,10 +348,14 @@ static void test_sizes(void **state)
     assert_int_equal(MAP_MSG_HEADER_BYTES, W_LM);
     assert_int_equal(MAP_MSG_LANDMARK_BYTES, W_LM_SIZE);
     assert_int_equal(MAP_MSG_MIN_BYTES, 142);
-    assert_int_equal(MAP_MSG_BYTES(2), 240);
-    assert_int_equal(MAP_MSG_MAX_BYTES, 142 + 49 * CAP);
+    assert_int_equal(MAP_MSG_LANDMARK_BYTES, 8 * L_N_F64 + 4 + 2 + 2 + 1);
+    assert_int_equal(MAP_MSG_BYTES(2), 288);
+    assert_int_equal(MAP_MSG_MAX_BYTES, 142 + 73 * CAP);
+    assert_int_equal(MAP_MSG_VERSION, 2);
 #if COSLAM_MAX_MSG_LANDMARKS == 64
-    assert_int_equal(MAP_MSG_MAX_BYTES, 3278);
+    assert_int_equal(MAP_MSG_MAX_BYTES, 4814);
+#elif COSLAM_MAX_MSG_LANDMARKS == 256
+    assert_int_equal(MAP_MSG_MAX_BYTES, 18830);
 #endif
     map_msg_init(&g_a);
     assert_int_equal(g_a.version, MAP_MSG_VERSION);
@@ -396,6 +417,8 @@ static void test_roundtrip_extremes(void **state)
     l[0].mean.x = -DBL_MAX;
     l[0].mean.y = DBL_MAX;
     l[0].cov = cov2_make(DBL_MAX, -0.0, DBL_MAX); /* det overflows to +inf: still PD */
+    /* nearly singular (det about 2.2e-16): PD, and must survive bit for bit */
+    l[0].cov_rel = cov2_make(1.0, nextafter(1.0, 0.0), 1.0);
     l[0].id = UINT32_MAX;
     l[0].n_obs = UINT16_MAX;
     l[0].src_mask = team_mask();
@@ -405,23 +428,28 @@ static void test_roundtrip_extremes(void **state)
         l[1].n_obs = 0;
         l[1].signature = 0;
         l[1].cov = cov2_make(1e-150, 0.0, 1e-150);
+        l[1].cov_rel = cov2_make(DBL_MAX, -0.0, DBL_MAX);
     }
     roundtrip(&g_a);
     g_a.map.pose.theta = COSLAM_PI;
+    roundtrip(&g_a);
+    /* tiny uncorrelated cov_rel (det 1e-300, well above the underflow limit) */
+    l[0].cov_rel = cov2_make(1e-150, -0.0, 1e-150);
     roundtrip(&g_a);
 }
 
 /* The layout, proven by hand: every byte below was written from the table in
  * map_msg.h; only the CRC was computed elsewhere (Python's zlib.crc32 over
- * the 236 bytes before it). */
+ * the 284 bytes before it, built there with struct.pack from the same
+ * values). */
 #define F64(b6, b7) 0, 0, 0, 0, 0, 0, b6, b7
-static const uint8_t golden[240] = {
+static const uint8_t golden[288] = {
     'C', 'S', 'L', 'M',                           /* magic */
-    1,                                            /* version */
+    2,                                            /* version */
     3,                                            /* sender */
     1,                                            /* receiver */
     0x01,                                         /* flags: sighting valid */
-    0xF0, 0x00, 0x00, 0x00,                       /* length 240 */
+    0x20, 0x01, 0x00, 0x00,                       /* length 288 */
     0x04, 0x03, 0x02, 0x01,                       /* seq 0x01020304 */
     0x88, 0x77, 0x66, 0x55, 0x44, 0x33, 0x22, 0x11, /* stamp 0x1122334455667788 */
     F64(0xF8, 0x3F),                              /* x 1.5 */
@@ -445,6 +473,9 @@ static const uint8_t golden[240] = {
     F64(0xE0, 0x3F),                              /* xx 0.5 */
     F64(0xC0, 0xBF),                              /* xy -0.125 */
     F64(0xD0, 0x3F),                              /* yy 0.25 */
+    F64(0xD8, 0x3F),                              /* rel xx 0.375 */
+    F64(0xB0, 0x3F),                              /* rel xy 0.0625 */
+    F64(0xC0, 0x3F),                              /* rel yy 0.125 */
     0x07, 0x00, 0x00, 0x00,                       /* id 7 */
     0x0C, 0x00,                                   /* n_obs 12 */
     0x0A, 0x00,                                   /* src_mask 0x000A */
@@ -455,11 +486,14 @@ static const uint8_t golden[240] = {
     F64(0xF0, 0x3F),                              /* xx 1.0 */
     F64(0x00, 0x00),                              /* xy 0 */
     F64(0x00, 0x40),                              /* yy 2.0 */
+    F64(0xE8, 0x3F),                              /* rel xx 0.75 */
+    F64(0xE0, 0xBF),                              /* rel xy -0.5 */
+    F64(0xF8, 0x3F),                              /* rel yy 1.5 */
     0x02, 0x01, 0x00, 0x00,                       /* id 258 */
     0x01, 0x00,                                   /* n_obs 1 */
     0x08, 0x00,                                   /* src_mask 0x0008 */
     0x00,                                         /* signature 0 */
-    0xBE, 0x2A, 0x7B, 0xFD,                       /* CRC-32 0xFD7B2ABE */
+    0xD3, 0x80, 0x80, 0x9C,                       /* CRC-32 0x9C8080D3 */
 };
 
 static void golden_msg(map_msg_t *m)
@@ -474,16 +508,16 @@ static void golden_msg(map_msg_t *m)
     memcpy(m->map.pose_cov.m, p, sizeof p);
     m->sighting = (map_msg_sighting_t){true, 2.5, -0.75, 0.015625, 0.00390625, 0x100000002ull};
     m->map.n_landmarks = 2;
-    m->map.lm[0] = (map_landmark_t){{3.0, -1.0}, {0.5, -0.125, 0.25}, 7, 12, 0x000A, 2};
-    m->map.lm[1] = (map_landmark_t){{-4.25, 0.0}, {1.0, 0.0, 2.0}, 258, 1, 0x0008, 0};
+    m->map.lm[0] = (map_landmark_t){{3.0, -1.0}, {0.5, -0.125, 0.25}, {0.375, 0.0625, 0.125}, 7, 12, 0x000A, 2};
+    m->map.lm[1] = (map_landmark_t){{-4.25, 0.0}, {1.0, 0.0, 2.0}, {0.75, -0.5, 1.5}, 258, 1, 0x0008, 0};
 }
 
 static void test_golden_vector(void **state)
 {
     (void)state;
     /* the CRC literal is the CRC of the hand-written bytes */
-    assert_int_equal(ref_crc32(golden, 236), 0xFD7B2ABEu);
-    assert_int_equal(rd_u32(golden + 236), 0xFD7B2ABEu);
+    assert_int_equal(ref_crc32(golden, 284), 0x9C8080D3u);
+    assert_int_equal(rd_u32(golden + 284), 0x9C8080D3u);
     golden_msg(&g_a);
     size_t len = 0;
     memset(g_buf, 0xEE, sizeof g_buf);
@@ -535,7 +569,7 @@ typedef struct {
     coslam_status_t code;
 } struct_case_t;
 
-static void m_version(map_msg_t *m) { m->version = 2; }
+static void m_version(map_msg_t *m) { m->version = 1; } /* the previous layout */
 static void m_count(map_msg_t *m) { m->map.n_landmarks = CAP + 1; }
 static void m_sender(map_msg_t *m) { m->sender_id = COSLAM_MAX_ROBOTS; }
 static void m_sender_bcast(map_msg_t *m) { m->sender_id = MAP_MSG_BROADCAST; }
@@ -573,6 +607,13 @@ static void m_lm_cov_zero(map_msg_t *m) { m->map.lm[2].cov.xx = 0.0; }
 static void m_lm_cov_neg(map_msg_t *m) { m->map.lm[0].cov.yy = -0.1; }
 static void m_lm_cov_indef(map_msg_t *m) { m->map.lm[1].cov = cov2_make(1.0, 1.0, 1.0); } /* det 0 */
 static void m_lm_cov_indef2(map_msg_t *m) { m->map.lm[1].cov = cov2_make(1.0, -2.0, 1.0); }
+static void m_lm_rel_nan(map_msg_t *m) { m->map.lm[2].cov_rel.yy = NAN; }
+static void m_lm_rel_inf(map_msg_t *m) { m->map.lm[0].cov_rel.xy = INFINITY; }
+static void m_lm_rel_zero(map_msg_t *m) { m->map.lm[1].cov_rel.xx = 0.0; }
+static void m_lm_rel_neg(map_msg_t *m) { m->map.lm[2].cov_rel.yy = -1e-6; }
+static void m_lm_rel_singular(map_msg_t *m) { m->map.lm[0].cov_rel = cov2_make(0.25, -0.125, 0.0625); }
+static void m_lm_rel_indef(map_msg_t *m) { m->map.lm[2].cov_rel = cov2_make(0.1, 0.5, 0.2); }
+static void m_lm_rel_all_zero(map_msg_t *m) { m->map.lm[1].cov_rel = cov2_make(0.0, 0.0, 0.0); }
 static void m_dup_adjacent(map_msg_t *m) { m->map.lm[2].id = m->map.lm[1].id; }
 static void m_dup_far(map_msg_t *m)
 {
@@ -615,6 +656,13 @@ static const struct_case_t struct_cases[] = {
     {"landmark cov yy < 0", m_lm_cov_neg, COSLAM_E_MSG_COVARIANCE},
     {"landmark cov singular", m_lm_cov_indef, COSLAM_E_MSG_COVARIANCE},
     {"landmark cov indefinite", m_lm_cov_indef2, COSLAM_E_MSG_COVARIANCE},
+    {"landmark cov_rel NaN", m_lm_rel_nan, COSLAM_E_MSG_NONFINITE},
+    {"landmark cov_rel Inf", m_lm_rel_inf, COSLAM_E_MSG_NONFINITE},
+    {"landmark cov_rel xx 0", m_lm_rel_zero, COSLAM_E_MSG_COVARIANCE},
+    {"landmark cov_rel yy < 0", m_lm_rel_neg, COSLAM_E_MSG_COVARIANCE},
+    {"landmark cov_rel singular", m_lm_rel_singular, COSLAM_E_MSG_COVARIANCE},
+    {"landmark cov_rel indefinite", m_lm_rel_indef, COSLAM_E_MSG_COVARIANCE},
+    {"landmark cov_rel all zero (unfilled)", m_lm_rel_all_zero, COSLAM_E_MSG_COVARIANCE},
     {"duplicate ids, sorted", m_dup_adjacent, COSLAM_E_MSG_DUPLICATE},
     {"duplicate ids, unsorted", m_dup_far, COSLAM_E_MSG_DUPLICATE},
 };
@@ -642,6 +690,50 @@ static void test_reject_struct_cases(void **state)
             fail_msg("%s: decode %s, want %s", k->name, coslam_status_str(d), coslam_status_str(k->code));
         }
     }
+}
+
+/* Within a landmark the checks run NONFINITE, then FIELD, then COVARIANCE,
+ * with cov_rel in the same group as cov: when two faults meet, the earlier
+ * class decides, on all three paths. */
+static void expect_3ways(const char *name, coslam_status_t code)
+{
+    size_t len = 99;
+    const coslam_status_t v = map_msg_validate(&g_a);
+    const coslam_status_t e = map_msg_encode(&g_a, g_buf, sizeof g_buf, &len);
+    const coslam_status_t d = decode_exact(g_buf, raw_encode(&g_a, g_buf), &g_b);
+    if (v != code || e != code || d != code) {
+        fail_msg("%s: validate %s, encode %s, decode %s, want %s", name, coslam_status_str(v),
+                 coslam_status_str(e), coslam_status_str(d), coslam_status_str(code));
+    }
+}
+
+static void test_landmark_check_order(void **state)
+{
+    (void)state;
+    make_msg(&g_a, 2, 23);
+    g_a.map.lm[1].cov_rel.xy = NAN;
+    g_a.map.lm[1].id = 0;
+    expect_3ways("cov_rel NaN + id 0", COSLAM_E_MSG_NONFINITE);
+    make_msg(&g_a, 2, 23);
+    g_a.map.lm[1].cov_rel.xx = -1.0;
+    g_a.map.lm[1].src_mask = 0;
+    expect_3ways("cov_rel not PD + src_mask 0", COSLAM_E_MSG_FIELD);
+    make_msg(&g_a, 2, 23);
+    g_a.map.lm[0].cov = cov2_make(1.0, 2.0, 1.0);
+    g_a.map.lm[0].cov_rel.yy = -INFINITY;
+    expect_3ways("cov not PD + cov_rel -Inf", COSLAM_E_MSG_NONFINITE);
+    /* the first failing landmark decides: lm[0] COVARIANCE before lm[1] FIELD */
+    make_msg(&g_a, 2, 23);
+    g_a.map.lm[0].cov_rel = cov2_make(1.0, 1.0, 1.0);
+    g_a.map.lm[1].id = 0;
+    expect_3ways("lm[0] cov_rel singular, lm[1] id 0", COSLAM_E_MSG_COVARIANCE);
+    /* cov_rel valid while cov is not, and the reverse: each is checked */
+    make_msg(&g_a, 2, 23);
+    g_a.map.lm[1].cov.yy = 0.0;
+    expect_3ways("cov yy 0, cov_rel valid", COSLAM_E_MSG_COVARIANCE);
+    make_msg(&g_a, 2, 23);
+    g_a.map.lm[1].cov_rel.yy = 0.0;
+    expect_3ways("cov valid, cov_rel yy 0", COSLAM_E_MSG_COVARIANCE);
 }
 
 /* The encoder refuses a pose covariance whose mirror entries differ, even by
@@ -723,7 +815,7 @@ static void test_reject_version(void **state)
 {
     (void)state;
     const size_t len = good_wire(1, 33);
-    const uint8_t bad[] = {0, 2, 0x81, 0xFF};
+    const uint8_t bad[] = {0, 1 /* previous layout, no cov_rel */, 3, 0x81, 0xFF};
     for (size_t i = 0; i < sizeof bad; ++i) {
         g_buf[W_VERSION] = bad[i];
         refresh(g_buf, len); /* even with a correct CRC */
@@ -739,17 +831,17 @@ static void test_reject_length(void **state)
     g_buf[len] = 0;
     assert_int_equal(decode_exact(g_buf, len + 1, &g_b), COSLAM_E_MSG_LENGTH);
     /* length field smaller than the buffer */
-    wr_u32(g_buf + W_LENGTH, (uint32_t)len - 49);
+    wr_u32(g_buf + W_LENGTH, (uint32_t)len - W_LM_SIZE);
     assert_int_equal(decode_exact(g_buf, len, &g_b), COSLAM_E_MSG_LENGTH);
     /* length field too small for a header, yet equal to the buffer */
-    uint8_t tiny[20] = {'C', 'S', 'L', 'M', 1, 0, 1, 0, 20, 0, 0, 0};
+    uint8_t tiny[20] = {'C', 'S', 'L', 'M', MAP_MSG_VERSION, 0, 1, 0, 20, 0, 0, 0};
     assert_int_equal(decode_exact(tiny, sizeof tiny, &g_b), COSLAM_E_MSG_LENGTH);
     /* consistent length and CRC, but the count says another size */
     len = good_wire(2, 34);
     wr_u16(g_buf + W_N, 1);
     refresh(g_buf, len);
     assert_int_equal(decode_exact(g_buf, len, &g_b), COSLAM_E_MSG_LENGTH);
-    /* a length that is not 142 + 49 n for any n */
+    /* a length that is not 142 + 73 n for any n */
     len = good_wire(2, 34);
     g_buf[len] = 0;
     refresh(g_buf, len + 1);
@@ -811,10 +903,11 @@ static void test_reject_nonfinite_every_field(void **state)
         offs[k++] = o;
     }
     for (size_t i = 0; i < n; ++i) {
-        for (size_t o = 0; o < 40; o += 8) {
+        for (size_t o = 0; o < 8 * L_N_F64; o += 8) {
             offs[k++] = W_LM + W_LM_SIZE * i + o;
         }
     }
+    assert_int_equal(k, 13 + L_N_F64 * n); /* every f64: 13 in the header, 8 per landmark */
     for (size_t j = 0; j < k; ++j) {
         for (size_t b = 0; b < sizeof bad / sizeof bad[0]; ++b) {
             memcpy(g_buf, g_buf2, len);
@@ -987,7 +1080,7 @@ static size_t mutate(rng_t *r, const uint8_t *src, size_t len, uint8_t *dst, uin
     {
         size_t off;
         if (n > 0 && rng_below(r, 2) == 0) {
-            off = W_LM + W_LM_SIZE * rng_below(r, n) + 8 * rng_below(r, 5);
+            off = W_LM + W_LM_SIZE * rng_below(r, n) + 8 * rng_below(r, L_N_F64);
         } else {
             off = W_X + 8 * rng_below(r, 13);
         }
@@ -1090,6 +1183,7 @@ int main(void)
         cmocka_unit_test(test_golden_vector),
         cmocka_unit_test(test_encode_args_and_capacity),
         cmocka_unit_test(test_reject_struct_cases),
+        cmocka_unit_test(test_landmark_check_order),
         cmocka_unit_test(test_reject_asymmetric),
         cmocka_unit_test(test_invalid_sighting_is_zeroed),
         cmocka_unit_test(test_reject_truncated),

@@ -80,8 +80,13 @@ static void make_templates(void)
         m.map.n_landmarks = ns[t];
         for (uint16_t i = 0; i < ns[t]; ++i) {
             const double x = (double)i;
-            m.map.lm[i] = (map_landmark_t){{x, -0.5 * x}, {0.04 + 0.001 * x, 0.001, 0.03}, 10U + 3U * i,
-                                           (uint16_t)(i + 1U), 3U, (uint8_t)(i % 3U)};
+            m.map.lm[i] = (map_landmark_t){{x, -0.5 * x},
+                                           {0.04 + 0.001 * x, 0.001, 0.03},
+                                           {0.02, -0.004, 0.01 + 0.0005 * x},
+                                           10U + 3U * i,
+                                           (uint16_t)(i + 1U),
+                                           3U,
+                                           (uint8_t)(i % 3U)};
         }
         if (map_msg_encode(&m, g_tpl[t], sizeof g_tpl[t], &g_tpl_len[t]) != COSLAM_OK) {
             abort();

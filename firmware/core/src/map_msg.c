@@ -26,8 +26,10 @@ static const uint8_t map_msg_magic[4] = {0x43U, 0x53U, 0x4CU, 0x4DU}; /* "CSLM" 
 #define OFF_COUNT 136U
 #define PREFIX_BYTES 12U        /* magic .. length: enough to frame a message */
 #define SIGHTING_BYTES 40U      /* range, bearing, 2 variances, stamp */
-#define LM_OFF_ID 40U
+#define LM_OFF_ID 64U           /* after mean (2 f64), cov and cov_rel (3 f64 each) */
+#define LM_OFF_SIGNATURE 72U    /* the record's last byte */
 #define FLAG_SIGHTING 0x01U
+_Static_assert(LM_OFF_SIGNATURE + 1U == MAP_MSG_LANDMARK_BYTES, "landmark record layout");
 
 /* ------------------------------------------------------------------------- */
 /* Little-endian byte I/O: explicit shifts, independent of the host's order. */
@@ -167,13 +169,14 @@ static coslam_status_t check_sighting(const map_msg_sighting_t *s, uint8_t recei
 
 static coslam_status_t check_landmark(const map_landmark_t *lm)
 {
-    if (!isfinite(lm->mean.x) || !isfinite(lm->mean.y) || !cov2_is_finite(lm->cov)) {
+    if (!isfinite(lm->mean.x) || !isfinite(lm->mean.y) || !cov2_is_finite(lm->cov) ||
+        !cov2_is_finite(lm->cov_rel)) {
         return COSLAM_E_MSG_NONFINITE;
     }
     if (lm->id == 0U || lm->src_mask == 0U || ((uint32_t)lm->src_mask >> COSLAM_MAX_ROBOTS) != 0U) {
         return COSLAM_E_MSG_FIELD;
     }
-    if (!cov2_is_pd(lm->cov)) {
+    if (!cov2_is_pd(lm->cov) || !cov2_is_pd(lm->cov_rel)) {
         return COSLAM_E_MSG_COVARIANCE;
     }
     return COSLAM_OK;
@@ -319,6 +322,9 @@ coslam_status_t map_msg_encode(const map_msg_t *msg, uint8_t *buf, size_t cap, s
         p = put_f64(p, lm->cov.xx);
         p = put_f64(p, lm->cov.xy);
         p = put_f64(p, lm->cov.yy);
+        p = put_f64(p, lm->cov_rel.xx);
+        p = put_f64(p, lm->cov_rel.xy);
+        p = put_f64(p, lm->cov_rel.yy);
         p = put_u32(p, lm->id);
         p = put_u16(p, lm->n_obs);
         p = put_u16(p, lm->src_mask);
@@ -383,10 +389,13 @@ static void read_landmark(const uint8_t *p, map_landmark_t *lm)
     lm->cov.xx = get_f64(p + 16);
     lm->cov.xy = get_f64(p + 24);
     lm->cov.yy = get_f64(p + 32);
-    lm->id = get_u32(p + 40);
-    lm->n_obs = get_u16(p + 44);
-    lm->src_mask = get_u16(p + 46);
-    lm->signature = p[48];
+    lm->cov_rel.xx = get_f64(p + 40);
+    lm->cov_rel.xy = get_f64(p + 48);
+    lm->cov_rel.yy = get_f64(p + 56);
+    lm->id = get_u32(p + LM_OFF_ID);
+    lm->n_obs = get_u16(p + 68);
+    lm->src_mask = get_u16(p + 70);
+    lm->signature = p[LM_OFF_SIGNATURE];
 }
 
 /* Framing checks 1-8 of the header comment. */

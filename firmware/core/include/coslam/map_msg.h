@@ -8,19 +8,21 @@
  * the sender's range-bearing sighting of the receiver: the relative
  * measurement the receiver needs to put the sender's map into its own frame.
  *
- * Wire format (version 1). Every multi-byte field is little-endian and
- * written byte by byte; f64 is an IEEE-754 binary64 sent as its 64-bit
- * pattern, u64/u32/u16 are unsigned integers. There is no padding.
+ * Wire format (version 2; version 1 had 49-byte landmark records without
+ * cov_rel and is refused with COSLAM_E_MSG_VERSION). Every multi-byte field
+ * is little-endian and written byte by byte; f64 is an IEEE-754 binary64
+ * sent as its 64-bit pattern, u64/u32/u16 are unsigned integers. There is
+ * no padding.
  *
  *   off   size  type  field
  *   ----  ----  ----  ---------------------------------------------------------
  *     0     4   u8[4] magic "CSLM" = 0x43 0x53 0x4C 0x4D
- *     4     1   u8    version = MAP_MSG_VERSION (1)
+ *     4     1   u8    version = MAP_MSG_VERSION (2)
  *     5     1   u8    sender_id    < COSLAM_MAX_ROBOTS
  *     6     1   u8    receiver_id  < COSLAM_MAX_ROBOTS, != sender_id, or
  *                                  MAP_MSG_BROADCAST (0xFF)
  *     7     1   u8    flags: bit 0 = sighting valid; bits 1..7 must be 0
- *     8     4   u32   total length L in bytes, CRC included: L = 142 + 49 n
+ *     8     4   u32   total length L in bytes, CRC included: L = 142 + 73 n
  *    12     4   u32   seq
  *    16     8   u64   stamp_us
  *    24     8   f64   pose.x [m]
@@ -38,25 +40,29 @@
  *   120     8   f64   sighting.bearing_var_rad2
  *   128     8   u64   sighting.stamp_us
  *   136     2   u16   n = number of landmarks <= COSLAM_MAX_MSG_LANDMARKS
- *   138   49 n        landmarks, each (offsets relative to 138 + 49 i):
- *                       +0   f64  mean.x [m]
+ *   138   73 n        landmarks, each (offsets relative to 138 + 73 i):
+ *                       +0   f64  mean.x [m]            map frame
  *                       +8   f64  mean.y [m]
- *                      +16   f64  cov.xx [m^2]
+ *                      +16   f64  cov.xx [m^2]          map frame
  *                      +24   f64  cov.xy [m^2]
  *                      +32   f64  cov.yy [m^2]
- *                      +40   u32  id (!= 0)
- *                      +44   u16  n_obs
- *                      +46   u16  src_mask (!= 0, bits < COSLAM_MAX_ROBOTS)
- *                      +48   u8   signature
- *  138+49n  4   u32   CRC-32 (crc32.h: IEEE 802.3, reflected, init and final
- *                     XOR 0xFFFFFFFF) of bytes [0, 138 + 49 n)
+ *                      +40   f64  cov_rel.xx [m^2]      relative to the
+ *                      +48   f64  cov_rel.xy [m^2]      robot, robot body
+ *                      +56   f64  cov_rel.yy [m^2]      frame (map_estimate.h)
+ *                      +64   u32  id (!= 0)
+ *                      +68   u16  n_obs
+ *                      +70   u16  src_mask (!= 0, bits < COSLAM_MAX_ROBOTS)
+ *                      +72   u8   signature
+ *  138+73n  4   u32   CRC-32 (crc32.h: IEEE 802.3, reflected, init and final
+ *                     XOR 0xFFFFFFFF) of bytes [0, 138 + 73 n)
  *
  * Validity (checked by map_msg_validate, by the encoder before it writes and
  * by the decoder before it writes *out; all three share one set of checks):
  *   - every f64 finite (COSLAM_E_MSG_NONFINITE);
  *   - pose covariance symmetric (bit-identical mirror entries) and positive
- *     definite (Cholesky), each landmark covariance positive definite
- *     (xx > 0, yy > 0, xx yy - xy^2 > 0), sighting variances > 0
+ *     definite (Cholesky), both covariances of each landmark (cov and
+ *     cov_rel) positive definite (xx > 0, yy > 0, xx yy - xy^2 > 0),
+ *     sighting variances > 0
  *     (COSLAM_E_MSG_COVARIANCE);
  *   - ids, flags, theta and bearing in [-pi, pi], range_m >= 0, landmark id
  *     != 0 ("no identity" in the filters), src_mask non-zero and inside the
@@ -73,7 +79,7 @@
  *   5. len > L, or L < 142                             COSLAM_E_MSG_LENGTH
  *   6. CRC mismatch                                    COSLAM_E_MSG_CRC
  *   7. n > COSLAM_MAX_MSG_LANDMARKS                    COSLAM_E_MSG_COUNT
- *   8. L != 142 + 49 n                                 COSLAM_E_MSG_LENGTH
+ *   8. L != 142 + 73 n                                 COSLAM_E_MSG_LENGTH
  *   9. field checks, group by group in wire order, each group checking
  *      NONFINITE, then FIELD, then COVARIANCE: header (flags, ids), pose,
  *      sighting (a cleared flag with non-zero sighting bytes is FIELD),
@@ -97,21 +103,22 @@ extern "C" {
 #endif
 
 /** Protocol version this codec writes and accepts. */
-#define MAP_MSG_VERSION 1U
+#define MAP_MSG_VERSION 2U
 /** receiver_id of a message addressed to every robot (carries no sighting). */
 #define MAP_MSG_BROADCAST 0xFFU
 
 /** Fixed part before the landmarks [bytes]. */
 #define MAP_MSG_HEADER_BYTES 138U
 /** One landmark on the wire [bytes]. */
-#define MAP_MSG_LANDMARK_BYTES 49U
+#define MAP_MSG_LANDMARK_BYTES 73U
 /** The trailing CRC-32 [bytes]. */
 #define MAP_MSG_CRC_BYTES 4U
 /** Encoded size of a message with n landmarks [bytes]. */
 #define MAP_MSG_BYTES(n) (MAP_MSG_HEADER_BYTES + MAP_MSG_LANDMARK_BYTES * (size_t)(n) + MAP_MSG_CRC_BYTES)
 /** Smallest message (no landmark): 142 bytes. */
 #define MAP_MSG_MIN_BYTES MAP_MSG_BYTES(0U)
-/** Largest message this build encodes or accepts: 3278 bytes for 64 landmarks. */
+/** Largest message this build encodes or accepts: 4814 bytes for 64 landmarks,
+ *  18830 for 256. */
 #define MAP_MSG_MAX_BYTES MAP_MSG_BYTES(COSLAM_MAX_MSG_LANDMARKS)
 
 /** The sender's sighting of the receiver (a robot-robot range-bearing measurement). */
@@ -125,7 +132,8 @@ typedef struct {
     uint64_t stamp_us;        /**< when it was taken, sender's clock [us] */
 } map_msg_sighting_t;
 
-/** One map message. sizeof is dominated by map (about 48 bytes per landmark). */
+/** One map message. sizeof is dominated by map (sizeof(map_landmark_t) = 80 bytes per
+ *  landmark on x86-64 and the ARM EABI). */
 typedef struct {
     uint8_t version;              /**< MAP_MSG_VERSION */
     uint8_t sender_id;            /**< < COSLAM_MAX_ROBOTS */
@@ -184,8 +192,8 @@ size_t map_msg_encoded_size(const map_msg_t *msg);
  *         size (the codec is stateless: counting such events is the
  *         caller's).
  * Time O(n) (plus the O(n^2) duplicate check for unsorted ids): about
- * 22 us for 64 landmarks on a desktop x86-64; stack about 400 bytes on a
- * Cortex-M7; never blocks.
+ * 21 us for 64 landmarks (4814 bytes) on a desktop x86-64; stack about
+ * 400 bytes on a Cortex-M7; never blocks.
  */
 coslam_status_t map_msg_encode(const map_msg_t *msg, uint8_t *buf, size_t cap, size_t *len);
 
@@ -205,8 +213,9 @@ coslam_status_t map_msg_encode(const map_msg_t *msg, uint8_t *buf, size_t cap, s
  *         (TRUNCATED, MAGIC, VERSION, LENGTH, CRC, COUNT, FIELD, NONFINITE,
  *         COVARIANCE, DUPLICATE).
  * Time O(len) (plus O(n^2) id comparisons when ids are not sorted): about
- * 23 us for 64 landmarks on a desktop x86-64; stack about 650 bytes on a
- * Cortex-M7 (gcc -O2); never blocks.
+ * 22 us for 64 landmarks (4814 bytes) on a desktop x86-64, 26 us with
+ * unsorted ids; stack about 650 bytes on a Cortex-M7 (gcc -O2); never
+ * blocks.
  */
 coslam_status_t map_msg_decode(const uint8_t *buf, size_t len, map_msg_t *out);
 
