@@ -923,32 +923,29 @@ static pose2_t merge_t_now(const ekfslam_t *ekf, pose2_t t_hat)
     return t;
 }
 
-coslam_status_t ekfslam_merge_observe(ekfslam_t *ekf, uint16_t j, pose2_t t_hat, point2_t rel_other, cov2_t noise_other,
-                                      double inflate)
+coslam_status_t ekfslam_merge_observe(ekfslam_t *ekf, uint16_t j, pose2_t t_hat, point2_t rel_other, cov2_t info)
 {
     COSLAM_ASSERT(j < ekf->n_lm);
-    if (!ekf->merging || !(inflate >= 1.0) || !isfinite(inflate)) {
+    if (!ekf->merging) {
         return COSLAM_E_ARG;
+    }
+    if (!cov2_is_finite(info)) {
+        ekf->ctr.numeric_faults++;
+        return COSLAM_E_NUMERIC;
     }
     const int a = 3 + 2 * j;
     const int idx[8] = {0, 1, 2, a, a + 1, TAU_, TAU_ + 1, TAU_ + 2};
-    /* noise in the body frame, and its eigen-directions */
-    const double ct = cos(t_hat.theta);
-    const double st = sin(t_hat.theta);
-    double rt[2][2] = {{ct, -st}, {st, ct}};
-    const cov2_t noise = cov2_scale(cov2_congruence(rt, noise_other), inflate);
-    if (!cov2_is_pd(noise)) {
-        ekf->ctr.numeric_faults++;
-        return COSLAM_E_NOT_PD;
-    }
     double lmin;
     double lmax;
-    cov2_eigenvalues(noise, &lmin, &lmax);
-    const double lam[2] = {lmin, lmax};
+    cov2_eigenvalues(info, &lmin, &lmax);
+    const double lam[2] = {lmax, lmin};
     for (int e = 0; e < 2; ++e) {
+        if (!(lam[e] > 1e-12 * lmax) || !(lam[e] > 0.0)) {
+            continue; /* no information in this direction */
+        }
         double vx;
         double vy;
-        eigvec2(noise, lam[e], e, &vx, &vy);
+        eigvec2(info, lam[e], e, &vx, &vy);
         /* residual R^T (m_j - p) - (t (+) rel), and its Jacobian */
         double jac[2][5];
         point2_t rel_self;
@@ -965,7 +962,7 @@ coslam_status_t ekfslam_merge_observe(ekfslam_t *ekf, uint16_t j, pose2_t t_hat,
             h[5 + q] = -(vx * jt[0][q] + vy * jt[1][q]);
         }
         const double nu = -(vx * (rel_self.x - in_body.x) + vy * (rel_self.y - in_body.y));
-        const coslam_status_t s = scalar_update(ekf, idx, h, 8, nu, lam[e]);
+        const coslam_status_t s = scalar_update(ekf, idx, h, 8, nu, 1.0 / lam[e]);
         if (s != COSLAM_OK) {
             return s;
         }
@@ -1036,6 +1033,10 @@ coslam_status_t ekfslam_export(ekfslam_t *ekf, map_estimate_t *out)
         map_landmark_t *o = &out->lm[i];
         ekfslam_landmark(ekf, j, &o->mean, &o->cov);
         o->cov_rel = landmark_relative_cov(ekf, j);
+        /* rounding must not make an exported covariance indefinite: the
+         * codec refuses such a message */
+        o->cov = cov2_clamp_eigen(o->cov, 1e-12);
+        o->cov_rel = cov2_clamp_eigen(o->cov_rel, 1e-12);
         o->id = ekf->meta[j].id;
         o->n_obs = ekf->meta[j].n_obs;
         o->src_mask = ekf->meta[j].src_mask;

@@ -280,8 +280,28 @@ static int32_t cell_of(double v, double cell)
     return (int32_t)c;
 }
 
+/*
+ * The cell must be at least the largest distance at which two landmarks can
+ * still pass the gate, or the 3x3 neighbourhood misses duplicates: with the
+ * incoming covariances the largest, sqrt(gate * 2 lambda_max) covers an own
+ * covariance as large as the incoming one. Never below grid_cell_m.
+ */
+static double grid_cell_size(const merge_body_map_t *bm, const merge_config_t *cfg)
+{
+    double lmax_all = 0.0;
+    for (uint16_t i = 0; i < bm->n; ++i) {
+        double lo;
+        double hi;
+        cov2_eigenvalues(bm->cov[i], &lo, &hi);
+        lmax_all = hi > lmax_all ? hi : lmax_all;
+    }
+    const double reach = sqrt(cfg->gate_chi2 * 2.0 * lmax_all);
+    return reach > cfg->grid_cell_m ? reach : cfg->grid_cell_m;
+}
+
 static void grid_build(merge_scratch_t *sc, const merge_body_map_t *bm, double cell)
 {
+    sc->cell_m = cell;
     for (int b = 0; b < COSLAM_MERGE_GRID_BUCKETS; ++b) {
         sc->bucket_head[b] = -1;
     }
@@ -347,8 +367,8 @@ static void pair_and_select(merge_scratch_t *sc, const merge_body_map_t *bm, con
     }
     for (int j = 0; j < n_own; ++j) {
         sc->own_used[j] = 0;
-        const int32_t cx = cell_of(sc->own_body[j].x, cfg->grid_cell_m);
-        const int32_t cy = cell_of(sc->own_body[j].y, cfg->grid_cell_m);
+        const int32_t cx = cell_of(sc->own_body[j].x, sc->cell_m);
+        const int32_t cy = cell_of(sc->own_body[j].y, sc->cell_m);
         for (int32_t dx = -1; dx <= 1; ++dx) {
             for (int32_t dy = -1; dy <= 1; ++dy) {
                 for (int32_t i = sc->bucket_head[cell_hash(cx + dx, cy + dy)]; i >= 0; i = sc->next[i]) {
@@ -405,7 +425,7 @@ coslam_status_t merge_into_fastslam(fastslam_t *fs, const merge_body_map_t *bm, 
     }
     const slam_params_t *sp = &fs->cfg.slam;
     coslam_status_t result = COSLAM_OK;
-    grid_build(sc, bm, cfg->grid_cell_m);
+    grid_build(sc, bm, grid_cell_size(bm, cfg));
     /* one identity per incoming landmark, shared by the particles that add it */
     for (uint16_t i = 0; i < bm->n; ++i) {
         sc->new_id[i] = fastslam_new_id(fs);
@@ -513,7 +533,7 @@ coslam_status_t merge_into_ekfslam(ekfslam_t *ekf, const merge_body_map_t *bm, c
     }
     const slam_params_t *sp = &ekf->cfg.slam;
     coslam_status_t result = COSLAM_OK;
-    grid_build(sc, bm, cfg->grid_cell_m);
+    grid_build(sc, bm, grid_cell_size(bm, cfg));
     const uint16_t n_own = ekf->n_lm;
     for (uint16_t j = 0; j < n_own; ++j) {
         ekfslam_landmark_relative(ekf, j, &sc->own_body[j], &sc->own_cov[j]);
@@ -530,28 +550,48 @@ coslam_status_t merge_into_ekfslam(ekfslam_t *ekf, const merge_body_map_t *bm, c
             continue;
         }
         ekfslam_meta_t *meta = &ekf->meta[j];
-        double inflate = 1.0;
+        /* the information the incoming landmark brings (receiver's body frame) */
+        const double ct = cos(bm->t.theta);
+        const double stt = sin(bm->t.theta);
+        double rt[2][2] = {{ct, -stt}, {stt, ct}};
+        cov2_t info;
+        if (cov2_inverse(cov2_congruence(rt, bm->rel_cov[i]), &info) != COSLAM_OK) {
+            stats->skipped++;
+            continue;
+        }
         if ((meta->src_mask & bm->src_mask[i]) != 0U) {
+            /* covariance intersection on the relative marginals, applied as
+             * the information it adds over the own estimate,
+             * (1 - w) (S_b^-1 - S_a^-1), clipped to its positive directions:
+             * re-merging information already held adds (almost) nothing */
             point2_t rel;
             cov2_t sa;
             point2_t xm;
             cov2_t xc;
+            cov2_t ia;
+            cov2_t ib;
             double w;
             ekfslam_landmark_relative(ekf, (uint16_t)j, &rel, &sa);
-            if (merge_fuse_ci(rel, sa, bm->mean[i], bm->cov[i], &xm, &xc, &w) != COSLAM_OK) {
+            if (merge_fuse_ci(rel, sa, bm->mean[i], bm->cov[i], &xm, &xc, &w) != COSLAM_OK ||
+                cov2_inverse(sa, &ia) != COSLAM_OK || cov2_inverse(bm->cov[i], &ib) != COSLAM_OK) {
                 stats->skipped++;
                 continue;
             }
             stats->fused_ci++;
-            if (w > 1.0 - 1e-6) {
-                /* the incoming estimate holds nothing the own one lacks */
+            info = cov2_scale(cov2_add(ib, cov2_scale(ia, -1.0)), 1.0 - w);
+            double lo;
+            double hi;
+            cov2_eigenvalues(info, &lo, &hi);
+            if (!(hi > 1e-12 * (ia.xx + ia.yy))) {
                 meta->src_mask |= bm->src_mask[i];
                 stats->fused++;
-                continue;
+                continue; /* nothing new */
             }
-            inflate = 1.0 / (1.0 - w);
+            if (lo < 0.0) {
+                info = cov2_clamp_eigen(info, 0.0);
+            }
         }
-        if (ekfslam_merge_observe(ekf, (uint16_t)j, bm->t, bm->rel[i], bm->rel_cov[i], inflate) != COSLAM_OK) {
+        if (ekfslam_merge_observe(ekf, (uint16_t)j, bm->t, bm->rel[i], info) != COSLAM_OK) {
             stats->skipped++;
             continue;
         }

@@ -205,17 +205,19 @@ coslam_status_t ekfslam_update_relative(ekfslam_t *ekf, uint16_t j, point2_t z_b
  * their correct correlations with T, the pose and each other.
  *   ekfslam_merge_begin: append tau (t_cov NULL: exact transform).
  *   ekfslam_merge_observe: own landmark j and an incoming one are the same
- *     point: R(theta)^T (m_j - p) = (t_hat + tau) (+) rel_other + v, v with
- *     covariance R_t noise_other R_t^T * inflate (inflate >= 1 scales the
- *     noise for covariance intersection).
+ *     point: R(theta)^T (m_j - p) = (t_hat + tau) (+) rel_other + v, where
+ *     v carries the information `info_body` (inverse covariance, receiver's
+ *     body frame; it may be singular: only directions with positive
+ *     information update the state). For independent estimates info_body =
+ *     (R_t noise_other R_t^T)^-1; the merge passes less for covariance
+ *     intersection.
  *   ekfslam_merge_add: append the incoming landmark at
  *     p (+) ((t_hat + tau) (+) rel_other) with the matching cross-covariances.
  *   ekfslam_merge_end: drop tau.
  * rel_other and noise_other are in the sender's body frame. Each O(D^2) or O(D).
  */
 coslam_status_t ekfslam_merge_begin(ekfslam_t *ekf, const cov3_t *t_cov);
-coslam_status_t ekfslam_merge_observe(ekfslam_t *ekf, uint16_t j, pose2_t t_hat, point2_t rel_other, cov2_t noise_other,
-                                      double inflate);
+coslam_status_t ekfslam_merge_observe(ekfslam_t *ekf, uint16_t j, pose2_t t_hat, point2_t rel_other, cov2_t info_body);
 coslam_status_t ekfslam_merge_add(ekfslam_t *ekf, pose2_t t_hat, point2_t rel_other, cov2_t noise_other,
                                   const ekfslam_meta_t *meta);
 void ekfslam_merge_end(ekfslam_t *ekf);

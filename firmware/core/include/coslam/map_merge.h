@@ -84,8 +84,9 @@ typedef struct {
 typedef struct {
     /** Squared Mahalanobis gate for "these two landmarks are the same" (2 dof). */
     double gate_chi2;
-    /** Cell edge of the grid hash [m]; landmarks farther apart than one cell
-     *  (in the receiver's body frame) are never taken as duplicates. */
+    /** Smallest cell edge of the grid hash [m]. The cell in use grows to the
+     *  largest distance the gate can accept for the incoming covariances, so
+     *  the 3x3 neighbourhood never misses a gated pair. */
     double grid_cell_m;
     /** 1: add the uncertainty of the transform (this project);
      *  0: the paper's eq. 3, rotation of the covariance only (for comparison). */
@@ -145,6 +146,7 @@ typedef struct {
     uint8_t own_used[COSLAM_MAX_LANDMARKS];
     merge_pair_t pairs[MERGE_MAX_PAIRS];
     uint32_t new_id[COSLAM_MAX_MSG_LANDMARKS];  /**< identities of added landmarks (shared by particles) */
+    double cell_m;                              /**< grid cell edge in use */
 } merge_scratch_t;
 
 typedef struct {
