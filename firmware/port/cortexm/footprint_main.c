@@ -1,13 +1,16 @@
 /*
  * Minimal bare-metal image for the Cortex-M cross check (tools/cross_core.sh).
- * It owns the state a robot would hold statically and calls the public API,
- * so that the linker keeps the code and the .bss shows the real footprint of
- * the default configuration. Build with -DFOOTPRINT_FASTSLAM or
+ * It owns the state a robot holds statically - one filter, the map message
+ * buffers (outgoing and incoming), and the merge's scratch - and calls the
+ * public API, so that the linker keeps the code and .bss shows the real
+ * footprint of the default configuration. Build with -DFOOTPRINT_FASTSLAM or
  * -DFOOTPRINT_EKFSLAM: a robot runs one filter.
  */
-#include "coslam/fastslam.h"
 #include "coslam/ekfslam.h"
+#include "coslam/fastslam.h"
 #include "coslam/map_estimate.h"
+#include "coslam/map_merge.h"
+#include "coslam/map_msg.h"
 
 int main(void);
 
@@ -18,13 +21,20 @@ static ekfslam_t g_filter;
 #else
 #error "define FOOTPRINT_FASTSLAM or FOOTPRINT_EKFSLAM"
 #endif
-static map_estimate_t g_estimate;
+static map_msg_t g_out;
+static map_msg_t g_in;
+static uint8_t g_wire[MAP_MSG_MAX_BYTES];
+static merge_body_map_t g_body;
+static merge_scratch_t g_merge_scratch;
 
 int main(void)
 {
     const pose2_t start = {0.0, 0.0, 0.0};
     const odo_increment_t u = {0.01, 0.0, 0.001};
     const sighting_t z = {2.0, 0.1, 0};
+    const merge_config_t mcfg = merge_config_default();
+    merge_stats_t stats = {0U, 0U, 0U, 0U, 0U};
+    size_t len = 0U;
 #if defined(FOOTPRINT_FASTSLAM)
     const fastslam_config_t cfg = fastslam_config_default();
     if (fastslam_init(&g_filter, &cfg, start, 1U) != COSLAM_OK) {
@@ -32,7 +42,8 @@ int main(void)
     }
     (void)fastslam_predict(&g_filter, u);
     (void)fastslam_update(&g_filter, &z, 1);
-    (void)fastslam_export(&g_filter, &g_estimate);
+    map_msg_init(&g_out);
+    (void)fastslam_export(&g_filter, &g_out.map);
 #else
     const ekfslam_config_t cfg = ekfslam_config_default();
     if (ekfslam_init(&g_filter, &cfg, start) != COSLAM_OK) {
@@ -40,7 +51,22 @@ int main(void)
     }
     (void)ekfslam_predict(&g_filter, u);
     (void)ekfslam_update(&g_filter, &z, 1);
-    (void)ekfslam_export(&g_filter, &g_estimate);
+    map_msg_init(&g_out);
+    (void)ekfslam_export(&g_filter, &g_out.map);
 #endif
-    return (int)g_estimate.n_landmarks;
+    (void)map_msg_encode(&g_out, g_wire, sizeof g_wire, &len);
+    if (map_msg_decode(g_wire, len, &g_in) == COSLAM_OK) {
+        const robot_sighting_t a = {2.0, 0.0, 0.01, 0.001};
+        pose2_t t;
+        cov3_t tc;
+        if (merge_relative_pose(&a, &a, &t, &tc) == COSLAM_OK &&
+            merge_transform_map(&g_in.map, t, &tc, &mcfg, &g_body, &stats) == COSLAM_OK) {
+#if defined(FOOTPRINT_FASTSLAM)
+            (void)merge_into_fastslam(&g_filter, &g_body, &mcfg, &g_merge_scratch, &stats);
+#else
+            (void)merge_into_ekfslam(&g_filter, &g_body, &mcfg, &g_merge_scratch, &stats);
+#endif
+        }
+    }
+    return (int)stats.added;
 }
