@@ -19,6 +19,8 @@
  *    hal_clock_linux). uAPI v1 does not report queue overflow, so this
  *    backend never returns HAL_E_OVERFLOW.
  *
+ * After hal_gpio_close every operation returns HAL_E_CLOSED.
+ *
  * State is caller-owned (no heap in this file; libgpiod allocates the chip
  * object). Not thread-safe (one thread at a time).
  */

@@ -16,6 +16,8 @@
  * Errors: ENOSPC/EDQUOT/EFBIG -> HAL_E_OVERFLOW; a payload over
  * max_blob_bytes -> HAL_E_OVERFLOW; other OS errors -> HAL_E_IO.
  *
+ * After hal_storage_close every operation returns HAL_E_CLOSED.
+ *
  * State is caller-owned (no heap); one instance per directory; not
  * thread-safe (one thread at a time, as every HAL instance).
  */
