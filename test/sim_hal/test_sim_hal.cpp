@@ -437,3 +437,30 @@ TEST(SimSerial, ChunkingAndOverflow)
     EXPECT_EQ(port.baud(), 19200u);
     EXPECT_EQ(hal_serial_set_baud(port.handle(), 0), HAL_E_ARG);
 }
+
+TEST(SimClock, LockstepWaitForeverWokenByOutsideEvent)
+{
+    // the firmware thread waits forever for an edge; the driver has nothing
+    // to advance to; a simulator-side push wakes it, stamped with sim time
+    SimClock clk(42);
+    SimGpio gpio(clk, 1);
+    hal_gpio_config_t c{};
+    c.dir = HAL_GPIO_DIR_INPUT;
+    c.edges = HAL_GPIO_EDGE_RISING;
+    ASSERT_EQ(hal_gpio_configure(gpio.handle(), 0, &c), HAL_OK);
+    hal_gpio_event_t ev{};
+    hal_status_t st = HAL_E_IO;
+    {
+        SimLockstepDriver driver(clk, 0);
+        auto me = std::make_unique<SimClock::LockstepParticipant>(clk);
+        std::thread fw([&, p = std::move(me)] { st = hal_gpio_wait_edge(gpio.handle(), 0, &ev, HAL_TIMEOUT_FOREVER); });
+        ASSERT_TRUE(clk.wait_quiescent(std::chrono::seconds(5)));
+        std::this_thread::sleep_for(std::chrono::milliseconds(20));  // the driver idles, time stays
+        EXPECT_EQ(clk.now_us(), 42u);
+        clk.advance_to(1000);
+        gpio.set_input_level(0, true);
+        fw.join();
+    }
+    EXPECT_EQ(st, HAL_OK);
+    EXPECT_EQ(ev.stamp_us, 1000u);
+}

@@ -195,7 +195,12 @@ void SimLockstepDriver::run()
         const uint64_t now = clock_.now_us();
         uint64_t next = clock_.next_wake_us();
         if (max_step_us_ > 0 && (next == kNever || next - now > max_step_us_)) next = now + max_step_us_;
-        if (next == kNever) continue;  // everyone waits forever for an event: nothing to do
+        if (next == kNever) {
+            // everyone waits forever for an event only a non-participant can
+            // cause: nothing to advance; do not spin on the quiescent state
+            std::this_thread::sleep_for(std::chrono::milliseconds(1));
+            continue;
+        }
         clock_.advance_to(next);
     }
 }
