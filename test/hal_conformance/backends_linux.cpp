@@ -8,8 +8,8 @@
 #include <string>
 
 #include "conformance.hpp"
-#include "hal_linux/hal_clock_linux.h"
-#include "hal_linux/hal_storage_linux.h"
+#include "hal/hal_clock_linux.h"
+#include "hal/hal_storage_linux.h"
 
 namespace {
 

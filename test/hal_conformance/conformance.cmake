@@ -6,9 +6,9 @@
 #   include(${PROJECT_SOURCE_DIR}/test/hal_conformance/conformance.cmake)
 # See docs/hal.md, "Adding a backend to the conformance suites".
 include_guard(GLOBAL)
-set(COSLAM_HAL_CONFORMANCE_DIR ${CMAKE_CURRENT_LIST_DIR})
 function(coslam_add_hal_conformance name)
   cmake_parse_arguments(A "" "" "SUITES;SOURCES;LIBS" ${ARGN})
+  set(COSLAM_HAL_CONFORMANCE_DIR ${CMAKE_CURRENT_FUNCTION_LIST_DIR})
   set(_s "")
   foreach(s ${A_SUITES})
     list(APPEND _s ${COSLAM_HAL_CONFORMANCE_DIR}/suite_${s}.cpp)

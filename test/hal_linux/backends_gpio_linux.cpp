@@ -4,7 +4,7 @@
 // timeouts are checked like the simulator's.
 #include "conformance.hpp"
 #include "gpiod_fake.h"
-#include "hal_linux/hal_gpio_linux.h"
+#include "hal/hal_gpio_linux.h"
 
 namespace {
 

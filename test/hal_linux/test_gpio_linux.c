@@ -11,7 +11,7 @@
 #include <cmocka.h>
 
 #include "gpiod_fake.h"
-#include "hal_linux/hal_gpio_linux.h"
+#include "hal/hal_gpio_linux.h"
 
 static hal_gpio_linux_t g;
 

@@ -17,7 +17,7 @@
 #include <stdint.h>
 #include <cmocka.h>
 
-#include "hal_linux/hal_storage_linux.h"
+#include "hal/hal_storage_linux.h"
 
 static char root[256];
 static char dir[300];

@@ -1,5 +1,5 @@
 /*
- * hal_linux/hal_gpio_linux.h - hal_gpio on one Linux GPIO chip through
+ * hal/hal_gpio_linux.h - hal_gpio on one Linux GPIO chip through
  * libgpiod v1 (Debian bookworm: libgpiod-dev 1.6, GPIO character device
  * uAPI v1). Built only when pkg-config finds libgpiod
  * (COSLAM_HAVE_GPIOD=1 on the coslam_hal_linux target).

@@ -1,5 +1,5 @@
-/* hal_gpio on libgpiod v1 (see hal_linux/hal_gpio_linux.h). */
-#include "hal_linux/hal_gpio_linux.h"
+/* hal_gpio on libgpiod v1 (see hal/hal_gpio_linux.h). */
+#include "hal/hal_gpio_linux.h"
 
 #include <errno.h>
 #include <gpiod.h>

@@ -1,5 +1,5 @@
 /*
- * hal_linux/hal_storage_linux.h - hal_storage as files in one directory.
+ * hal/hal_storage_linux.h - hal_storage as files in one directory.
  *
  * Layout: blob `name` is the file <dir>/<name>: a 16-byte header then the
  * payload. Header (little-endian): magic "CSB1", payload length u32,

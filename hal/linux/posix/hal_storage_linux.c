@@ -1,5 +1,5 @@
-/* hal_storage as files in a directory (see hal_linux/hal_storage_linux.h). */
-#include "hal_linux/hal_storage_linux.h"
+/* hal_storage as files in a directory (see hal/hal_storage_linux.h). */
+#include "hal/hal_storage_linux.h"
 
 #include <errno.h>
 #include <fcntl.h>

@@ -1,5 +1,5 @@
-/* hal_clock on CLOCK_MONOTONIC (see hal_linux/hal_clock_linux.h). */
-#include "hal_linux/hal_clock_linux.h"
+/* hal_clock on CLOCK_MONOTONIC (see hal/hal_clock_linux.h). */
+#include "hal/hal_clock_linux.h"
 
 #include <errno.h>
 #include <time.h>

@@ -1,5 +1,5 @@
 /*
- * hal_linux/hal_clock_linux.h - hal_clock on Linux: CLOCK_MONOTONIC.
+ * hal/hal_clock_linux.h - hal_clock on Linux: CLOCK_MONOTONIC.
  *
  * now_us is CLOCK_MONOTONIC in microseconds, unshifted, so stamps taken by
  * the kernel on the same clock (GPIO line events since Linux 5.7, V4L2
