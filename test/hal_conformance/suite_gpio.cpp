@@ -72,9 +72,8 @@ TEST_P(GpioConformance, BadConfigurationsRejected)
     EXPECT_EQ(hal_gpio_configure(h->dev(), h->output_line(), &c), HAL_E_ARG) << "edges on an output";
     c = input_cfg(false, 4);
     EXPECT_EQ(hal_gpio_configure(h->dev(), h->input_line(), &c), HAL_E_ARG) << "unknown edge bit";
-    c = input_cfg(false, 0);
-    c.dir = static_cast<hal_gpio_dir_t>(7);
-    EXPECT_EQ(hal_gpio_configure(h->dev(), h->input_line(), &c), HAL_E_ARG);
+    // (an out-of-range dir is checked by the wrapper too; that test is in C,
+    // test_gpio_linux, since such an enum value is undefined behaviour in C++)
     EXPECT_EQ(hal_gpio_configure(h->dev(), h->input_line(), nullptr), HAL_E_ARG);
     EXPECT_EQ(hal_gpio_read(h->dev(), h->input_line(), nullptr), HAL_E_ARG);
     EXPECT_EQ(hal_gpio_wait_edge(h->dev(), h->input_line(), nullptr, 0), HAL_E_ARG);

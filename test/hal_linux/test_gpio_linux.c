@@ -88,6 +88,15 @@ static void test_line_count_capped(void **state)
     assert_int_equal(hal_gpio_configure(&g.dev, HAL_GPIO_LINUX_MAX_LINES, &in), HAL_E_NOT_FOUND);
 }
 
+static void test_wrapper_rejects_bad_direction(void **state)
+{
+    (void)state;
+    hal_gpio_config_t c = cfg(HAL_GPIO_DIR_INPUT, false, false, 0);
+    c.dir = (hal_gpio_dir_t)7; /* fine in C; the wrapper must refuse it */
+    assert_int_equal(hal_gpio_configure(&g.dev, 1, &c), HAL_E_ARG);
+    assert_false(fake_gpiod.lines[1].requested);
+}
+
 static void test_request_parameters(void **state)
 {
     (void)state;
@@ -202,6 +211,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_open_and_close, setup, teardown),
         cmocka_unit_test_setup_teardown(test_open_errors, setup, teardown),
         cmocka_unit_test_setup_teardown(test_line_count_capped, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_wrapper_rejects_bad_direction, setup, teardown),
         cmocka_unit_test_setup_teardown(test_request_parameters, setup, teardown),
         cmocka_unit_test_setup_teardown(test_consumer_truncated, setup, teardown),
         cmocka_unit_test_setup_teardown(test_kernel_errors_mapped, setup, teardown),
