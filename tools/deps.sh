@@ -26,6 +26,7 @@ libtomlplusplus-dev
 libinih-dev
 nlohmann-json3-dev
 libcli11-dev
+libgpiod-dev
 "
 
 missing() {

@@ -80,6 +80,15 @@
 #define COSLAM_MAX_ROBOTS 16
 #endif
 
+/** Bumper inputs and status LEDs handled by the GPIO roles driver
+ *  (firmware/drivers/gpio_roles); each is a bit in a uint32_t mask. */
+#ifndef COSLAM_MAX_BUMPERS
+#define COSLAM_MAX_BUMPERS 4
+#endif
+#ifndef COSLAM_MAX_STATUS_LEDS
+#define COSLAM_MAX_STATUS_LEDS 4
+#endif
+
 /*
  * Range checks. The upper bounds keep index types (uint16_t landmark and
  * particle indices, uint16_t provenance mask) valid, not memory sensible.
@@ -110,6 +119,13 @@
 #endif
 #if COSLAM_MAX_ROBOTS < 2 || COSLAM_MAX_ROBOTS > 16
 #error "COSLAM_MAX_ROBOTS must be in [2, 16] (provenance is a 16-bit mask)"
+#endif
+
+#if COSLAM_MAX_BUMPERS < 1 || COSLAM_MAX_BUMPERS > 32
+#error "COSLAM_MAX_BUMPERS must be in [1, 32] (a uint32_t mask)"
+#endif
+#if COSLAM_MAX_STATUS_LEDS < 1 || COSLAM_MAX_STATUS_LEDS > 32
+#error "COSLAM_MAX_STATUS_LEDS must be in [1, 32]"
 #endif
 
 #endif /* COSLAM_CONFIG_H */
