@@ -64,6 +64,30 @@ static void build_incoming(int m, rng_t *r)
     }
 }
 
+/* Every particle holds the same M landmarks (the sites of build_incoming's duplicates). */
+static void build_own_maps(int n, int m, rng_t *r)
+{
+    fastslam_config_t fc = fastslam_config_default();
+    fc.n_particles = (uint16_t)n;
+    const pose2_t p0 = {0.0, 0.0, 0.0};
+    fastslam_init(&g_fs, &fc, p0, 1U);
+    for (uint16_t k = 0; k < n; ++k) {
+        rng_seed(r, 7U);
+        for (int j = 0; j < m; ++j) {
+            landmark_t lm;
+            memset(&lm, 0, sizeof lm);
+            lm.mean = site(j, r);
+            lm.cov = cov2_make(0.01, 0.0, 0.01);
+            lm.id = (uint32_t)(j + 1);
+            lm.exist = 10.0f;
+            lm.n_obs = 10;
+            lm.src_mask = 1;
+            lm.signature = (uint8_t)(j % 4);
+            fastslam_particle_add(&g_fs, k, &lm);
+        }
+    }
+}
+
 static double naive_pairs_us(int n_particles, int m)
 {
     /* all pairs per particle: the paper's O(N M^2) */
@@ -114,25 +138,7 @@ int main(int argc, char **argv)
         const int m = cases[c][1];
         double best = INFINITY;
         for (int rep = 0; rep < reps; ++rep) {
-            fastslam_config_t fc = fastslam_config_default();
-            fc.n_particles = (uint16_t)n;
-            const pose2_t p0 = {0.0, 0.0, 0.0};
-            fastslam_init(&g_fs, &fc, p0, 1U);
-            for (uint16_t k = 0; k < n; ++k) {
-                rng_seed(&r, 7U); /* every particle holds the same map */
-                for (int j = 0; j < m; ++j) {
-                    landmark_t lm;
-                    memset(&lm, 0, sizeof lm);
-                    lm.mean = site(j, &r);
-                    lm.cov = cov2_make(0.01, 0.0, 0.01);
-                    lm.id = (uint32_t)(j + 1);
-                    lm.exist = 10.0f;
-                    lm.n_obs = 10;
-                    lm.src_mask = 1;
-                    lm.signature = (uint8_t)(j % 4);
-                    fastslam_particle_add(&g_fs, k, &lm);
-                }
-            }
+            build_own_maps(n, m, &r);
             rng_seed(&r, 7U);
             build_incoming(m, &r);
             const pose2_t t = {0.0, 0.0, 0.0};
@@ -151,22 +157,7 @@ int main(int argc, char **argv)
         }
         fs_us[c] = best;
         /* the naive search on the state before a merge */
-        fastslam_config_t fc = fastslam_config_default();
-        fc.n_particles = (uint16_t)n;
-        const pose2_t p0 = {0.0, 0.0, 0.0};
-        fastslam_init(&g_fs, &fc, p0, 1U);
-        for (uint16_t k = 0; k < n; ++k) {
-            rng_seed(&r, 7U);
-            for (int j = 0; j < m; ++j) {
-                landmark_t lm;
-                memset(&lm, 0, sizeof lm);
-                lm.mean = site(j, &r);
-                lm.cov = cov2_make(0.01, 0.0, 0.01);
-                lm.id = (uint32_t)(j + 1);
-                lm.exist = 10.0f;
-                fastslam_particle_add(&g_fs, k, &lm);
-            }
-        }
+        build_own_maps(n, m, &r);
         naive_us[c] = naive_pairs_us(n, m);
         fprintf(stderr, ".");
     }

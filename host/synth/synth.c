@@ -23,6 +23,38 @@ synth_config_t synth_config_default(uint64_t seed, int n_landmarks)
     return c;
 }
 
+uint8_t synth_signature(rng_t *rng, int n_signatures, int index)
+{
+    if (n_signatures <= 0) {
+        return (uint8_t)(index % 256);
+    }
+    return (uint8_t)(n_signatures > 1 ? rng_below(rng, (uint32_t)n_signatures) : 0);
+}
+
+int synth_sight_landmarks(const slam_params_t *sp, rng_t *rng, pose2_t pose, const point2_t *lm, const uint8_t *sig,
+                          int n_lm, double p_detect, sighting_t *z, int32_t *true_id, int cap, int *n_seen)
+{
+    int n = 0;
+    for (int j = 0; j < n_lm && n < cap; ++j) {
+        const sighting_t zt = observe_predict(pose, lm[j]);
+        if (zt.range_m < sp->sensor_min_range_m || zt.range_m > sp->sensor_max_range_m ||
+            fabs(zt.bearing_rad) > 0.5 * sp->sensor_fov_rad) {
+            continue;
+        }
+        if (rng_uniform(rng) >= p_detect) {
+            continue;
+        }
+        const cov2_t q = observe_noise(sp, zt.range_m);
+        z[n].range_m = zt.range_m + sqrt(q.xx) * rng_gauss(rng);
+        z[n].bearing_rad = angle_wrap(zt.bearing_rad + sqrt(q.yy) * rng_gauss(rng));
+        z[n].signature = sig[j];
+        true_id[n] = j;
+        n++;
+        n_seen[j]++;
+    }
+    return n;
+}
+
 pose2_t synth_start_pose(const synth_config_t *cfg)
 {
     const pose2_t p = {cfg->loop_radius_m, 0.0, COSLAM_PI / 2.0};
@@ -53,11 +85,7 @@ void synth_init(synth_world_t *w, const synth_config_t *cfg)
             ok = dx * dx + dy * dy >= sep * sep;
         }
         if (ok) {
-            if (cfg->n_signatures <= 0) {
-                w->sig[w->n_lm] = (uint8_t)(w->n_lm % 256);
-            } else {
-                w->sig[w->n_lm] = (uint8_t)(cfg->n_signatures > 1 ? rng_below(&w->rng, (uint32_t)cfg->n_signatures) : 0);
-            }
+            w->sig[w->n_lm] = synth_signature(&w->rng, cfg->n_signatures, w->n_lm);
             w->lm[w->n_lm++] = p;
         } else if (++tries > 200000) {
             sep *= 0.9;
@@ -104,25 +132,8 @@ int synth_next(synth_world_t *w, synth_step_t *s)
         return 1;
     }
     const slam_params_t *sp = &c->truth;
-    for (int j = 0; j < w->n_lm && s->n_z < SYNTH_MAX_Z; ++j) {
-        const sighting_t zt = observe_predict(w->pose, w->lm[j]);
-        if (zt.range_m < sp->sensor_min_range_m || zt.range_m > sp->sensor_max_range_m ||
-            fabs(zt.bearing_rad) > 0.5 * sp->sensor_fov_rad) {
-            continue;
-        }
-        if (rng_uniform(&w->rng) >= c->p_detect) {
-            continue;
-        }
-        const cov2_t q = observe_noise(sp, zt.range_m);
-        sighting_t z;
-        z.range_m = zt.range_m + sqrt(q.xx) * rng_gauss(&w->rng);
-        z.bearing_rad = angle_wrap(zt.bearing_rad + sqrt(q.yy) * rng_gauss(&w->rng));
-        z.signature = w->sig[j];
-        s->z[s->n_z] = z;
-        s->true_id[s->n_z] = j;
-        s->n_z++;
-        w->n_seen[j]++;
-    }
+    s->n_z = synth_sight_landmarks(sp, &w->rng, w->pose, w->lm, w->sig, w->n_lm, c->p_detect, s->z, s->true_id,
+                                   SYNTH_MAX_Z, w->n_seen);
     const int n_clutter = poisson(&w->rng, c->clutter_per_frame);
     for (int k = 0; k < n_clutter && s->n_z < SYNTH_MAX_Z; ++k) {
         sighting_t z;

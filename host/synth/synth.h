@@ -72,6 +72,19 @@ typedef struct {
     int n_steps;
 } synth_world_t;
 
+/** Signature of landmark index i: unique (index mod 256) when n_signatures
+ *  <= 0, else drawn among n_signatures classes. */
+uint8_t synth_signature(rng_t *rng, int n_signatures, int index);
+
+/**
+ * One camera frame: every landmark inside the footprint of `sp` seen from
+ * `pose` is detected with probability p_detect and sighted with the
+ * observation model's noise. Appends to z/true_id (up to cap) and counts
+ * detections in n_seen[j]. Returns the number of sightings written.
+ */
+int synth_sight_landmarks(const slam_params_t *sp, rng_t *rng, pose2_t pose, const point2_t *lm, const uint8_t *sig,
+                          int n_lm, double p_detect, sighting_t *z, int32_t *true_id, int cap, int *n_seen);
+
 /** Paper-scale defaults: radius 4 m, 1.25 loops at 0.3 m/s, 10 Hz odometry,
  *  5 Hz camera, p_detect 0.9, no clutter, slam_params_default() noise. */
 synth_config_t synth_config_default(uint64_t seed, int n_landmarks);

@@ -53,11 +53,7 @@ void synth2_init(synth2_world_t *w, const synth2_config_t *cfg)
             ok = dx * dx + dy * dy >= sep * sep;
         }
         if (ok) {
-            if (cfg->n_signatures <= 0) {
-                w->sig[w->n_lm] = (uint8_t)(w->n_lm % 256); /* unique: known association */
-            } else {
-                w->sig[w->n_lm] = (uint8_t)(cfg->n_signatures > 1 ? rng_below(&w->rng, (uint32_t)cfg->n_signatures) : 0);
-            }
+            w->sig[w->n_lm] = synth_signature(&w->rng, cfg->n_signatures, w->n_lm);
             w->lm[w->n_lm++] = p;
         } else if (++tries > 200000) {
             sep *= 0.9;
@@ -113,22 +109,8 @@ int synth2_next(synth2_world_t *w, synth2_step_t *s)
     const slam_params_t *sp = &c->truth;
     for (int k = 0; k < 2; ++k) {
         synth2_robot_step_t *r = &s->r[k];
-        for (int j = 0; j < w->n_lm && r->n_z < SYNTH_MAX_Z; ++j) {
-            const sighting_t zt = observe_predict(w->pose[k], w->lm[j]);
-            if (zt.range_m < sp->sensor_min_range_m || zt.range_m > sp->sensor_max_range_m ||
-                fabs(zt.bearing_rad) > 0.5 * sp->sensor_fov_rad || rng_uniform(&w->rng) >= c->p_detect) {
-                continue;
-            }
-            const cov2_t q = observe_noise(sp, zt.range_m);
-            sighting_t z;
-            z.range_m = zt.range_m + sqrt(q.xx) * rng_gauss(&w->rng);
-            z.bearing_rad = angle_wrap(zt.bearing_rad + sqrt(q.yy) * rng_gauss(&w->rng));
-            z.signature = w->sig[j];
-            r->z[r->n_z] = z;
-            r->true_id[r->n_z] = j;
-            r->n_z++;
-            w->n_seen[k][j]++;
-        }
+        r->n_z = synth_sight_landmarks(sp, &w->rng, w->pose[k], w->lm, w->sig, w->n_lm, c->p_detect, r->z, r->true_id,
+                                       SYNTH_MAX_Z, w->n_seen[k]);
         const point2_t other = {w->pose[1 - k].x, w->pose[1 - k].y};
         const sighting_t zo = observe_predict(w->pose[k], other);
         if (zo.range_m <= sp->sensor_max_range_m && fabs(zo.bearing_rad) <= 0.5 * sp->sensor_fov_rad) {

@@ -849,42 +849,6 @@ static void eigvec2(cov2_t a, double lam, int e, double *vx, double *vy)
     *vy = y / n;
 }
 
-coslam_status_t ekfslam_update_relative(ekfslam_t *ekf, uint16_t j, point2_t z_body, cov2_t info)
-{
-    COSLAM_ASSERT(j < ekf->n_lm);
-    if (!cov2_is_finite(info) || !isfinite(z_body.x) || !isfinite(z_body.y)) {
-        ekf->ctr.numeric_faults++;
-        return COSLAM_E_NUMERIC;
-    }
-    double lmin;
-    double lmax;
-    cov2_eigenvalues(info, &lmin, &lmax);
-    const double lam[2] = {lmax, lmin};
-    const int a = 3 + 2 * j;
-    const int idx[5] = {0, 1, 2, a, a + 1};
-    for (int e = 0; e < 2; ++e) {
-        if (!(lam[e] > 1e-12 * lmax) || !(lam[e] > 0.0)) {
-            continue; /* no information in this direction */
-        }
-        double vx;
-        double vy;
-        eigvec2(info, lam[e], e, &vx, &vy);
-        double jac[2][5];
-        point2_t rel;
-        relative_jacobian(ekf, j, jac, &rel);
-        double h[5];
-        for (int q = 0; q < 5; ++q) {
-            h[q] = vx * jac[0][q] + vy * jac[1][q];
-        }
-        const double nu = vx * (z_body.x - rel.x) + vy * (z_body.y - rel.y);
-        const coslam_status_t st = scalar_update(ekf, idx, h, 5, nu, 1.0 / lam[e]);
-        if (st != COSLAM_OK) {
-            return st;
-        }
-    }
-    return COSLAM_OK;
-}
-
 coslam_status_t ekfslam_merge_begin(ekfslam_t *ekf, const cov3_t *t_cov)
 {
     if (ekf->merging) {

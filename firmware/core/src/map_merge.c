@@ -411,6 +411,30 @@ static int config_ok(const merge_config_t *cfg)
     return isfinite(cfg->gate_chi2) && cfg->gate_chi2 > 0.0 && isfinite(cfg->grid_cell_m) && cfg->grid_cell_m > 0.0;
 }
 
+/* Common start of a merge: statistics sink, grid over the incoming map. */
+static merge_stats_t *begin_merge(merge_scratch_t *sc, const merge_body_map_t *bm, const merge_config_t *cfg,
+                                  merge_stats_t *stats, merge_stats_t *local)
+{
+    if (stats == 0) {
+        memset(local, 0, sizeof *local);
+        stats = local;
+    }
+    grid_build(sc, bm, grid_cell_size(bm, cfg));
+    return stats;
+}
+
+/* Bookkeeping of an own landmark that absorbed incoming landmark i. */
+static void absorb_meta(uint16_t *src_mask, uint16_t *n_obs, float *exist, const merge_body_map_t *bm, uint16_t i,
+                        const slam_params_t *sp)
+{
+    *src_mask |= bm->src_mask[i];
+    const uint32_t nobs = (uint32_t)*n_obs + bm->n_obs[i];
+    *n_obs = nobs > UINT16_MAX ? (uint16_t)UINT16_MAX : (uint16_t)nobs;
+    if (*exist < sp->exist_confirm) {
+        *exist = sp->exist_confirm; /* the sender confirmed it */
+    }
+}
+
 /* ---- Fast-SLAM ---------------------------------------------------------- */
 
 coslam_status_t merge_into_fastslam(fastslam_t *fs, const merge_body_map_t *bm, const merge_config_t *cfg,
@@ -420,12 +444,9 @@ coslam_status_t merge_into_fastslam(fastslam_t *fs, const merge_body_map_t *bm, 
         return COSLAM_E_ARG;
     }
     merge_stats_t local;
-    if (stats == 0) {
-        stats = &local;
-    }
+    stats = begin_merge(sc, bm, cfg, stats, &local);
     const slam_params_t *sp = &fs->cfg.slam;
     coslam_status_t result = COSLAM_OK;
-    grid_build(sc, bm, grid_cell_size(bm, cfg));
     /* one identity per incoming landmark, shared by the particles that add it */
     for (uint16_t i = 0; i < bm->n; ++i) {
         sc->new_id[i] = fastslam_new_id(fs);
@@ -443,7 +464,6 @@ coslam_status_t merge_into_fastslam(fastslam_t *fs, const merge_body_map_t *bm, 
             sc->own_sig[j] = p->lm[j].signature;
         }
         pair_and_select(sc, bm, cfg, p->n_lm, stats);
-        const uint16_t n_own = p->n_lm;
         for (uint16_t i = 0; i < bm->n; ++i) {
             const point2_t wm = pose2_apply(p->pose, bm->mean[i]);
             const cov2_t wc = cov2_congruence(r, bm->cov[i]);
@@ -470,12 +490,7 @@ coslam_status_t merge_into_fastslam(fastslam_t *fs, const merge_body_map_t *bm, 
                 }
                 lm->mean = xm;
                 lm->cov = xc;
-                lm->src_mask |= bm->src_mask[i];
-                const uint32_t nobs = (uint32_t)lm->n_obs + bm->n_obs[i];
-                lm->n_obs = nobs > UINT16_MAX ? (uint16_t)UINT16_MAX : (uint16_t)nobs;
-                if (lm->exist < sp->exist_confirm) {
-                    lm->exist = sp->exist_confirm;
-                }
+                absorb_meta(&lm->src_mask, &lm->n_obs, &lm->exist, bm, i, sp);
                 stats->fused++;
             } else {
                 landmark_t lm;
@@ -495,7 +510,6 @@ coslam_status_t merge_into_fastslam(fastslam_t *fs, const merge_body_map_t *bm, 
                 }
             }
         }
-        (void)n_own;
     }
     if (cfg->reweight_particles) {
         /* renormalise and resample if the agreement test was decisive */
@@ -528,12 +542,9 @@ coslam_status_t merge_into_ekfslam(ekfslam_t *ekf, const merge_body_map_t *bm, c
         return COSLAM_E_ARG;
     }
     merge_stats_t local;
-    if (stats == 0) {
-        stats = &local;
-    }
+    stats = begin_merge(sc, bm, cfg, stats, &local);
     const slam_params_t *sp = &ekf->cfg.slam;
     coslam_status_t result = COSLAM_OK;
-    grid_build(sc, bm, grid_cell_size(bm, cfg));
     const uint16_t n_own = ekf->n_lm;
     for (uint16_t j = 0; j < n_own; ++j) {
         ekfslam_landmark_relative(ekf, j, &sc->own_body[j], &sc->own_cov[j]);
@@ -595,12 +606,7 @@ coslam_status_t merge_into_ekfslam(ekfslam_t *ekf, const merge_body_map_t *bm, c
             stats->skipped++;
             continue;
         }
-        meta->src_mask |= bm->src_mask[i];
-        const uint32_t nobs = (uint32_t)meta->n_obs + bm->n_obs[i];
-        meta->n_obs = nobs > UINT16_MAX ? (uint16_t)UINT16_MAX : (uint16_t)nobs;
-        if (meta->exist < sp->exist_confirm) {
-            meta->exist = sp->exist_confirm;
-        }
+        absorb_meta(&meta->src_mask, &meta->n_obs, &meta->exist, bm, i, sp);
         stats->fused++;
     }
     for (uint16_t i = 0; i < bm->n; ++i) {

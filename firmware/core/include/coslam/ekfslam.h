@@ -185,16 +185,6 @@ coslam_status_t ekfslam_add_landmark_body(ekfslam_t *ekf, point2_t m_body, cov2_
  */
 void ekfslam_landmark_relative(const ekfslam_t *ekf, uint16_t j, point2_t *mean_body, cov2_t *cov_body);
 
-/**
- * EKF update with a direct observation of landmark j relative to the robot
- * (body frame), z = R(theta)^T (m_j - p) + v, where the observation carries
- * information `info` (the inverse of its covariance; it may be singular:
- * only the directions with positive information update the state). Done as
- * independent scalar updates along the eigenvectors of `info`, each
- * relinearised. Used by the map merge. O(D^2).
- */
-coslam_status_t ekfslam_update_relative(ekfslam_t *ekf, uint16_t j, point2_t z_body, cov2_t info);
-
 /*
  * Map merge as a batch (used by map_merge.c). The incoming landmarks all
  * share the error of the transform T between the robots; treating them as
