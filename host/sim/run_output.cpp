@@ -248,26 +248,33 @@ std::string run_summary(const Simulation &sim, const std::string &out_dir)
     s << "  landmarks: " << sim.world().landmarks().size() << " in the world, " << seen << " seen by the team (>= "
       << sc.evaluation.min_seen << " detections)\n";
     s << std::setprecision(3);
-    s << "  robot    filter      pose RMSE [m]        map: known/missed/spurious, RMSE [m]               collisions\n";
-    s << "                       before  after  |  before merge         after merge          end            wall robot\n";
-    auto mapcol = [&](const MapSnapshot &m) {
-        std::ostringstream c;
-        c << std::fixed << std::setprecision(3);
+    s << "  per robot: pose RMSE before / after its first merge; maps as known/missed/spurious landmarks and\n"
+         "  the RMSE of the known ones (missed = seen by the team, not in this map), from its own map frame\n";
+    char line[256];
+    std::snprintf(line, sizeof line, "  %-8s %-14s %15s   %-19s %-19s %-19s%s\n", "robot", "filter", "pose RMSE [m]",
+                  "map before merge", "map after merge", "map at the end", "collisions");
+    s << line;
+    std::snprintf(line, sizeof line, "  %-8s %-14s %7s %7s   %-19s %-19s %-19s%s\n", "", "", "before", "after", "", "",
+                  "", "wall robot");
+    s << line;
+    auto mapcol = [](const MapSnapshot &m) {
+        char c[64];
         if (!m.valid) {
-            c << "      -            ";
+            std::snprintf(c, sizeof c, "%-19s", "-");
         } else {
-            c << std::setw(2) << m.eval.n_matched << "/" << m.eval.n_missed << "/" << m.eval.n_spurious << " "
-              << std::setw(6) << (m.eval.n_matched > 0 ? m.eval.rmse_m : 0.0) << "     ";
+            std::snprintf(c, sizeof c, "%2d/%2d/%-2d %6.3f m  ", m.eval.n_matched, m.eval.n_missed, m.eval.n_spurious,
+                          m.eval.n_matched > 0 ? m.eval.rmse_m : 0.0);
         }
-        return c.str();
+        return std::string(c);
     };
     for (const auto &rr : r.robots) {
-        s << "  " << std::left << std::setw(8) << rr.name << " " << std::setw(10)
-          << (std::string(slam_filter_kind_name(rr.filter)) +
-              (rr.particles > 0 ? "/" + std::to_string(rr.particles) : std::string()))
-          << std::right << " " << std::setw(6) << rr.pose_rmse_before_merge_m << " " << std::setw(6)
-          << rr.pose_rmse_after_merge_m << "  |  " << mapcol(rr.pre_merge) << mapcol(rr.post_merge)
-          << mapcol(rr.final_map) << std::setw(4) << rr.wall_collisions << std::setw(6) << rr.robot_collisions << "\n";
+        const std::string filt = std::string(slam_filter_kind_name(rr.filter)) +
+                                 (rr.particles > 0 ? "/" + std::to_string(rr.particles) : std::string());
+        std::snprintf(line, sizeof line, "  %-8s %-14s %7.3f %7.3f   ", rr.name.c_str(), filt.c_str(),
+                      rr.pose_rmse_before_merge_m, rr.pose_rmse_after_merge_m);
+        s << line << mapcol(rr.pre_merge) << " " << mapcol(rr.post_merge) << " " << mapcol(rr.final_map);
+        std::snprintf(line, sizeof line, " %4u %5u\n", rr.wall_collisions, rr.robot_collisions);
+        s << line;
     }
     if (r.merges.empty()) {
         s << "  merges: none\n";

@@ -14,6 +14,7 @@ behaviour_config_t behaviour_config_default(void)
     c.straight_band_rad = 30.0 * COSLAM_PI / 180.0;
     c.probe_max_rad = 60.0 * COSLAM_PI / 180.0;
     c.probe_step_rad = 10.0 * COSLAM_PI / 180.0;
+    c.probe_margin_m = 0.1;
     c.explore_s = 90.0;
     c.rendezvous_m.x = 0.0;
     c.rendezvous_m.y = 0.0;
@@ -38,7 +39,7 @@ coslam_status_t behaviour_init(behaviour_t *b, const behaviour_config_t *cfg)
     }
     if (!pos_finite(cfg->cruise_mps) || !pos_finite(cfg->turn_gain) || !pos_finite(cfg->max_turn_radps) ||
         !pos_finite(cfg->heading_tol_rad) || !pos_finite(cfg->straight_band_rad) || !pos_finite(cfg->probe_max_rad) ||
-        !pos_finite(cfg->probe_step_rad) ||
+        !pos_finite(cfg->probe_step_rad) || !(isfinite(cfg->probe_margin_m) && cfg->probe_margin_m >= 0.0) ||
         !isfinite(cfg->explore_s) || !isfinite(cfg->rendezvous_m.x) || !isfinite(cfg->rendezvous_m.y) ||
         !pos_finite(cfg->goal_tol_m) || !(isfinite(cfg->bypass_s) && cfg->bypass_s >= 0.0) ||
         !isfinite(cfg->seek_turn_radps) || cfg->seek_turn_radps == 0.0 || !pos_finite(cfg->face_gain) ||
@@ -47,7 +48,7 @@ coslam_status_t behaviour_init(behaviour_t *b, const behaviour_config_t *cfg)
     }
     memset(b, 0, sizeof *b);
     b->cfg = *cfg;
-    b->mode = BEHAVIOUR_WANDER;
+    b->mode = cfg->explore_s == 0.0 ? BEHAVIOUR_RETURN : BEHAVIOUR_WANDER;
     return COSLAM_OK;
 }
 
@@ -75,17 +76,20 @@ static void steer(const behaviour_t *b, double heading_now, double speed, behavi
     out->vx_mps = speed * straight_factor(b, e);
 }
 
-/* The obstacle behaviour along direction dir_rad (robot frame); 1 if an
- * obstacle is in that corridor (a degenerate one counts). */
-static int probe(const behaviour_input_t *in, double dir_rad, obstacle_cmd_t *cmd)
+/* The obstacle behaviour along direction dir_rad (robot frame), its corridor
+ * widened by extra_margin_m each side; 1 if an obstacle is in that corridor
+ * (a degenerate one counts). */
+static int probe(const behaviour_input_t *in, double dir_rad, double extra_margin_m, obstacle_cmd_t *cmd)
 {
     memset(cmd, 0, sizeof *cmd);
     cmd->nearest_m = INFINITY;
     if (!in->scan_ok || in->scan.n == 0U || in->scan.params == NULL) {
         return 0;
     }
-    const coslam_status_t st = obstacle_evaluate(in->scan.params, in->scan.laser_in_robot, dir_rad, in->scan.range_m,
-                                                 in->scan.angle_rad, in->scan.n, cmd);
+    obstacle_params_t p = *in->scan.params;
+    p.margin_m += extra_margin_m;
+    const coslam_status_t st =
+        obstacle_evaluate(&p, in->scan.laser_in_robot, dir_rad, in->scan.range_m, in->scan.angle_rad, in->scan.n, cmd);
     return (st == COSLAM_OK || st == COSLAM_E_DEGENERATE) && cmd->detected;
 }
 
@@ -98,7 +102,7 @@ static int avoid(behaviour_t *b, const behaviour_input_t *in, behaviour_cmd_t *o
         b->turning = 1;
         b->hold_heading_rad = angle_wrap(in->odo_pose.theta - 0.5 * COSLAM_PI);
     }
-    if (!in->bumped && probe(in, 0.0, &b->ahead)) {
+    if (!in->bumped && probe(in, 0.0, 0.0, &b->ahead)) {
         if (!b->turning) {
             b->avoid_turns++;
         }
@@ -135,7 +139,7 @@ static void plan_return(behaviour_t *b, const behaviour_input_t *in, double eg)
         const double d = (double)i * b->cfg.probe_step_rad;
         const double cost = fabs(angle_wrap(eg - d));
         obstacle_cmd_t c;
-        if (cost < best_cost && !probe(in, d, &c)) {
+        if (cost < best_cost && !probe(in, d, b->cfg.probe_margin_m, &c)) {
             best_cost = cost;
             best = d;
         }
@@ -167,9 +171,6 @@ behaviour_mode_t behaviour_step(behaviour_t *b, const behaviour_input_t *in, beh
         b->started = 1;
         b->start_us = in->now_us;
         b->hold_heading_rad = in->odo_pose.theta;
-        if (b->cfg.explore_s == 0.0) {
-            b->mode = BEHAVIOUR_RETURN;
-        }
     }
     const double t_s = (double)(in->now_us - b->start_us) * 1e-6;
     const point2_t goal = pose2_apply_inverse(in->map_pose, b->cfg.rendezvous_m);

@@ -1,5 +1,6 @@
 #include "sim/world/simulation.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <stdexcept>
@@ -37,6 +38,56 @@ slam_params_t filter_params(const Scenario &sc, const RobotSpec &rs)
 }
 
 }  // namespace
+
+void evaluate_map(const map_estimate_t &est, const std::vector<point2_t> &truth, const std::vector<uint8_t> &truth_sig,
+                  const std::vector<int> &n_seen, int min_seen, double gate_m, map_eval_t *out)
+{
+    *out = map_eval_t{};
+    const int n = est.n_landmarks;
+    const int nt = static_cast<int>(truth.size());
+    out->n_estimated = n;
+    for (int i = 0; i < n; ++i) out->match[i] = -1;
+    const int sz = std::max(n, nt);
+    if (sz == 0) return;
+    // square problem: estimates + dummies x truths + dummies; a pair of
+    // different marker classes or beyond the gate costs "big", staying
+    // unmatched costs as much as a pair at the gate
+    const double big = 1e6, gate2 = gate_m * gate_m;
+    std::vector<double> cost(static_cast<size_t>(sz) * static_cast<size_t>(sz), gate2);
+    for (int i = 0; i < n; ++i) {
+        for (int j = 0; j < nt; ++j) {
+            const double d2 = sq(est.lm[i].mean.x - truth[static_cast<size_t>(j)].x) +
+                              sq(est.lm[i].mean.y - truth[static_cast<size_t>(j)].y);
+            const bool same = est.lm[i].signature == truth_sig[static_cast<size_t>(j)];
+            cost[static_cast<size_t>(i) * static_cast<size_t>(sz) + static_cast<size_t>(j)] =
+                same && d2 < gate2 ? d2 : big;
+        }
+    }
+    std::vector<int> r2c(static_cast<size_t>(sz));
+    hungarian(cost.data(), sz, sz, r2c.data());
+    std::vector<char> matched(static_cast<size_t>(nt), 0);
+    double se = 0.0, nees = 0.0;
+    for (int i = 0; i < n; ++i) {
+        const int j = r2c[static_cast<size_t>(i)];
+        if (j < nt && cost[static_cast<size_t>(i) * static_cast<size_t>(sz) + static_cast<size_t>(j)] < gate2) {
+            out->match[i] = j;
+            matched[static_cast<size_t>(j)] = 1;
+            const double e2 = sq(est.lm[i].mean.x - truth[static_cast<size_t>(j)].x) +
+                              sq(est.lm[i].mean.y - truth[static_cast<size_t>(j)].y);
+            se += e2;
+            out->max_err_m = std::fmax(out->max_err_m, std::sqrt(e2));
+            nees += nees_point(est.lm[i].mean, est.lm[i].cov, truth[static_cast<size_t>(j)]);
+            out->n_matched++;
+        } else {
+            out->n_spurious++;
+        }
+    }
+    for (int j = 0; j < nt; ++j) {
+        if (!matched[static_cast<size_t>(j)] && n_seen[static_cast<size_t>(j)] >= min_seen) out->n_missed++;
+    }
+    out->rmse_m = out->n_matched > 0 ? std::sqrt(se / out->n_matched) : 0.0;
+    out->nees_mean = out->n_matched > 0 ? nees / out->n_matched : 0.0;
+}
 
 uint64_t derive_seed(uint64_t seed, int robot, int stream)
 {
@@ -160,6 +211,7 @@ Simulation::Simulation(const Scenario &sc, const SimulationOptions &opt)
         r.start = sc.robots[k].start;
     }
     result_.team_detections.assign(world_.landmarks().size(), 0);
+    for (const auto &l : world_.landmarks()) truth_sig_.push_back(l.signature);
 }
 
 Simulation::~Simulation() = default;
@@ -181,9 +233,8 @@ MapSnapshot Simulation::snapshot(size_t k, double t_s)
     s.t_s = t_s;
     s.pose = m->pose;
     s.landmarks.assign(m->lm, m->lm + m->n_landmarks);
-    const std::vector<point2_t> truth = truth_in_map(k);
-    eval_map(m, truth.data(), result_.team_detections.data(), static_cast<int>(truth.size()), sc_.evaluation.min_seen,
-             sc_.evaluation.gate_m, &s.eval);
+    evaluate_map(*m, truth_in_map(k), truth_sig_, result_.team_detections, sc_.evaluation.min_seen,
+                 sc_.evaluation.gate_m, &s.eval);
     return s;
 }
 
@@ -256,26 +307,25 @@ void Simulation::sample(double t_s)
     }
 }
 
-void Simulation::run(const std::function<void(const SimulationProgress &)> &progress, double progress_every_s)
+void Simulation::advance_to(double t_end_s, const std::function<void(const SimulationProgress &)> &progress,
+                            double progress_every_s)
 {
-    const auto wall0 = std::chrono::steady_clock::now();
     const uint64_t dt_us = static_cast<uint64_t>(std::llround(sc_.physics_dt_ms * 1000.0));
     const uint64_t ctrl_us = static_cast<uint64_t>(std::llround(sc_.control_period_ms * 1000.0));
     const uint64_t path_us = static_cast<uint64_t>(std::llround(sc_.path_period_s * 1e6));
     const uint64_t sample_us = static_cast<uint64_t>(std::llround(sc_.sample_period_s * 1e6));
     const uint64_t prog_us = static_cast<uint64_t>(std::llround(progress_every_s * 1e6));
-    const uint64_t end_us = static_cast<uint64_t>(std::llround(duration_s_ * 1e6));
+    const uint64_t end_us =
+        static_cast<uint64_t>(std::llround(std::fmin(t_end_s, duration_s_) * 1e6));
     const double dt_s = static_cast<double>(dt_us) * 1e-6;
-    uint64_t next_ctrl = 0, next_path = 0, next_sample = 0, next_prog = prog_us;
-    auto wall_now = [&] {
-        return std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
-    };
-    for (uint64_t t = 0; t <= end_us; t += dt_us) {
+    if (next_prog_us_ == 0) next_prog_us_ = prog_us;
+    for (; next_t_us_ <= end_us; next_t_us_ += dt_us) {
+        const uint64_t t = next_t_us_;
         clock_->advance_to(t);
         for (auto &r : robots_) r->physics_step(t, dt_s);
         const double t_s = static_cast<double>(t) * 1e-6;
-        if (t >= next_ctrl) {
-            next_ctrl += ctrl_us;
+        if (t >= next_ctrl_us_) {
+            next_ctrl_us_ += ctrl_us;
             for (size_t k = 0; k < robots_.size(); ++k) truth_hist_[k].push_back(robots_[k]->pose());
             std::fill(result_.team_detections.begin(), result_.team_detections.end(), 0);
             for (auto &r : robots_) {
@@ -287,8 +337,8 @@ void Simulation::run(const std::function<void(const SimulationProgress &)> &prog
                 collect_events(k, t_s);
             }
         }
-        if (t >= next_path) {
-            next_path += path_us;
+        if (t >= next_path_us_) {
+            next_path_us_ += path_us;
             for (size_t k = 0; k < robots_.size(); ++k) {
                 pose2_t est;
                 cov3_t cov;
@@ -297,17 +347,29 @@ void Simulation::run(const std::function<void(const SimulationProgress &)> &prog
                 result_.robots[k].est_path.emplace_back(t_s, est);
             }
         }
-        if (t >= next_sample) {
-            next_sample += sample_us;
+        if (t >= next_sample_us_) {
+            next_sample_us_ += sample_us;
             sample(t_s);
         }
-        if (progress && t >= next_prog) {
-            next_prog += prog_us;
-            progress(SimulationProgress{t_s, duration_s_, wall_now()});
+        if (progress && t >= next_prog_us_) {
+            next_prog_us_ += prog_us;
+            progress(SimulationProgress{t_s, duration_s_, wall_s_ + wall_since(run_start_)});
         }
     }
-    finish(wall_now());
+}
+
+void Simulation::run(const std::function<void(const SimulationProgress &)> &progress, double progress_every_s)
+{
+    run_start_ = std::chrono::steady_clock::now();
+    advance_to(duration_s_, progress, progress_every_s);
+    wall_s_ += wall_since(run_start_);
+    finish(wall_s_);
     if (progress) progress(SimulationProgress{duration_s_, duration_s_, result_.wall_s});
+}
+
+double Simulation::wall_since(std::chrono::steady_clock::time_point t0)
+{
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
 void Simulation::finish(double wall_s)

@@ -24,8 +24,9 @@
  *           -probe_max_rad..+probe_max_rad in steps of probe_step_rad
  *           (inside the laser's view), the one closest to the goal bearing
  *           whose corridor the obstacle behaviour finds clear (the same
- *           check along that direction: the core supports any motion
- *           direction), and holds it; all blocked: a quarter turn right.
+ *           check along that direction, with probe_margin_m more room each
+ *           side, since the robot turns into it: the core supports any
+ *           motion direction), and holds it; all blocked: a quarter turn right.
  *           Obstacles ahead are handled as in WANDER, followed by bypass_s
  *           of straight driving. Slows within 0.5 m; within goal_tol_m: SEEK.
  *   SEEK    turn on the spot at seek_turn_radps until a peer is in view: FACE.
@@ -74,6 +75,7 @@ typedef struct {
     double straight_band_rad; /**< translate only for heading errors below this [rad], > 0 */
     double probe_max_rad;     /**< RETURN: directions checked with the laser, +- this [rad], > 0 */
     double probe_step_rad;    /**< RETURN: between two checked directions [rad], > 0 */
+    double probe_margin_m;    /**< RETURN: extra corridor margin each side for those checks [m], >= 0 */
     double explore_s;         /**< WANDER this long before the rendezvous [s]; < 0: never */
     point2_t rendezvous_m;    /**< rendezvous point, map frame [m] */
     double goal_tol_m;        /**< rendezvous reached within this [m], > 0 */
@@ -134,7 +136,8 @@ typedef struct {
 } behaviour_t;
 
 /** Defaults: cruise 0.2 m/s, gain 1.5 /s, 0.8 rad/s, tolerance 5 deg,
- *  straight band 30 deg, probe +-60 deg in 10 deg steps, explore 90 s, rendezvous (0, 0) (the
+ *  straight band 30 deg, probe +-60 deg in 10 deg steps with 0.1 m more
+ *  margin, explore 90 s, rendezvous (0, 0) (the
  *  start), 0.25 m, bypass 1 s, seek 0.4 rad/s, face gain 1.5 /s, peer
  *  timeout 1 s, linger 10 s. */
 behaviour_config_t behaviour_config_default(void);

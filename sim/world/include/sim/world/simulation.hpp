@@ -12,13 +12,14 @@
 // Evaluation (ground truth is used here only, never by the firmware):
 // each robot's estimates live in its own map frame, which is its true start
 // pose; the truth is moved into that frame (pose2_between(start, truth))
-// and landmarks are matched one-to-one (Hungarian, host/synth stats.h
-// eval_map, gate evaluation.gate_m). A true landmark counts as missed if the
+// and landmarks are matched one-to-one, same marker class only (Hungarian,
+// evaluate_map below, gate evaluation.gate_m). A true landmark counts as missed if the
 // team detected it at least evaluation.min_seen times and the map has no
 // match for it.
 #ifndef COSLAM_SIM_WORLD_SIMULATION_HPP
 #define COSLAM_SIM_WORLD_SIMULATION_HPP
 
+#include <chrono>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -119,9 +120,16 @@ public:
     Simulation(const Simulation &) = delete;
     Simulation &operator=(const Simulation &) = delete;
 
-    /// Run to the end. progress (optional) is called about every
-    /// progress_every_s of simulated time and at the end.
+    /// Run to the end and evaluate (finish). progress (optional) is called
+    /// about every progress_every_s of simulated time and at the end.
     void run(const std::function<void(const SimulationProgress &)> &progress = {}, double progress_every_s = 1.0);
+    /// Run up to simulated time t_s (at most the duration) without the final
+    /// evaluation; for tests that act on the world between steps. run()
+    /// continues from there.
+    void advance_to(double t_s, const std::function<void(const SimulationProgress &)> &progress = {},
+                    double progress_every_s = 1.0);
+    /// Simulated time of the next physics step [s].
+    double now_s() const { return static_cast<double>(next_t_us_) * 1e-6; }
 
     const SimulationResult &result() const { return result_; }
     const Scenario &scenario() const { return sc_; }
@@ -140,6 +148,7 @@ private:
     void collect_events(size_t k, double t_s);
     void sample(double t_s);
     void finish(double wall_s);
+    static double wall_since(std::chrono::steady_clock::time_point t0);
 
     Scenario sc_;
     uint64_t seed_;
@@ -152,8 +161,19 @@ private:
     std::vector<std::vector<pose2_t>> truth_hist_;   ///< per control step
     std::vector<MapSnapshot> last_sample_;
     std::unique_ptr<map_estimate_t> export_buf_;
+    std::vector<uint8_t> truth_sig_;
     SimulationResult result_;
+    uint64_t next_t_us_ = 0, next_ctrl_us_ = 0, next_path_us_ = 0, next_sample_us_ = 0, next_prog_us_ = 0;
+    std::chrono::steady_clock::time_point run_start_{};
+    double wall_s_ = 0.0;
 };
+
+/// Optimal one-to-one matching of estimated and true landmarks (Hungarian,
+/// host/synth stats.h), same marker class only, pairs within gate_m; as
+/// eval_map otherwise: a true landmark detected at least min_seen times and
+/// unmatched is missed, an unmatched estimate is spurious.
+void evaluate_map(const map_estimate_t &est, const std::vector<point2_t> &truth, const std::vector<uint8_t> &truth_sig,
+                  const std::vector<int> &n_seen, int min_seen, double gate_m, map_eval_t *out);
 
 /// Derive an independent seed for (scenario seed, robot, stream).
 uint64_t derive_seed(uint64_t seed, int robot, int stream);
