@@ -4,7 +4,9 @@
  * cast from the laser's pose (140 deg, 0.35 deg steps), the body velocity
  * integrated exactly. Proves: straight ahead without obstacles; a right
  * turn on the spot parallel to a wall across the path, then along it
- * without touching it; the way back around a box to the rendezvous point;
+ * without touching it; a sideways slide away from a parallel wall inside
+ * the corridor; the guard refusing a slide into a post beside the robot,
+ * then turning away; the way back around a box to the rendezvous point;
  * SEEK -> FACE -> SEEK on a peer in and out of view; leaving the
  * rendezvous once merged and acknowledged, or after linger_s; a quarter
  * turn right after a bumper hit; no translation without a scan; config checks.
@@ -39,9 +41,25 @@ typedef struct {
 } world_t;
 
 static world_t g_w;
+static point2_t g_pts[N_RAYS + 64];
+static size_t g_npts;
+
+/* The scan's valid readings as robot-frame points, as the node provides them. */
+static void scan_points(const double *r, const double *a, size_t n, pose2_t laser)
+{
+    g_npts = 0;
+    for (size_t i = 0; i < n; ++i) {
+        if (isfinite(r[i]) && r[i] > 0.0) {
+            g_pts[g_npts++] = pose2_apply(laser, (point2_t){r[i] * cos(a[i]), r[i] * sin(a[i])});
+        }
+    }
+}
+static uint64_t g_scan_stamp = UINT64_MAX;
+static double g_scan_heading;
 
 static void world_reset(void)
 {
+    g_scan_stamp = UINT64_MAX;
     memset(&g_w, 0, sizeof g_w);
     obstacle_params_default(&g_w.op);
     g_w.laser = (pose2_t){0.12, 0.0, 0.0};
@@ -99,6 +117,9 @@ static void scan_from(pose2_t robot)
     }
 }
 
+/* The inputs at now_us; the laser delivers a new scan every 100 ms (taken at
+ * the pose of that moment), as the URG does. */
+
 static behaviour_input_t input_at(uint64_t now_us, pose2_t pose)
 {
     behaviour_input_t in;
@@ -106,14 +127,23 @@ static behaviour_input_t input_at(uint64_t now_us, pose2_t pose)
     in.now_us = now_us;
     in.odo_pose = pose;
     in.map_pose = pose;
-    scan_from(pose);
+    const uint64_t stamp = now_us / 100000U * 100000U;
+    if (stamp != g_scan_stamp) {
+        g_scan_stamp = stamp;
+        g_scan_heading = pose.theta;
+        scan_from(pose);
+        scan_points(g_w.range, g_w.angle, N_RAYS, g_w.laser);
+    }
     in.scan_ok = 1;
     in.scan.params = &g_w.op;
     in.scan.laser_in_robot = g_w.laser;
     in.scan.range_m = g_w.range;
     in.scan.angle_rad = g_w.angle;
     in.scan.n = N_RAYS;
-    in.scan.stamp_us = now_us / 100000U * 100000U; /* a new scan every 100 ms */
+    in.scan.stamp_us = g_scan_stamp;
+    in.scan.heading_rad = g_scan_heading;
+    in.scan.points_m = g_pts;
+    in.scan.n_points = g_npts;
     return in;
 }
 
@@ -169,6 +199,98 @@ static void test_turns_right_parallel_to_a_wall(void **state)
     assert_true(closest > 0.55 && closest < 0.6);
     assert_true(p.y < -2.0);
     assert_true(fabs(p.x - (2.0 - closest)) < 0.05);
+}
+
+/* Running along a wall that is too close (inside the corridor): it slides
+ * away sideways and keeps going, never turning round. */
+static void test_slides_away_from_a_close_parallel_wall(void **state)
+{
+    (void)state;
+    world_reset();
+    add_seg(-5.0, 0.22, 8.0, 0.22); /* 0.22 m to the left, parallel */
+    behaviour_t b;
+    behaviour_config_t c = behaviour_config_default();
+    assert_int_equal(behaviour_init(&b, &c), COSLAM_OK);
+    pose2_t p = {0.0, 0.0, 0.0};
+    uint64_t now = 0;
+    const double closest = run_loop(&b, &p, &now, 6.0);
+    assert_true(b.slides > 0);
+    assert_true(closest >= 0.2199);
+    const double half = 0.5 * g_w.op.robot_width_m + g_w.op.margin_m;
+    assert_true(0.22 - p.y >= half - 0.01); /* out of the corridor now */
+    assert_true(fabs(angle_wrap(p.theta)) < 6.0 * DEG);
+    assert_true(p.x > 0.6);
+}
+
+/* The guard: a close parallel wall on the left asks for a slide to the
+ * right, but a post stands right beside the robot on that side (outside the
+ * corridor, which only looks ahead): the slide is refused; held back for
+ * guard_patience_s the robot turns a quarter right. Hand-made scan. */
+static void test_guard_refuses_a_move_into_a_post(void **state)
+{
+    (void)state;
+    world_reset();
+    static double r[64], a[64];
+    size_t n = 0;
+    for (int i = 0; i < 40; ++i) { /* the wall: (x, 0.2) for x in 0.05 .. 1.0 */
+        const double x = 0.05 + 0.025 * i;
+        a[n] = atan2(0.2, x);
+        r[n++] = hypot(x, 0.2);
+    }
+    a[n] = -95.0 * DEG; /* the post, 0.235 m away to the right, a hair behind */
+    r[n++] = 0.235;
+    /* angle order, as scans come */
+    for (size_t i = 0; i + 1 < n; ++i) {
+        for (size_t j = i + 1; j < n; ++j) {
+            if (a[j] < a[i]) {
+                double t = a[i]; a[i] = a[j]; a[j] = t;
+                t = r[i]; r[i] = r[j]; r[j] = t;
+            }
+        }
+    }
+    behaviour_t b;
+    behaviour_config_t c = behaviour_config_default();
+    assert_int_equal(behaviour_init(&b, &c), COSLAM_OK);
+    behaviour_input_t in;
+    memset(&in, 0, sizeof in);
+    in.scan_ok = 1;
+    in.scan.params = &g_w.op;
+    in.scan.laser_in_robot = (pose2_t){0.0, 0.0, 0.0};
+    in.scan.range_m = r;
+    in.scan.angle_rad = a;
+    in.scan.n = n;
+    scan_points(r, a, n, in.scan.laser_in_robot);
+    in.scan.points_m = g_pts;
+    in.scan.n_points = g_npts;
+    behaviour_cmd_t cmd;
+    for (int k = 0; k < 100; ++k) { /* 1 s at 100 Hz, the same scan */
+        in.now_us = (uint64_t)k * 10000U;
+        behaviour_step(&b, &in, &cmd);
+        assert_true(cmd.vx_mps == 0.0 && cmd.vy_mps == 0.0);
+    }
+    assert_true(b.slides > 0);
+    assert_true(b.guard_stops >= 99);
+    in.now_us += 10000U;
+    behaviour_step(&b, &in, &cmd);
+    assert_int_equal(b.bump_turns, 1);
+    assert_true(fabs(angle_wrap(b.hold_heading_rad + 0.5 * COSLAM_PI)) < 1e-9);
+    /* without the post the slide goes through */
+    world_reset();
+    assert_int_equal(behaviour_init(&b, &c), COSLAM_OK);
+    size_t m = 0;
+    for (size_t i = 0; i < n; ++i) {
+        if (r[i] != 0.235) {
+            r[m] = r[i];
+            a[m++] = a[i];
+        }
+    }
+    in.scan.n = m;
+    scan_points(r, a, m, in.scan.laser_in_robot);
+    in.scan.n_points = g_npts;
+    in.now_us = 0;
+    behaviour_step(&b, &in, &cmd);
+    assert_true(cmd.vy_mps < 0.0);
+    assert_int_equal(b.guard_stops, 0);
 }
 
 /* Back to the rendezvous point around a box standing in the way. */
@@ -298,6 +420,8 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_straight_without_obstacles),
         cmocka_unit_test(test_turns_right_parallel_to_a_wall),
+        cmocka_unit_test(test_slides_away_from_a_close_parallel_wall),
+        cmocka_unit_test(test_guard_refuses_a_move_into_a_post),
         cmocka_unit_test(test_returns_around_a_box),
         cmocka_unit_test(test_seek_face_and_leave),
         cmocka_unit_test(test_bump_quarter_turn_and_blind),

@@ -15,6 +15,9 @@ behaviour_config_t behaviour_config_default(void)
     c.probe_max_rad = 60.0 * COSLAM_PI / 180.0;
     c.probe_step_rad = 10.0 * COSLAM_PI / 180.0;
     c.probe_margin_m = 0.1;
+    c.slide_mps = 0.05;
+    c.guard_horizon_s = 0.3;
+    c.guard_patience_s = 1.0;
     c.explore_s = 90.0;
     c.rendezvous_m.x = 0.0;
     c.rendezvous_m.y = 0.0;
@@ -40,6 +43,8 @@ coslam_status_t behaviour_init(behaviour_t *b, const behaviour_config_t *cfg)
     if (!pos_finite(cfg->cruise_mps) || !pos_finite(cfg->turn_gain) || !pos_finite(cfg->max_turn_radps) ||
         !pos_finite(cfg->heading_tol_rad) || !pos_finite(cfg->straight_band_rad) || !pos_finite(cfg->probe_max_rad) ||
         !pos_finite(cfg->probe_step_rad) || !(isfinite(cfg->probe_margin_m) && cfg->probe_margin_m >= 0.0) ||
+        !(isfinite(cfg->slide_mps) && cfg->slide_mps >= 0.0) || !pos_finite(cfg->guard_horizon_s) ||
+        !pos_finite(cfg->guard_patience_s) ||
         !isfinite(cfg->explore_s) || !isfinite(cfg->rendezvous_m.x) || !isfinite(cfg->rendezvous_m.y) ||
         !pos_finite(cfg->goal_tol_m) || !(isfinite(cfg->bypass_s) && cfg->bypass_s >= 0.0) ||
         !isfinite(cfg->seek_turn_radps) || cfg->seek_turn_radps == 0.0 || !pos_finite(cfg->face_gain) ||
@@ -49,6 +54,8 @@ coslam_status_t behaviour_init(behaviour_t *b, const behaviour_config_t *cfg)
     memset(b, 0, sizeof *b);
     b->cfg = *cfg;
     b->mode = cfg->explore_s == 0.0 ? BEHAVIOUR_RETURN : BEHAVIOUR_WANDER;
+    b->ahead_scan_us = UINT64_MAX; /* no scan used yet (0 is a valid stamp) */
+    b->planned_scan_us = UINT64_MAX;
     return COSLAM_OK;
 }
 
@@ -94,30 +101,61 @@ static int probe(const behaviour_input_t *in, double dir_rad, double extra_margi
 }
 
 /* Bumper turns and the obstacle behaviour ahead: start or continue a right
- * turn. Returns 1 if it commands this step. */
+ * turn. The obstacle behaviour runs once per scan, along the heading the
+ * robot had when the scan was taken; the turn target is that heading plus
+ * dpsi. Returns 1 if it commands this step. */
 static int avoid(behaviour_t *b, const behaviour_input_t *in, behaviour_cmd_t *out)
 {
     if (in->bumped) {
         b->bump_turns++;
         b->turning = 1;
+        b->ahead_hit = 0;
         b->hold_heading_rad = angle_wrap(in->odo_pose.theta - 0.5 * COSLAM_PI);
-    }
-    if (!in->bumped && probe(in, 0.0, 0.0, &b->ahead)) {
-        if (!b->turning) {
-            b->avoid_turns++;
+    } else if (in->scan_ok && in->scan.stamp_us != b->ahead_scan_us) {
+        b->ahead_scan_us = in->scan.stamp_us;
+        b->ahead_hit = probe(in, 0.0, 0.0, &b->ahead);
+        /* A line within heading_tol of the motion is parallel whichever way
+         * it leans: one receding to the left by a hair gets dpsi near -pi
+         * from the right-turn rule (coslam/obstacle.h step 5), and a robot
+         * running along a wall would turn round on scan noise. */
+        if (b->ahead_hit && b->ahead.heading_change_rad < -COSLAM_PI + b->cfg.heading_tol_rad) {
+            b->ahead.heading_change_rad = 0.0;
+            b->ahead.speed_mps = b->ahead.nearest_m < in->scan.params->min_clearance_m ? 0.0 : b->cfg.cruise_mps;
+            b->near_parallel++;
         }
-        b->turning = 1;
-        b->hold_heading_rad = angle_wrap(in->odo_pose.theta + b->ahead.heading_change_rad);
-        const double e = b->ahead.heading_change_rad;
+        if (b->ahead_hit) {
+            if (!b->turning) {
+                b->avoid_turns++;
+            }
+            b->turning = 1;
+            b->hold_heading_rad = angle_wrap(in->scan.heading_rad + b->ahead.heading_change_rad);
+            b->straight_until_us = after_s(in->now_us, b->cfg.bypass_s);
+        }
+    }
+    if (!in->scan_ok) {
+        b->ahead_hit = 0;
+    }
+    const double e = angle_wrap(b->hold_heading_rad - in->odo_pose.theta);
+    if (b->ahead_hit) {
+        /* turn on the spot until parallel, then the behaviour's speed (known
+         * from the scan that saw the robot parallel): translating during the
+         * turn keeps a round obstacle in the corridor, and the robot would
+         * orbit it */
         out->w_radps = clampd(b->cfg.turn_gain * e, b->cfg.max_turn_radps);
-        /* turn on the spot until parallel: translating while turning keeps a
-         * round obstacle in the corridor, and the robot would orbit it */
-        out->vx_mps = fabs(e) < b->cfg.heading_tol_rad ? b->ahead.speed_mps : 0.0;
-        b->straight_until_us = after_s(in->now_us, b->cfg.bypass_s);
+        const int parallel = fabs(b->ahead.heading_change_rad) < b->cfg.heading_tol_rad;
+        out->vx_mps = fabs(e) < b->cfg.heading_tol_rad && parallel ? b->ahead.speed_mps : 0.0;
+        /* along a parallel obstacle that is inside the corridor, slide away
+         * sideways (the base is omnidirectional): turning away would make it
+         * a receding line, and the right-turn rule would then ask for a
+         * half turn */
+        const double half = 0.5 * in->scan.params->robot_width_m + in->scan.params->margin_m;
+        if (parallel && b->ahead.line_ok && b->ahead.line.dist_m < half) {
+            out->vy_mps = b->ahead.line.centroid.y >= 0.0 ? -b->cfg.slide_mps : b->cfg.slide_mps;
+            b->slides++;
+        }
         return 1;
     }
     if (b->turning) {
-        const double e = angle_wrap(b->hold_heading_rad - in->odo_pose.theta);
         if (fabs(e) < b->cfg.heading_tol_rad) {
             b->turning = 0;
             b->straight_until_us = after_s(in->now_us, b->cfg.bypass_s);
@@ -125,6 +163,31 @@ static int avoid(behaviour_t *b, const behaviour_input_t *in, behaviour_cmd_t *o
         }
         steer(b, in->odo_pose.theta, b->cfg.cruise_mps, out);
         return 1;
+    }
+    return 0;
+}
+
+/* The last safety net, below the behaviours: would the commanded translation
+ * bring the body (half the robot's width) within reach of a scan point in
+ * the next guard_horizon_s? Only points it approaches count, so a robot
+ * beside a wall may still move along or away from it. O(scan points). */
+static int guard_blocks(const behaviour_t *b, const behaviour_input_t *in, const behaviour_cmd_t *cmd)
+{
+    const double reach = 0.5 * in->scan.params->robot_width_m;
+    const double t = b->cfg.guard_horizon_s;
+    /* the points are in the robot frame of the scan; the robot may have
+     * turned since: rotate the displacement into that frame instead */
+    const double dth = angle_wrap(in->odo_pose.theta - in->scan.heading_rad);
+    const double c = cos(dth);
+    const double s = sin(dth);
+    const double px = (c * cmd->vx_mps - s * cmd->vy_mps) * t;
+    const double py = (s * cmd->vx_mps + c * cmd->vy_mps) * t;
+    for (size_t i = 0; i < in->scan.n_points; ++i) {
+        const point2_t q = in->scan.points_m[i];
+        const double d_then2 = (q.x - px) * (q.x - px) + (q.y - py) * (q.y - py);
+        if (d_then2 < reach * reach && d_then2 < q.x * q.x + q.y * q.y) {
+            return 1;
+        }
     }
     return 0;
 }
@@ -150,7 +213,7 @@ static void plan_return(behaviour_t *b, const behaviour_input_t *in, double eg)
     } else if (fabs(angle_wrap(eg - best)) > 0.5 * b->cfg.probe_step_rad && fabs(eg) <= b->cfg.probe_max_rad) {
         b->goal_blocked++;
     }
-    b->hold_heading_rad = angle_wrap(in->odo_pose.theta + best);
+    b->hold_heading_rad = angle_wrap(in->scan.heading_rad + best);
 }
 
 static void set_mode(behaviour_t *b, behaviour_mode_t m)
@@ -238,6 +301,24 @@ behaviour_mode_t behaviour_step(behaviour_t *b, const behaviour_input_t *in, beh
     }
     if (!in->scan_ok) {
         out->vx_mps = 0.0; /* blind: turn at most */
+        out->vy_mps = 0.0;
+    } else if ((out->vx_mps != 0.0 || out->vy_mps != 0.0) && guard_blocks(b, in, out)) {
+        out->vx_mps = 0.0;
+        out->vy_mps = 0.0;
+        b->guard_stops++;
+        if (!b->guard_held) {
+            b->guard_held = 1;
+            b->guard_since_us = in->now_us;
+        } else if ((double)(in->now_us - b->guard_since_us) * 1e-6 >= b->cfg.guard_patience_s) {
+            /* held back too long: turn away as after a bump */
+            b->guard_held = 0;
+            b->bump_turns++;
+            b->turning = 1;
+            b->ahead_hit = 0;
+            b->hold_heading_rad = angle_wrap(in->odo_pose.theta - 0.5 * COSLAM_PI);
+        }
+    } else {
+        b->guard_held = 0;
     }
     return b->mode;
 }

@@ -156,8 +156,17 @@ static void use_scan(robot_node_t *n)
     if (occ_grid_integrate_scan(&n->grid, sensor, n->scan_range_m, n->scan_angle_rad, np, NULL) == COSLAM_E_CAPACITY) {
         n->ctr.grid_out_of_grid++;
     }
+    n->scan_n_points = 0;
+    for (size_t i = 0; i < np; ++i) {
+        const double r = n->scan_range_m[i];
+        if (isfinite(r) && r > 0.0) {
+            const point2_t q = {r * cos(n->scan_angle_rad[i]), r * sin(n->scan_angle_rad[i])};
+            n->scan_points_m[n->scan_n_points++] = pose2_apply(n->cfg.laser_in_robot, q);
+        }
+    }
     n->scan_n = np;
     n->scan_us = n->now_us;
+    n->scan_heading_rad = n->odo_pose.theta;
 }
 
 /* Every scan that arrived since the last step (normally none or one). A
@@ -361,6 +370,9 @@ coslam_status_t robot_node_step(robot_node_t *n)
         in.scan.angle_rad = n->scan_angle_rad;
         in.scan.n = n->scan_n;
         in.scan.stamp_us = n->scan_us;
+        in.scan.heading_rad = n->scan_heading_rad;
+        in.scan.points_m = n->scan_points_m;
+        in.scan.n_points = n->scan_n_points;
         in.bumped = bumped;
         in.peer_in_view = peer_in_view(n, &in.peer_bearing_rad);
         in.merged_all = meeting_merged_all(&n->meeting);

@@ -17,7 +17,14 @@
  *           spot, then go on at the behaviour's speed and hold the new
  *           heading. (Translating during the turn, as the behaviour's
  *           cruise * cos(dpsi) allows, made the robot orbit round pillars:
- *           the tangent keeps the pillar in the corridor.) After explore_s: RETURN, unless the rendezvous is
+ *           the tangent keeps the pillar in the corridor.) Running parallel
+ *           to an obstacle line that lies inside the corridor (nearer than
+ *           half the robot's width plus the margin), the robot slides away
+ *           sideways at slide_mps (the base is omnidirectional): turning
+ *           away would make the line a receding one, for which the
+ *           right-turn rule asks for a half turn. For the same reason a
+ *           line within heading_tol_rad of the motion counts as parallel
+ *           even when it leans away to the left (dpsi near -pi). After explore_s: RETURN, unless the rendezvous is
  *           done (below).
  *   RETURN  head for the rendezvous point (map frame, from the SLAM pose).
  *           With every new scan the robot picks, among the directions
@@ -39,12 +46,21 @@
  * first; from any mode the robot then WANDERs until the end.
  * A bumper hit (input `bumped`, once per hit) starts a quarter turn right
  * on the spot before anything else.
+ * Guard, below all modes: a translation that would bring the body (half the
+ * robot's width from its centre) within reach of a scan point it is
+ * approaching within guard_horizon_s is not commanded (the turn is); held
+ * back for guard_patience_s, the robot turns a quarter right as after a
+ * bump. It catches what the corridor checks miss: a box corner beside the
+ * robot, a slide towards the wrong side.
  * Headings are tracked in the odometry frame (dead reckoning), which is
  * smooth, unlike the SLAM pose; only the rendezvous point needs the map pose.
  * Without a recent scan the robot does not translate (it may turn).
  *
- * Pure logic over the inputs (no HAL, no heap); caller-owned state; O(scan
- * points) per step, O(directions * scan points) once per scan in RETURN.
+ * Obstacle checks run once per scan (the scan does not change between two),
+ * along the heading the robot had when the scan was taken.
+ * Pure logic over the inputs (no HAL, no heap); caller-owned state; O(1)
+ * per step, O(scan points) once per scan, O(directions * scan points) once
+ * per scan in RETURN.
  */
 #ifndef COSLAM_APP_BEHAVIOUR_H
 #define COSLAM_APP_BEHAVIOUR_H
@@ -76,6 +92,9 @@ typedef struct {
     double probe_max_rad;     /**< RETURN: directions checked with the laser, +- this [rad], > 0 */
     double probe_step_rad;    /**< RETURN: between two checked directions [rad], > 0 */
     double probe_margin_m;    /**< RETURN: extra corridor margin each side for those checks [m], >= 0 */
+    double slide_mps;         /**< sideways speed away from a parallel obstacle inside the corridor [m/s], >= 0 */
+    double guard_horizon_s;   /**< guard: look this far ahead along the command [s], > 0 */
+    double guard_patience_s;  /**< guard: held back this long -> quarter turn right [s], > 0 */
     double explore_s;         /**< WANDER this long before the rendezvous [s]; < 0: never */
     point2_t rendezvous_m;    /**< rendezvous point, map frame [m] */
     double goal_tol_m;        /**< rendezvous reached within this [m], > 0 */
@@ -95,6 +114,9 @@ typedef struct {
     const double *angle_rad;
     size_t n;
     uint64_t stamp_us;         /**< when it was taken (a new value = a new scan) */
+    double heading_rad;        /**< odometry heading of the robot then [rad] */
+    const point2_t *points_m;  /**< the valid readings as points in the robot frame then (guard) */
+    size_t n_points;
 } behaviour_scan_t;
 
 typedef struct {
@@ -129,15 +151,22 @@ typedef struct {
     int merged_seen;
     uint64_t merged_since_us;
     obstacle_cmd_t ahead;      /**< last evaluation along the body x axis */
+    int ahead_hit;             /**< it found an obstacle */
+    uint64_t ahead_scan_us;    /**< scan it was made on */
     uint32_t avoid_turns;      /**< obstacle-triggered turns started */
     uint32_t bump_turns;       /**< bumper-triggered turns */
+    uint32_t slides;           /**< steps sliding away from a parallel obstacle */
+    uint32_t near_parallel;    /**< lines leaning away by less than heading_tol taken as parallel */
+    uint32_t guard_stops;      /**< steps whose translation the guard refused */
+    int guard_held;            /**< the guard holds the robot back ... */
+    uint64_t guard_since_us;   /**< ... since then */
     uint32_t goal_blocked;     /**< RETURN steps with the goal corridor blocked */
     uint32_t mode_changes;
 } behaviour_t;
 
 /** Defaults: cruise 0.2 m/s, gain 1.5 /s, 0.8 rad/s, tolerance 5 deg,
  *  straight band 30 deg, probe +-60 deg in 10 deg steps with 0.1 m more
- *  margin, explore 90 s, rendezvous (0, 0) (the
+ *  margin, slide 0.05 m/s, guard 0.3 s / 1 s, explore 90 s, rendezvous (0, 0) (the
  *  start), 0.25 m, bypass 1 s, seek 0.4 rad/s, face gain 1.5 /s, peer
  *  timeout 1 s, linger 10 s. */
 behaviour_config_t behaviour_config_default(void);

@@ -138,8 +138,11 @@ typedef struct {
     urg_scip2_scan_t scan;
     double scan_range_m[COSLAM_MAX_SCAN_POINTS];
     double scan_angle_rad[COSLAM_MAX_SCAN_POINTS];
+    point2_t scan_points_m[COSLAM_MAX_SCAN_POINTS]; /**< valid readings, robot frame */
+    size_t scan_n_points;
     size_t scan_n;                /**< points of the last good scan (0: none yet) */
     uint64_t scan_us;             /**< when it was read */
+    double scan_heading_rad;      /**< odometry heading then */
     occ_grid_t grid;
     /* odometry */
     pose2_t odo_pose;
