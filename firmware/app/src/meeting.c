@@ -259,7 +259,6 @@ static void accept_message(meeting_t *m, const hal_link_rx_info_t *info)
     const uint64_t back_us = age_us + m->cfg.link_latency_us;
     m->rx = *msg;
     m->have_pending = 1U;
-    m->pending_arrival_us = info->stamp_us;
     m->pending_sender_us = info->stamp_us > back_us ? info->stamp_us - back_us : 0U;
 }
 

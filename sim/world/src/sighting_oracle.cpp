@@ -36,7 +36,7 @@ void SightingOracle::capture(uint64_t stamp_us)
     sighting_frame_t f;
     std::memset(&f, 0, sizeof f);
     f.stamp_us = stamp_us;
-    f.sequence = ++given_seq_;
+    f.sequence = ++frame_seq_;
     const Eigen::Vector2d cam(me->pose.x, me->pose.y);
     const double half_fov = 0.5 * cfg_.fov_rad;
     auto in_view = [&](const Eigen::Vector2d &p, double &r, double &b) {

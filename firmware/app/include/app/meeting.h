@@ -159,7 +159,6 @@ typedef struct {
     meeting_peer_t peer[COSLAM_MAX_ROBOTS];
     merge_session_t session;
     uint8_t have_pending;
-    uint64_t pending_arrival_us;
     uint64_t pending_sender_us;  /**< t_s of the pending message */
     map_msg_t rx;
     map_msg_t tx;

@@ -80,7 +80,7 @@ private:
     sighting_source_t src_;
     sighting_frame_t latest_{};
     bool have_frame_ = false;
-    uint32_t given_seq_ = 0;
+    uint32_t frame_seq_ = 0;
     uint64_t next_us_;
     std::vector<int> detections_;
     uint64_t frames_ = 0;
