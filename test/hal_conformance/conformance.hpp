@@ -27,6 +27,7 @@
 #include <vector>
 
 #include "hal/hal_camera.h"
+#include "hal/hal_can.h"
 #include "hal/hal_clock.h"
 #include "hal/hal_gpio.h"
 #include "hal/hal_link.h"
@@ -122,6 +123,17 @@ struct SerialHarness : TimeBase {
     virtual size_t peer_recv(uint8_t *buf, size_t cap, uint64_t wait_us) = 0;
 };
 
+struct CanHarness : TimeBase {
+    virtual hal_can_t *dev() = 0;
+    /// Put a frame on the bus from another node (the device receives it).
+    virtual void peer_send(const hal_can_frame_t &frame) = 0;
+    /// A frame the device sent, as another node sees it; false if none
+    /// within wait_us.
+    virtual bool peer_recv(hal_can_frame_t *frame, uint64_t wait_us) = 0;
+    /// Receive queue depth if the harness can overflow it, else 0 (skip).
+    virtual size_t rx_queue_depth() const { return 0; }
+};
+
 /// Null backends: a handle for every contract the backend set covers;
 /// nullptr for contracts it does not provide.
 struct NullHarness {
@@ -140,6 +152,7 @@ using LinkBackend = Backend<LinkHarness>;
 using StorageBackend = Backend<StorageHarness>;
 using CameraBackend = Backend<CameraHarness>;
 using SerialBackend = Backend<SerialHarness>;
+using CanBackend = Backend<CanHarness>;
 using NullBackend = Backend<NullHarness>;
 
 /// A Backend whose factory constructs Harness(args...) (args copied).
@@ -191,6 +204,7 @@ using LinkConformance = conf::Suite<conf::LinkHarness>;
 using StorageConformance = conf::Suite<conf::StorageHarness>;
 using CameraConformance = conf::Suite<conf::CameraHarness>;
 using SerialConformance = conf::Suite<conf::SerialHarness>;
+using CanConformance = conf::Suite<conf::CanHarness>;
 using NullConformance = conf::Suite<conf::NullHarness>;
 
 #endif

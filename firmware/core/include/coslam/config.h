@@ -89,6 +89,16 @@
 #define COSLAM_MAX_STATUS_LEDS 4
 #endif
 
+/** Robot app (firmware/app): own sightings of each peer robot kept to pair
+ *  with an incoming map message (meeting.h), and merge events queued until
+ *  the application reads them. */
+#ifndef COSLAM_APP_SIGHTING_HISTORY
+#define COSLAM_APP_SIGHTING_HISTORY 16
+#endif
+#ifndef COSLAM_APP_EVENT_QUEUE
+#define COSLAM_APP_EVENT_QUEUE 16
+#endif
+
 /*
  * Range checks. The upper bounds keep index types (uint16_t landmark and
  * particle indices, uint16_t provenance mask) valid, not memory sensible.
@@ -126,6 +136,13 @@
 #endif
 #if COSLAM_MAX_STATUS_LEDS < 1 || COSLAM_MAX_STATUS_LEDS > 32
 #error "COSLAM_MAX_STATUS_LEDS must be in [1, 32]"
+#endif
+
+#if COSLAM_APP_SIGHTING_HISTORY < 1 || COSLAM_APP_SIGHTING_HISTORY > 255
+#error "COSLAM_APP_SIGHTING_HISTORY must be in [1, 255]"
+#endif
+#if COSLAM_APP_EVENT_QUEUE < 1 || COSLAM_APP_EVENT_QUEUE > 255
+#error "COSLAM_APP_EVENT_QUEUE must be in [1, 255]"
 #endif
 
 #endif /* COSLAM_CONFIG_H */

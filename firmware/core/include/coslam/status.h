@@ -54,6 +54,8 @@ typedef enum {
     COSLAM_E_DRIVE_BUS = -73,      /**< the CAN HAL reported an error (HAL status kept) */
     COSLAM_E_DRIVE_STATE = -74,    /**< not allowed now (busy, not started, not enabled) */
     COSLAM_E_DRIVE_PROTOCOL = -75, /**< a malformed or unexpected CANopen frame */
+    /* robot app (firmware/app) */
+    COSLAM_E_LINK = -80,           /**< the inter-robot link refused or failed a datagram */
     COSLAM_E_UNSUPPORTED = -90, /**< feature or hardware not available */
 } coslam_status_t;
 

@@ -1,0 +1,217 @@
+/*
+ * app/robot_node.h - the robot application: one robot's firmware main loop.
+ *
+ * A robot_node_t talks to its hardware ONLY through HAL handles and the
+ * drivers on top of them, plus the sighting source (app/sighting_source.h):
+ *
+ *   hal_clock   time (read once per step)
+ *   hal_serial  URG laser      -> urg_scip2 (SCIP 2.0, MD streaming)
+ *   hal_can     3 wheel drives -> cia402_omni (CiA 402, omni kinematics, odometry)
+ *   hal_gpio    bumper, e-stop, status LED -> gpio_roles
+ *   hal_link    the other robots -> meeting (map messages, merge)
+ *   sighting_source  landmark and robot sightings (camera pipeline / simulator stand-in)
+ *
+ * One step (robot_node_step, every control period, e.g. 10 ms):
+ *   1. GPIO roles: bumper / e-stop -> stop_requested;
+ *   2. drive: poll the CAN driver; bring-up, enable, fault recovery;
+ *   3. odometry: the increment since the last step -> dead-reckoning pose,
+ *      odometer, and the filter's pending prediction (applied every
+ *      filter_period_us and before every update or merge);
+ *   4. laser: every new MD scan -> occupancy grid (at the SLAM pose); the
+ *      latest one feeds the behaviour's obstacle checks (coslam/obstacle.h);
+ *   5. sightings: a new frame -> filter update with the landmark sightings;
+ *      each robot sighting -> meeting_on_sighting (may send the map);
+ *   6. link: incoming map messages -> meeting_poll_link, meeting_poll
+ *      (merge when paired with an own sighting);
+ *   7. behaviour (app/behaviour.h) -> body velocity -> drive; zero while
+ *      stop_requested, while the drive is not enabled, or without a scan;
+ *   8. status LED: heartbeat running, fast blink stopped, slow blink booting.
+ * A latched bumper is acknowledged automatically once it is released (the
+ * robot stood still meanwhile); the behaviour then turns a quarter right.
+ *
+ * Start-up inside robot_node_step: the laser is connected first (SCIP2.0,
+ * PP, MD over laser_fov_rad); these driver commands block up to the URG
+ * driver's reply timeout on hardware (the emulator answers at once) and
+ * are retried every retry_period_us on failure. Then the drive bring-up
+ * (non-blocking). The filter starts at the identity pose: each robot's map
+ * frame is its start pose.
+ *
+ * Timing: every other call is non-blocking (timeouts 0); a step costs one
+ * filter update per camera frame plus, rarely, a map export or merge.
+ * Memory: sizeof(robot_node_t) is about 600 KB in the default profile
+ * (filter 390 KB, grid 80 KB, meeting 40 KB, scan buffers). Caller-owned,
+ * no heap, no globals; several nodes coexist (the simulator runs a team in
+ * one process). One thread per node.
+ */
+#ifndef COSLAM_APP_ROBOT_NODE_H
+#define COSLAM_APP_ROBOT_NODE_H
+
+#include <stdint.h>
+
+#include "app/behaviour.h"
+#include "app/meeting.h"
+#include "app/sighting_source.h"
+#include "app/slam_filter.h"
+#include "cia402/cia402_omni.h"
+#include "coslam/obstacle.h"
+#include "coslam/occ_grid.h"
+#include "gpio_roles.h"
+#include "hal/hal_can.h"
+#include "hal/hal_clock.h"
+#include "hal/hal_gpio.h"
+#include "hal/hal_link.h"
+#include "hal/hal_serial.h"
+#include "urg/urg_scip2.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/** The devices of one robot. Every handle must outlive the node. */
+typedef struct {
+    hal_clock_t *clock;
+    hal_serial_t *laser;          /**< URG on its serial line */
+    hal_can_t *can;               /**< the drives' bus */
+    hal_gpio_t *gpio;             /**< bumper, e-stop, LED lines (gpio config below) */
+    hal_link_t *link;             /**< the team's link */
+    sighting_source_t *sightings; /**< marker sightings */
+} robot_node_io_t;
+
+typedef struct {
+    uint8_t robot_id;               /**< < n_robots; also the link id */
+    uint8_t n_robots;               /**< team size, 2..COSLAM_MAX_ROBOTS */
+    slam_filter_config_t filter;    /**< its robot_id is forced to robot_id */
+    meeting_config_t meeting;
+    behaviour_config_t behaviour;
+    obstacle_params_t obstacle;     /**< cruise speed is taken from behaviour */
+    occ_grid_params_t grid;
+    point2_t grid_origin_m;         /**< map-frame corner of the grid [m] */
+    pose2_t laser_in_robot;         /**< laser mounting pose [m, m, rad] */
+    double laser_fov_rad;           /**< scanned field of view, centred on the laser's front */
+    urg_scip2_config_t urg;
+    cia402_omni_config_t drive;
+    gpio_roles_config_t gpio;
+    uint8_t status_led;             /**< index into gpio.leds (ignored without LEDs) */
+    uint32_t filter_period_us;      /**< prediction period [us], > 0 */
+    uint32_t scan_max_age_us;       /**< older obstacle decision: no translation [us] */
+    uint32_t retry_period_us;       /**< laser connect / drive fault retries [us] */
+} robot_node_config_t;
+
+typedef enum {
+    ROBOT_NODE_LASER_UP = 1,  /**< connecting the laser */
+    ROBOT_NODE_DRIVE_UP = 2,  /**< drive bring-up and enable */
+    ROBOT_NODE_RUN = 3,       /**< running */
+    ROBOT_NODE_FAULT = 4,     /**< drive fault: stopped, reset after retry_period_us */
+} robot_node_state_t;
+
+typedef struct {
+    uint32_t steps;
+    uint32_t scans;               /**< laser scans used */
+    uint32_t scan_errors;         /**< driver errors while reading scans */
+    uint32_t laser_connect_failures;
+    uint32_t grid_out_of_grid;    /**< scans with returns outside the grid */
+    uint32_t frames;              /**< sighting frames used */
+    uint32_t frame_errors;        /**< sighting source errors */
+    uint32_t sightings_dropped;   /**< reported by the source (frame full) */
+    uint32_t filter_errors;       /**< predict/update returned an error */
+    uint32_t odometry_errors;     /**< increments refused (non-finite) */
+    uint32_t drive_faults;        /**< faults reported by the drive driver */
+    uint32_t drive_errors;        /**< other drive driver errors */
+    uint32_t stop_steps;          /**< steps stopped by bumper / e-stop */
+    uint32_t bumper_acks;         /**< bumper hits, acknowledged once released */
+} robot_node_counters_t;
+
+typedef struct {
+    robot_node_config_t cfg;
+    robot_node_io_t io;
+    robot_node_state_t state;
+    uint64_t now_us;
+    uint64_t retry_at_us;
+    /* drivers */
+    urg_scip2_t urg;
+    cia402_omni_t drive;
+    int drive_started;
+    gpio_roles_t gpio;
+    int gpio_ok;
+    gpio_roles_status_t gpio_status;
+    /* laser data */
+    urg_scip2_scan_t scan;
+    double scan_range_m[COSLAM_MAX_SCAN_POINTS];
+    double scan_angle_rad[COSLAM_MAX_SCAN_POINTS];
+    point2_t scan_points_m[COSLAM_MAX_SCAN_POINTS]; /**< valid readings, robot frame */
+    size_t scan_n_points;
+    size_t scan_n;                /**< points of the last good scan (0: none yet) */
+    uint64_t scan_us;             /**< when it was read */
+    double scan_heading_rad;      /**< odometry heading then */
+    occ_grid_t grid;
+    /* odometry */
+    pose2_t odo_pose;
+    double travel_m;
+    odo_increment_t odo_pending;  /**< not yet given to the filter */
+    uint64_t last_predict_us;
+    /* estimation and cooperation */
+    slam_filter_t filter;
+    sighting_frame_t frame;
+    meeting_t meeting;
+    behaviour_t behaviour;
+    behaviour_cmd_t cmd;
+    robot_node_counters_t ctr;
+} robot_node_t;
+
+/** Defaults for robot `robot_id` of `n_robots`: slam_filter_config_default,
+ *  meeting/behaviour/obstacle/grid defaults, grid origin (-5, -5) (10 m x
+ *  10 m around the start), laser 0.12 m ahead of the centre scanning 140 deg
+ *  (the paper's mounting), URG and drive defaults, GPIO lines: bumper 0
+ *  (active high), e-stop 1 (active low: a normally-closed loop), LED 2;
+ *  filter period 100 ms, scan age 300 ms, retry 1 s. */
+robot_node_config_t robot_node_config_default(uint8_t robot_id, uint8_t n_robots);
+
+/**
+ * Check the configuration, initialise drivers, filter, grid, meeting and
+ * behaviour; claims the GPIO lines (gpio_roles_init). No other I/O.
+ * Returns COSLAM_OK; COSLAM_E_ARG (NULL handle, bad ids or parameters, a
+ * component refused its configuration); COSLAM_E_UNSUPPORTED if the GPIO
+ * lines could not be claimed.
+ */
+coslam_status_t robot_node_init(robot_node_t *n, const robot_node_config_t *cfg, const robot_node_io_t *io);
+
+/**
+ * One control step (see the header comment). Returns COSLAM_OK; or the
+ * first error that this step could not absorb (it is also counted and the
+ * node keeps going at the next step): a clock failure (COSLAM_E_ARG and
+ * no step), a laser connect failure (COSLAM_E_URG_*), a drive fault
+ * (COSLAM_E_DRIVE_FAULT).
+ */
+coslam_status_t robot_node_step(robot_node_t *n);
+
+/** Current state. */
+robot_node_state_t robot_node_state(const robot_node_t *n);
+
+/** SLAM pose estimate and covariance, map frame (= the robot's start pose). */
+void robot_node_pose(const robot_node_t *n, pose2_t *pose, cov3_t *cov);
+
+/** Dead-reckoning pose (odometry only) and odometer [m]; either may be NULL. */
+void robot_node_odometry(const robot_node_t *n, pose2_t *pose, double *travel_m);
+
+/** Export the current map estimate into *out (slam_filter_export). */
+coslam_status_t robot_node_export(robot_node_t *n, map_estimate_t *out);
+
+/** Oldest queued meeting event (sent, merged, refused): COSLAM_OK / COSLAM_E_EMPTY. */
+coslam_status_t robot_node_take_event(robot_node_t *n, meeting_event_t *ev);
+
+/** The occupancy grid (map frame). */
+const occ_grid_t *robot_node_grid(const robot_node_t *n);
+
+/** Behaviour mode of the last step. */
+behaviour_mode_t robot_node_mode(const robot_node_t *n);
+
+/** Counters of the node, its meeting protocol and its drivers. */
+const robot_node_counters_t *robot_node_counters(const robot_node_t *n);
+const meeting_counters_t *robot_node_meeting_counters(const robot_node_t *n);
+const urg_scip2_stats_t *robot_node_laser_stats(const robot_node_t *n);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* COSLAM_APP_ROBOT_NODE_H */

@@ -1,0 +1,86 @@
+/*
+ * app/slam_filter.h - one robot's SLAM filter, chosen at start-up: Fast-SLAM
+ * 1.0, Fast-SLAM 2.0 or EKF-SLAM from the core, behind one set of calls
+ * (predict, update, pose, export, merge). The robot app and the meeting
+ * protocol never look at which one runs: the map estimate they exchange is
+ * the common format (coslam/map_estimate.h), as in the paper, where two
+ * robots may run different filters.
+ *
+ * Memory: the filters share storage (a union), so sizeof(slam_filter_t) is
+ * the larger of fastslam_t and ekfslam_t (about 390 KB and 140 KB in the
+ * default profile). Caller-owned, no heap. One thread at a time.
+ * Time: as the wrapped core function (see fastslam.h, ekfslam.h, map_merge.h).
+ */
+#ifndef COSLAM_APP_SLAM_FILTER_H
+#define COSLAM_APP_SLAM_FILTER_H
+
+#include <stdint.h>
+
+#include "coslam/ekfslam.h"
+#include "coslam/fastslam.h"
+#include "coslam/map_estimate.h"
+#include "coslam/map_merge.h"
+#include "coslam/motion.h"
+#include "coslam/observe.h"
+#include "coslam/slam_params.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum {
+    SLAM_FILTER_FASTSLAM1 = 1, /**< Fast-SLAM 1.0 (motion proposal) */
+    SLAM_FILTER_FASTSLAM2 = 2, /**< Fast-SLAM 2.0 (improved proposal) */
+    SLAM_FILTER_EKF = 3,       /**< EKF-SLAM (JCBB association, FEJ) */
+} slam_filter_kind_t;
+
+typedef struct {
+    slam_filter_kind_t kind;
+    slam_params_t slam;      /**< noise model (the paper's w1..w8) and gates */
+    uint16_t n_particles;    /**< Fast-SLAM only: 1 .. COSLAM_MAX_PARTICLES */
+    uint64_t seed;           /**< Fast-SLAM only: particle RNG seed */
+    uint8_t robot_id;        /**< own provenance bit, < COSLAM_MAX_ROBOTS */
+} slam_filter_config_t;
+
+typedef struct {
+    slam_filter_kind_t kind;
+    union {
+        fastslam_t fs;
+        ekfslam_t ekf;
+    } u;
+} slam_filter_t;
+
+/** Fast-SLAM 2.0 with 100 particles (or the profile's maximum), default
+ *  slam_params, seed 1, robot 0. */
+slam_filter_config_t slam_filter_config_default(void);
+
+/** Start at pose0 (the robot's map frame is its start pose: pass the
+ *  identity). Returns COSLAM_OK or COSLAM_E_ARG (NULL, unknown kind, or the
+ *  filter refused the configuration). O(N) / O(1). */
+coslam_status_t slam_filter_init(slam_filter_t *f, const slam_filter_config_t *cfg, pose2_t pose0);
+
+/** fastslam_predict / ekfslam_predict. */
+coslam_status_t slam_filter_predict(slam_filter_t *f, odo_increment_t u);
+
+/** fastslam_update / ekfslam_update with one frame's landmark sightings. */
+coslam_status_t slam_filter_update(slam_filter_t *f, const sighting_t *z, int n);
+
+/** Pose estimate and covariance in the robot's map frame. */
+void slam_filter_pose(const slam_filter_t *f, pose2_t *pose, cov3_t *cov);
+
+/** The map estimate (confirmed landmarks, pose, covariances incl. cov_rel). */
+coslam_status_t slam_filter_export(slam_filter_t *f, map_estimate_t *out);
+
+/** merge_into_fastslam / merge_into_ekfslam of an incoming map already in
+ *  this robot's body frame (merge_transform_map). */
+coslam_status_t slam_filter_merge(slam_filter_t *f, const merge_body_map_t *bm, const merge_config_t *cfg,
+                                  merge_scratch_t *scratch, merge_stats_t *stats);
+
+/** "fastslam1", "fastslam2", "ekf", or "?" (static strings). */
+const char *slam_filter_kind_name(slam_filter_kind_t kind);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* COSLAM_APP_SLAM_FILTER_H */

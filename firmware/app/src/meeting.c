@@ -1,0 +1,389 @@
+#include "app/meeting.h"
+
+#include <math.h>
+#include <stddef.h>
+#include <string.h>
+
+meeting_config_t meeting_config_default(void)
+{
+    const slam_params_t p = slam_params_default();
+    meeting_config_t c;
+    c.robot_range_var_m2 = 0.05 * 0.05;
+    c.robot_bearing_var_rad2 = 0.035 * 0.035;
+    c.odo_xy_var_m2_per_m = p.noise.odo_xy_var_m2_per_m;
+    c.odo_theta_var_rad2_per_m = p.noise.odo_theta_var_rad2_per_m;
+    c.link_latency_us = 2000U;
+    c.pair_window_us = 300000U;
+    c.resend_period_us = 1000000U;
+    c.max_sends = 3U;
+    c.meeting_gap_us = 5000000U;
+    c.remerge_period_us = 60000000U;
+    c.peer_speed_mps = 0.3;
+    c.peer_turn_radps = 0.5;
+    c.max_range_m = 3.0;
+    c.merge = merge_config_default();
+    return c;
+}
+
+static int finite_nonneg(double v)
+{
+    return isfinite(v) && v >= 0.0;
+}
+
+coslam_status_t meeting_init(meeting_t *m, const meeting_config_t *cfg, uint8_t self_id, uint8_t n_robots)
+{
+    if (m == NULL || cfg == NULL || n_robots < 2U || n_robots > COSLAM_MAX_ROBOTS || self_id >= n_robots) {
+        return COSLAM_E_ARG;
+    }
+    if (!(isfinite(cfg->robot_range_var_m2) && cfg->robot_range_var_m2 > 0.0) ||
+        !(isfinite(cfg->robot_bearing_var_rad2) && cfg->robot_bearing_var_rad2 > 0.0) ||
+        !finite_nonneg(cfg->odo_xy_var_m2_per_m) || !finite_nonneg(cfg->odo_theta_var_rad2_per_m) ||
+        !finite_nonneg(cfg->peer_speed_mps) || !finite_nonneg(cfg->peer_turn_radps) || cfg->pair_window_us == 0U ||
+        !(isfinite(cfg->max_range_m) && cfg->max_range_m > 0.0)) {
+        return COSLAM_E_ARG;
+    }
+    memset(m, 0, sizeof *m);
+    m->cfg = *cfg;
+    m->self_id = self_id;
+    m->n_robots = n_robots;
+    merge_session_init(&m->session);
+    return COSLAM_OK;
+}
+
+/* Queue an event; a full queue overwrites the oldest (counted). */
+static meeting_event_t *push_event(meeting_t *m, meeting_event_kind_t kind, uint64_t now_us, uint8_t peer,
+                                   uint32_t seq, coslam_status_t status)
+{
+    if (m->ev_n == COSLAM_APP_EVENT_QUEUE) {
+        m->ev_head = (uint8_t)((m->ev_head + 1U) % COSLAM_APP_EVENT_QUEUE);
+        m->ev_n--;
+        m->ctr.events_dropped++;
+    }
+    const unsigned slot = (m->ev_head + m->ev_n) % COSLAM_APP_EVENT_QUEUE;
+    m->ev_n++;
+    meeting_event_t *ev = &m->ev[slot];
+    memset(ev, 0, sizeof *ev);
+    ev->kind = kind;
+    ev->stamp_us = now_us;
+    ev->peer = peer;
+    ev->seq = seq;
+    ev->status = status;
+    return ev;
+}
+
+coslam_status_t meeting_take_event(meeting_t *m, meeting_event_t *ev)
+{
+    if (m == NULL || ev == NULL) {
+        return COSLAM_E_ARG;
+    }
+    if (m->ev_n == 0U) {
+        return COSLAM_E_EMPTY;
+    }
+    *ev = m->ev[m->ev_head];
+    m->ev_head = (uint8_t)((m->ev_head + 1U) % COSLAM_APP_EVENT_QUEUE);
+    m->ev_n--;
+    return COSLAM_OK;
+}
+
+static const meeting_sighting_t *hist_at(const meeting_peer_t *p, unsigned age)
+{
+    /* age 0 = newest */
+    const unsigned idx = (p->head + COSLAM_APP_SIGHTING_HISTORY - 1U - age) % COSLAM_APP_SIGHTING_HISTORY;
+    return &p->hist[idx];
+}
+
+coslam_status_t meeting_last_sighting(const meeting_t *m, uint8_t peer, meeting_sighting_t *out)
+{
+    if (m == NULL || out == NULL || peer >= COSLAM_MAX_ROBOTS) {
+        return COSLAM_E_ARG;
+    }
+    const meeting_peer_t *p = &m->peer[peer];
+    if (p->n_hist == 0U) {
+        return COSLAM_E_EMPTY;
+    }
+    *out = *hist_at(p, 0U);
+    return COSLAM_OK;
+}
+
+int meeting_merged_all(const meeting_t *m)
+{
+    for (uint8_t k = 0; k < m->n_robots; ++k) {
+        if (k != m->self_id && !m->peer[k].merged) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+int meeting_acked_all(const meeting_t *m)
+{
+    for (uint8_t k = 0; k < m->n_robots; ++k) {
+        if (k != m->self_id && !m->peer[k].acked) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+const meeting_counters_t *meeting_counters(const meeting_t *m)
+{
+    return &m->ctr;
+}
+
+/* Export, encode and send the map to `peer`, with the sighting just made. */
+static coslam_status_t send_map(meeting_t *m, slam_filter_t *filter, hal_link_t *link, uint64_t now_us, uint8_t peer,
+                                const meeting_sighting_t *s)
+{
+    map_msg_t *msg = &m->tx;
+    map_msg_init(msg);
+    coslam_status_t st = slam_filter_export(filter, &msg->map);
+    if (st != COSLAM_OK && st != COSLAM_E_CAPACITY) {
+        m->ctr.send_failures++;
+        return st;
+    }
+    /* A robot that has not moved yet has a zero pose covariance, which the
+     * codec refuses: floor it (the merge does not use it). */
+    if (!cov3_is_pd(msg->map.pose_cov)) {
+        for (int i = 0; i < 3; ++i) {
+            msg->map.pose_cov.m[i][i] += 1e-9;
+        }
+    }
+    msg->sender_id = m->self_id;
+    msg->receiver_id = peer;
+    msg->seq = ++m->tx_seq;
+    msg->stamp_us = now_us;
+    msg->sighting.valid = true;
+    msg->sighting.range_m = s->range_m;
+    msg->sighting.bearing_rad = angle_wrap(s->bearing_rad);
+    msg->sighting.range_var_m2 = m->cfg.robot_range_var_m2;
+    msg->sighting.bearing_var_rad2 = m->cfg.robot_bearing_var_rad2;
+    msg->sighting.stamp_us = s->stamp_us;
+    size_t len = 0;
+    st = map_msg_encode(msg, m->wire, sizeof m->wire, &len);
+    if (st != COSLAM_OK) {
+        m->ctr.send_failures++;
+        return st;
+    }
+    if (hal_link_send(link, peer, m->wire, len, 0U) != HAL_OK) {
+        m->ctr.send_failures++;
+        return COSLAM_E_LINK;
+    }
+    m->ctr.sent++;
+    meeting_event_t *ev = push_event(m, MEETING_EV_SENT, now_us, peer, msg->seq, COSLAM_OK);
+    ev->n_landmarks = msg->map.n_landmarks;
+    return COSLAM_OK;
+}
+
+coslam_status_t meeting_on_sighting(meeting_t *m, slam_filter_t *filter, hal_link_t *link, uint64_t now_us,
+                                    uint8_t peer, double range_m, double bearing_rad, uint64_t stamp_us,
+                                    pose2_t odo_pose, double travel_m)
+{
+    if (m == NULL || filter == NULL || link == NULL || peer >= m->n_robots || peer == m->self_id ||
+        !isfinite(range_m) || !(range_m > 0.0) || !isfinite(bearing_rad) || !pose2_is_finite(odo_pose) ||
+        !isfinite(travel_m)) {
+        return COSLAM_E_ARG;
+    }
+    if (range_m > m->cfg.max_range_m) {
+        return COSLAM_OK;
+    }
+    meeting_peer_t *p = &m->peer[peer];
+    meeting_sighting_t *s = &p->hist[p->head];
+    s->stamp_us = stamp_us;
+    s->range_m = range_m;
+    s->bearing_rad = bearing_rad;
+    s->odo_pose = odo_pose;
+    s->travel_m = travel_m;
+    p->head = (uint8_t)((p->head + 1U) % COSLAM_APP_SIGHTING_HISTORY);
+    if (p->n_hist < COSLAM_APP_SIGHTING_HISTORY) {
+        p->n_hist++;
+    }
+    if (!p->in_meeting || stamp_us - p->last_seen_us > m->cfg.meeting_gap_us) {
+        p->in_meeting = 1U;
+        p->sends = 0U;
+    }
+    p->last_seen_us = stamp_us;
+    if (p->sends >= m->cfg.max_sends || (p->sends > 0U && now_us - p->last_sent_us < m->cfg.resend_period_us) ||
+        (p->acked && now_us - p->acked_at_us < m->cfg.remerge_period_us)) {
+        return COSLAM_OK;
+    }
+    p->sends++; /* a failed send still uses up its slot: no retry storm */
+    p->last_sent_us = now_us;
+    return send_map(m, filter, link, now_us, peer, s);
+}
+
+/* Screen one decoded message (in m->tx, used as decode scratch: sending
+ * only uses it inside send_map); an accepted one becomes the pending one. */
+static void accept_message(meeting_t *m, const hal_link_rx_info_t *info)
+{
+    const map_msg_t *msg = &m->tx;
+    const uint8_t from = msg->sender_id;
+    if ((msg->receiver_id != m->self_id && msg->receiver_id != MAP_MSG_BROADCAST) || from >= m->n_robots) {
+        m->ctr.not_for_me++;
+        return;
+    }
+    if (!msg->sighting.valid) {
+        m->ctr.not_for_me++;
+        push_event(m, MEETING_EV_REFUSED, info->stamp_us, from, msg->seq, COSLAM_E_DEGENERATE);
+        return;
+    }
+    meeting_peer_t *p = &m->peer[from];
+    /* implicit acknowledgement: does the sender hold our map already? */
+    const uint16_t own_bit = (uint16_t)(1U << m->self_id);
+    int holds_ours = 0;
+    for (uint16_t i = 0; i < msg->map.n_landmarks; ++i) {
+        if ((msg->map.lm[i].src_mask & own_bit) != 0U) {
+            holds_ours = 1;
+            break;
+        }
+    }
+    if (holds_ours) {
+        p->acked = 1U;
+        p->acked_at_us = info->stamp_us;
+    } else if (!(p->acked && info->stamp_us - p->acked_at_us < m->cfg.remerge_period_us)) {
+        p->sends = 0U; /* the sender sees us and still needs our map */
+    }
+    if (p->merged && info->stamp_us - p->merged_at_us < m->cfg.remerge_period_us) {
+        m->ctr.ignored_recent++;
+        return;
+    }
+    const coslam_status_t st = merge_session_accept(&m->session, from, msg->seq);
+    if (st != COSLAM_OK) {
+        m->ctr.replays++;
+        push_event(m, MEETING_EV_REFUSED, info->stamp_us, from, msg->seq, st);
+        return;
+    }
+    if (m->have_pending) {
+        m->ctr.pending_replaced++;
+    }
+    const uint64_t age_us = msg->stamp_us >= msg->sighting.stamp_us ? msg->stamp_us - msg->sighting.stamp_us : 0U;
+    const uint64_t back_us = age_us + m->cfg.link_latency_us;
+    m->rx = *msg;
+    m->have_pending = 1U;
+    m->pending_sender_us = info->stamp_us > back_us ? info->stamp_us - back_us : 0U;
+}
+
+static uint8_t peer_of(const hal_link_rx_info_t *info)
+{
+    return (uint8_t)(info->src_id < 0xFFU ? info->src_id : 0xFFU);
+}
+
+int meeting_poll_link(meeting_t *m, hal_link_t *link)
+{
+    if (m == NULL || link == NULL) {
+        return 0;
+    }
+    int taken = 0;
+    for (int i = 0; i < MEETING_RX_BUDGET; ++i) {
+        hal_link_rx_info_t info = {0U, 0xFFFFU, 0U};
+        const hal_status_t hs = hal_link_recv(link, m->wire, sizeof m->wire, &info, 0U);
+        if (hs == HAL_E_TIMEOUT || hs == HAL_E_UNSUPPORTED) {
+            break;
+        }
+        taken++;
+        m->ctr.received++;
+        if (hs != HAL_OK) {
+            /* too long for this build (a larger profile's map), or a link fault */
+            m->ctr.rx_errors++;
+            push_event(m, MEETING_EV_REFUSED, info.stamp_us, peer_of(&info), 0U,
+                       hs == HAL_E_OVERFLOW ? COSLAM_E_MSG_LENGTH : COSLAM_E_LINK);
+            if (hs != HAL_E_OVERFLOW) {
+                break;
+            }
+            continue;
+        }
+        const coslam_status_t st = map_msg_decode(m->wire, info.len, &m->tx);
+        if (st != COSLAM_OK) {
+            m->ctr.rx_errors++;
+            push_event(m, MEETING_EV_REFUSED, info.stamp_us, peer_of(&info), 0U, st);
+            continue;
+        }
+        accept_message(m, &info);
+    }
+    return taken;
+}
+
+static uint64_t abs_diff(uint64_t a, uint64_t b)
+{
+    return a > b ? a - b : b - a;
+}
+
+coslam_status_t meeting_poll(meeting_t *m, slam_filter_t *filter, uint64_t now_us, pose2_t odo_pose, double travel_m)
+{
+    if (m == NULL || filter == NULL) {
+        return COSLAM_E_ARG;
+    }
+    if (!m->have_pending) {
+        return COSLAM_OK;
+    }
+    const map_msg_t *msg = &m->rx;
+    const uint8_t from = msg->sender_id;
+    const meeting_peer_t *p = &m->peer[from];
+    const uint64_t t_s = m->pending_sender_us;
+    const meeting_sighting_t *best = NULL;
+    uint64_t best_dt = UINT64_MAX;
+    for (unsigned a = 0; a < p->n_hist; ++a) {
+        const meeting_sighting_t *s = hist_at(p, a);
+        const uint64_t dt = abs_diff(s->stamp_us, t_s);
+        if (dt < best_dt) {
+            best_dt = dt;
+            best = s;
+        }
+    }
+    if (best == NULL || best_dt > m->cfg.pair_window_us) {
+        if (now_us <= t_s + m->cfg.pair_window_us) {
+            return COSLAM_E_EMPTY; /* an own sighting may still come */
+        }
+        m->have_pending = 0U;
+        m->ctr.stale++;
+        meeting_event_t *ev = push_event(m, MEETING_EV_REFUSED, now_us, from, msg->seq, COSLAM_E_MERGE_STALE);
+        ev->n_landmarks = msg->map.n_landmarks;
+        ev->sender_sighting_us = t_s;
+        return COSLAM_E_MERGE_STALE;
+    }
+    m->have_pending = 0U;
+
+    /* 5. relative pose at the own sighting, moved to now */
+    const robot_sighting_t z_self = {best->range_m, best->bearing_rad, m->cfg.robot_range_var_m2,
+                                     m->cfg.robot_bearing_var_rad2};
+    const robot_sighting_t z_other = {msg->sighting.range_m, msg->sighting.bearing_rad, msg->sighting.range_var_m2,
+                                      msg->sighting.bearing_var_rad2};
+    pose2_t t;
+    cov3_t tc;
+    coslam_status_t st = merge_relative_pose(&z_self, &z_other, &t, &tc);
+    merge_stats_t stats;
+    memset(&stats, 0, sizeof stats);
+    if (st == COSLAM_OK) {
+        const pose2_t moved = pose2_between(best->odo_pose, odo_pose);
+        const odo_increment_t u = {moved.x, moved.y, moved.theta};
+        const double s_m = travel_m > best->travel_m ? travel_m - best->travel_m : 0.0;
+        const cov3_t u_cov =
+            cov3_diag(m->cfg.odo_xy_var_m2_per_m * s_m, m->cfg.odo_xy_var_m2_per_m * s_m, m->cfg.odo_theta_var_rad2_per_m * s_m);
+        const double dt_s = (double)best_dt * 1e-6;
+        const double dxy = m->cfg.peer_speed_mps * dt_s;
+        const double dth = m->cfg.peer_turn_radps * dt_s;
+        merge_compensate(&t, &tc, u, &u_cov, dxy * dxy);
+        tc.m[2][2] += dth * dth;
+        /* 6. the incoming map into the own body frame, then into the filter */
+        st = merge_transform_map(&msg->map, t, &tc, &m->cfg.merge, &m->body, &stats);
+        if (st == COSLAM_OK) {
+            st = slam_filter_merge(filter, &m->body, &m->cfg.merge, &m->scratch, &stats);
+        }
+    }
+    if (st != COSLAM_OK && st != COSLAM_E_CAPACITY) {
+        m->ctr.merge_failures++;
+        meeting_event_t *ev = push_event(m, MEETING_EV_REFUSED, now_us, from, msg->seq, st);
+        ev->n_landmarks = msg->map.n_landmarks;
+        return st;
+    }
+    m->ctr.merged++;
+    m->peer[from].merged = 1U;
+    m->peer[from].merged_at_us = now_us;
+    meeting_event_t *ev = push_event(m, MEETING_EV_MERGED, now_us, from, msg->seq, st);
+    ev->n_landmarks = msg->map.n_landmarks;
+    ev->own_sighting_us = best->stamp_us;
+    ev->sender_sighting_us = t_s;
+    ev->other_in_self = t;
+    ev->other_in_self_cov = tc;
+    ev->stats = stats;
+    return st;
+}

@@ -1,0 +1,455 @@
+#include "app/robot_node.h"
+
+#include <math.h>
+#include <stddef.h>
+#include <string.h>
+
+robot_node_config_t robot_node_config_default(uint8_t robot_id, uint8_t n_robots)
+{
+    robot_node_config_t c;
+    memset(&c, 0, sizeof c);
+    c.robot_id = robot_id;
+    c.n_robots = n_robots;
+    c.filter = slam_filter_config_default();
+    c.filter.robot_id = robot_id;
+    c.meeting = meeting_config_default();
+    c.behaviour = behaviour_config_default();
+    obstacle_params_default(&c.obstacle);
+    occ_grid_params_default(&c.grid);
+    c.grid_origin_m.x = -0.5 * COSLAM_GRID_CELLS_X * OCC_GRID_CELL_M;
+    c.grid_origin_m.y = -0.5 * COSLAM_GRID_CELLS_Y * OCC_GRID_CELL_M;
+    c.laser_in_robot.x = 0.12;
+    c.laser_in_robot.y = 0.0;
+    c.laser_in_robot.theta = 0.0;
+    c.laser_fov_rad = 140.0 * COSLAM_PI / 180.0;
+    urg_scip2_config_default(&c.urg);
+    c.drive = cia402_omni_config_default();
+    c.gpio.n_bumpers = 1U;
+    c.gpio.bumpers[0].line = 0U;
+    c.gpio.bumpers[0].active_low = false;
+    c.gpio.bumper_debounce_us = 5000U;
+    c.gpio.has_estop = true;
+    c.gpio.estop.line = 1U;
+    c.gpio.estop.active_low = true;
+    c.gpio.estop_release_us = 50000U;
+    c.gpio.n_leds = 1U;
+    c.gpio.leds[0].line = 2U;
+    c.gpio.leds[0].active_low = false;
+    c.status_led = 0U;
+    c.filter_period_us = 100000U;
+    c.scan_max_age_us = 300000U;
+    c.retry_period_us = 1000000U;
+    return c;
+}
+
+coslam_status_t robot_node_init(robot_node_t *n, const robot_node_config_t *cfg, const robot_node_io_t *io)
+{
+    if (n == NULL || cfg == NULL || io == NULL || io->clock == NULL || io->laser == NULL || io->can == NULL ||
+        io->gpio == NULL || io->link == NULL || io->sightings == NULL) {
+        return COSLAM_E_ARG;
+    }
+    if (cfg->n_robots < 2U || cfg->n_robots > COSLAM_MAX_ROBOTS || cfg->robot_id >= cfg->n_robots ||
+        cfg->filter_period_us == 0U || !pose2_is_finite(cfg->laser_in_robot) || !isfinite(cfg->laser_fov_rad) ||
+        !(cfg->laser_fov_rad > 0.0) || !isfinite(cfg->grid_origin_m.x) || !isfinite(cfg->grid_origin_m.y)) {
+        return COSLAM_E_ARG;
+    }
+    memset(n, 0, sizeof *n);
+    n->cfg = *cfg;
+    n->cfg.filter.robot_id = cfg->robot_id;
+    n->cfg.obstacle.cruise_speed_mps = cfg->behaviour.cruise_mps;
+    n->io = *io;
+    coslam_status_t st = urg_scip2_init(&n->urg, io->laser, &n->cfg.urg);
+    if (st == COSLAM_OK) {
+        st = cia402_omni_init(&n->drive, &n->cfg.drive, io->can);
+    }
+    if (st == COSLAM_OK) {
+        st = occ_grid_init(&n->grid, &n->cfg.grid, cfg->grid_origin_m.x, cfg->grid_origin_m.y);
+    }
+    if (st == COSLAM_OK) {
+        const pose2_t origin = {0.0, 0.0, 0.0};
+        st = slam_filter_init(&n->filter, &n->cfg.filter, origin);
+    }
+    if (st == COSLAM_OK) {
+        st = meeting_init(&n->meeting, &n->cfg.meeting, cfg->robot_id, cfg->n_robots);
+    }
+    if (st == COSLAM_OK) {
+        st = behaviour_init(&n->behaviour, &n->cfg.behaviour);
+    }
+    if (st != COSLAM_OK) {
+        return COSLAM_E_ARG;
+    }
+    if (cfg->gpio.n_bumpers > 0U || cfg->gpio.has_estop || cfg->gpio.n_leds > 0U) {
+        const hal_status_t hs = gpio_roles_init(&n->gpio, &n->cfg.gpio, io->gpio, io->clock);
+        if (hs == HAL_E_ARG) {
+            return COSLAM_E_ARG;
+        }
+        if (hs != HAL_OK) {
+            return COSLAM_E_UNSUPPORTED;
+        }
+        n->gpio_ok = 1;
+    }
+    n->state = ROBOT_NODE_LASER_UP;
+    return COSLAM_OK;
+}
+
+/* SCIP 2.0, parameters, then continuous scans over the configured field of view. */
+static coslam_status_t laser_connect(robot_node_t *n)
+{
+    coslam_status_t st = urg_scip2_enter_scip2(&n->urg);
+    if (st == COSLAM_OK) {
+        st = urg_scip2_read_params(&n->urg, NULL);
+    }
+    if (st != COSLAM_OK) {
+        return st;
+    }
+    const urg_scip2_params_t *p = urg_scip2_params(&n->urg);
+    const double half_steps = 0.5 * n->cfg.laser_fov_rad / (COSLAM_TWO_PI / (double)p->ares);
+    const uint32_t half = (uint32_t)fmin(half_steps, 4096.0);
+    const uint32_t first = p->afrt > p->amin + half ? p->afrt - half : p->amin;
+    const uint32_t last = p->afrt + half < p->amax ? p->afrt + half : p->amax;
+    return urg_scip2_start_md(&n->urg, (uint16_t)first, (uint16_t)last, 1U, 0U, 0U);
+}
+
+static void flush_prediction(robot_node_t *n)
+{
+    const odo_increment_t u = n->odo_pending;
+    if (u.dx != 0.0 || u.dy != 0.0 || u.dtheta != 0.0) {
+        if (slam_filter_predict(&n->filter, u) != COSLAM_OK) {
+            n->ctr.filter_errors++;
+        }
+    }
+    n->odo_pending.dx = 0.0;
+    n->odo_pending.dy = 0.0;
+    n->odo_pending.dtheta = 0.0;
+    n->last_predict_us = n->now_us;
+}
+
+static void take_odometry(robot_node_t *n)
+{
+    odo_increment_t u;
+    if (cia402_omni_take_odometry(&n->drive, &u, NULL) != COSLAM_OK) {
+        return;
+    }
+    if (!motion_is_finite(u)) {
+        n->ctr.odometry_errors++;
+        return;
+    }
+    n->odo_pose = motion_apply(n->odo_pose, u);
+    n->travel_m += motion_travel_m(u, n->cfg.filter.slam.base_radius_m);
+    n->odo_pending = omni_kinematics_compose(n->odo_pending, u);
+}
+
+/* One scan: occupancy grid at the SLAM pose; kept for the behaviour. */
+static void use_scan(robot_node_t *n)
+{
+    size_t np = 0;
+    if (urg_scip2_scan_polar(urg_scip2_params(&n->urg), &n->scan, URG_SCIP2_POLAR_CODE0_NO_RETURN, n->scan_range_m,
+                             n->scan_angle_rad, COSLAM_MAX_SCAN_POINTS, &np) != COSLAM_OK) {
+        n->ctr.scan_errors++;
+        return;
+    }
+    n->ctr.scans++;
+    pose2_t map_pose;
+    cov3_t cov;
+    slam_filter_pose(&n->filter, &map_pose, &cov);
+    const pose2_t sensor = pose2_compose(map_pose, n->cfg.laser_in_robot);
+    if (occ_grid_integrate_scan(&n->grid, sensor, n->scan_range_m, n->scan_angle_rad, np, NULL) == COSLAM_E_CAPACITY) {
+        n->ctr.grid_out_of_grid++;
+    }
+    n->scan_n_points = 0;
+    for (size_t i = 0; i < np; ++i) {
+        const double r = n->scan_range_m[i];
+        if (isfinite(r) && r > 0.0) {
+            const point2_t q = {r * cos(n->scan_angle_rad[i]), r * sin(n->scan_angle_rad[i])};
+            n->scan_points_m[n->scan_n_points++] = pose2_apply(n->cfg.laser_in_robot, q);
+        }
+    }
+    n->scan_n = np;
+    n->scan_us = n->now_us;
+    n->scan_heading_rad = n->odo_pose.theta;
+}
+
+/* Every scan that arrived since the last step (normally none or one). A
+ * failed read empties the scan buffer, so each good scan is converted at once
+ * (the polar arrays keep the last good one). */
+static void read_laser(robot_node_t *n)
+{
+    for (int i = 0; i < 4; ++i) {
+        const coslam_status_t st = urg_scip2_read_scan(&n->urg, &n->scan, 0U);
+        if (st == COSLAM_OK) {
+            use_scan(n);
+            continue;
+        }
+        if (st != COSLAM_E_URG_TIMEOUT && st != COSLAM_E_EMPTY) {
+            n->ctr.scan_errors++;
+        }
+        break;
+    }
+}
+
+static void read_sightings(robot_node_t *n)
+{
+    const hal_status_t hs = sighting_source_next_frame(n->io.sightings, &n->frame, 0U);
+    if (hs == HAL_E_TIMEOUT) {
+        return;
+    }
+    if (hs != HAL_OK) {
+        n->ctr.frame_errors++;
+        return;
+    }
+    n->ctr.frames++;
+    n->ctr.sightings_dropped += n->frame.dropped;
+    flush_prediction(n);
+    const int nz = n->frame.n_landmarks <= COSLAM_MAX_SIGHTINGS ? (int)n->frame.n_landmarks : COSLAM_MAX_SIGHTINGS;
+    const coslam_status_t st = slam_filter_update(&n->filter, n->frame.landmarks, nz);
+    if (st != COSLAM_OK && st != COSLAM_E_CAPACITY) {
+        n->ctr.filter_errors++;
+    }
+    const unsigned nr = n->frame.n_robots <= COSLAM_MAX_ROBOTS ? n->frame.n_robots : COSLAM_MAX_ROBOTS;
+    for (unsigned i = 0; i < nr; ++i) {
+        const robot_seen_t *r = &n->frame.robots[i];
+        if (r->robot_id >= n->cfg.n_robots || r->robot_id == n->cfg.robot_id) {
+            continue;
+        }
+        (void)meeting_on_sighting(&n->meeting, &n->filter, n->io.link, n->now_us, r->robot_id, r->range_m,
+                                  r->bearing_rad, n->frame.stamp_us, n->odo_pose, n->travel_m);
+    }
+}
+
+/* The peer to face: the nearest one in view, preferring peers not merged yet;
+ * its bearing moved to now with the own rotation since the sighting. */
+static int peer_in_view(const robot_node_t *n, double *bearing_now)
+{
+    const uint64_t timeout_us = (uint64_t)(n->cfg.behaviour.peer_timeout_s * 1e6);
+    double best_key = INFINITY;
+    int found = 0;
+    for (uint8_t k = 0; k < n->cfg.n_robots; ++k) {
+        meeting_sighting_t s;
+        if (k == n->cfg.robot_id || meeting_last_sighting(&n->meeting, k, &s) != COSLAM_OK ||
+            n->now_us - s.stamp_us > timeout_us) {
+            continue;
+        }
+        const double key = s.range_m + (n->meeting.peer[k].merged ? 1000.0 : 0.0);
+        if (key < best_key) {
+            best_key = key;
+            found = 1;
+            *bearing_now = angle_wrap(s.bearing_rad - angle_wrap(n->odo_pose.theta - s.odo_pose.theta));
+        }
+    }
+    return found;
+}
+
+static void update_gpio(robot_node_t *n, int *stop, int *bumped)
+{
+    *stop = 0;
+    *bumped = 0;
+    if (!n->gpio_ok) {
+        return;
+    }
+    (void)gpio_roles_update(&n->gpio, &n->gpio_status);
+    *stop = n->gpio_status.stop_requested ? 1 : 0;
+    if (n->gpio_status.bumpers_latched != 0U &&
+        (n->gpio_status.bumpers_latched & n->gpio_status.bumpers_pressed) == 0U) {
+        if (gpio_roles_bumper_ack(&n->gpio, GPIO_ROLES_ALL_BUMPERS) == HAL_OK) {
+            n->ctr.bumper_acks++;
+            *bumped = 1;
+        }
+    }
+}
+
+static void set_led(robot_node_t *n, int stop)
+{
+    if (!n->gpio_ok || n->cfg.gpio.n_leds == 0U) {
+        return;
+    }
+    gpio_roles_pattern_t pat = GPIO_ROLES_PATTERN_BLINK_SLOW;
+    if (n->state == ROBOT_NODE_RUN) {
+        pat = stop ? GPIO_ROLES_PATTERN_BLINK_FAST : GPIO_ROLES_PATTERN_HEARTBEAT;
+    } else if (n->state == ROBOT_NODE_FAULT) {
+        pat = GPIO_ROLES_PATTERN_BLINK_FAST;
+    }
+    (void)gpio_roles_led_set(&n->gpio, n->cfg.status_led, pat);
+}
+
+/* Bring-up, enable, fault handling. Returns the drive error worth reporting. */
+static coslam_status_t run_drive(robot_node_t *n)
+{
+    coslam_status_t result = COSLAM_OK;
+    if (!n->drive_started) {
+        if (cia402_omni_start(&n->drive, n->now_us) != COSLAM_OK) {
+            n->ctr.drive_errors++;
+            return COSLAM_E_DRIVE_BUS;
+        }
+        n->drive_started = 1;
+    }
+    const coslam_status_t st = cia402_omni_poll(&n->drive, n->now_us);
+    if (st == COSLAM_E_DRIVE_FAULT) {
+        if (n->state != ROBOT_NODE_FAULT) {
+            n->state = ROBOT_NODE_FAULT;
+            n->ctr.drive_faults++;
+            n->retry_at_us = n->now_us + n->cfg.retry_period_us;
+            result = st;
+        }
+    } else if (st != COSLAM_OK) {
+        n->ctr.drive_errors++;
+    }
+    if (n->state == ROBOT_NODE_FAULT && n->now_us >= n->retry_at_us) {
+        (void)cia402_omni_fault_reset(&n->drive, n->now_us);
+        n->state = ROBOT_NODE_DRIVE_UP;
+    }
+    if (n->state == ROBOT_NODE_DRIVE_UP && cia402_omni_is_running(&n->drive)) {
+        if (cia402_omni_is_enabled(&n->drive)) {
+            n->state = ROBOT_NODE_RUN;
+        } else {
+            (void)cia402_omni_enable(&n->drive, 1);
+        }
+    }
+    return result;
+}
+
+coslam_status_t robot_node_step(robot_node_t *n)
+{
+    if (n == NULL) {
+        return COSLAM_E_ARG;
+    }
+    uint64_t now;
+    if (hal_clock_now_us(n->io.clock, &now) != HAL_OK) {
+        return COSLAM_E_ARG;
+    }
+    n->now_us = now;
+    n->ctr.steps++;
+    coslam_status_t result = COSLAM_OK;
+    int stop = 0;
+    int bumped = 0;
+    update_gpio(n, &stop, &bumped);
+    if (stop) {
+        n->ctr.stop_steps++;
+    }
+
+    if (n->state == ROBOT_NODE_LASER_UP && now >= n->retry_at_us) {
+        const coslam_status_t st = laser_connect(n);
+        if (st == COSLAM_OK) {
+            n->state = ROBOT_NODE_DRIVE_UP;
+        } else {
+            n->ctr.laser_connect_failures++;
+            n->retry_at_us = now + n->cfg.retry_period_us;
+            result = st;
+        }
+    }
+    if (n->state != ROBOT_NODE_LASER_UP) {
+        const coslam_status_t st = run_drive(n);
+        if (result == COSLAM_OK) {
+            result = st;
+        }
+        take_odometry(n);
+        if (now - n->last_predict_us >= n->cfg.filter_period_us) {
+            flush_prediction(n);
+        }
+        read_laser(n);
+    }
+    read_sightings(n);
+    if (meeting_poll_link(&n->meeting, n->io.link) > 0 || n->meeting.have_pending) {
+        flush_prediction(n);
+        (void)meeting_poll(&n->meeting, &n->filter, now, n->odo_pose, n->travel_m);
+    }
+
+    n->cmd.vx_mps = 0.0;
+    n->cmd.vy_mps = 0.0;
+    n->cmd.w_radps = 0.0;
+    if (n->state == ROBOT_NODE_RUN) {
+        behaviour_input_t in;
+        memset(&in, 0, sizeof in);
+        in.now_us = now;
+        in.odo_pose = n->odo_pose;
+        cov3_t cov;
+        slam_filter_pose(&n->filter, &in.map_pose, &cov);
+        in.scan_ok = n->scan_n > 0U && now - n->scan_us <= n->cfg.scan_max_age_us;
+        in.scan.params = &n->cfg.obstacle;
+        in.scan.laser_in_robot = n->cfg.laser_in_robot;
+        in.scan.range_m = n->scan_range_m;
+        in.scan.angle_rad = n->scan_angle_rad;
+        in.scan.n = n->scan_n;
+        in.scan.stamp_us = n->scan_us;
+        in.scan.heading_rad = n->scan_heading_rad;
+        in.scan.points_m = n->scan_points_m;
+        in.scan.n_points = n->scan_n_points;
+        in.bumped = bumped;
+        in.peer_in_view = peer_in_view(n, &in.peer_bearing_rad);
+        in.merged_all = meeting_merged_all(&n->meeting);
+        in.acked_all = meeting_acked_all(&n->meeting);
+        (void)behaviour_step(&n->behaviour, &in, &n->cmd);
+        if (stop) {
+            n->cmd.vx_mps = 0.0;
+            n->cmd.vy_mps = 0.0;
+            n->cmd.w_radps = 0.0;
+        }
+        const coslam_status_t st =
+            cia402_omni_set_body_velocity(&n->drive, n->cmd.vx_mps, n->cmd.vy_mps, n->cmd.w_radps);
+        if (st != COSLAM_OK) {
+            n->ctr.drive_errors++;
+        }
+    }
+    set_led(n, stop);
+    return result;
+}
+
+robot_node_state_t robot_node_state(const robot_node_t *n)
+{
+    return n->state;
+}
+
+void robot_node_pose(const robot_node_t *n, pose2_t *pose, cov3_t *cov)
+{
+    slam_filter_pose(&n->filter, pose, cov);
+}
+
+void robot_node_odometry(const robot_node_t *n, pose2_t *pose, double *travel_m)
+{
+    if (pose != NULL) {
+        *pose = n->odo_pose;
+    }
+    if (travel_m != NULL) {
+        *travel_m = n->travel_m;
+    }
+}
+
+coslam_status_t robot_node_export(robot_node_t *n, map_estimate_t *out)
+{
+    if (n == NULL || out == NULL) {
+        return COSLAM_E_ARG;
+    }
+    return slam_filter_export(&n->filter, out);
+}
+
+coslam_status_t robot_node_take_event(robot_node_t *n, meeting_event_t *ev)
+{
+    if (n == NULL) {
+        return COSLAM_E_ARG;
+    }
+    return meeting_take_event(&n->meeting, ev);
+}
+
+const occ_grid_t *robot_node_grid(const robot_node_t *n)
+{
+    return &n->grid;
+}
+
+behaviour_mode_t robot_node_mode(const robot_node_t *n)
+{
+    return n->behaviour.mode;
+}
+
+const robot_node_counters_t *robot_node_counters(const robot_node_t *n)
+{
+    return &n->ctr;
+}
+
+const meeting_counters_t *robot_node_meeting_counters(const robot_node_t *n)
+{
+    return &n->meeting.ctr;
+}
+
+const urg_scip2_stats_t *robot_node_laser_stats(const robot_node_t *n)
+{
+    return urg_scip2_stats(&n->urg);
+}

@@ -1,0 +1,300 @@
+#include "run_output.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <sstream>
+#include <stdexcept>
+
+#include "coslam/occ_grid.h"
+
+namespace coslam::sim {
+
+namespace {
+
+constexpr double kRad2Deg = 180.0 / COSLAM_PI;
+
+std::ofstream open_out(const std::string &dir, const std::string &name)
+{
+    std::ofstream f(dir + "/" + name);
+    if (!f) throw std::runtime_error("cannot write " + dir + "/" + name);
+    f << std::setprecision(9);
+    return f;
+}
+
+void write_tum(const std::string &dir, const std::string &name, const std::vector<std::pair<double, pose2_t>> &path,
+               const pose2_t *frame)
+{
+    std::ofstream f = open_out(dir, name);
+    f << "# TUM trajectory, world frame: t x y z qx qy qz qw\n";
+    for (const auto &s : path) {
+        const pose2_t p = frame ? pose2_compose(*frame, s.second) : s.second;
+        f << s.first << ' ' << p.x << ' ' << p.y << " 0 0 0 " << std::sin(0.5 * p.theta) << ' '
+          << std::cos(0.5 * p.theta) << '\n';
+    }
+}
+
+map_landmark_t to_world(const pose2_t &start, const map_landmark_t &l)
+{
+    map_landmark_t w = l;
+    w.mean = pose2_apply(start, l.mean);
+    const double c = std::cos(start.theta), s = std::sin(start.theta);
+    double r[2][2] = {{c, -s}, {s, c}};
+    w.cov = cov2_congruence(r, l.cov);
+    return w;
+}
+
+void write_map(const std::string &dir, const std::string &name, const pose2_t &start, const MapSnapshot &m)
+{
+    std::ofstream f = open_out(dir, name);
+    f << "id,x,y,cxx,cxy,cyy,signature,n_obs,src_mask,truth_id\n";
+    for (size_t i = 0; i < m.landmarks.size(); ++i) {
+        const map_landmark_t w = to_world(start, m.landmarks[i]);
+        f << w.id << ',' << w.mean.x << ',' << w.mean.y << ',' << w.cov.xx << ',' << w.cov.xy << ',' << w.cov.yy << ','
+          << static_cast<int>(w.signature) << ',' << w.n_obs << ',' << w.src_mask << ','
+          << (i < static_cast<size_t>(COSLAM_MAX_MSG_LANDMARKS) ? m.eval.match[i] : -1) << '\n';
+    }
+}
+
+// Occupancy grid as an 8-bit PGM: white free, black occupied, grey unknown;
+// row 0 is the top (largest y) of the robot's map frame.
+void write_grid(const std::string &dir, const std::string &name, const occ_grid_t &g)
+{
+    std::ofstream f(dir + "/" + name, std::ios::binary);
+    if (!f) throw std::runtime_error("cannot write " + dir + "/" + name);
+    f << "P5\n" << COSLAM_GRID_CELLS_X << ' ' << COSLAM_GRID_CELLS_Y << "\n255\n";
+    for (int iy = COSLAM_GRID_CELLS_Y - 1; iy >= 0; --iy) {
+        for (int ix = 0; ix < COSLAM_GRID_CELLS_X; ++ix) {
+            const double p = occ_grid_prob(&g, ix, iy);
+            f.put(static_cast<char>(static_cast<unsigned char>(std::lround(255.0 * (1.0 - p)))));
+        }
+    }
+}
+
+nlohmann::json eval_json(const MapSnapshot &m)
+{
+    if (!m.valid) return nullptr;
+    return {{"t_s", m.t_s},
+            {"n_estimated", m.eval.n_estimated},
+            {"n_matched", m.eval.n_matched},
+            {"n_missed", m.eval.n_missed},
+            {"n_spurious", m.eval.n_spurious},
+            {"rmse_m", m.eval.n_matched > 0 ? m.eval.rmse_m : 0.0},
+            {"max_err_m", m.eval.n_matched > 0 ? m.eval.max_err_m : 0.0},
+            {"nees_mean", std::isfinite(m.eval.nees_mean) ? nlohmann::json(m.eval.nees_mean) : nlohmann::json(nullptr)}};
+}
+
+nlohmann::json merge_json(const MergeRecord &m)
+{
+    nlohmann::json j = {{"t_s", m.t_s},
+                        {"robot", m.robot},
+                        {"peer", m.peer},
+                        {"seq", m.seq},
+                        {"status", coslam_status_str(m.status)},
+                        {"n_landmarks_in", m.n_landmarks_in}};
+    if (m.kind == MEETING_EV_MERGED) {
+        j["dt_sightings_ms"] = m.dt_sightings_ms;
+        j["transform_est"] = {m.other_in_self.x, m.other_in_self.y, m.other_in_self.theta};
+        j["transform_true"] = {m.other_in_self_true.x, m.other_in_self_true.y, m.other_in_self_true.theta};
+        j["transform_err_m"] = m.transform_err_m;
+        j["transform_err_deg"] = m.transform_err_rad * kRad2Deg;
+        j["transform_nees"] = std::isfinite(m.transform_nees) ? nlohmann::json(m.transform_nees) : nlohmann::json(nullptr);
+        j["fused"] = m.stats.fused;
+        j["fused_ci"] = m.stats.fused_ci;
+        j["added"] = m.stats.added;
+        j["capacity_drops"] = m.stats.capacity_drops;
+        j["map_before"] = eval_json(m.before);
+        j["map_after"] = eval_json(m.after);
+    }
+    return j;
+}
+
+}  // namespace
+
+nlohmann::json run_metrics(const Simulation &sim)
+{
+    const SimulationResult &r = sim.result();
+    const Scenario &sc = sim.scenario();
+    nlohmann::json j;
+    j["scenario"] = {{"name", sc.name}, {"source", sc.source}, {"seed", sim.seed()}, {"duration_s", r.sim_s},
+                     {"n_landmarks", sim.world().landmarks().size()}};
+    j["timing"] = {{"sim_s", r.sim_s},
+                   {"wall_s", r.wall_s},
+                   {"realtime_factor", r.wall_s > 0.0 ? r.sim_s / r.wall_s : 0.0},
+                   {"physics_dt_ms", sc.physics_dt_ms},
+                   {"control_period_ms", sc.control_period_ms}};
+    int seen = 0;
+    for (int d : r.team_detections) seen += d >= sc.evaluation.min_seen ? 1 : 0;
+    j["landmarks_seen_by_team"] = seen;
+    j["robots"] = nlohmann::json::array();
+    for (size_t k = 0; k < r.robots.size(); ++k) {
+        const RobotRecord &rr = r.robots[k];
+        const occ_grid_t *g = robot_node_grid(&sim.node(k));
+        nlohmann::json rj = {
+            {"name", rr.name},
+            {"id", rr.id},
+            {"filter", slam_filter_kind_name(rr.filter)},
+            {"particles", rr.particles},
+            {"start", {rr.start.x, rr.start.y, rr.start.theta}},
+            {"distance_m", rr.distance_m},
+            {"pose_rmse_m", {{"all", rr.pose_rmse_m}, {"before_merge", rr.pose_rmse_before_merge_m},
+                             {"after_merge", rr.pose_rmse_after_merge_m}}},
+            {"heading_rmse_deg", rr.heading_rmse_rad * kRad2Deg},
+            {"first_merge_s", rr.first_merge_s},
+            {"map", {{"pre_merge", eval_json(rr.pre_merge)}, {"post_merge", eval_json(rr.post_merge)},
+                     {"final", eval_json(rr.final_map)}}},
+            {"wall_collisions", rr.wall_collisions},
+            {"robot_collisions", rr.robot_collisions},
+            {"min_wall_clearance_m", rr.min_wall_clearance_m},
+            {"avoid_turns", rr.avoid_turns},
+            {"final_mode", behaviour_mode_name(rr.final_mode)},
+            {"grid", {{"file", "robot" + std::to_string(k) + "_grid.pgm"}, {"frame", "map"},
+                      {"origin_x_m", g->origin_x_m}, {"origin_y_m", g->origin_y_m}, {"cell_m", OCC_GRID_CELL_M},
+                      {"cells_x", COSLAM_GRID_CELLS_X}, {"cells_y", COSLAM_GRID_CELLS_Y}}},
+            {"node", {{"steps", rr.node.steps}, {"scans", rr.node.scans}, {"scan_errors", rr.node.scan_errors},
+                      {"frames", rr.node.frames}, {"filter_errors", rr.node.filter_errors},
+                      {"drive_faults", rr.node.drive_faults}, {"drive_errors", rr.node.drive_errors},
+                      {"stop_steps", rr.node.stop_steps}, {"bumper_acks", rr.node.bumper_acks},
+                      {"grid_out_of_grid", rr.node.grid_out_of_grid}}},
+            {"meeting", {{"sent", rr.meeting.sent}, {"send_failures", rr.meeting.send_failures},
+                         {"received", rr.meeting.received}, {"rx_errors", rr.meeting.rx_errors},
+                         {"ignored_recent", rr.meeting.ignored_recent}, {"replays", rr.meeting.replays},
+                         {"stale", rr.meeting.stale}, {"merged", rr.meeting.merged},
+                         {"merge_failures", rr.meeting.merge_failures}}},
+            {"laser", {{"scans_ok", rr.laser.scans_ok}, {"err_checksum", rr.laser.err_checksum},
+                       {"err_line", rr.laser.err_line}, {"err_timeout", rr.laser.err_timeout}}},
+        };
+        j["robots"].push_back(rj);
+    }
+    j["merges"] = nlohmann::json::array();
+    for (const auto &m : r.merges) j["merges"].push_back(merge_json(m));
+    j["refusals"] = nlohmann::json::array();
+    for (const auto &m : r.refusals) j["refusals"].push_back(merge_json(m));
+    return j;
+}
+
+void write_run_outputs(const Simulation &sim, const std::string &dir)
+{
+    std::filesystem::create_directories(dir);
+    const SimulationResult &r = sim.result();
+    for (size_t k = 0; k < r.robots.size(); ++k) {
+        const RobotRecord &rr = r.robots[k];
+        const std::string p = "robot" + std::to_string(k);
+        write_tum(dir, p + "_path.tum", rr.est_path, &rr.start);
+        write_tum(dir, p + "_truth_path.tum", rr.truth_path, nullptr);
+        write_map(dir, p + "_map.csv", rr.start, rr.final_map);
+        if (rr.pre_merge.valid) write_map(dir, p + "_map_premerge.csv", rr.start, rr.pre_merge);
+        if (rr.post_merge.valid) write_map(dir, p + "_map_postmerge.csv", rr.start, rr.post_merge);
+        std::ofstream e = open_out(dir, p + "_errors.csv");
+        e << "t,pos_err_m,heading_err_deg,map_rmse_m,map_max_err_m,n_est,n_matched,n_missed,n_spurious\n";
+        for (const auto &s : rr.errors) {
+            e << s.t_s << ',' << s.pos_err_m << ',' << s.heading_err_rad * kRad2Deg << ',' << s.map_rmse_m << ','
+              << s.map_max_err_m << ',' << s.n_est << ',' << s.n_matched << ',' << s.n_missed << ',' << s.n_spurious
+              << '\n';
+        }
+        write_grid(dir, p + "_grid.pgm", *robot_node_grid(&sim.node(k)));
+    }
+    {
+        std::ofstream f = open_out(dir, "truth_map.csv");
+        f << "id,x,y,signature,detections\n";
+        for (const auto &l : sim.world().landmarks()) {
+            f << l.id << ',' << l.p.x() << ',' << l.p.y() << ',' << static_cast<int>(l.signature) << ','
+              << r.team_detections[static_cast<size_t>(l.id)] << '\n';
+        }
+    }
+    {
+        std::ofstream f = open_out(dir, "merge_events.csv");
+        f << "t,robot,peer,seq,status,n_in,fused,fused_ci,added,transform_err_m,transform_err_deg,dt_sightings_ms\n";
+        for (const auto &m : r.merges) {
+            f << m.t_s << ',' << m.robot << ',' << m.peer << ',' << m.seq << ',' << coslam_status_str(m.status) << ','
+              << m.n_landmarks_in << ',' << m.stats.fused << ',' << m.stats.fused_ci << ',' << m.stats.added << ','
+              << m.transform_err_m << ',' << m.transform_err_rad * kRad2Deg << ',' << m.dt_sightings_ms << '\n';
+        }
+    }
+    {
+        nlohmann::json w;
+        w["walls"] = nlohmann::json::array();
+        for (const auto &s : sim.world().walls()) w["walls"].push_back({s.a.x(), s.a.y(), s.b.x(), s.b.y()});
+        w["pillars"] = nlohmann::json::array();
+        for (const auto &p : sim.world().pillars()) w["pillars"].push_back({p.c.x(), p.c.y(), p.r});
+        w["robots"] = nlohmann::json::array();
+        for (size_t k = 0; k < r.robots.size(); ++k) {
+            w["robots"].push_back({{"name", r.robots[k].name},
+                                   {"filter", slam_filter_kind_name(r.robots[k].filter)},
+                                   {"start", {r.robots[k].start.x, r.robots[k].start.y, r.robots[k].start.theta}},
+                                   {"radius_m", sim.scenario().robots[k].radius_m}});
+        }
+        std::ofstream f = open_out(dir, "world.json");
+        f << w.dump(1) << '\n';
+    }
+    std::ofstream f = open_out(dir, "metrics.json");
+    f << run_metrics(sim).dump(2) << '\n';
+}
+
+std::string run_summary(const Simulation &sim, const std::string &out_dir)
+{
+    const SimulationResult &r = sim.result();
+    const Scenario &sc = sim.scenario();
+    std::ostringstream s;
+    s << std::fixed;
+    int seen = 0;
+    for (int d : r.team_detections) seen += d >= sc.evaluation.min_seen ? 1 : 0;
+    s << "coslam-sim: scenario '" << sc.name << "', seed " << sim.seed() << ", " << std::setprecision(0) << r.sim_s
+      << " s simulated in " << std::setprecision(2) << r.wall_s << " s (x" << std::setprecision(0)
+      << (r.wall_s > 0.0 ? r.sim_s / r.wall_s : 0.0) << " real time)\n";
+    s << "  landmarks: " << sim.world().landmarks().size() << " in the world, " << seen << " seen by the team (>= "
+      << sc.evaluation.min_seen << " detections)\n";
+    s << std::setprecision(3);
+    s << "  per robot: pose RMSE before / after its first merge; maps as known/missed/spurious landmarks and\n"
+         "  the RMSE of the known ones (missed = seen by the team, not in this map), from its own map frame\n";
+    char line[256];
+    std::snprintf(line, sizeof line, "  %-8s %-14s %15s   %-19s %-19s %-19s%s\n", "robot", "filter", "pose RMSE [m]",
+                  "map before merge", "map after merge", "map at the end", "collisions");
+    s << line;
+    std::snprintf(line, sizeof line, "  %-8s %-14s %7s %7s   %-19s %-19s %-19s%s\n", "", "", "before", "after", "", "",
+                  "", "wall robot");
+    s << line;
+    auto mapcol = [](const MapSnapshot &m) {
+        char c[64];
+        if (!m.valid) {
+            std::snprintf(c, sizeof c, "%-19s", "-");
+        } else {
+            std::snprintf(c, sizeof c, "%2d/%2d/%-2d %6.3f m  ", m.eval.n_matched, m.eval.n_missed, m.eval.n_spurious,
+                          m.eval.n_matched > 0 ? m.eval.rmse_m : 0.0);
+        }
+        return std::string(c);
+    };
+    for (const auto &rr : r.robots) {
+        const std::string filt = std::string(slam_filter_kind_name(rr.filter)) +
+                                 (rr.particles > 0 ? "/" + std::to_string(rr.particles) : std::string());
+        std::snprintf(line, sizeof line, "  %-8s %-14s %7.3f %7.3f   ", rr.name.c_str(), filt.c_str(),
+                      rr.pose_rmse_before_merge_m, rr.pose_rmse_after_merge_m);
+        s << line << mapcol(rr.pre_merge) << " " << mapcol(rr.post_merge) << " " << mapcol(rr.final_map);
+        std::snprintf(line, sizeof line, " %4u %5u\n", rr.wall_collisions, rr.robot_collisions);
+        s << line;
+    }
+    if (r.merges.empty()) {
+        s << "  merges: none\n";
+    }
+    for (const auto &m : r.merges) {
+        // Fast-SLAM merges into every particle: report per particle
+        const uint32_t per = static_cast<uint32_t>(std::max(1, r.robots[static_cast<size_t>(m.robot)].particles));
+        s << "  merge t=" << std::setprecision(1) << m.t_s << " s: " << r.robots[static_cast<size_t>(m.robot)].name
+          << " <- " << r.robots[static_cast<size_t>(m.peer)].name << " (" << m.n_landmarks_in << " landmarks: "
+          << m.stats.fused / per << " fused, " << m.stats.added / per << " added"
+          << (m.stats.fused_ci ? ", " + std::to_string(m.stats.fused_ci / per) + " by CI" : std::string())
+          << "), transform error " << std::setprecision(3) << m.transform_err_m << " m / " << std::setprecision(2)
+          << m.transform_err_rad * kRad2Deg << " deg, sightings " << std::setprecision(0) << m.dt_sightings_ms
+          << " ms apart\n";
+    }
+    if (!r.refusals.empty()) {
+        s << "  refused messages: " << r.refusals.size() << " (see metrics.json)\n";
+    }
+    s << "  outputs: " << out_dir << "/ (metrics.json, robot<k>_path.tum, robot<k>_map.csv, merge_events.csv, ...)";
+    return s.str();
+}
+
+}  // namespace coslam::sim

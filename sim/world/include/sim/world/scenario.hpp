@@ -1,0 +1,164 @@
+// sim/world/scenario.hpp - a simulation scenario: the world, the robots
+// (filter, particles, noise, start pose), sensors, link, behaviour, meeting
+// protocol, duration and seed; read from a TOML file (toml++). The format is
+// documented in docs/sim.md; sim/scenarios/paper.toml is the default.
+//
+// Loading checks every key: an unknown key (a typo), a wrong type or a value
+// outside its domain throws ScenarioError naming the key, so a scenario
+// never runs with a silently ignored setting.
+#ifndef COSLAM_SIM_WORLD_SCENARIO_HPP
+#define COSLAM_SIM_WORLD_SCENARIO_HPP
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "app/slam_filter.h"
+#include "coslam/pose2.h"
+
+namespace coslam::sim {
+
+struct ScenarioError : std::runtime_error {
+    using std::runtime_error::runtime_error;
+};
+
+struct BoxSpec {
+    Eigen::Vector2d center{0, 0};
+    Eigen::Vector2d size{1, 1};
+    double angle_deg = 0.0;
+};
+struct PillarSpec {
+    Eigen::Vector2d center{0, 0};
+    double radius_m = 0.1;
+};
+struct WallSpec {
+    Eigen::Vector2d from{0, 0}, to{1, 0};
+};
+struct LandmarkSpec {
+    Eigen::Vector2d pos{0, 0};
+    int signature = 0;
+};
+
+struct WorldSpec {
+    std::vector<Eigen::Vector2d> arena;   ///< closed polygon (may be empty)
+    std::vector<BoxSpec> boxes;
+    std::vector<PillarSpec> pillars;
+    std::vector<WallSpec> walls;
+    std::vector<LandmarkSpec> landmarks;
+};
+
+struct CameraSpec {               ///< the sighting stand-in (truth side)
+    double period_ms = 200.0;
+    double fov_deg = 50.0;
+    double min_range_m = 0.3;
+    double max_range_m = 5.0;
+    double p_detect = 0.9;
+    double range_sd_m = 0.02;
+    double range_sd_rel = 0.03;
+    double bearing_sd_deg = 2.0;
+    double robot_p_detect = 0.9;
+    double robot_range_sd_m = 0.05;
+    double robot_bearing_sd_deg = 2.0;
+};
+
+struct LaserSpec {
+    double fov_deg = 140.0;               ///< requested by the robot app (MD steps)
+    pose2_t mount{0.12, 0.0, 0.0};        ///< robot frame (heading in rad after loading)
+    double noise_sd_m = 0.01;             ///< URG emulator: sd = max(noise_sd_m, noise_rel * r)
+    double noise_rel = 0.01;
+};
+
+struct LinkSpec {
+    double range_m = 10.0;
+    double latency_ms = 2.0;
+    double jitter_ms = 0.0;
+    double loss = 0.0;
+};
+
+struct TruthNoiseSpec {                   ///< injected into the simulated world
+    double odo_xy_sd_m = 0.02;            ///< per sqrt(m) of wheel travel (Gaussian slip of the floor contact)
+    double odo_theta_sd_deg = 1.0;        ///< per sqrt(m)
+    double wheel_slip_sd = 0.0;           ///< drive emulators: relative slip per physics step
+};
+
+struct FilterNoiseSpec {                  ///< assumed by the filter; unset = the truth values
+    std::optional<double> range_sd_m, range_sd_rel, bearing_sd_deg;
+    std::optional<double> odo_xy_sd_m, odo_theta_sd_deg;
+    std::optional<double> init_xy_sd_m, init_theta_sd_deg, lm_init_sd_m;
+    std::optional<double> robot_range_sd_m, robot_bearing_sd_deg;
+};
+
+struct BehaviourSpec {
+    double explore_s = 90.0;
+    double cruise_mps = 0.2;
+    double max_turn_dps = 45.0;
+    double seek_turn_dps = 23.0;
+    double linger_s = 3.0;
+    double goal_tol_m = 0.25;
+    double bypass_s = 1.0;
+};
+
+struct MeetingSpec {
+    double pair_window_ms = 300.0;
+    double resend_s = 1.0;
+    int max_sends = 3;
+    double meeting_gap_s = 5.0;
+    double remerge_s = 60.0;
+    double peer_speed_mps = 0.3;
+    double peer_turn_dps = 30.0;
+    double max_range_m = 3.0;             ///< robot sightings beyond this start no meeting
+    bool transform_uncertainty = true;    ///< false: the paper's eq. 3 (rotation only)
+    double gate_chi2 = 9.21;
+};
+
+struct RobotSpec {
+    std::string name;
+    pose2_t start{0, 0, 0};               ///< world frame (heading in rad after loading)
+    slam_filter_kind_t filter = SLAM_FILTER_FASTSLAM2;
+    int particles = 100;
+    double radius_m = 0.19;
+    TruthNoiseSpec noise;
+    FilterNoiseSpec filter_noise;
+    std::optional<double> explore_s;      ///< overrides behaviour.explore_s
+};
+
+struct EvaluationSpec {
+    double gate_m = 1.0;                  ///< estimate-truth pairs farther apart are not matched
+    int min_seen = 5;                     ///< a true landmark counts as missed if detected at least this often
+};
+
+struct Scenario {
+    std::string name = "unnamed";
+    std::string description;
+    std::string source;                   ///< file it came from ("" for a string)
+    double duration_s = 60.0;
+    uint64_t seed = 1;
+    double physics_dt_ms = 1.0;
+    double control_period_ms = 10.0;
+    double sample_period_s = 0.5;         ///< errors over time
+    double path_period_s = 0.1;           ///< TUM paths
+    WorldSpec world;
+    CameraSpec camera;
+    LaserSpec laser;
+    LinkSpec link;
+    TruthNoiseSpec noise;                 ///< default for every robot
+    BehaviourSpec behaviour;
+    MeetingSpec meeting;
+    EvaluationSpec evaluation;
+    std::vector<RobotSpec> robots;
+};
+
+/// Parse a scenario from TOML text; `source` names it in error messages.
+Scenario load_scenario_string(const std::string &toml_text, const std::string &source = "<string>");
+/// Parse a scenario file.
+Scenario load_scenario_file(const std::string &path);
+
+/// Parse "fastslam1" | "fastslam2" | "ekf"; throws ScenarioError otherwise.
+slam_filter_kind_t parse_filter_kind(const std::string &s);
+
+}  // namespace coslam::sim
+
+#endif

@@ -1,0 +1,428 @@
+#include "sim/world/scenario.hpp"
+
+#include <cmath>
+#include <fstream>
+#include <set>
+#include <sstream>
+#include <toml++/toml.h>
+
+namespace coslam::sim {
+
+namespace {
+
+constexpr double kDeg = COSLAM_PI / 180.0;
+
+// Reads the keys of one table and rejects the ones nobody asked for.
+class Reader {
+public:
+    Reader(const toml::table &t, std::string path) : t_(t), path_(std::move(path)) {}
+
+    [[noreturn]] void fail(const std::string &key, const std::string &what) const
+    {
+        throw ScenarioError(where(key) + ": " + what);
+    }
+
+    std::string where(const std::string &key) const { return path_.empty() ? key : path_ + "." + key; }
+
+    const toml::node *get(const std::string &key)
+    {
+        used_.insert(key);
+        return t_.get(key);
+    }
+
+    void num(const std::string &key, double &out, double lo = -INFINITY, double hi = INFINITY)
+    {
+        const toml::node *n = get(key);
+        if (n == nullptr) return;
+        const auto v = n->value<double>();
+        if (!v || !n->is_number()) fail(key, "expected a number");
+        if (!std::isfinite(*v) || *v < lo || *v > hi) {
+            std::ostringstream s;
+            s << "value " << *v << " outside [" << lo << ", " << hi << "]";
+            fail(key, s.str());
+        }
+        out = *v;
+    }
+    void num(const std::string &key, std::optional<double> &out, double lo = -INFINITY, double hi = INFINITY)
+    {
+        if (t_.get(key) == nullptr) {
+            used_.insert(key);
+            return;
+        }
+        double v = 0.0;
+        num(key, v, lo, hi);
+        out = v;
+    }
+    void integer(const std::string &key, int &out, int lo, int hi)
+    {
+        const toml::node *n = get(key);
+        if (n == nullptr) return;
+        const auto v = n->value<int64_t>();
+        if (!v || !n->is_integer()) fail(key, "expected an integer");
+        if (*v < lo || *v > hi) fail(key, "value " + std::to_string(*v) + " outside [" + std::to_string(lo) + ", " +
+                                              std::to_string(hi) + "]");
+        out = static_cast<int>(*v);
+    }
+    void u64(const std::string &key, uint64_t &out)
+    {
+        const toml::node *n = get(key);
+        if (n == nullptr) return;
+        const auto v = n->value<int64_t>();
+        if (!v || !n->is_integer() || *v < 0) fail(key, "expected a non-negative integer");
+        out = static_cast<uint64_t>(*v);
+    }
+    void boolean(const std::string &key, bool &out)
+    {
+        const toml::node *n = get(key);
+        if (n == nullptr) return;
+        const auto v = n->value<bool>();
+        if (!v || !n->is_boolean()) fail(key, "expected true or false");
+        out = *v;
+    }
+    void str(const std::string &key, std::string &out)
+    {
+        const toml::node *n = get(key);
+        if (n == nullptr) return;
+        const auto v = n->value<std::string>();
+        if (!v || !n->is_string()) fail(key, "expected a string");
+        out = *v;
+    }
+    std::vector<double> numbers(const toml::node &n, const std::string &key, size_t count)
+    {
+        const toml::array *a = n.as_array();
+        if (a == nullptr || a->size() != count) fail(key, "expected an array of " + std::to_string(count) + " numbers");
+        std::vector<double> v;
+        for (const auto &e : *a) {
+            const auto x = e.value<double>();
+            if (!x || !e.is_number() || !std::isfinite(*x)) fail(key, "expected finite numbers");
+            v.push_back(*x);
+        }
+        return v;
+    }
+    void vec2(const std::string &key, Eigen::Vector2d &out)
+    {
+        const toml::node *n = get(key);
+        if (n == nullptr) return;
+        const auto v = numbers(*n, key, 2);
+        out = Eigen::Vector2d(v[0], v[1]);
+    }
+    /// [x, y, heading_deg] -> pose with heading in rad.
+    void pose_deg(const std::string &key, pose2_t &out)
+    {
+        const toml::node *n = get(key);
+        if (n == nullptr) return;
+        const auto v = numbers(*n, key, 3);
+        out = pose2_t{v[0], v[1], angle_wrap(v[2] * kDeg)};
+    }
+    const toml::table *table(const std::string &key)
+    {
+        const toml::node *n = get(key);
+        if (n == nullptr) return nullptr;
+        if (!n->is_table()) fail(key, "expected a table");
+        return n->as_table();
+    }
+    const toml::array *array(const std::string &key)
+    {
+        const toml::node *n = get(key);
+        if (n == nullptr) return nullptr;
+        if (!n->is_array()) fail(key, "expected an array");
+        return n->as_array();
+    }
+    void require(const std::string &key) const
+    {
+        if (t_.get(key) == nullptr) fail(key, "missing");
+    }
+    void done() const
+    {
+        for (const auto &kv : t_) {
+            const std::string k(kv.first.str());
+            if (used_.count(k) == 0) fail(k, "unknown key");
+        }
+    }
+
+private:
+    const toml::table &t_;
+    std::string path_;
+    std::set<std::string> used_;
+};
+
+const toml::table &as_table(const toml::node &n, const std::string &where)
+{
+    if (!n.is_table()) throw ScenarioError(where + ": expected a table");
+    return *n.as_table();
+}
+
+void read_world(const toml::table &t, WorldSpec &w)
+{
+    Reader r(t, "world");
+    if (const toml::array *a = r.array("arena")) {
+        w.arena.clear();
+        for (size_t i = 0; i < a->size(); ++i) {
+            const auto v = r.numbers((*a)[i], "arena[" + std::to_string(i) + "]", 2);
+            w.arena.emplace_back(v[0], v[1]);
+        }
+        if (w.arena.size() < 3) r.fail("arena", "a polygon needs at least 3 corners");
+    }
+    if (const toml::array *a = r.array("boxes")) {
+        for (size_t i = 0; i < a->size(); ++i) {
+            const std::string p = "world.boxes[" + std::to_string(i) + "]";
+            Reader b(as_table((*a)[i], p), p);
+            BoxSpec s;
+            b.require("center");
+            b.require("size");
+            b.vec2("center", s.center);
+            b.vec2("size", s.size);
+            b.num("angle_deg", s.angle_deg);
+            if (s.size.x() <= 0.0 || s.size.y() <= 0.0) b.fail("size", "must be positive");
+            b.done();
+            w.boxes.push_back(s);
+        }
+    }
+    if (const toml::array *a = r.array("pillars")) {
+        for (size_t i = 0; i < a->size(); ++i) {
+            const std::string p = "world.pillars[" + std::to_string(i) + "]";
+            Reader b(as_table((*a)[i], p), p);
+            PillarSpec s;
+            b.require("center");
+            b.vec2("center", s.center);
+            b.num("radius_m", s.radius_m, 1e-3, 100.0);
+            b.done();
+            w.pillars.push_back(s);
+        }
+    }
+    if (const toml::array *a = r.array("walls")) {
+        for (size_t i = 0; i < a->size(); ++i) {
+            const std::string p = "world.walls[" + std::to_string(i) + "]";
+            Reader b(as_table((*a)[i], p), p);
+            WallSpec s;
+            b.require("from");
+            b.require("to");
+            b.vec2("from", s.from);
+            b.vec2("to", s.to);
+            b.done();
+            w.walls.push_back(s);
+        }
+    }
+    if (const toml::array *a = r.array("landmarks")) {
+        for (size_t i = 0; i < a->size(); ++i) {
+            const std::string p = "world.landmarks[" + std::to_string(i) + "]";
+            Reader b(as_table((*a)[i], p), p);
+            LandmarkSpec s;
+            b.require("pos");
+            b.vec2("pos", s.pos);
+            b.integer("signature", s.signature, 0, 255);
+            b.done();
+            w.landmarks.push_back(s);
+        }
+    }
+    r.done();
+}
+
+void read_camera(const toml::table &t, CameraSpec &c)
+{
+    Reader r(t, "camera");
+    r.num("period_ms", c.period_ms, 1.0, 10000.0);
+    r.num("fov_deg", c.fov_deg, 1.0, 360.0);
+    r.num("min_range_m", c.min_range_m, 0.0, 1000.0);
+    r.num("max_range_m", c.max_range_m, 0.01, 1000.0);
+    r.num("p_detect", c.p_detect, 0.0, 1.0);
+    r.num("range_sd_m", c.range_sd_m, 0.0, 10.0);
+    r.num("range_sd_rel", c.range_sd_rel, 0.0, 10.0);
+    r.num("bearing_sd_deg", c.bearing_sd_deg, 0.0, 90.0);
+    r.num("robot_p_detect", c.robot_p_detect, 0.0, 1.0);
+    r.num("robot_range_sd_m", c.robot_range_sd_m, 0.0, 10.0);
+    r.num("robot_bearing_sd_deg", c.robot_bearing_sd_deg, 0.0, 90.0);
+    r.done();
+    if (c.max_range_m <= c.min_range_m) throw ScenarioError("camera.max_range_m: must exceed min_range_m");
+}
+
+void read_laser(const toml::table &t, LaserSpec &l)
+{
+    Reader r(t, "laser");
+    r.num("fov_deg", l.fov_deg, 1.0, 240.0);
+    r.pose_deg("mount", l.mount);
+    r.num("noise_sd_m", l.noise_sd_m, 0.0, 1.0);
+    r.num("noise_rel", l.noise_rel, 0.0, 1.0);
+    r.done();
+}
+
+void read_link(const toml::table &t, LinkSpec &l)
+{
+    Reader r(t, "link");
+    r.num("range_m", l.range_m, 0.0, 1e9);
+    r.num("latency_ms", l.latency_ms, 0.0, 60000.0);
+    r.num("jitter_ms", l.jitter_ms, 0.0, 60000.0);
+    r.num("loss", l.loss, 0.0, 1.0);
+    r.done();
+}
+
+void read_truth_noise(const toml::table &t, TruthNoiseSpec &n, const std::string &path)
+{
+    Reader r(t, path);
+    r.num("odo_xy_sd_m", n.odo_xy_sd_m, 0.0, 10.0);
+    r.num("odo_theta_sd_deg", n.odo_theta_sd_deg, 0.0, 90.0);
+    r.num("wheel_slip_sd", n.wheel_slip_sd, 0.0, 1.0);
+    r.done();
+}
+
+void read_filter_noise(const toml::table &t, FilterNoiseSpec &n, const std::string &path)
+{
+    Reader r(t, path);
+    r.num("range_sd_m", n.range_sd_m, 1e-6, 10.0);
+    r.num("range_sd_rel", n.range_sd_rel, 0.0, 10.0);
+    r.num("bearing_sd_deg", n.bearing_sd_deg, 1e-6, 90.0);
+    r.num("odo_xy_sd_m", n.odo_xy_sd_m, 0.0, 10.0);
+    r.num("odo_theta_sd_deg", n.odo_theta_sd_deg, 0.0, 90.0);
+    r.num("init_xy_sd_m", n.init_xy_sd_m, 0.0, 100.0);
+    r.num("init_theta_sd_deg", n.init_theta_sd_deg, 0.0, 180.0);
+    r.num("lm_init_sd_m", n.lm_init_sd_m, 0.0, 100.0);
+    r.num("robot_range_sd_m", n.robot_range_sd_m, 1e-6, 10.0);
+    r.num("robot_bearing_sd_deg", n.robot_bearing_sd_deg, 1e-6, 90.0);
+    r.done();
+}
+
+void read_behaviour(const toml::table &t, BehaviourSpec &b)
+{
+    Reader r(t, "behaviour");
+    r.num("explore_s", b.explore_s, -1.0, 1e6);
+    r.num("cruise_mps", b.cruise_mps, 0.01, 2.0);
+    r.num("max_turn_dps", b.max_turn_dps, 1.0, 720.0);
+    r.num("seek_turn_dps", b.seek_turn_dps, -360.0, 360.0);
+    r.num("linger_s", b.linger_s, 0.0, 1e6);
+    r.num("goal_tol_m", b.goal_tol_m, 0.01, 100.0);
+    r.num("bypass_s", b.bypass_s, 0.0, 1e6);
+    r.done();
+    if (b.seek_turn_dps == 0.0) throw ScenarioError("behaviour.seek_turn_dps: must not be 0");
+}
+
+void read_meeting(const toml::table &t, MeetingSpec &m)
+{
+    Reader r(t, "meeting");
+    r.num("pair_window_ms", m.pair_window_ms, 0.001, 1e6);
+    r.num("resend_s", m.resend_s, 0.0, 1e6);
+    r.integer("max_sends", m.max_sends, 0, 255);
+    r.num("meeting_gap_s", m.meeting_gap_s, 0.0, 1e6);
+    r.num("remerge_s", m.remerge_s, 0.0, 1e6);
+    r.num("peer_speed_mps", m.peer_speed_mps, 0.0, 100.0);
+    r.num("peer_turn_dps", m.peer_turn_dps, 0.0, 10000.0);
+    r.num("max_range_m", m.max_range_m, 0.01, 1000.0);
+    r.boolean("transform_uncertainty", m.transform_uncertainty);
+    r.num("gate_chi2", m.gate_chi2, 0.01, 1000.0);
+    r.done();
+}
+
+void read_robot(const toml::table &t, size_t i, const Scenario &sc, RobotSpec &rs)
+{
+    const std::string p = "robot[" + std::to_string(i) + "]";
+    Reader r(t, p);
+    rs.name = "robot" + std::to_string(i);
+    rs.noise = sc.noise;
+    r.str("name", rs.name);
+    r.require("start");
+    r.pose_deg("start", rs.start);
+    std::string f = "fastslam2";
+    r.str("filter", f);
+    try {
+        rs.filter = parse_filter_kind(f);
+    } catch (const ScenarioError &e) {
+        r.fail("filter", e.what());
+    }
+    r.integer("particles", rs.particles, 1, COSLAM_MAX_PARTICLES);
+    r.num("radius_m", rs.radius_m, 0.01, 10.0);
+    r.num("explore_s", rs.explore_s, -1.0, 1e6);
+    if (const toml::table *n = r.table("noise")) read_truth_noise(*n, rs.noise, p + ".noise");
+    if (const toml::table *n = r.table("filter_noise")) read_filter_noise(*n, rs.filter_noise, p + ".filter_noise");
+    r.done();
+}
+
+Scenario parse(const toml::table &root, const std::string &source)
+{
+    Scenario sc;
+    sc.source = source;
+    Reader r(root, "");
+    r.str("name", sc.name);
+    r.str("description", sc.description);
+    r.num("duration_s", sc.duration_s, 0.001, 1e7);
+    r.u64("seed", sc.seed);
+    if (const toml::table *t = r.table("timing")) {
+        Reader tr(*t, "timing");
+        tr.num("physics_dt_ms", sc.physics_dt_ms, 0.1, 100.0);
+        tr.num("control_period_ms", sc.control_period_ms, 0.1, 1000.0);
+        tr.num("sample_period_s", sc.sample_period_s, 0.01, 1e6);
+        tr.num("path_period_s", sc.path_period_s, 0.001, 1e6);
+        tr.done();
+    }
+    if (const toml::table *t = r.table("world")) read_world(*t, sc.world);
+    if (const toml::table *t = r.table("camera")) read_camera(*t, sc.camera);
+    if (const toml::table *t = r.table("laser")) read_laser(*t, sc.laser);
+    if (const toml::table *t = r.table("link")) read_link(*t, sc.link);
+    if (const toml::table *t = r.table("noise")) read_truth_noise(*t, sc.noise, "noise");
+    if (const toml::table *t = r.table("behaviour")) read_behaviour(*t, sc.behaviour);
+    if (const toml::table *t = r.table("meeting")) read_meeting(*t, sc.meeting);
+    if (const toml::table *t = r.table("evaluation")) {
+        Reader er(*t, "evaluation");
+        er.num("gate_m", sc.evaluation.gate_m, 0.001, 100.0);
+        er.integer("min_seen", sc.evaluation.min_seen, 1, 1000000);
+        er.done();
+    }
+    const toml::array *robots = r.array("robot");
+    if (robots == nullptr || robots->size() < 2) {
+        throw ScenarioError("robot: at least two [[robot]] tables are needed (the meeting needs a team)");
+    }
+    if (robots->size() > COSLAM_MAX_ROBOTS) {
+        throw ScenarioError("robot: at most " + std::to_string(COSLAM_MAX_ROBOTS) + " robots");
+    }
+    for (size_t i = 0; i < robots->size(); ++i) {
+        RobotSpec rs;
+        read_robot(as_table((*robots)[i], "robot[" + std::to_string(i) + "]"), i, sc, rs);
+        sc.robots.push_back(rs);
+    }
+    r.done();
+    if (std::fmod(sc.control_period_ms + 1e-9, sc.physics_dt_ms) > 1e-6) {
+        throw ScenarioError("timing.control_period_ms: must be a multiple of physics_dt_ms");
+    }
+    if (std::fabs(sc.physics_dt_ms * 1000.0 - std::round(sc.physics_dt_ms * 1000.0)) > 1e-9) {
+        throw ScenarioError("timing.physics_dt_ms: must be a whole number of microseconds");
+    }
+    return sc;
+}
+
+}  // namespace
+
+slam_filter_kind_t parse_filter_kind(const std::string &s)
+{
+    if (s == "fastslam1") return SLAM_FILTER_FASTSLAM1;
+    if (s == "fastslam2") return SLAM_FILTER_FASTSLAM2;
+    if (s == "ekf") return SLAM_FILTER_EKF;
+    throw ScenarioError("unknown filter '" + s + "' (fastslam1, fastslam2 or ekf)");
+}
+
+Scenario load_scenario_string(const std::string &toml_text, const std::string &source)
+{
+    toml::table root;
+    try {
+        root = toml::parse(toml_text, source);
+    } catch (const toml::parse_error &e) {
+        std::ostringstream s;
+        s << source << ":" << e.source().begin.line << ":" << e.source().begin.column << ": " << e.description();
+        throw ScenarioError(s.str());
+    }
+    try {
+        return parse(root, source);
+    } catch (const ScenarioError &e) {
+        throw ScenarioError(source + ": " + e.what());
+    }
+}
+
+Scenario load_scenario_file(const std::string &path)
+{
+    std::ifstream f(path);
+    if (!f) {
+        throw ScenarioError(path + ": cannot open");
+    }
+    std::stringstream ss;
+    ss << f.rdbuf();
+    return load_scenario_string(ss.str(), path);
+}
+
+}  // namespace coslam::sim

@@ -1,0 +1,499 @@
+/*
+ * The meeting protocol (firmware/app meeting.h) against a fake link that
+ * records every datagram sent and delivers injected ones: the send policy
+ * (resend period, budget, range limit, meeting gap, budget renewal and the
+ * implicit acknowledgement), the message's fields byte-exactly through the
+ * codec, the merge geometry (exact sightings give the exact relative pose,
+ * and the merged landmark lands where geometry says), odometry
+ * compensation, pairing with the nearest own sighting, the stale window,
+ * replays, screening (not for me, broadcast, corrupt bytes not clobbering
+ * a pending message) and the event queue's overflow counter.
+ */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <string.h>
+
+#include <cmocka.h>
+
+#include "app/meeting.h"
+
+/* ---- fake link ---------------------------------------------------------- */
+
+#define FAKE_MAX_DGRAMS 16
+
+typedef struct {
+    uint16_t peer;     /* destination (sent) or source (to receive) */
+    uint64_t stamp_us; /* arrival stamp (to receive) */
+    size_t len;
+    uint8_t data[MAP_MSG_MAX_BYTES];
+} fake_dgram_t;
+
+typedef struct {
+    hal_link_t handle;
+    uint16_t self;
+    fake_dgram_t sent[FAKE_MAX_DGRAMS];
+    int n_sent;
+    fake_dgram_t rx[FAKE_MAX_DGRAMS];
+    int rx_head, rx_n;
+    hal_status_t send_result;
+} fake_link_t;
+
+static hal_status_t fake_send(hal_link_t *dev, uint16_t dest, const uint8_t *data, size_t len, uint32_t timeout_us)
+{
+    (void)timeout_us;
+    fake_link_t *f = (fake_link_t *)dev->backend;
+    if (f->send_result != HAL_OK) return f->send_result;
+    assert_true(f->n_sent < FAKE_MAX_DGRAMS);
+    fake_dgram_t *d = &f->sent[f->n_sent++];
+    d->peer = dest;
+    d->len = len;
+    memcpy(d->data, data, len);
+    return HAL_OK;
+}
+
+static hal_status_t fake_recv(hal_link_t *dev, uint8_t *buf, size_t cap, hal_link_rx_info_t *info, uint32_t timeout_us)
+{
+    (void)timeout_us;
+    fake_link_t *f = (fake_link_t *)dev->backend;
+    if (f->rx_n == 0) return HAL_E_TIMEOUT;
+    const fake_dgram_t *d = &f->rx[f->rx_head];
+    f->rx_head = (f->rx_head + 1) % FAKE_MAX_DGRAMS;
+    f->rx_n--;
+    info->len = d->len;
+    info->src_id = d->peer;
+    info->stamp_us = d->stamp_us;
+    memcpy(buf, d->data, d->len < cap ? d->len : cap);
+    return d->len <= cap ? HAL_OK : HAL_E_OVERFLOW;
+}
+
+static const hal_link_ops_t fake_ops = {NULL, fake_send, fake_recv, NULL};
+
+static fake_link_t g_link;
+
+static hal_link_t *fake_link_reset(uint16_t self)
+{
+    memset(&g_link, 0, sizeof g_link);
+    g_link.handle.ops = &fake_ops;
+    g_link.handle.backend = &g_link;
+    g_link.self = self;
+    g_link.send_result = HAL_OK;
+    return &g_link.handle;
+}
+
+static void inject(const uint8_t *data, size_t len, uint16_t src, uint64_t stamp_us)
+{
+    assert_true(g_link.rx_n < FAKE_MAX_DGRAMS);
+    fake_dgram_t *d = &g_link.rx[(g_link.rx_head + g_link.rx_n) % FAKE_MAX_DGRAMS];
+    g_link.rx_n++;
+    d->peer = src;
+    d->stamp_us = stamp_us;
+    d->len = len;
+    memcpy(d->data, data, len);
+}
+
+/* ---- fixtures ---------------------------------------------------------------- */
+
+static meeting_t g_m;
+static slam_filter_t g_filter;
+static map_msg_t g_msg;
+static map_estimate_t g_est;
+static uint8_t g_buf[MAP_MSG_MAX_BYTES];
+
+static const pose2_t kOrigin = {0.0, 0.0, 0.0};
+
+static void setup_robot0(meeting_config_t *cfg_out)
+{
+    slam_filter_config_t fc = slam_filter_config_default();
+    fc.kind = SLAM_FILTER_EKF;
+    fc.robot_id = 0;
+    assert_int_equal(slam_filter_init(&g_filter, &fc, kOrigin), COSLAM_OK);
+    meeting_config_t c = meeting_config_default();
+    if (cfg_out) c = *cfg_out;
+    assert_int_equal(meeting_init(&g_m, &c, 0, 2), COSLAM_OK);
+}
+
+/* A message from robot 1 to robot 0: robot 1 stands at `pose1` of its own
+ * map frame, has one landmark at `lm_rel` relative to itself (src bit
+ * `src_mask`), and saw robot 0 at (range, bearing) at sight_us. */
+static size_t make_msg_from1(uint32_t seq, uint64_t stamp_us, uint64_t sight_us, double range, double bearing,
+                             point2_t lm_rel, uint16_t src_mask, uint8_t receiver)
+{
+    map_msg_init(&g_msg);
+    g_msg.sender_id = 1;
+    g_msg.receiver_id = receiver;
+    g_msg.seq = seq;
+    g_msg.stamp_us = stamp_us;
+    const pose2_t pose1 = {5.0, -3.0, 1.0}; /* arbitrary: the receiver must not need it */
+    g_msg.map.pose = pose1;
+    g_msg.map.pose_cov = cov3_diag(0.01, 0.01, 0.001);
+    g_msg.map.n_landmarks = 1;
+    map_landmark_t *l = &g_msg.map.lm[0];
+    l->mean = pose2_apply(pose1, lm_rel);
+    l->cov = cov2_make(0.02, 0.0, 0.02);
+    l->cov_rel = cov2_make(0.001, 0.0, 0.001);
+    l->id = 7;
+    l->n_obs = 12;
+    l->src_mask = src_mask;
+    l->signature = 2;
+    if (receiver != MAP_MSG_BROADCAST) {
+        g_msg.sighting.valid = true;
+        g_msg.sighting.range_m = range;
+        g_msg.sighting.bearing_rad = bearing;
+        g_msg.sighting.range_var_m2 = 1e-8;
+        g_msg.sighting.bearing_var_rad2 = 1e-10;
+        g_msg.sighting.stamp_us = sight_us;
+    }
+    size_t len = 0;
+    assert_int_equal(map_msg_encode(&g_msg, g_buf, sizeof g_buf, &len), COSLAM_OK);
+    return len;
+}
+
+/* Exact mutual sightings of two robots at world poses a (self) and b (other). */
+static void mutual(pose2_t a, pose2_t b, double *r, double *b_in_a, double *a_in_b)
+{
+    const point2_t pb = pose2_apply_inverse(a, (point2_t){b.x, b.y});
+    const point2_t pa = pose2_apply_inverse(b, (point2_t){a.x, a.y});
+    *r = hypot(pb.x, pb.y);
+    *b_in_a = atan2(pb.y, pb.x);
+    *a_in_b = atan2(pa.y, pa.x);
+}
+
+static int count_events(meeting_event_kind_t kind, coslam_status_t status, meeting_event_t *last)
+{
+    int n = 0;
+    meeting_event_t ev;
+    while (meeting_take_event(&g_m, &ev) == COSLAM_OK) {
+        if (ev.kind == kind && ev.status == status) {
+            n++;
+            if (last) *last = ev;
+        }
+    }
+    return n;
+}
+
+/* ---- tests -------------------------------------------------------------------- */
+
+static void test_send_policy_and_message_fields(void **state)
+{
+    (void)state;
+    hal_link_t *link = fake_link_reset(0);
+    setup_robot0(NULL);
+    const uint64_t t0 = 10000000;
+    assert_int_equal(meeting_on_sighting(&g_m, &g_filter, link, t0 + 3000, 1, 2.0, 0.25, t0, kOrigin, 0.0), COSLAM_OK);
+    assert_int_equal(g_link.n_sent, 1);
+    assert_int_equal(g_link.sent[0].peer, 1);
+    map_msg_t got;
+    assert_int_equal(map_msg_decode(g_link.sent[0].data, g_link.sent[0].len, &got), COSLAM_OK);
+    assert_int_equal(got.sender_id, 0);
+    assert_int_equal(got.receiver_id, 1);
+    assert_int_equal(got.seq, 1);
+    assert_int_equal(got.stamp_us, t0 + 3000);           /* export time */
+    assert_true(got.sighting.valid);
+    assert_int_equal(got.sighting.stamp_us, t0);          /* the frame's capture time */
+    assert_true(got.sighting.range_m == 2.0);
+    assert_true(got.sighting.bearing_rad == 0.25);
+    assert_true(got.sighting.range_var_m2 == g_m.cfg.robot_range_var_m2);
+    assert_true(got.sighting.bearing_var_rad2 == g_m.cfg.robot_bearing_var_rad2);
+    /* not again within the resend period, then every period, at most max_sends */
+    assert_int_equal(meeting_on_sighting(&g_m, &g_filter, link, t0 + 500000, 1, 2.0, 0.25, t0 + 500000, kOrigin, 0.0),
+                     COSLAM_OK);
+    assert_int_equal(g_link.n_sent, 1);
+    for (int i = 1; i <= 4; ++i) {
+        const uint64_t t = t0 + (uint64_t)i * 1000000U + 3000U;
+        assert_int_equal(meeting_on_sighting(&g_m, &g_filter, link, t, 1, 2.0, 0.25, t - 3000U, kOrigin, 0.0),
+                         COSLAM_OK);
+    }
+    assert_int_equal(g_link.n_sent, 3);
+    assert_int_equal(g_m.ctr.sent, 3);
+    /* out of view longer than the meeting gap: a new meeting, a new message */
+    const uint64_t t2 = t0 + 4000000U + g_m.cfg.meeting_gap_us + 1000U;
+    assert_int_equal(meeting_on_sighting(&g_m, &g_filter, link, t2, 1, 2.0, 0.25, t2, kOrigin, 0.0), COSLAM_OK);
+    assert_int_equal(g_link.n_sent, 4);
+    assert_int_equal(map_msg_decode(g_link.sent[3].data, g_link.sent[3].len, &got), COSLAM_OK);
+    assert_int_equal(got.seq, 4);
+    assert_int_equal(count_events(MEETING_EV_SENT, COSLAM_OK, NULL), 4);
+}
+
+static void test_sighting_checks_and_range_limit(void **state)
+{
+    (void)state;
+    hal_link_t *link = fake_link_reset(0);
+    setup_robot0(NULL);
+    /* beyond max_range_m: ignored, nothing recorded */
+    assert_int_equal(meeting_on_sighting(&g_m, &g_filter, link, 1000, 1, 3.5, 0.0, 1000, kOrigin, 0.0), COSLAM_OK);
+    assert_int_equal(g_link.n_sent, 0);
+    meeting_sighting_t s;
+    assert_int_equal(meeting_last_sighting(&g_m, 1, &s), COSLAM_E_EMPTY);
+    /* bad input */
+    assert_int_equal(meeting_on_sighting(&g_m, &g_filter, link, 1000, 0, 1.0, 0.0, 1000, kOrigin, 0.0), COSLAM_E_ARG);
+    assert_int_equal(meeting_on_sighting(&g_m, &g_filter, link, 1000, 2, 1.0, 0.0, 1000, kOrigin, 0.0), COSLAM_E_ARG);
+    assert_int_equal(meeting_on_sighting(&g_m, &g_filter, link, 1000, 1, NAN, 0.0, 1000, kOrigin, 0.0), COSLAM_E_ARG);
+    assert_int_equal(meeting_on_sighting(&g_m, &g_filter, link, 1000, 1, 0.0, 0.0, 1000, kOrigin, 0.0), COSLAM_E_ARG);
+    /* a link refusal is reported and counted, and uses up the slot */
+    g_link.send_result = HAL_E_BUSY;
+    assert_int_equal(meeting_on_sighting(&g_m, &g_filter, link, 1000, 1, 1.0, 0.0, 1000, kOrigin, 0.0), COSLAM_E_LINK);
+    assert_int_equal(g_m.ctr.send_failures, 1);
+    assert_int_equal(meeting_last_sighting(&g_m, 1, &s), COSLAM_OK);
+    assert_true(s.range_m == 1.0);
+    /* config checks */
+    meeting_config_t c = meeting_config_default();
+    c.robot_range_var_m2 = 0.0;
+    assert_int_equal(meeting_init(&g_m, &c, 0, 2), COSLAM_E_ARG);
+    c = meeting_config_default();
+    assert_int_equal(meeting_init(&g_m, &c, 2, 2), COSLAM_E_ARG);
+    assert_int_equal(meeting_init(&g_m, &c, 0, 1), COSLAM_E_ARG);
+    c.max_range_m = 0.0;
+    assert_int_equal(meeting_init(&g_m, &c, 0, 2), COSLAM_E_ARG);
+}
+
+static void test_budget_renewed_then_implicit_ack(void **state)
+{
+    (void)state;
+    hal_link_t *link = fake_link_reset(0);
+    setup_robot0(NULL);
+    uint64_t t = 1000000;
+    for (int i = 0; i < 5; ++i, t += 1000000) {
+        meeting_on_sighting(&g_m, &g_filter, link, t, 1, 2.0, 0.0, t, kOrigin, 0.0);
+    }
+    assert_int_equal(g_link.n_sent, 3);
+    /* robot 1 sends its map without our provenance bit: it sees us and still
+     * needs our map -> the budget is renewed */
+    size_t len = make_msg_from1(1, t, t, 2.0, 0.0, (point2_t){1.0, 0.0}, 1U << 1, 0);
+    inject(g_buf, len, 1, t + 2000);
+    assert_int_equal(meeting_poll_link(&g_m, link), 1);
+    assert_false(meeting_acked_all(&g_m));
+    t += 100000;
+    meeting_on_sighting(&g_m, &g_filter, link, t, 1, 2.0, 0.0, t, kOrigin, 0.0);
+    assert_int_equal(g_link.n_sent, 4);
+    /* now a message showing our bit: robot 1 has merged our map -> stop */
+    t += 1000000;
+    len = make_msg_from1(2, t, t, 2.0, 0.0, (point2_t){1.0, 0.0}, (1U << 1) | 1U, 0);
+    inject(g_buf, len, 1, t + 2000);
+    meeting_poll_link(&g_m, link);
+    assert_true(meeting_acked_all(&g_m));
+    for (int i = 0; i < 3; ++i) {
+        t += 1000000;
+        meeting_on_sighting(&g_m, &g_filter, link, t, 1, 2.0, 0.0, t, kOrigin, 0.0);
+    }
+    assert_int_equal(g_link.n_sent, 4);
+}
+
+/* Robot 0 at the world origin, robot 1 at (2, 0.5, 160 deg); exact sightings.
+ * The relative pose must come out exact, and robot 1's landmark must land in
+ * robot 0's map where it is in the world. */
+static void test_merge_geometry_exact(void **state)
+{
+    (void)state;
+    hal_link_t *link = fake_link_reset(0);
+    setup_robot0(NULL);
+    const pose2_t a = {0.0, 0.0, 0.0};
+    const pose2_t b = {2.0, 0.5, 160.0 * COSLAM_PI / 180.0};
+    double r, b1, b2;
+    mutual(a, b, &r, &b1, &b2);
+    const uint64_t t = 20000000;
+    meeting_on_sighting(&g_m, &g_filter, link, t + 4000, 1, r, b1, t, kOrigin, 0.0);
+    const point2_t lm_rel = {1.5, -0.7};
+    const size_t len = make_msg_from1(1, t + 3000, t, r, b2, lm_rel, 1U << 1, 0);
+    inject(g_buf, len, 1, t + 3000 + g_m.cfg.link_latency_us);
+    assert_int_equal(meeting_poll_link(&g_m, link), 1);
+    assert_int_equal(meeting_poll(&g_m, &g_filter, t + 10000, kOrigin, 0.0), COSLAM_OK);
+    meeting_event_t ev;
+    assert_int_equal(count_events(MEETING_EV_MERGED, COSLAM_OK, &ev), 1);
+    assert_int_equal(ev.peer, 1);
+    assert_int_equal(ev.own_sighting_us, t);
+    assert_int_equal(ev.sender_sighting_us, t); /* arrival - latency - (stamp - sighting stamp) */
+    assert_true(fabs(ev.other_in_self.x - b.x) < 1e-9);
+    assert_true(fabs(ev.other_in_self.y - b.y) < 1e-9);
+    assert_true(fabs(angle_wrap(ev.other_in_self.theta - b.theta)) < 1e-9);
+    assert_int_equal(ev.stats.added, 1);
+    assert_true(meeting_merged_all(&g_m));
+    assert_int_equal(slam_filter_export(&g_filter, &g_est), COSLAM_OK);
+    assert_int_equal(g_est.n_landmarks, 1);
+    const point2_t want = pose2_apply(b, lm_rel);
+    assert_true(fabs(g_est.lm[0].mean.x - want.x) < 1e-6);
+    assert_true(fabs(g_est.lm[0].mean.y - want.y) < 1e-6);
+    assert_int_equal(g_est.lm[0].src_mask, 1U << 1);
+    assert_int_equal(g_est.lm[0].signature, 2);
+    /* the rest of the meeting's messages are ignored (remerge period) */
+    const size_t len2 = make_msg_from1(2, t + 1003000, t + 1000000, r, b2, lm_rel, 1U << 1, 0);
+    inject(g_buf, len2, 1, t + 1005000);
+    meeting_poll_link(&g_m, link);
+    assert_int_equal(g_m.ctr.ignored_recent, 1);
+    assert_false(g_m.have_pending);
+}
+
+/* The own robot drove u = (1, 0.2, 90 deg) after its sighting: the relative
+ * pose is moved into the current body frame, u^-1 (+) T. */
+static void test_merge_compensates_own_motion(void **state)
+{
+    (void)state;
+    hal_link_t *link = fake_link_reset(0);
+    setup_robot0(NULL);
+    const pose2_t a = {0.0, 0.0, 0.0};
+    const pose2_t b = {2.5, -0.4, -170.0 * COSLAM_PI / 180.0};
+    double r, b1, b2;
+    mutual(a, b, &r, &b1, &b2);
+    const uint64_t t = 5000000;
+    meeting_on_sighting(&g_m, &g_filter, link, t, 1, r, b1, t, kOrigin, 0.0);
+    const size_t len = make_msg_from1(1, t, t, r, b2, (point2_t){0.5, 0.5}, 1U << 1, 0);
+    inject(g_buf, len, 1, t + g_m.cfg.link_latency_us);
+    meeting_poll_link(&g_m, link);
+    const pose2_t moved = {1.0, 0.2, 0.5 * COSLAM_PI};
+    assert_int_equal(meeting_poll(&g_m, &g_filter, t + 150000, moved, 1.3), COSLAM_OK);
+    meeting_event_t ev;
+    assert_int_equal(count_events(MEETING_EV_MERGED, COSLAM_OK, &ev), 1);
+    const pose2_t want = pose2_compose(pose2_inverse(moved), b);
+    assert_true(fabs(ev.other_in_self.x - want.x) < 1e-9);
+    assert_true(fabs(ev.other_in_self.y - want.y) < 1e-9);
+    assert_true(fabs(angle_wrap(ev.other_in_self.theta - want.theta)) < 1e-9);
+    /* the odometry covariance entered: 1.3 m of travel */
+    assert_true(ev.other_in_self_cov.m[2][2] >= g_m.cfg.odo_theta_var_rad2_per_m * 1.3 * 0.999);
+}
+
+static void test_pairs_nearest_own_sighting(void **state)
+{
+    (void)state;
+    hal_link_t *link = fake_link_reset(0);
+    setup_robot0(NULL);
+    const uint64_t t = 8000000;
+    meeting_on_sighting(&g_m, &g_filter, link, t, 1, 2.0, 0.0, t, kOrigin, 0.0);
+    meeting_on_sighting(&g_m, &g_filter, link, t + 200000, 1, 2.0, 0.0, t + 200000, kOrigin, 0.0);
+    meeting_on_sighting(&g_m, &g_filter, link, t + 400000, 1, 2.0, 0.0, t + 400000, kOrigin, 0.0);
+    /* the sender's sighting at t + 190 ms: exported 5 ms later */
+    const size_t len = make_msg_from1(1, 777000 + 5000, 777000, 2.0, 0.0, (point2_t){1.0, 0.0}, 1U << 1, 0);
+    inject(g_buf, len, 1, t + 190000 + 5000 + g_m.cfg.link_latency_us);
+    meeting_poll_link(&g_m, link);
+    assert_int_equal(meeting_poll(&g_m, &g_filter, t + 410000, kOrigin, 0.0), COSLAM_OK);
+    meeting_event_t ev;
+    assert_int_equal(count_events(MEETING_EV_MERGED, COSLAM_OK, &ev), 1);
+    assert_int_equal(ev.sender_sighting_us, t + 190000); /* only differences of the sender's clock are used */
+    assert_int_equal(ev.own_sighting_us, t + 200000);
+}
+
+static void test_waits_then_stale(void **state)
+{
+    (void)state;
+    hal_link_t *link = fake_link_reset(0);
+    setup_robot0(NULL);
+    const uint64_t t = 30000000;
+    const size_t len = make_msg_from1(1, t, t, 2.0, 0.0, (point2_t){1.0, 0.0}, 1U << 1, 0);
+    inject(g_buf, len, 1, t + g_m.cfg.link_latency_us);
+    meeting_poll_link(&g_m, link);
+    assert_true(g_m.have_pending);
+    /* no own sighting yet: it waits while one may still come */
+    assert_int_equal(meeting_poll(&g_m, &g_filter, t + 100000, kOrigin, 0.0), COSLAM_E_EMPTY);
+    assert_int_equal(meeting_poll(&g_m, &g_filter, t + g_m.cfg.pair_window_us, kOrigin, 0.0), COSLAM_E_EMPTY);
+    /* an own sighting too late for the window does not help; then stale */
+    meeting_on_sighting(&g_m, &g_filter, link, t + 400000, 1, 2.0, 0.0, t + 400000, kOrigin, 0.0);
+    assert_int_equal(meeting_poll(&g_m, &g_filter, t + 400000, kOrigin, 0.0), COSLAM_E_MERGE_STALE);
+    assert_false(g_m.have_pending);
+    assert_int_equal(g_m.ctr.stale, 1);
+    meeting_event_t ev;
+    assert_int_equal(count_events(MEETING_EV_REFUSED, COSLAM_E_MERGE_STALE, &ev), 1);
+    assert_int_equal(ev.peer, 1);
+    assert_false(meeting_merged_all(&g_m));
+    /* a second message within the window of that sighting merges */
+    const size_t len2 = make_msg_from1(2, t + 450000, t + 450000, 2.0, 0.0, (point2_t){1.0, 0.0}, 1U << 1, 0);
+    inject(g_buf, len2, 1, t + 450000 + g_m.cfg.link_latency_us);
+    meeting_poll_link(&g_m, link);
+    assert_int_equal(meeting_poll(&g_m, &g_filter, t + 460000, kOrigin, 0.0), COSLAM_OK);
+    assert_true(meeting_merged_all(&g_m));
+}
+
+static void test_replay_refused(void **state)
+{
+    (void)state;
+    hal_link_t *link = fake_link_reset(0);
+    meeting_config_t c = meeting_config_default();
+    c.remerge_period_us = 0; /* so that the replay reaches the session check */
+    setup_robot0(&c);
+    const uint64_t t = 1000000;
+    meeting_on_sighting(&g_m, &g_filter, link, t, 1, 2.0, 0.0, t, kOrigin, 0.0);
+    const size_t len = make_msg_from1(5, t, t, 2.0, 0.0, (point2_t){1.0, 0.0}, 1U << 1, 0);
+    inject(g_buf, len, 1, t + 2000);
+    inject(g_buf, len, 1, t + 4000);
+    meeting_poll_link(&g_m, link);
+    assert_int_equal(g_m.ctr.replays, 1);
+    assert_int_equal(meeting_poll(&g_m, &g_filter, t + 5000, kOrigin, 0.0), COSLAM_OK);
+    meeting_event_t ev;
+    assert_int_equal(count_events(MEETING_EV_REFUSED, COSLAM_E_MERGE_REPLAY, &ev), 1);
+    assert_int_equal(ev.seq, 5);
+    assert_int_equal(g_m.ctr.merged, 1);
+}
+
+static void test_screening(void **state)
+{
+    (void)state;
+    hal_link_t *link = fake_link_reset(0);
+    setup_robot0(NULL);
+    const uint64_t t = 2000000;
+    meeting_on_sighting(&g_m, &g_filter, link, t, 1, 2.0, 0.0, t, kOrigin, 0.0);
+    /* a good message becomes pending ... */
+    size_t len = make_msg_from1(1, t, t, 2.0, 0.0, (point2_t){1.0, 0.0}, 1U << 1, 0);
+    inject(g_buf, len, 1, t + 2000);
+    meeting_poll_link(&g_m, link);
+    assert_true(g_m.have_pending);
+    /* ... and stays so through corrupt bytes, a message for someone else and
+     * a broadcast without a sighting */
+    uint8_t bad[64];
+    memcpy(bad, g_buf, sizeof bad);
+    inject(bad, sizeof bad, 1, t + 3000); /* truncated */
+    (void)make_msg_from1(2, t, t, 2.0, 0.0, (point2_t){1.0, 0.0}, 1U << 1, 0);
+    g_msg.receiver_id = 3; /* a robot this team does not have */
+    assert_int_equal(map_msg_encode(&g_msg, g_buf, sizeof g_buf, &len), COSLAM_OK);
+    inject(g_buf, len, 1, t + 4000);
+    len = make_msg_from1(3, t, t, 2.0, 0.0, (point2_t){1.0, 0.0}, 1U << 1, MAP_MSG_BROADCAST);
+    inject(g_buf, len, 1, t + 5000);
+    assert_int_equal(meeting_poll_link(&g_m, link), 3);
+    assert_int_equal(g_m.ctr.rx_errors, 1);
+    assert_int_equal(g_m.ctr.not_for_me, 2);
+    meeting_event_t ev;
+    int truncated = 0, degenerate = 0;
+    while (meeting_take_event(&g_m, &ev) == COSLAM_OK) {
+        truncated += ev.kind == MEETING_EV_REFUSED && ev.status == COSLAM_E_MSG_TRUNCATED;
+        degenerate += ev.kind == MEETING_EV_REFUSED && ev.status == COSLAM_E_DEGENERATE;
+    }
+    assert_int_equal(truncated, 1);
+    assert_int_equal(degenerate, 1);
+    assert_true(g_m.have_pending);
+    assert_int_equal(meeting_poll(&g_m, &g_filter, t + 6000, kOrigin, 0.0), COSLAM_OK);
+    assert_int_equal(g_m.ctr.merged, 1);
+}
+
+static void test_event_queue_overflow_counted(void **state)
+{
+    (void)state;
+    hal_link_t *link = fake_link_reset(0);
+    setup_robot0(NULL);
+    uint8_t junk[16] = {0};
+    for (int i = 0; i < COSLAM_APP_EVENT_QUEUE + 3; ++i) {
+        inject(junk, sizeof junk, 1, 1000);
+        meeting_poll_link(&g_m, link);
+    }
+    assert_int_equal(g_m.ctr.rx_errors, COSLAM_APP_EVENT_QUEUE + 3);
+    assert_int_equal(g_m.ctr.events_dropped, 3);
+    int n = 0;
+    meeting_event_t ev;
+    while (meeting_take_event(&g_m, &ev) == COSLAM_OK) n++;
+    assert_int_equal(n, COSLAM_APP_EVENT_QUEUE);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_send_policy_and_message_fields),
+        cmocka_unit_test(test_sighting_checks_and_range_limit),
+        cmocka_unit_test(test_budget_renewed_then_implicit_ack),
+        cmocka_unit_test(test_merge_geometry_exact),
+        cmocka_unit_test(test_merge_compensates_own_motion),
+        cmocka_unit_test(test_pairs_nearest_own_sighting),
+        cmocka_unit_test(test_waits_then_stale),
+        cmocka_unit_test(test_replay_refused),
+        cmocka_unit_test(test_screening),
+        cmocka_unit_test(test_event_queue_overflow_counted),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}

@@ -1,0 +1,510 @@
+// The simulated world piece by piece: geometry queries against analytic
+// values, the camera stand-in (field of view, range, occlusion, timing,
+// seeded noise statistics, detection rate), scenario parsing and its error
+// messages, a robot's physics through the real drive driver on the CAN
+// emulators (motion, collision, bumper), a node's start-up and its e-stop
+// on the simulated GPIO, and the run outputs on disk.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "cia402/cia402_omni.h"
+#include "run_output.hpp"
+#include "sim/world/scenario.hpp"
+#include "sim/world/sighting_oracle.hpp"
+#include "sim/world/sim_robot.hpp"
+#include "sim/world/simulation.hpp"
+#include "sim/world/world.hpp"
+
+using namespace coslam::sim;
+using Eigen::Vector2d;
+
+namespace {
+
+constexpr double kDeg = COSLAM_PI / 180.0;
+const std::string kPaper = std::string(COSLAM_SOURCE_DIR) + "/sim/scenarios/paper.toml";
+
+// A small valid scenario: `top` goes before the first table (root keys),
+// `tail` after the robots (more tables).
+std::string scenario_text(const std::string &top = "", const std::string &robots = "", const std::string &tail = "")
+{
+    return top + R"(
+name = "t"
+duration_s = 5.0
+[world]
+arena = [[-3.0, -3.0], [3.0, -3.0], [3.0, 3.0], [-3.0, 3.0]]
+landmarks = [ { pos = [2.9, 0.0], signature = 1 } ]
+)" + (robots.empty() ? R"(
+[[robot]]
+start = [-1.0, 0.0, 180.0]
+[[robot]]
+start = [1.0, 0.0, 0.0]
+filter = "ekf"
+)"
+                     : robots) +
+           tail;
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------------------
+// geometry
+// ---------------------------------------------------------------------------
+
+TEST(World, RaycastHitsWallsBoxesPillarsAndBodies)
+{
+    World w;
+    w.add_wall(Vector2d(3.0, -5.0), Vector2d(3.0, 5.0));
+    w.add_box(Vector2d(1.0, 2.0), Vector2d(0.4, 0.4), 0.0);
+    w.add_pillar(Vector2d(-2.0, 0.0), 0.5);
+    w.set_body(5, pose2_t{0.0, -1.0, 0.0}, 0.2);
+    EXPECT_NEAR(w.raycast(Vector2d(0, 0), Vector2d(1, 0), 10.0), 3.0, 1e-12);
+    EXPECT_NEAR(w.raycast(Vector2d(1.0, 0.0), Vector2d(0, 1), 10.0), 1.8, 1e-12);
+    EXPECT_NEAR(w.raycast(Vector2d(0, 0), Vector2d(-1, 0), 10.0), 1.5, 1e-12);
+    EXPECT_NEAR(w.raycast(Vector2d(0, 0), Vector2d(0, -1), 10.0), 0.8, 1e-12);
+    EXPECT_TRUE(std::isinf(w.raycast(Vector2d(0, 0), Vector2d(0, -1), 10.0, 5)));        // own body excluded
+    EXPECT_TRUE(std::isinf(w.raycast(Vector2d(0, 0), Vector2d(0, -1), 10.0, -1, false))); // bodies off
+    EXPECT_TRUE(std::isinf(w.raycast(Vector2d(0, 0), Vector2d(1, 0), 2.9)));              // beyond max
+    // a 45 degree ray against the box corner region: enters the west face
+    const Vector2d d = Vector2d(1, 1).normalized();
+    EXPECT_NEAR(w.raycast(Vector2d(-0.2, 0.9), d, 10.0), std::sqrt(2.0) * 1.0, 1e-9);
+    EXPECT_NEAR(w.raycast(Vector2d(-0.2, 0.4), d, 10.0), std::sqrt(2.0) * 1.4, 1e-9); // just misses it: south face
+    // from inside a body (not excluded) the ray meets its rim on the way out
+    EXPECT_NEAR(w.raycast(Vector2d(0.0, -1.0), Vector2d(1, 0), 10.0), 0.2, 1e-12);
+}
+
+TEST(World, LineOfSightAndClearance)
+{
+    World w;
+    w.add_polygon({Vector2d(-3, -3), Vector2d(3, -3), Vector2d(3, 3), Vector2d(-3, 3)});
+    const Vector2d marker(3.0, 0.0); // on the wall
+    EXPECT_TRUE(w.line_of_sight(Vector2d(0, 0), marker, -1, -1)); // not hidden by its own wall
+    EXPECT_FALSE(w.line_of_sight(Vector2d(0, 0), marker, -1, -1, 0.0));
+    w.add_box(Vector2d(1.5, 0.0), Vector2d(0.2, 0.2), 0.3);
+    EXPECT_FALSE(w.line_of_sight(Vector2d(0, 0), marker, -1, -1));
+    EXPECT_TRUE(w.line_of_sight(Vector2d(0, 1), Vector2d(2.98, 1.0), -1, -1));
+    w.set_body(1, pose2_t{1.0, 1.0, 0.0}, 0.2);
+    EXPECT_FALSE(w.line_of_sight(Vector2d(0, 1), Vector2d(2.98, 1.0), -1, -1));
+    EXPECT_TRUE(w.line_of_sight(Vector2d(0, 1), Vector2d(2.98, 1.0), -1, 1));
+    EXPECT_NEAR(w.static_clearance(Vector2d(2.5, 2.0)), 0.5, 1e-12);
+    EXPECT_NEAR(w.body_clearance(Vector2d(1.0, 2.0), -1), 0.8, 1e-12);
+    EXPECT_TRUE(std::isinf(w.body_clearance(Vector2d(1.0, 2.0), 1)));
+}
+
+// ---------------------------------------------------------------------------
+// the camera stand-in
+// ---------------------------------------------------------------------------
+
+namespace {
+
+SightingOracleConfig exact_oracle()
+{
+    SightingOracleConfig c;
+    c.p_detect = 1.0;
+    c.robot_p_detect = 1.0;
+    c.range_sd_m = c.range_sd_rel = c.bearing_sd_rad = 0.0;
+    c.robot_range_sd_m = c.robot_bearing_sd_rad = 0.0;
+    return c;
+}
+
+}  // namespace
+
+TEST(SightingOracle, FieldOfViewRangeOcclusionAndRobots)
+{
+    World w;
+    w.set_body(0, pose2_t{0.0, 0.0, 0.5}, 0.19);
+    const pose2_t me{0.0, 0.0, 0.5};
+    auto at = [&](double r, double b) { return Vector2d(r * std::cos(me.theta + b), r * std::sin(me.theta + b)); };
+    w.add_landmark(at(2.0, 0.1), 1);           // 0 visible
+    w.add_landmark(at(2.0, 30.0 * kDeg), 2);   // 1 outside +-25 deg
+    w.add_landmark(at(5.5, 0.0), 3);           // 2 too far
+    w.add_landmark(at(0.2, 0.0), 0);           // 3 too near
+    w.add_landmark(at(3.0, -0.2), 1);          // 4 behind a box
+    w.add_box(at(1.5, -0.2), Vector2d(0.2, 0.2), 0.0);
+    w.add_landmark(at(4.0, 0.2), 2);           // 5 behind robot 2
+    w.set_body(2, pose2_t{at(2.5, 0.2).x(), at(2.5, 0.2).y(), 0.0}, 0.19);
+    w.set_body(3, pose2_t{at(1.0, -0.35).x(), at(1.0, -0.35).y(), 0.0}, 0.19); // a robot in view
+    SightingOracle o(w, 0, exact_oracle());
+    sighting_frame_t f;
+    EXPECT_EQ(sighting_source_next_frame(o.source(), &f, 0), HAL_E_TIMEOUT);
+    o.set_time_us(0);
+    ASSERT_EQ(sighting_source_next_frame(o.source(), &f, 0), HAL_OK);
+    ASSERT_EQ(f.n_landmarks, 1u);
+    EXPECT_NEAR(f.landmarks[0].range_m, 2.0, 1e-12);
+    EXPECT_NEAR(f.landmarks[0].bearing_rad, 0.1, 1e-12);
+    EXPECT_EQ(f.landmarks[0].signature, 1);
+    ASSERT_EQ(f.n_robots, 2u);
+    // robot 2 (in view, nothing between) and robot 3; never itself
+    std::vector<int> ids = {f.robots[0].robot_id, f.robots[1].robot_id};
+    std::sort(ids.begin(), ids.end());
+    EXPECT_EQ(ids, (std::vector<int>{2, 3}));
+    for (unsigned i = 0; i < f.n_robots; ++i) {
+        if (f.robots[i].robot_id == 3) {
+            EXPECT_NEAR(f.robots[i].range_m, 1.0, 1e-12);
+            EXPECT_NEAR(f.robots[i].bearing_rad, -0.35, 1e-12);
+        }
+    }
+    EXPECT_EQ(o.detections()[0], 1);
+    for (size_t j = 1; j < 6; ++j) EXPECT_EQ(o.detections()[j], 0) << j;
+    EXPECT_EQ(sighting_source_next_frame(o.source(), &f, 0), HAL_E_TIMEOUT); // never the same frame twice
+}
+
+TEST(SightingOracle, FrameTimingAndNewestFrameOnly)
+{
+    World w;
+    w.set_body(0, pose2_t{0, 0, 0}, 0.19);
+    SightingOracleConfig c = exact_oracle();
+    c.period_us = 200000;
+    c.phase_us = 100000;
+    SightingOracle o(w, 0, c);
+    sighting_frame_t f;
+    o.set_time_us(99999);
+    EXPECT_EQ(sighting_source_next_frame(o.source(), &f, 0), HAL_E_TIMEOUT);
+    o.set_time_us(100000);
+    ASSERT_EQ(sighting_source_next_frame(o.source(), &f, 0), HAL_OK);
+    EXPECT_EQ(f.stamp_us, 100000u);
+    EXPECT_EQ(f.sequence, 1u);
+    o.set_time_us(650000); // frames at 300 and 500 ms: only the newest is handed out
+    ASSERT_EQ(sighting_source_next_frame(o.source(), &f, 0), HAL_OK);
+    EXPECT_EQ(f.stamp_us, 500000u);
+    EXPECT_EQ(f.sequence, 3u); // the gap shows the skipped frame
+    EXPECT_EQ(o.frames(), 3u);
+}
+
+TEST(SightingOracle, NoiseAndDetectionRateFollowTheConfiguration)
+{
+    World w;
+    w.set_body(0, pose2_t{0, 0, 0}, 0.19);
+    const double r0 = 3.0, b0 = 10.0 * kDeg;
+    w.add_landmark(Vector2d(r0 * std::cos(b0), r0 * std::sin(b0)), 0);
+    w.set_body(1, pose2_t{2.0, -0.3, 0.0}, 0.19);
+    SightingOracleConfig c; // defaults: 2 cm + 3 %, 2 deg, p = 0.9
+    c.period_us = 1000;
+    SightingOracle o(w, 0, c);
+    const int n = 4000;
+    double sr = 0, srr = 0, sb = 0, sbb = 0, rr = 0;
+    int got = 0, robots = 0;
+    for (int i = 0; i < n; ++i) {
+        o.set_time_us(static_cast<uint64_t>(i) * 1000u);
+        sighting_frame_t f;
+        ASSERT_EQ(sighting_source_next_frame(o.source(), &f, 0), HAL_OK);
+        if (f.n_landmarks == 1) {
+            const double er = f.landmarks[0].range_m - r0, eb = f.landmarks[0].bearing_rad - b0;
+            sr += er, srr += er * er, sb += eb, sbb += eb * eb;
+            got++;
+        }
+        if (f.n_robots == 1) {
+            rr += std::pow(f.robots[0].range_m - std::hypot(2.0, 0.3), 2);
+            robots++;
+        }
+    }
+    const double sd_r = std::sqrt(0.02 * 0.02 + std::pow(0.03 * r0, 2));
+    EXPECT_NEAR(static_cast<double>(got) / n, 0.9, 0.025);
+    EXPECT_NEAR(static_cast<double>(robots) / n, 0.9, 0.025);
+    EXPECT_LT(std::fabs(sr / got), 4.0 * sd_r / std::sqrt(got));
+    EXPECT_NEAR(std::sqrt(srr / got) / sd_r, 1.0, 0.06);
+    EXPECT_LT(std::fabs(sb / got), 4.0 * 2.0 * kDeg / std::sqrt(got));
+    EXPECT_NEAR(std::sqrt(sbb / got) / (2.0 * kDeg), 1.0, 0.06);
+    EXPECT_NEAR(std::sqrt(rr / robots) / 0.05, 1.0, 0.06);
+    // seeded: the same seed gives the same frames, another seed others
+    SightingOracle a(w, 0, c), b(w, 0, c);
+    c.seed = 99;
+    SightingOracle d(w, 0, c);
+    sighting_frame_t fa, fb, fd;
+    bool differ = false;
+    for (int i = 0; i < 50; ++i) {
+        a.set_time_us(static_cast<uint64_t>(i) * 1000u);
+        b.set_time_us(static_cast<uint64_t>(i) * 1000u);
+        d.set_time_us(static_cast<uint64_t>(i) * 1000u);
+        sighting_source_next_frame(a.source(), &fa, 0);
+        sighting_source_next_frame(b.source(), &fb, 0);
+        sighting_source_next_frame(d.source(), &fd, 0);
+        ASSERT_EQ(std::memcmp(&fa, &fb, sizeof fa), 0);
+        differ = differ || std::memcmp(&fa, &fd, sizeof fa) != 0;
+    }
+    EXPECT_TRUE(differ);
+}
+
+// ---------------------------------------------------------------------------
+// scenarios
+// ---------------------------------------------------------------------------
+
+TEST(Scenario, DefaultScenarioLoads)
+{
+    const Scenario sc = load_scenario_file(kPaper);
+    EXPECT_EQ(sc.name, "paper");
+    ASSERT_EQ(sc.robots.size(), 2u);
+    EXPECT_EQ(sc.robots[0].filter, SLAM_FILTER_FASTSLAM2);
+    EXPECT_EQ(sc.robots[0].particles, 100);
+    EXPECT_EQ(sc.robots[1].filter, SLAM_FILTER_EKF);
+    EXPECT_NEAR(std::fabs(sc.robots[0].start.theta), COSLAM_PI, 1e-12); // back to back
+    EXPECT_NEAR(sc.robots[1].start.theta, 0.0, 1e-12);
+    EXPECT_EQ(sc.world.landmarks.size(), 26u);
+    EXPECT_EQ(sc.world.boxes.size(), 4u);
+    EXPECT_EQ(sc.world.arena.size(), 4u);
+    EXPECT_NEAR(sc.laser.fov_deg, 140.0, 1e-12);
+    // several identical markers per class
+    int per_class[4] = {0, 0, 0, 0};
+    for (const auto &l : sc.world.landmarks) per_class[l.signature]++;
+    for (int c : per_class) EXPECT_GE(c, 5);
+}
+
+TEST(Scenario, ErrorsNameTheKey)
+{
+    auto fails_with = [](const std::string &text, const std::string &needle) {
+        try {
+            load_scenario_string(text, "x.toml");
+        } catch (const ScenarioError &e) {
+            EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+            return;
+        }
+        ADD_FAILURE() << "no error for " << needle;
+    };
+    EXPECT_NO_THROW(load_scenario_string(scenario_text()));
+    fails_with(scenario_text("durration_s = 3.0\n"), "durration_s: unknown key");
+    fails_with(scenario_text("seed = \"one\"\n"), "seed: expected a non-negative integer");
+    fails_with(scenario_text("", "", "[camera]\np_detect = 1.5\n"), "camera.p_detect: value 1.5 outside");
+    fails_with(scenario_text("", "", "[camera]\nfov = 50\n"), "camera.fov: unknown key");
+    fails_with(scenario_text("", "[[robot]]\nstart = [0, 0, 0]\n"), "at least two");
+    fails_with(scenario_text("", "[[robot]]\nstart = [0, 0, 0]\n[[robot]]\nfilter = \"ekf\"\n"), "robot[1].start: missing");
+    fails_with(scenario_text("", "[[robot]]\nstart = [0, 0, 0]\n[[robot]]\nstart = [1, 0]\n"),
+               "robot[1].start: expected an array of 3 numbers");
+    fails_with(scenario_text("", "[[robot]]\nstart = [0, 0, 0]\nfilter = \"ukf\"\n[[robot]]\nstart = [1, 0, 0]\n"),
+               "unknown filter 'ukf'");
+    fails_with(scenario_text("", "", "[timing]\nphysics_dt_ms = 3.0\ncontrol_period_ms = 10.0\n"),
+               "multiple of physics_dt_ms");
+    fails_with(scenario_text("", "", "[world]\n"), "x.toml:"); // a table defined twice: a TOML error with its place
+    fails_with("name = \n", "x.toml:1");
+    fails_with(scenario_text("", "[[robot]]\nstart = [0, 0, 0]\n[robot.noise]\nodo_xy = 1\n[[robot]]\nstart = [1, 0, 0]\n"),
+               "robot[0].noise.odo_xy: unknown key");
+    EXPECT_THROW(load_scenario_file("/nonexistent/x.toml"), ScenarioError);
+}
+
+TEST(Scenario, ValuesAndOverrides)
+{
+    const Scenario sc = load_scenario_string(scenario_text("seed = 42\n", R"(
+[[robot]]
+name = "a"
+start = [-1.0, 0.5, 90.0]
+particles = 30
+filter = "fastslam1"
+explore_s = 12.0
+[robot.filter_noise]
+bearing_sd_deg = 3.0
+[[robot]]
+start = [1.0, 0.0, 0.0]
+[robot.noise]
+odo_theta_sd_deg = 2.0
+)",
+                                                           "[noise]\nodo_xy_sd_m = 0.05\n"));
+    EXPECT_EQ(sc.seed, 42u);
+    EXPECT_EQ(sc.robots[0].name, "a");
+    EXPECT_EQ(sc.robots[1].name, "robot1");
+    EXPECT_NEAR(sc.robots[0].start.theta, 0.5 * COSLAM_PI, 1e-12);
+    EXPECT_EQ(sc.robots[0].particles, 30);
+    EXPECT_EQ(sc.robots[0].filter, SLAM_FILTER_FASTSLAM1);
+    EXPECT_EQ(*sc.robots[0].explore_s, 12.0);
+    EXPECT_EQ(*sc.robots[0].filter_noise.bearing_sd_deg, 3.0);
+    EXPECT_FALSE(sc.robots[0].filter_noise.range_sd_m.has_value());
+    EXPECT_EQ(sc.robots[0].noise.odo_xy_sd_m, 0.05); // scenario default
+    EXPECT_EQ(sc.robots[1].noise.odo_xy_sd_m, 0.05);
+    EXPECT_EQ(sc.robots[1].noise.odo_theta_sd_deg, 2.0); // robot override
+}
+
+// ---------------------------------------------------------------------------
+// a robot's body on its drives: the real cia402_omni driver over the CAN emulators
+// ---------------------------------------------------------------------------
+
+namespace {
+
+struct Rig {
+    SimClock clock{0};
+    World world;
+    SimLinkHub hub{clock, 2};
+    std::unique_ptr<SimRobot> robot;
+    cia402_omni_t omni{};
+    uint64_t now = 0;
+
+    explicit Rig(const SimRobotConfig &c)
+    {
+        robot = std::make_unique<SimRobot>(clock, world, hub, c);
+        const cia402_omni_config_t oc = cia402_omni_config_default();
+        EXPECT_EQ(cia402_omni_init(&omni, &oc, robot->io().can), COSLAM_OK);
+        EXPECT_EQ(cia402_omni_start(&omni, 0), COSLAM_OK);
+    }
+    void run_ms(int ms)
+    {
+        for (int i = 0; i < ms; ++i) {
+            now += 1000;
+            clock.advance_to(now);
+            robot->physics_step(now, 0.001);
+            cia402_omni_poll(&omni, now);
+        }
+    }
+    void enable()
+    {
+        for (int i = 0; i < 500 && !cia402_omni_is_running(&omni); ++i) run_ms(1);
+        ASSERT_EQ(cia402_omni_enable(&omni, 1), COSLAM_OK);
+        for (int i = 0; i < 200 && !cia402_omni_is_enabled(&omni); ++i) run_ms(1);
+        ASSERT_TRUE(cia402_omni_is_enabled(&omni));
+    }
+};
+
+SimRobotConfig quiet_robot()
+{
+    SimRobotConfig c;
+    c.odo_xy_var_m2_per_m = 0.0;
+    c.odo_theta_var_rad2_per_m = 0.0;
+    return c;
+}
+
+}  // namespace
+
+TEST(SimRobot, WheelSpeedsFromTheDrivesMoveTheRobot)
+{
+    SimRobotConfig c = quiet_robot();
+    c.start = pose2_t{1.0, 2.0, 0.3};
+    Rig rig(c);
+    rig.enable();
+    const pose2_t p0 = rig.robot->pose();
+    ASSERT_EQ(cia402_omni_set_body_velocity(&rig.omni, 0.2, 0.0, 0.3), COSLAM_OK);
+    rig.run_ms(3000);
+    // the closed-form arc from p0, minus what the 50 ms motor lag costs
+    const double v = 0.2, w = 0.3, t = 3.0;
+    const pose2_t arc = pose2_compose(p0, pose2_t{std::sin(w * t) * v / w, (1.0 - std::cos(w * t)) * v / w, w * t});
+    const pose2_t p = rig.robot->pose();
+    EXPECT_NEAR(p.x, arc.x, 0.03);
+    EXPECT_NEAR(p.y, arc.y, 0.03);
+    EXPECT_NEAR(angle_wrap(p.theta - arc.theta), 0.0, 0.03);
+    EXPECT_NEAR(rig.robot->distance_m(), v * t, 0.02);
+    EXPECT_EQ(rig.robot->wall_collisions(), 0u);
+}
+
+TEST(SimRobot, AWallStopsTheBodyAndPressesTheBumper)
+{
+    SimRobotConfig c = quiet_robot();
+    Rig rig(c);
+    rig.world.add_wall(Vector2d(0.6, -2.0), Vector2d(0.6, 2.0));
+    hal_gpio_t *gpio = rig.robot->io().gpio;
+    hal_gpio_config_t in{};
+    in.dir = HAL_GPIO_DIR_INPUT;
+    ASSERT_EQ(hal_gpio_configure(gpio, SimRobot::kBumperLine, &in), HAL_OK);
+    ASSERT_EQ(hal_gpio_configure(gpio, SimRobot::kEstopLine, &in), HAL_OK);
+    bool level = false;
+    ASSERT_EQ(hal_gpio_read(gpio, SimRobot::kEstopLine, &level), HAL_OK);
+    EXPECT_TRUE(level); // the e-stop loop is closed: released
+    rig.enable();
+    ASSERT_EQ(cia402_omni_set_body_velocity(&rig.omni, 0.2, 0.0, 0.0), COSLAM_OK);
+    rig.run_ms(4000);
+    EXPECT_LE(rig.robot->pose().x, 0.6 - c.radius_m + 1e-9);
+    EXPECT_GT(rig.robot->pose().x, 0.6 - c.radius_m - 0.01);
+    EXPECT_TRUE(rig.robot->in_contact());
+    EXPECT_EQ(rig.robot->wall_collisions(), 1u); // one contact episode, however long
+    ASSERT_EQ(hal_gpio_read(gpio, SimRobot::kBumperLine, &level), HAL_OK);
+    EXPECT_TRUE(level);
+    EXPECT_LT(rig.robot->min_wall_clearance_m(), 1e-3);
+    // backing off releases the bumper
+    ASSERT_EQ(cia402_omni_set_body_velocity(&rig.omni, -0.2, 0.0, 0.0), COSLAM_OK);
+    rig.run_ms(1000);
+    ASSERT_EQ(hal_gpio_read(gpio, SimRobot::kBumperLine, &level), HAL_OK);
+    EXPECT_FALSE(level);
+}
+
+// ---------------------------------------------------------------------------
+// a whole node on the simulated devices
+// ---------------------------------------------------------------------------
+
+TEST(Simulation, NodesStartUpAndTheEstopStopsTheRobot)
+{
+    Scenario sc = load_scenario_file(kPaper);
+    Simulation sim(sc, SimulationOptions{std::nullopt, 20.0});
+    sim.advance_to(4.0);
+    for (size_t k = 0; k < 2; ++k) {
+        EXPECT_EQ(robot_node_state(&sim.node(k)), ROBOT_NODE_RUN);
+        EXPECT_GT(robot_node_counters(&sim.node(k))->scans, 30u);  // 10 Hz URG over SCIP
+        EXPECT_GT(robot_node_counters(&sim.node(k))->frames, 15u); // 5 Hz sightings
+        EXPECT_EQ(robot_node_laser_stats(&sim.node(k))->err_checksum, 0u);
+        EXPECT_GT(sim.robot(k).distance_m(), 0.3); // exploring
+    }
+    // cut robot 0's e-stop loop: it must stand still within half a second
+    sim.robot(0).gpio().set_input_level(SimRobot::kEstopLine, false);
+    sim.advance_to(4.5);
+    const pose2_t p = sim.robot(0).pose();
+    const double d1 = sim.robot(1).distance_m();
+    sim.advance_to(6.0);
+    EXPECT_LT(std::hypot(sim.robot(0).pose().x - p.x, sim.robot(0).pose().y - p.y), 0.005);
+    EXPECT_GT(sim.robot(1).distance_m() - d1, 0.2); // the other robot goes on
+    EXPECT_GT(robot_node_counters(&sim.node(0))->stop_steps, 100u);
+    // the status LED blinks fast while stopped (the firmware drives line 2)
+    int toggles = 0;
+    bool last = sim.robot(0).gpio().output_level(SimRobot::kLedLine).value_or(false);
+    for (int i = 0; i < 100; ++i) {
+        sim.advance_to(6.0 + 0.01 * (i + 1));
+        const bool now = sim.robot(0).gpio().output_level(SimRobot::kLedLine).value_or(false);
+        toggles += now != last;
+        last = now;
+    }
+    EXPECT_GE(toggles, 6); // 4 Hz for 1 s: 8 edges
+    // released again (after the e-stop's release time) it drives on
+    sim.robot(0).gpio().set_input_level(SimRobot::kEstopLine, true);
+    const pose2_t q = sim.robot(0).pose();
+    sim.advance_to(9.0);
+    EXPECT_GT(std::hypot(sim.robot(0).pose().x - q.x, sim.robot(0).pose().y - q.y), 0.1);
+}
+
+TEST(RunOutput, FilesAreWrittenAndParse)
+{
+    Scenario sc = load_scenario_file(kPaper);
+    Simulation sim(sc, SimulationOptions{std::nullopt, 3.0});
+    sim.run();
+    const std::string dir = ::testing::TempDir() + "coslam_run_output";
+    std::filesystem::remove_all(dir);
+    write_run_outputs(sim, dir);
+    for (const char *f : {"robot0_path.tum", "robot1_truth_path.tum", "robot0_map.csv", "robot1_errors.csv",
+                          "truth_map.csv", "merge_events.csv", "world.json", "metrics.json", "robot0_grid.pgm"}) {
+        EXPECT_TRUE(std::filesystem::exists(dir + "/" + f)) << f;
+    }
+    std::ifstream tum(dir + "/robot0_path.tum");
+    std::string line;
+    int rows = 0;
+    while (std::getline(tum, line)) {
+        if (line.empty() || line[0] == '#') continue;
+        std::istringstream ls(line);
+        double v[8];
+        for (double &x : v) ASSERT_TRUE(static_cast<bool>(ls >> x)) << line;
+        EXPECT_NEAR(v[6] * v[6] + v[7] * v[7], 1.0, 1e-6);
+        if (rows == 0) {
+            EXPECT_EQ(v[0], 0.0);
+            EXPECT_NEAR(v[1], -1.0, 1e-9); // world frame: robot 0 starts at (-1, 0)
+        }
+        rows++;
+    }
+    EXPECT_EQ(rows, 31); // 3 s at 10 Hz, both ends
+    std::ifstream mj(dir + "/metrics.json");
+    const nlohmann::json m = nlohmann::json::parse(mj);
+    EXPECT_EQ(m["scenario"]["name"], "paper");
+    EXPECT_EQ(m["robots"].size(), 2u);
+    EXPECT_EQ(m["robots"][1]["filter"], "ekf");
+    EXPECT_GT(m["timing"]["realtime_factor"].get<double>(), 1.0);
+    std::ifstream pgm(dir + "/robot0_grid.pgm", std::ios::binary);
+    std::string magic;
+    int w = 0, h = 0, maxv = 0;
+    pgm >> magic >> w >> h >> maxv;
+    EXPECT_EQ(magic, "P5");
+    EXPECT_EQ(w, COSLAM_GRID_CELLS_X);
+    EXPECT_EQ(h, COSLAM_GRID_CELLS_Y);
+    EXPECT_EQ(std::filesystem::file_size(dir + "/robot0_grid.pgm"),
+              static_cast<uintmax_t>(w * h) +
+                  ("P5\n" + std::to_string(w) + " " + std::to_string(h) + "\n255\n").size());
+    const std::string summary = run_summary(sim, dir);
+    EXPECT_NE(summary.find("robot0"), std::string::npos);
+    EXPECT_NE(summary.find("merges: none"), std::string::npos);
+}
