@@ -4,8 +4,8 @@
   robot<k>_map.png  per robot, like the paper's Figs. 6 and 10: the true and
                     estimated path in the robot's map frame, landmark
                     estimates with 2-sigma ellipses and the true landmarks;
-                    left the moment of its first merge (map before the merge
-                    in blue, after in red), right the end of the run.
+                    left the merge that added the most landmarks (map before
+                    the merge in blue, after in red), right the end of the run.
   errors.png        like Fig. 7: position error, heading error, landmark RMSE
                     and landmark count over time for every robot, merges
                     marked (dashed lines in the receiver's colour).
@@ -20,6 +20,7 @@ usage: plot_replay.py RUN_DIR [--title TEXT]
 import argparse
 import csv
 import glob
+import json
 import math
 import os
 import re
@@ -52,17 +53,17 @@ def draw_map(ax, path, color, label=None):
                 label=label and "%s (%d)" % (label, len(lms)))
 
 
-def robot_figure(d, k, merges, title):
+def robot_figure(d, k, metrics, title):
     base = os.path.join(d, "robot%d" % k)
     est = read_tum(base + "_path.tum")
     tru = read_tum(base + "_truth_path.tum") if os.path.exists(base + "_truth_path.tum") else np.zeros((0, 4))
     truth_map = read_csv(base + "_truth_map.csv")
     t_merge = None
-    if os.path.exists(base + "_map_before_merge.csv"):
-        mine = [m for m in merges if int(m["robot"]) == k and int(m["status"]) == 0]
-        if mine:
-            t_merge = mine[0]["t"]
-    panels = [("first merge (t = %.0f s)" % t_merge, t_merge)] if t_merge is not None else []
+    for r in metrics.get("robots", []):
+        if r["id"] == k and r.get("shown_merge_t_s", -1) >= 0 and os.path.exists(base + "_map_before_merge.csv"):
+            t_merge = r["shown_merge_t_s"]
+            added = r.get("shown_merge_added", 0)
+    panels = [("merge at t = %.0f s (+%d landmarks)" % (t_merge, added), t_merge)] if t_merge is not None else []
     panels.append(("end of run", None))
     fig, axs = plt.subplots(1, len(panels), figsize=(7.5 * len(panels), 7.5), squeeze=False)
     for ax, (name, t_cut) in zip(axs[0], panels):
@@ -141,8 +142,12 @@ def main():
         print("plot_replay: no robot<k>_path.tum in %s" % d, file=sys.stderr)
         return 1
     merges = read_csv(os.path.join(d, "merge_events.csv"))
+    metrics = {}
+    if os.path.exists(os.path.join(d, "metrics.json")):
+        with open(os.path.join(d, "metrics.json")) as f:
+            metrics = json.load(f)
     for k in robots:
-        robot_figure(d, k, merges, a.title)
+        robot_figure(d, k, metrics, a.title)
     error_figure(d, robots, merges, a.title)
     return 0
 

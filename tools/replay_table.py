@@ -1,7 +1,8 @@
 #!/usr/bin/python3
 """Summary table of the replays under a folder (tools/run_replay.sh):
 one row per setting (robots, merging) x filter x identities, the means over
-the robots of each run (and over the runs of a group, e.g. the seven pairs).
+the robots of each run (and over the runs of a group, e.g. the seven pairs);
+the landmark RMSE is pooled over all matched landmarks of those robots.
 
 usage: replay_table.py OUT_DIR   (reads OUT_DIR/*/metrics.json)
 """
@@ -38,7 +39,8 @@ def main():
                 pose = sum(r["pose"]["rmse_m"] for r in robots) / n
                 head = sum(r["pose"]["heading_rmse_deg"] for r in robots) / n
                 nees = sum(r["pose"]["nees_mean"] for r in robots) / n
-                lm = sum(r["map"]["rmse_m"] for r in robots) / n
+                nm = sum(r["map"]["n_matched"] for r in robots)
+                lm = math.sqrt(sum(r["map"]["rmse_m"] ** 2 * r["map"]["n_matched"] for r in robots) / nm) if nm else 0.0
                 est = sum(r["map"]["n_estimated"] for r in robots) / n
                 spur = sum(r["map"]["n_spurious"] for r in robots) / n
                 miss = sum(r["map"]["n_missed"] for r in robots) / n

@@ -24,14 +24,15 @@ for filter in ekf fastslam2; do
     flag=""
     [ "$ids" = known ] && flag="--known-ids"
     echo "== 5 robots, $filter, $ids identities"
-    "$bin" run "$data" -c "$cfg" -f "$filter" -p "$particles" $flag -q -o "$out/5r_${filter}_${ids}" | tail -n +1 | sed -n '1,8p'
+    "$bin" run "$data" -c "$cfg" -f "$filter" -p "$particles" $flag -q -o "$out/5r_${filter}_${ids}" 2>/dev/null \
+      | sed -n '1,8p'
     "$bin" run "$data" -c "$cfg" -f "$filter" -p "$particles" $flag -q --no-merge --no-plots \
-      -o "$out/5r-nomerge_${filter}_${ids}" > /dev/null
+      -o "$out/5r-nomerge_${filter}_${ids}" > /dev/null 2>&1
     for pair in 1,3 1,5 2,3 2,5 3,4 3,5 4,5; do
       plots="--no-plots"
       [ "$pair" = 2,3 ] && plots=""
       "$bin" run "$data" -c "$cfg" -f "$filter" -p "$particles" $flag -q $plots -r "$pair" \
-        -o "$out/2r-$(echo $pair | tr , -)_${filter}_${ids}" > /dev/null
+        -o "$out/2r-$(echo $pair | tr , -)_${filter}_${ids}" > /dev/null 2>&1
     done
   done
 done

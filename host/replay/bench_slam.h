@@ -20,11 +20,15 @@
 namespace coslam::replay {
 
 /// One step: the odometry since the previous step, then one camera frame.
+/// The odometry comes in the robot's control-rate chunks (predict_period_s)
+/// and as their composition with the compounded covariance, for a filter
+/// that takes one prediction per frame.
 struct StreamStep {
     double t_s = 0.0;
-    odo_increment_t u{};
-    cov3_t u_cov{};                 ///< motion_noise_cov(u) of the coslam model
-    std::vector<sighting_t> z;      ///< unknown identities (signature 0)
+    std::vector<odo_increment_t> chunks; ///< control-rate increments since the last step
+    odo_increment_t u{};                 ///< their composition
+    cov3_t u_cov{};                      ///< its covariance: the chunks' motion_noise_cov compounded
+    std::vector<sighting_t> z;           ///< unknown identities (signature 0)
 };
 
 class SlamUnderTest {

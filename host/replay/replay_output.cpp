@@ -104,9 +104,9 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
         if (r.final_map) {
             write_map(d / (base + "_map.csv"), *r.final_map);
         }
-        if (r.map_before_first_merge) {
-            write_map(d / (base + "_map_before_merge.csv"), *r.map_before_first_merge);
-            write_map(d / (base + "_map_after_merge.csv"), *r.map_after_first_merge);
+        if (r.map_before_merge) {
+            write_map(d / (base + "_map_before_merge.csv"), *r.map_before_merge);
+            write_map(d / (base + "_map_after_merge.csv"), *r.map_after_merge);
         }
         for (const auto &s : r.path) {
             if (!s.has_truth) {
@@ -188,6 +188,8 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
                       {"nees_mean", r.pose_nees_mean},     {"final_err_m", r.final_pos_err_m}};
         rj["map"] = score_json(r.final_score);
         rj["first_merge_t_s"] = r.t_first_merge_s;
+        rj["shown_merge_t_s"] = r.t_shown_merge_s;
+        rj["shown_merge_added"] = r.shown_merge_gain;
         rj["steps"] = {{"frames", r.frames},           {"updates", r.updates},
                        {"predictions", r.predictions}, {"step_us_mean", r.step_us_mean},
                        {"step_us_max", r.step_us_max}, {"filter_s", r.filter_s}};

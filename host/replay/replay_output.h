@@ -4,7 +4,8 @@
 //   robot<k>_truth_path.tum      true path in the same map frame
 //   robot<k>_map.csv             final map (id,x,y,cxx,cxy,cyy)
 //   robot<k>_map_before_merge.csv, robot<k>_map_after_merge.csv
-//                                the map right before and after its first merge
+//                                the map right before and after the merge that
+//                                added the most landmarks (metrics.json: shown_merge_t_s)
 //   robot<k>_truth_map.csv       true landmarks in the map frame (id,x,y)
 //   errors.csv                   t,robot,pos_err_m,heading_err_rad,nees
 //   map_errors.csv               t,robot,n_estimated,n_matched,n_spurious,n_missed,rmse_m

@@ -529,10 +529,15 @@ void Replay::merge_into(Robot &recv, Robot &send, const LastSighting &rs, const 
     }
     auto after = std::make_shared<map_estimate_t>();
     ev.after = score_now(recv, after.get());
-    if (!recv.res.map_before_first_merge) {
-        recv.res.map_before_first_merge = before;
-        recv.res.map_after_first_merge = after;
+    if (recv.res.t_first_merge_s < 0.0) {
         recv.res.t_first_merge_s = now;
+    }
+    const int gain = after->n_landmarks - before->n_landmarks;
+    if (gain > recv.res.shown_merge_gain) {
+        recv.res.map_before_merge = before;
+        recv.res.map_after_merge = after;
+        recv.res.t_shown_merge_s = now;
+        recv.res.shown_merge_gain = gain;
     }
     out_.merges.push_back(ev);
 }

@@ -106,9 +106,13 @@ struct RobotResult {
     std::vector<PoseSample> path;   ///< at pose_period_s
     std::vector<MapSample> map_series;
     std::shared_ptr<map_estimate_t> final_map;
-    std::shared_ptr<map_estimate_t> map_before_first_merge; ///< null if never merged
-    std::shared_ptr<map_estimate_t> map_after_first_merge;
+    /// The map right before and after the merge that added the most
+    /// landmarks to it (the figures show this one); null if never merged.
+    std::shared_ptr<map_estimate_t> map_before_merge;
+    std::shared_ptr<map_estimate_t> map_after_merge;
+    double t_shown_merge_s = -1.0;
     double t_first_merge_s = -1.0;
+    int shown_merge_gain = -1;      ///< landmarks it added
     std::vector<point2_t> truth_landmarks; ///< true landmarks in the map frame
     std::vector<int> truth_ids;
     std::vector<int> n_seen;        ///< sightings of each true landmark (own and merged in)

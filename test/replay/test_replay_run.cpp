@@ -146,8 +146,9 @@ TEST(ReplaySynthetic, TwoRobotMeetingMergesBothWaysWithTheTrueTransform)
             EXPECT_LT(r.final_score.rmse_m, 0.6) << filter_kind_name(kind) << " robot " << r.id << " "
                                                   << r.final_score.n_estimated << " " << r.final_score.n_spurious;
             EXPECT_LE(r.final_score.n_spurious, 2);
-            ASSERT_TRUE(r.map_before_first_merge);
+            ASSERT_TRUE(r.map_before_merge);
             EXPECT_GT(r.t_first_merge_s, 0.0);
+            EXPECT_EQ(r.map_after_merge->n_landmarks - r.map_before_merge->n_landmarks, r.shown_merge_gain);
         }
     }
     fs::remove_all(dir);
