@@ -256,6 +256,12 @@ int main(int argc, char **argv)
             jc.jcbb = true;
             mrpt_opts.push_back(jc);
             if (grid) {
+                MrptSlamOptions own;
+                own.own_motion_model = true;
+                mrpt_opts.push_back(own);
+                own.std_range_m = 0.5;
+                own.std_bearing_rad = 0.04;
+                mrpt_opts.push_back(own);
                 for (const double sr : {0.1, 0.3, 0.5}) {
                     for (const double sb : {0.01, 0.04, 0.08}) {
                         MrptSlamOptions g;

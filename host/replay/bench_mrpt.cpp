@@ -39,7 +39,8 @@ public:
 
     std::string name() const override
     {
-        return std::string("MRPT CRangeBearingKFSLAM2D (") + (opt_.jcbb ? "JCBB" : "NN") + ")";
+        return std::string("MRPT CRangeBearingKFSLAM2D (") + (opt_.jcbb ? "JCBB" : "NN") +
+               (opt_.own_motion_model ? ", MRPT odometry model" : "") + ")";
     }
 
     void step(const StreamStep &s) override
@@ -58,7 +59,11 @@ public:
             cov(i, i) += 1e-12;
         }
         const mrpt::poses::CPose2D inc(s.u.dx, s.u.dy, s.u.dtheta);
-        act.poseChange = mrpt::poses::CPosePDFGaussian::Create(inc, cov);
+        if (opt_.own_motion_model) {
+            act.computeFromOdometry(inc, mrpt::obs::CActionRobotMovement2D::TMotionModelOptions());
+        } else {
+            act.poseChange = mrpt::poses::CPosePDFGaussian::Create(inc, cov);
+        }
         act.rawOdometryIncrementReading = inc;
         acts->insert(act);
 

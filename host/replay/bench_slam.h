@@ -48,6 +48,10 @@ struct MrptSlamOptions {
     double std_bearing_rad = 0.02;
     bool jcbb = false;              ///< data association: false = NN, true = JCBB
     double chi2_quantile = 0.99;    ///< individual compatibility test
+    /// true: MRPT's own Gaussian odometry model with its default parameters
+    /// (computeFromOdometry), as an MRPT user would run it; false: the
+    /// odometry covariance coslam's filters get.
+    bool own_motion_model = false;
 };
 
 /// True if this build has MRPT (the benchmark prints why not otherwise).
