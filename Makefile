@@ -44,7 +44,7 @@ bench-mrpt:
 	@tools/deps.sh install mrpt
 	@cmake -S . -B $(BUILD) -DCOSLAM_PROFILE=$(PROFILE) -DCOSLAM_TEST_LEVEL=$(TEST_LEVEL) $(CMAKE_ARGS) >/dev/null
 	@cmake --build $(BUILD) -j$(JOBS) --target coslam-bench-mrclam
-	@$(BUILD)/host/replay/coslam-bench-mrclam -c host/replay/mrclam6.ini --out out/bench
+	@$(BUILD)/host/replay/coslam-bench-mrclam -c host/replay/mrclam6.ini --mrpt-grid --repeats 3 --out out/bench
 
 clean:
 	@cmake --build $(BUILD) --target clean 2>/dev/null || true

@@ -124,11 +124,29 @@ struct Key {
     std::function<std::string()> get;
 };
 
+// Shortest decimal text that reads back as exactly v.
 std::string fmt(double v)
 {
-    std::ostringstream os;
-    os << std::setprecision(17) << v;
-    return os.str();
+    for (int prec = 6; prec <= 17; ++prec) {
+        std::ostringstream os;
+        os << std::setprecision(prec) << v;
+        if (std::strtod(os.str().c_str(), nullptr) == v) {
+            return os.str();
+        }
+    }
+    return std::to_string(v);
+}
+
+std::string fmt_float(float v)
+{
+    for (int prec = 6; prec <= 9; ++prec) {
+        std::ostringstream os;
+        os << std::setprecision(prec) << static_cast<double>(v);
+        if (static_cast<float>(std::strtod(os.str().c_str(), nullptr)) == v) {
+            return os.str();
+        }
+    }
+    return std::to_string(v);
 }
 
 double parse_double(const std::string &s)
@@ -171,7 +189,7 @@ Key dkey(const char *sec, const char *key, double *v)
 Key fkey(const char *sec, const char *key, float *v)
 {
     return {sec, key, [v](const std::string &s) { *v = static_cast<float>(parse_double(s)); },
-            [v] { return fmt(static_cast<double>(*v)); }};
+            [v] { return fmt_float(*v); }};
 }
 
 template <typename T> Key ikey(const char *sec, const char *key, T *v, long lo, long hi)

@@ -357,8 +357,9 @@ void Replay::process_frame(Robot &r, const Frame &f)
 {
     advance(r, f.t_s);
     const RobotLog &log = *r.log;
-    sighting_t z[COSLAM_MAX_SIGHTINGS * 4];
-    int n = 0;
+    // every sighting goes to the core, which counts what exceeds its capacity
+    std::vector<sighting_t> z;
+    z.reserve(f.zi.size());
     pose2_t est{};
     cov3_t cov{};
     if (opt_.known_ids && cfg_.input.known_id_gate_rad > 0.0) {
@@ -387,9 +388,7 @@ void Replay::process_frame(Robot &r, const Frame &f)
                 }
             }
         }
-        if (n < static_cast<int>(sizeof z / sizeof z[0])) {
-            z[n++] = q;
-        }
+        z.push_back(q);
         r.res.sightings_used++;
         const auto it = truth_index_.find(s.landmark_id);
         if (it != truth_index_.end()) {
@@ -397,7 +396,7 @@ void Replay::process_frame(Robot &r, const Frame &f)
         }
     }
     const auto t0 = Clock::now();
-    const coslam_status_t st = r.filter->update(z, n);
+    const coslam_status_t st = r.filter->update(z.data(), static_cast<int>(z.size()));
     const double update_us = us_since(t0);
     if (st == COSLAM_E_CAPACITY) {
         r.res.capacity_errors++;
