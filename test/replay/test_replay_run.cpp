@@ -11,6 +11,8 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
+#include <sstream>
 #include <iomanip>
 #include <iostream>
 #include <nlohmann/json.hpp>
@@ -218,6 +220,89 @@ TEST(ReplaySynthetic, RequestErrors)
     const ReplayResult r = run_replay(ds, cfg, opt);
     EXPECT_EQ(r.robots.size(), 1u);
     EXPECT_TRUE(r.merges.empty());
+    fs::remove_all(dir);
+}
+
+namespace {
+
+// Rewrite one record of a log file: the k-th line starting with `tag`
+// (negative k counts from the end) gets `edit` applied to its fields.
+void edit_record(const fs::path &file, char tag, int k, const std::function<void(std::vector<double> &)> &edit)
+{
+    std::ifstream in(file);
+    std::vector<std::string> lines;
+    std::vector<size_t> idx;
+    for (std::string l; std::getline(in, l);) {
+        if (!l.empty() && l[0] == tag) {
+            idx.push_back(lines.size());
+        }
+        lines.push_back(l);
+    }
+    ASSERT_FALSE(idx.empty());
+    const size_t at = idx[k >= 0 ? static_cast<size_t>(k) : idx.size() - static_cast<size_t>(-k)];
+    std::istringstream ss(lines[at].substr(1));
+    std::vector<double> f;
+    for (double v; ss >> v;) {
+        f.push_back(v);
+    }
+    edit(f);
+    std::ostringstream os;
+    os << std::setprecision(17) << tag;
+    for (const double v : f) {
+        os << ' ' << v;
+    }
+    lines[at] = os.str();
+    std::ofstream out(file);
+    for (const auto &l : lines) {
+        out << l << '\n';
+    }
+}
+
+} // namespace
+
+TEST(ReplaySynthetic, MisreadRobotMarkerIsRefusedByTheRangeCheck)
+{
+    const fs::path dir = temp_dir("synth_range");
+    write_synth2(dir, 11);
+    // robot 1's first sighting of robot 2 reads 2 m too far
+    edit_record(dir / "robot1.log", 'R', 0, [](std::vector<double> &f) { f[2] += 2.0; });
+    const Dataset ds = load_dataset(dir.string());
+    ReplayConfig cfg = synth_config();
+    cfg.filter.type = FilterKind::Ekf;
+    const ReplayResult res = run_replay(ds, cfg, ReplayOptions{});
+    EXPECT_EQ(res.meetings_refused_range, 1);
+    // the next mutual sightings still give the meeting, with a good transform
+    ASSERT_EQ(res.merges.size(), 2u);
+    for (const auto &e : res.merges) {
+        EXPECT_EQ(e.status, COSLAM_OK);
+        EXPECT_LT(e.t_err_m, 0.2);
+    }
+    fs::remove_all(dir);
+}
+
+TEST(ReplaySynthetic, KnownIdsGateDropsAMisreadAndOnlyIt)
+{
+    const fs::path dir = temp_dir("synth_known");
+    write_synth2(dir, 11);
+    ReplayConfig cfg = synth_config();
+    cfg.filter.type = FilterKind::Ekf;
+    ReplayOptions opt;
+    opt.known_ids = true;
+    opt.robots = {1};
+    const ReplayResult clean = run_replay(load_dataset(dir.string()), cfg, opt);
+    EXPECT_EQ(clean.robots[0].sightings_known_id_dropped, 0);
+    // a late sighting of a mapped landmark gets a bearing 2 rad off: a
+    // misread barcode, as in MRCLAM
+    edit_record(dir / "robot1.log", 'Z', -1, [](std::vector<double> &f) { f[3] = angle_wrap(f[3] + 2.0); });
+    const ReplayResult res = run_replay(load_dataset(dir.string()), cfg, opt);
+    EXPECT_EQ(res.robots[0].sightings_known_id_dropped, 1);
+    EXPECT_EQ(res.robots[0].sightings_used, clean.robots[0].sightings_used - 1);
+    EXPECT_EQ(res.robots[0].final_map->n_landmarks, clean.robots[0].final_map->n_landmarks);
+    // with the gate off the misread reaches the filter
+    cfg.input.known_id_gate_rad = 0.0;
+    const ReplayResult open = run_replay(load_dataset(dir.string()), cfg, opt);
+    EXPECT_EQ(open.robots[0].sightings_known_id_dropped, 0);
+    EXPECT_EQ(open.robots[0].sightings_used, clean.robots[0].sightings_used);
     fs::remove_all(dir);
 }
 
