@@ -6,6 +6,9 @@
 #                          exact apt-get command and exit 1
 #   tools/deps.sh install  same as ensure
 #   tools/deps.sh list     print the package list
+# An optional second argument selects another list instead of the build's:
+#   mrpt   MRPT's SLAM library, only for `make bench-mrpt` (large: kept out
+#          of the default list so that CI stays fast)
 set -eu
 
 PACKAGES="
@@ -28,6 +31,15 @@ nlohmann-json3-dev
 libcli11-dev
 libgpiod-dev
 "
+
+PACKAGES_MRPT="
+libmrpt-slam-dev
+"
+case "${2:-}" in
+  "") ;;
+  mrpt) PACKAGES=$PACKAGES_MRPT ;;
+  *) echo "deps: unknown package set '$2' (known: mrpt)" >&2; exit 2 ;;
+esac
 
 missing() {
   for p in $PACKAGES; do
@@ -61,5 +73,5 @@ case "$cmd" in
       echo "  apt-get install -y --no-install-recommends $m" >&2
       exit 1
     fi ;;
-  *) echo "usage: $0 check|ensure|install|list" >&2; exit 2 ;;
+  *) echo "usage: $0 check|ensure|install|list [mrpt]" >&2; exit 2 ;;
 esac

@@ -1,0 +1,137 @@
+// host/replay/replay_config.h - every parameter of a replay, with defaults
+// fitted to MRCLAM (docs/replay.md gives the measurements behind each), read
+// from an INI file (libinih).
+//
+// INI layout (section.key; every key optional; an unknown section or key, a
+// value that is not a number, or an out-of-domain value is an error naming
+// the file and line):
+//   [slam]      every field of slam_params_t by its C name (noise weights
+//               w1..w8 as variances, range_var_per_m2, sensor footprint,
+//               gates, existence counters)
+//   [odometry]  scale_v, scale_w, delay_s (OdoModel)
+//   [filter]    type (fastslam1 | fastslam2 | ekf), particles, ess_fraction,
+//               export_min_weight, assoc (jcbb | nn), jcbb_max_nodes, fej,
+//               seed, predict_period_s
+//   [input]     min_range_m, max_range_m (sightings outside are dropped, counted),
+//               known_id_gate_rad, known_id_gate_chi2, known_id_log_lik
+//               (known-ids mode, see below)
+//   [merge]     enabled, window_s, interval_s, gate_chi2, grid_cell_m,
+//               transform_uncertainty, reweight_particles, min_obs,
+//               range_check_chi2, sender_speed_mps, sender_turn_radps
+//   [eval]      gate_m, min_seen, map_period_s, pose_period_s
+//   [robotN]    per-robot overrides: filter, scale_v, scale_w, delay_s
+#ifndef COSLAM_HOST_REPLAY_CONFIG_H
+#define COSLAM_HOST_REPLAY_CONFIG_H
+
+#include <cstdint>
+#include <iosfwd>
+#include <map>
+#include <string>
+
+#include "coslam/ekfslam.h"
+#include "coslam/fastslam.h"
+#include "coslam/map_merge.h"
+#include "coslam/slam_params.h"
+#include "replay_odometry.h"
+
+namespace coslam::replay {
+
+enum class FilterKind { FastSlam1, FastSlam2, Ekf };
+
+/// "fastslam1" | "fastslam2" | "ekf" (also "fs1", "fs2"); throws ReplayError otherwise.
+FilterKind filter_kind_from_string(const std::string &s);
+const char *filter_kind_name(FilterKind k);
+
+struct FilterConfig {
+    FilterKind type = FilterKind::FastSlam2;
+    int particles = 100;
+    double ess_fraction = 0.5;
+    double export_min_weight = 0.5;
+    ekfslam_assoc_t assoc = EKFSLAM_ASSOC_JCBB;
+    uint32_t jcbb_max_nodes = 20000;
+    int fej = 1;
+    uint64_t seed = 1;
+    /// Odometry is folded into one prediction at most this long [s] (and
+    /// always right before a camera frame): the robot's control rate.
+    double predict_period_s = 0.1;
+};
+
+struct InputConfig {
+    double min_range_m = 0.0;
+    double max_range_m = 1e9;
+    /// Known-ids mode: a sighting of landmark id k whose bearing differs by
+    /// more than this [rad] from the bearing of the filter's landmark with
+    /// signature k (seen from the current pose estimate) is a misread
+    /// barcode and dropped (MRCLAM's misreads are off by more than 100 deg).
+    /// 0 disables the gate.
+    double known_id_gate_rad = 1.0;
+    /// Known-ids mode: the identity decides the association, so the
+    /// filter's gates are opened (slam.gate_chi2, new_landmark_chi2 and the
+    /// merge's duplicate gate set to this, new_landmark_log_lik to
+    /// known_id_log_lik); otherwise a loop
+    /// closure after a long landmark-free stretch (30-40 deg of heading
+    /// drift happen on MRCLAM) fails the gate and duplicates the landmark.
+    double known_id_gate_chi2 = 1e4;
+    double known_id_log_lik = -1e4;
+};
+
+struct MergeParams {
+    bool enabled = true;
+    double window_s = 0.5;    ///< both sightings at most this far apart in time
+    double interval_s = 30.0; ///< at most one merge per pair per interval
+    merge_config_t core = merge_config_default();
+    /// The two robots measure the same distance: |r1 - r2|^2 / (v1 + v2)
+    /// must stay below this, else a sighting is a misread marker and the
+    /// meeting is refused (counted).
+    double range_check_chi2 = 9.0;
+    /// Bound on the sender's motion between the two sightings, added as
+    /// variance (speed * dt)^2 on x, y and (turn * dt)^2 on the heading.
+    double sender_speed_mps = 0.2;
+    double sender_turn_radps = 0.5;
+};
+
+struct EvalConfig {
+    double gate_m = 0.5;       ///< landmark matching gate
+    int min_seen = 5;          ///< a true landmark is "missed" only if sighted this often
+    double map_period_s = 5.0; ///< map error time series period
+    double pose_period_s = 0.1;///< pose error samples
+};
+
+struct RobotOverride {
+    bool has_filter = false;
+    FilterKind filter = FilterKind::FastSlam2;
+    bool has_odo = false;
+    OdoModel odo;
+};
+
+struct ReplayConfig {
+    slam_params_t slam = slam_params_default();
+    OdoModel odo;
+    FilterConfig filter;
+    InputConfig input;
+    MergeParams merge;
+    EvalConfig eval;
+    std::map<int, RobotOverride> robot;
+
+    FilterKind filter_of(int robot_id) const;
+    OdoModel odo_of(int robot_id) const;
+};
+
+/// The defaults for MRCLAM's camera and velocity odometry (docs/replay.md).
+ReplayConfig replay_config_default();
+
+/// Apply an INI file on top of `cfg`. Throws ReplayError("file:line: ...").
+void replay_config_load(ReplayConfig &cfg, const std::string &path);
+/// Same, from text (`name` for messages).
+void replay_config_load_string(ReplayConfig &cfg, const std::string &text, const std::string &name);
+
+/// Write `cfg` as an INI file that replay_config_load reads back exactly.
+void replay_config_write(const ReplayConfig &cfg, std::ostream &out);
+
+/// Validate the whole configuration (slam_params_validate and the rest);
+/// throws ReplayError naming the offending key.
+void replay_config_validate(const ReplayConfig &cfg);
+
+} // namespace coslam::replay
+
+#endif

@@ -1,0 +1,588 @@
+// host/replay/replay_data.cpp - MRCLAM and landmark-log readers, log writer.
+#include "replay_data.h"
+
+#include <algorithm>
+#include <array>
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <limits>
+#include <regex>
+#include <set>
+#include <sstream>
+#include <utility>
+
+namespace fs = std::filesystem;
+
+namespace coslam::replay {
+
+ReplayError::ReplayError(const std::string &file, long line, const std::string &reason)
+    : std::runtime_error(line > 0 ? file + ":" + std::to_string(line) + ": " + reason : file + ": " + reason),
+      file_(file), line_(line)
+{
+}
+
+const RobotLog *Dataset::robot(int id) const
+{
+    for (const auto &r : robots) {
+        if (r.id == id) {
+            return &r;
+        }
+    }
+    return nullptr;
+}
+
+const LandmarkTruth *Dataset::landmark(int id) const
+{
+    for (const auto &l : landmarks) {
+        if (l.id == id) {
+            return &l;
+        }
+    }
+    return nullptr;
+}
+
+namespace {
+
+// One data line split into fields: comments ('#' to the end) and CR removed.
+struct LineReader {
+    LineReader(std::istream &in_, std::string name_) : in(in_), name(std::move(name_)) {}
+    std::istream &in;
+    std::string name;
+    long line_no = 0;
+    std::vector<std::string> fields;
+
+    bool next()
+    {
+        std::string line;
+        while (std::getline(in, line)) {
+            ++line_no;
+            const auto hash = line.find('#');
+            if (hash != std::string::npos) {
+                line.erase(hash);
+            }
+            fields.clear();
+            std::istringstream ss(line);
+            std::string f;
+            while (ss >> f) {
+                fields.push_back(f);
+            }
+            if (!fields.empty()) {
+                return true;
+            }
+        }
+        return false;
+    }
+
+    [[noreturn]] void fail(const std::string &reason) const { throw ReplayError(name, line_no, reason); }
+
+    double num(size_t i, const char *what) const
+    {
+        const std::string &s = fields.at(i);
+        errno = 0;
+        char *end = nullptr;
+        const double v = std::strtod(s.c_str(), &end);
+        if (end == s.c_str() || *end != '\0' || errno == ERANGE) {
+            fail(std::string("field ") + std::to_string(i + 1) + " (" + what + ") is not a number: '" + s + "'");
+        }
+        if (!std::isfinite(v)) {
+            fail(std::string("field ") + std::to_string(i + 1) + " (" + what + ") is not finite: '" + s + "'");
+        }
+        return v;
+    }
+
+    int integer(size_t i, const char *what) const
+    {
+        const double v = num(i, what);
+        if (v != std::floor(v) || std::fabs(v) > 1e9) {
+            fail(std::string("field ") + std::to_string(i + 1) + " (" + what + ") is not an integer: '" +
+                 fields.at(i) + "'");
+        }
+        return static_cast<int>(v);
+    }
+
+    void expect_fields(size_t n_min, size_t n_max, const char *layout) const
+    {
+        if (fields.size() < n_min || fields.size() > n_max) {
+            fail("expected " + std::string(layout) + " (" + std::to_string(n_min) +
+                 (n_max != n_min ? "-" + std::to_string(n_max) : std::string()) + " fields), got " +
+                 std::to_string(fields.size()));
+        }
+    }
+};
+
+// Checks that time stamps never decrease within one file.
+struct MonotonicTime {
+    double last = -std::numeric_limits<double>::infinity();
+    void check(const LineReader &r, double t)
+    {
+        if (t < last) {
+            std::ostringstream os;
+            os << std::setprecision(15) << "time goes backwards: " << t << " after " << last;
+            r.fail(os.str());
+        }
+        last = t;
+    }
+};
+
+void check_range(const LineReader &r, double range_m)
+{
+    if (!(range_m > 0.0)) {
+        r.fail("range must be positive, got " + std::to_string(range_m));
+    }
+}
+
+std::ifstream open_or_throw(const fs::path &p)
+{
+    std::ifstream f(p);
+    if (!f) {
+        throw ReplayError(p.string(), 0, "missing file (or not readable)");
+    }
+    return f;
+}
+
+// Raw MRCLAM row tables with absolute times, shifted after t0 is known.
+struct RawRobot {
+    int id = 0;
+    std::vector<std::array<double, 3>> odo;   // t v w
+    std::vector<std::array<double, 4>> meas;  // t subject range bearing (subject -1: unknown)
+    std::vector<std::array<double, 4>> truth; // t x y theta
+    bool has_truth = false;
+    std::string source;
+};
+
+} // namespace
+
+void parse_landmark_log(std::istream &in, const std::string &name, RobotLog &out, ParseReport &report)
+{
+    LineReader r{in, name};
+    MonotonicTime mono;
+    while (r.next()) {
+        report.lines_read++;
+        const std::string &tag = r.fields[0];
+        if (tag == "O") {
+            r.expect_fields(5, 5, "O t dx dy dtheta");
+            OdoRecord o;
+            o.t_s = r.num(1, "t");
+            mono.check(r, o.t_s);
+            o.kind = OdoRecord::Kind::Increment;
+            o.a = r.num(2, "dx");
+            o.b = r.num(3, "dy");
+            o.c = r.num(4, "dtheta");
+            out.odo.push_back(o);
+        } else if (tag == "V") {
+            r.expect_fields(4, 4, "V t v w");
+            OdoRecord o;
+            o.t_s = r.num(1, "t");
+            mono.check(r, o.t_s);
+            o.kind = OdoRecord::Kind::Velocity;
+            o.a = r.num(2, "v");
+            o.b = r.num(3, "w");
+            out.odo.push_back(o);
+        } else if (tag == "Z") {
+            r.expect_fields(5, 5, "Z t id range bearing");
+            LandmarkSighting z;
+            z.t_s = r.num(1, "t");
+            mono.check(r, z.t_s);
+            z.landmark_id = r.integer(2, "id");
+            if (z.landmark_id < -1) {
+                r.fail("landmark id must be -1 (unknown) or >= 0, got " + std::to_string(z.landmark_id));
+            }
+            z.range_m = r.num(3, "range");
+            z.bearing_rad = r.num(4, "bearing");
+            check_range(r, z.range_m);
+            out.z.push_back(z);
+        } else if (tag == "R") {
+            r.expect_fields(5, 5, "R t other_robot_id range bearing");
+            RobotSighting s;
+            s.t_s = r.num(1, "t");
+            mono.check(r, s.t_s);
+            s.other_robot = r.integer(2, "other_robot_id");
+            s.range_m = r.num(3, "range");
+            s.bearing_rad = r.num(4, "bearing");
+            check_range(r, s.range_m);
+            if (s.other_robot == out.id) {
+                report.self_sightings++;
+                continue;
+            }
+            out.rz.push_back(s);
+        } else {
+            r.fail("unknown record type '" + tag + "' (expected O, V, Z or R)");
+        }
+    }
+}
+
+std::vector<TruthPose> parse_truth_path(std::istream &in, const std::string &name)
+{
+    LineReader r{in, name};
+    MonotonicTime mono;
+    std::vector<TruthPose> out;
+    while (r.next()) {
+        r.expect_fields(4, 4, "t x y theta");
+        TruthPose p;
+        p.t_s = r.num(0, "t");
+        mono.check(r, p.t_s);
+        p.pose = {r.num(1, "x"), r.num(2, "y"), angle_wrap(r.num(3, "theta"))};
+        out.push_back(p);
+    }
+    return out;
+}
+
+std::vector<LandmarkTruth> parse_truth_landmarks(std::istream &in, const std::string &name)
+{
+    LineReader r{in, name};
+    std::vector<LandmarkTruth> out;
+    std::set<int> seen;
+    while (r.next()) {
+        r.expect_fields(3, 5, "id x y [x_sd y_sd]");
+        LandmarkTruth l;
+        l.id = r.integer(0, "id");
+        if (!seen.insert(l.id).second) {
+            r.fail("landmark " + std::to_string(l.id) + " listed twice");
+        }
+        l.pos = {r.num(1, "x"), r.num(2, "y")};
+        out.push_back(l);
+    }
+    return out;
+}
+
+Dataset load_mrclam(const std::string &dir)
+{
+    const fs::path d(dir);
+    if (!fs::is_directory(d)) {
+        throw ReplayError(dir, 0, "not a folder");
+    }
+    Dataset ds;
+    ds.source = dir;
+    ds.format = "mrclam";
+
+    // Barcodes.dat: subject -> barcode
+    std::map<int, int> barcode_to_subject;
+    {
+        const fs::path p = d / "Barcodes.dat";
+        auto f = open_or_throw(p);
+        LineReader r{f, p.string()};
+        while (r.next()) {
+            r.expect_fields(2, 2, "subject barcode");
+            const int subject = r.integer(0, "subject");
+            const int barcode = r.integer(1, "barcode");
+            if (!barcode_to_subject.emplace(barcode, subject).second) {
+                r.fail("barcode " + std::to_string(barcode) + " listed twice");
+            }
+        }
+    }
+    {
+        const fs::path p = d / "Landmark_Groundtruth.dat";
+        auto f = open_or_throw(p);
+        ds.landmarks = parse_truth_landmarks(f, p.string());
+    }
+    std::set<int> landmark_subjects;
+    for (const auto &l : ds.landmarks) {
+        landmark_subjects.insert(l.id);
+    }
+
+    // robots: every RobotN_Odometry.dat
+    std::vector<int> ids;
+    const std::regex odo_re("Robot([0-9]+)_Odometry\\.dat");
+    for (const auto &e : fs::directory_iterator(d)) {
+        std::smatch m;
+        const std::string fn = e.path().filename().string();
+        if (std::regex_match(fn, m, odo_re)) {
+            ids.push_back(std::stoi(m[1].str()));
+        }
+    }
+    std::sort(ids.begin(), ids.end());
+    if (ids.empty()) {
+        throw ReplayError(dir, 0, "no RobotN_Odometry.dat in the folder: not an MRCLAM dataset");
+    }
+
+    std::vector<RawRobot> raw;
+    double t0 = std::numeric_limits<double>::infinity();
+    for (const int id : ids) {
+        RawRobot rr;
+        rr.id = id;
+        const std::string base = "Robot" + std::to_string(id) + "_";
+        {
+            const fs::path p = d / (base + "Odometry.dat");
+            auto f = open_or_throw(p);
+            LineReader r{f, p.string()};
+            MonotonicTime mono;
+            while (r.next()) {
+                ds.report.lines_read++;
+                r.expect_fields(3, 3, "t v w");
+                const double t = r.num(0, "t");
+                mono.check(r, t);
+                rr.odo.push_back({t, r.num(1, "v"), r.num(2, "w")});
+            }
+            rr.source = p.string();
+        }
+        {
+            const fs::path p = d / (base + "Measurement.dat");
+            auto f = open_or_throw(p);
+            LineReader r{f, p.string()};
+            MonotonicTime mono;
+            while (r.next()) {
+                ds.report.lines_read++;
+                r.expect_fields(4, 4, "t barcode range bearing");
+                const double t = r.num(0, "t");
+                mono.check(r, t);
+                const int barcode = r.integer(1, "barcode");
+                const double range = r.num(2, "range");
+                const double bearing = r.num(3, "bearing");
+                check_range(r, range);
+                const auto it = barcode_to_subject.find(barcode);
+                if (it == barcode_to_subject.end()) {
+                    ds.report.unknown_barcode_rows++;
+                    ds.report.unknown_barcodes[barcode]++;
+                    continue;
+                }
+                if (it->second == id) {
+                    ds.report.self_sightings++;
+                    continue;
+                }
+                rr.meas.push_back({t, static_cast<double>(it->second), range, bearing});
+            }
+        }
+        {
+            const fs::path p = d / (base + "Groundtruth.dat");
+            std::ifstream f(p);
+            if (f) {
+                LineReader r{f, p.string()};
+                MonotonicTime mono;
+                while (r.next()) {
+                    ds.report.lines_read++;
+                    r.expect_fields(4, 4, "t x y theta");
+                    const double t = r.num(0, "t");
+                    mono.check(r, t);
+                    rr.truth.push_back({t, r.num(1, "x"), r.num(2, "y"), r.num(3, "theta")});
+                }
+                rr.has_truth = true;
+            } else {
+                ds.report.notes.push_back("robot " + std::to_string(id) + ": no " + p.filename().string() +
+                                          ", replayed without evaluation");
+            }
+        }
+        for (const auto *tab : {&rr.odo}) {
+            if (!tab->empty()) {
+                t0 = std::min(t0, tab->front()[0]);
+            }
+        }
+        if (!rr.meas.empty()) {
+            t0 = std::min(t0, rr.meas.front()[0]);
+        }
+        if (!rr.truth.empty()) {
+            t0 = std::min(t0, rr.truth.front()[0]);
+        }
+        raw.push_back(std::move(rr));
+    }
+    if (!std::isfinite(t0)) {
+        t0 = 0.0;
+    }
+    ds.t0_s = t0;
+    for (const auto &rr : raw) {
+        RobotLog rl;
+        rl.id = rr.id;
+        rl.source = rr.source;
+        rl.odo.reserve(rr.odo.size());
+        for (const auto &o : rr.odo) {
+            OdoRecord rec;
+            rec.t_s = o[0] - t0;
+            rec.kind = OdoRecord::Kind::Velocity;
+            rec.a = o[1];
+            rec.b = o[2];
+            rl.odo.push_back(rec);
+        }
+        for (const auto &m : rr.meas) {
+            const int subject = static_cast<int>(m[1]);
+            if (landmark_subjects.count(subject) != 0) {
+                rl.z.push_back({m[0] - t0, subject, m[2], m[3]});
+            } else {
+                rl.rz.push_back({m[0] - t0, subject, m[2], m[3]});
+            }
+        }
+        for (const auto &g : rr.truth) {
+            rl.truth.push_back({g[0] - t0, {g[1], g[2], angle_wrap(g[3])}});
+        }
+        ds.robots.push_back(std::move(rl));
+    }
+    return ds;
+}
+
+Dataset load_landmark_log(const std::string &dir)
+{
+    const fs::path d(dir);
+    if (!fs::is_directory(d)) {
+        throw ReplayError(dir, 0, "not a folder");
+    }
+    Dataset ds;
+    ds.source = dir;
+    ds.format = "log";
+    std::vector<int> ids;
+    const std::regex log_re("robot([0-9]+)\\.log");
+    for (const auto &e : fs::directory_iterator(d)) {
+        std::smatch m;
+        const std::string fn = e.path().filename().string();
+        if (std::regex_match(fn, m, log_re)) {
+            ids.push_back(std::stoi(m[1].str()));
+        }
+    }
+    std::sort(ids.begin(), ids.end());
+    if (ids.empty()) {
+        throw ReplayError(dir, 0, "no robot<k>.log in the folder: not a landmark-log dataset");
+    }
+    for (const int id : ids) {
+        RobotLog rl;
+        rl.id = id;
+        const fs::path p = d / ("robot" + std::to_string(id) + ".log");
+        auto f = open_or_throw(p);
+        rl.source = p.string();
+        parse_landmark_log(f, p.string(), rl, ds.report);
+        const fs::path tp = d / ("robot" + std::to_string(id) + "_truth.txt");
+        std::ifstream tf(tp);
+        if (tf) {
+            rl.truth = parse_truth_path(tf, tp.string());
+        } else {
+            ds.report.notes.push_back("robot " + std::to_string(id) + ": no " + tp.filename().string() +
+                                      ", replayed without evaluation");
+        }
+        ds.robots.push_back(std::move(rl));
+    }
+    const fs::path lp = d / "landmarks_truth.txt";
+    std::ifstream lf(lp);
+    if (lf) {
+        ds.landmarks = parse_truth_landmarks(lf, lp.string());
+    } else {
+        ds.report.notes.push_back("no landmarks_truth.txt: map errors are not evaluated");
+    }
+    // t0 of the source is kept if the writer recorded it
+    const fs::path mp = d / "t0.txt";
+    std::ifstream mf(mp);
+    if (mf) {
+        LineReader r{mf, mp.string()};
+        if (r.next()) {
+            ds.t0_s = r.num(0, "t0");
+        }
+    }
+    return ds;
+}
+
+Dataset load_dataset(const std::string &dir, DataFormat format)
+{
+    if (format == DataFormat::Auto) {
+        const fs::path d(dir);
+        if (!fs::is_directory(d)) {
+            throw ReplayError(dir, 0, "no such folder");
+        }
+        if (fs::exists(d / "Barcodes.dat")) {
+            format = DataFormat::Mrclam;
+        } else {
+            for (const auto &e : fs::directory_iterator(d)) {
+                const std::string fn = e.path().filename().string();
+                if (fn.rfind("robot", 0) == 0 && e.path().extension() == ".log") {
+                    format = DataFormat::Log;
+                    break;
+                }
+            }
+        }
+        if (format == DataFormat::Auto) {
+            throw ReplayError(dir, 0, "neither an MRCLAM folder (Barcodes.dat) nor a landmark log (robot<k>.log)");
+        }
+    }
+    return format == DataFormat::Mrclam ? load_mrclam(dir) : load_landmark_log(dir);
+}
+
+void write_landmark_log(const Dataset &ds, const std::string &dir)
+{
+    fs::create_directories(dir);
+    const fs::path d(dir);
+    auto open = [](const fs::path &p) {
+        std::ofstream f(p);
+        if (!f) {
+            throw ReplayError(p.string(), 0, "cannot write");
+        }
+        f << std::setprecision(17);
+        return f;
+    };
+    for (const auto &r : ds.robots) {
+        auto f = open(d / ("robot" + std::to_string(r.id) + ".log"));
+        f << "# robot " << r.id << " converted from " << ds.source << " (" << ds.format << ")\n"
+          << "# O t dx dy dtheta | V t v w | Z t id range bearing | R t other_robot range bearing\n";
+        // merge the three time-ordered streams; at equal times odometry first
+        size_t io = 0, iz = 0, ir = 0;
+        const double inf = std::numeric_limits<double>::infinity();
+        while (io < r.odo.size() || iz < r.z.size() || ir < r.rz.size()) {
+            const double to = io < r.odo.size() ? r.odo[io].t_s : inf;
+            const double tz = iz < r.z.size() ? r.z[iz].t_s : inf;
+            const double tr = ir < r.rz.size() ? r.rz[ir].t_s : inf;
+            if (to <= tz && to <= tr) {
+                const auto &o = r.odo[io++];
+                if (o.kind == OdoRecord::Kind::Velocity) {
+                    f << "V " << o.t_s << ' ' << o.a << ' ' << o.b << '\n';
+                } else {
+                    f << "O " << o.t_s << ' ' << o.a << ' ' << o.b << ' ' << o.c << '\n';
+                }
+            } else if (tz <= tr) {
+                const auto &z = r.z[iz++];
+                f << "Z " << z.t_s << ' ' << z.landmark_id << ' ' << z.range_m << ' ' << z.bearing_rad << '\n';
+            } else {
+                const auto &s = r.rz[ir++];
+                f << "R " << s.t_s << ' ' << s.other_robot << ' ' << s.range_m << ' ' << s.bearing_rad << '\n';
+            }
+        }
+        if (!r.truth.empty()) {
+            auto g = open(d / ("robot" + std::to_string(r.id) + "_truth.txt"));
+            g << "# t x y theta (world frame)\n";
+            for (const auto &p : r.truth) {
+                g << p.t_s << ' ' << p.pose.x << ' ' << p.pose.y << ' ' << p.pose.theta << '\n';
+            }
+        }
+    }
+    if (!ds.landmarks.empty()) {
+        auto f = open(d / "landmarks_truth.txt");
+        f << "# id x y (world frame)\n";
+        for (const auto &l : ds.landmarks) {
+            f << l.id << ' ' << l.pos.x << ' ' << l.pos.y << '\n';
+        }
+    }
+    auto f = open(d / "t0.txt");
+    f << "# absolute time of t = 0 in the source\n" << ds.t0_s << '\n';
+}
+
+double dataset_begin_s(const Dataset &ds)
+{
+    double t = std::numeric_limits<double>::infinity();
+    for (const auto &r : ds.robots) {
+        if (!r.odo.empty()) {
+            t = std::min(t, r.odo.front().t_s);
+        }
+        if (!r.z.empty()) {
+            t = std::min(t, r.z.front().t_s);
+        }
+        if (!r.rz.empty()) {
+            t = std::min(t, r.rz.front().t_s);
+        }
+    }
+    return std::isfinite(t) ? t : 0.0;
+}
+
+double dataset_end_s(const Dataset &ds)
+{
+    double t = -std::numeric_limits<double>::infinity();
+    for (const auto &r : ds.robots) {
+        if (!r.odo.empty()) {
+            t = std::max(t, r.odo.back().t_s);
+        }
+        if (!r.z.empty()) {
+            t = std::max(t, r.z.back().t_s);
+        }
+        if (!r.rz.empty()) {
+            t = std::max(t, r.rz.back().t_s);
+        }
+    }
+    return std::isfinite(t) ? t : 0.0;
+}
+
+} // namespace coslam::replay

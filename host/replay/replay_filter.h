@@ -1,0 +1,60 @@
+// host/replay/replay_filter.h - one robot's SLAM filter of the firmware core
+// (Fast-SLAM 1.0/2.0 or EKF-SLAM), called exactly as the robot calls it.
+//
+// The filter state is large (a 1000-particle Fast-SLAM of the large profile
+// is about 15 MB), so it lives on the heap here; the robot keeps it in
+// static storage. Nothing here changes the filter beyond its public API.
+#ifndef COSLAM_HOST_REPLAY_FILTER_H
+#define COSLAM_HOST_REPLAY_FILTER_H
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+
+#include "coslam/ekfslam.h"
+#include "coslam/fastslam.h"
+#include "coslam/map_merge.h"
+#include "replay_config.h"
+
+namespace coslam::replay {
+
+class RobotFilter {
+public:
+    /// Start at pose0 (the map frame is pose0's frame unless it is the world
+    /// pose). core_robot_id is the provenance bit (< COSLAM_MAX_ROBOTS).
+    /// Throws ReplayError for an invalid configuration.
+    RobotFilter(FilterKind kind, const ReplayConfig &cfg, uint8_t core_robot_id, pose2_t pose0, uint64_t seed);
+    ~RobotFilter();
+    RobotFilter(const RobotFilter &) = delete;
+    RobotFilter &operator=(const RobotFilter &) = delete;
+
+    FilterKind kind() const { return kind_; }
+    coslam_status_t predict(odo_increment_t u);
+    coslam_status_t update(const sighting_t *z, int n);
+    void pose(pose2_t *mean, cov3_t *cov) const;
+    /// Exports the map estimate (non-const: the core uses scratch in the state).
+    coslam_status_t export_map(map_estimate_t *out);
+    /// Steps 3-4 of the merge (map_merge.h) into this filter.
+    coslam_status_t merge(const merge_body_map_t &bm, const merge_config_t &cfg, merge_scratch_t &scratch,
+                          merge_stats_t &stats);
+    /// Mean of the landmark of signature `sig` (known-ids mode: at most one
+    /// should exist). EKF: the state; Fast-SLAM: the best particle. The one
+    /// with most sightings if several.
+    std::optional<point2_t> landmark_of_signature(uint8_t sig) const;
+    /// The core's counters by name (capacity drops, rejected input, ...).
+    std::map<std::string, long> counters() const;
+
+    const fastslam_t *fastslam() const { return fs_.get(); }
+    const ekfslam_t *ekfslam() const { return ekf_.get(); }
+
+private:
+    FilterKind kind_;
+    std::unique_ptr<fastslam_t> fs_;
+    std::unique_ptr<ekfslam_t> ekf_;
+};
+
+} // namespace coslam::replay
+
+#endif

@@ -1,0 +1,327 @@
+// host/replay/replay_output.cpp - TUM paths, map CSVs, metrics.json.
+#include "replay_output.h"
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iomanip>
+#include <nlohmann/json.hpp>
+#include <ostream>
+#include <sstream>
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace coslam::replay {
+
+namespace {
+
+std::ofstream open_out(const fs::path &p)
+{
+    std::ofstream f(p);
+    if (!f) {
+        throw ReplayError(p.string(), 0, "cannot write");
+    }
+    f << std::setprecision(10);
+    return f;
+}
+
+void write_tum_row(std::ostream &f, double t, pose2_t p)
+{
+    f << t << ' ' << p.x << ' ' << p.y << " 0 0 0 " << std::sin(0.5 * p.theta) << ' ' << std::cos(0.5 * p.theta)
+      << '\n';
+}
+
+void write_map(const fs::path &p, const map_estimate_t &m)
+{
+    auto f = open_out(p);
+    f << "id,x,y,cxx,cxy,cyy\n";
+    for (int i = 0; i < m.n_landmarks; ++i) {
+        const map_landmark_t &l = m.lm[i];
+        f << l.id << ',' << l.mean.x << ',' << l.mean.y << ',' << l.cov.xx << ',' << l.cov.xy << ',' << l.cov.yy
+          << '\n';
+    }
+}
+
+json score_json(const MapScore &s)
+{
+    if (!s.valid) {
+        return json{{"n_estimated", s.n_estimated}, {"evaluated", false}};
+    }
+    return json{{"n_estimated", s.n_estimated}, {"n_matched", s.n_matched}, {"n_spurious", s.n_spurious},
+                {"n_missed", s.n_missed},       {"rmse_m", s.rmse_m},       {"max_err_m", s.max_err_m},
+                {"nees_mean", s.nees_mean}};
+}
+
+json pose_json(pose2_t p)
+{
+    return json{p.x, p.y, p.theta};
+}
+
+json cov3_json(const cov3_t &c)
+{
+    return json{{c.m[0][0], c.m[0][1], c.m[0][2]}, {c.m[1][0], c.m[1][1], c.m[1][2]}, {c.m[2][0], c.m[2][1], c.m[2][2]}};
+}
+
+} // namespace
+
+void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayConfig &cfg, const ReplayOptions &opt,
+                       const ReplayResult &res, const RunInfo &info)
+{
+    std::error_code ec;
+    fs::create_directories(dir, ec);
+    if (ec) {
+        throw ReplayError(dir, 0, "cannot create the output folder: " + ec.message());
+    }
+    const fs::path d(dir);
+    auto errors = open_out(d / "errors.csv");
+    errors << "t,robot,pos_err_m,heading_err_rad,nees\n";
+    auto map_errors = open_out(d / "map_errors.csv");
+    map_errors << "t,robot,n_estimated,n_matched,n_spurious,n_missed,rmse_m\n";
+    for (const auto &r : res.robots) {
+        const std::string base = "robot" + std::to_string(r.id);
+        {
+            auto f = open_out(d / (base + "_path.tum"));
+            f << "# robot " << r.id << " " << filter_kind_name(r.filter) << " estimate, map frame\n";
+            for (const auto &s : r.path) {
+                write_tum_row(f, s.t_s, s.est);
+            }
+        }
+        if (r.has_truth) {
+            auto f = open_out(d / (base + "_truth_path.tum"));
+            f << "# robot " << r.id << " ground truth in its map frame\n";
+            for (const auto &s : r.path) {
+                if (s.has_truth) {
+                    write_tum_row(f, s.t_s, s.truth);
+                }
+            }
+            auto g = open_out(d / (base + "_truth_map.csv"));
+            g << "id,x,y\n";
+            for (size_t j = 0; j < r.truth_landmarks.size(); ++j) {
+                g << r.truth_ids[j] << ',' << r.truth_landmarks[j].x << ',' << r.truth_landmarks[j].y << '\n';
+            }
+        }
+        if (r.final_map) {
+            write_map(d / (base + "_map.csv"), *r.final_map);
+        }
+        if (r.map_before_merge) {
+            write_map(d / (base + "_map_before_merge.csv"), *r.map_before_merge);
+            write_map(d / (base + "_map_after_merge.csv"), *r.map_after_merge);
+        }
+        for (const auto &s : r.path) {
+            if (!s.has_truth) {
+                continue;
+            }
+            const double e = std::hypot(s.est.x - s.truth.x, s.est.y - s.truth.y);
+            const double h = std::fabs(angle_wrap(s.est.theta - s.truth.theta));
+            const double n = nees_pose(s.est, s.cov, s.truth);
+            errors << s.t_s << ',' << r.id << ',' << e << ',' << h << ',' << (std::isfinite(n) ? n : -1.0) << '\n';
+        }
+        for (const auto &m : r.map_series) {
+            map_errors << m.t_s << ',' << r.id << ',' << m.score.n_estimated << ',' << m.score.n_matched << ','
+                       << m.score.n_spurious << ',' << m.score.n_missed << ',' << m.score.rmse_m << '\n';
+        }
+    }
+    {
+        auto f = open_out(d / "merge_events.csv");
+        f << "t,robot,sender,status,t_err_m,t_err_rad,t_nees,fused,fused_ci,added,capacity_drops,"
+             "n_before,rmse_before_m,spurious_before,missed_before,n_after,rmse_after_m,spurious_after,"
+             "missed_after,merge_us\n";
+        for (const auto &e : res.merges) {
+            f << e.t_s << ',' << e.receiver << ',' << e.sender << ',' << static_cast<int>(e.status) << ','
+              << (e.has_truth ? e.t_err_m : -1.0) << ',' << (e.has_truth ? e.t_err_rad : -1.0) << ','
+              << (e.has_truth ? e.t_nees : -1.0) << ',' << e.stats.fused << ',' << e.stats.fused_ci << ','
+              << e.stats.added << ',' << e.stats.capacity_drops << ',' << e.before.n_estimated << ','
+              << e.before.rmse_m << ',' << e.before.n_spurious << ',' << e.before.n_missed << ','
+              << e.after.n_estimated << ',' << e.after.rmse_m << ',' << e.after.n_spurious << ','
+              << e.after.n_missed << ',' << e.merge_us << '\n';
+        }
+    }
+
+    json j;
+    j["tool"] = "coslam-replay";
+    j["command"] = info.command;
+    json rep;
+    rep["lines_read"] = ds.report.lines_read;
+    rep["unknown_barcode_rows"] = ds.report.unknown_barcode_rows;
+    json ub = json::object();
+    for (const auto &[b, n] : ds.report.unknown_barcodes) {
+        ub[std::to_string(b)] = n;
+    }
+    rep["unknown_barcodes"] = ub;
+    rep["self_sightings"] = ds.report.self_sightings;
+    rep["notes"] = ds.report.notes;
+    j["dataset"] = {{"source", ds.source},
+                    {"format", ds.format},
+                    {"t0_s", ds.t0_s},
+                    {"robots", static_cast<int>(ds.robots.size())},
+                    {"landmarks", static_cast<int>(ds.landmarks.size())},
+                    {"report", rep}};
+    json robots_opt = json::array();
+    for (const auto &r : res.robots) {
+        robots_opt.push_back(r.id);
+    }
+    j["options"] = {{"robots", robots_opt},
+                    {"known_ids", opt.known_ids},
+                    {"start_at_truth", opt.start_at_truth},
+                    {"map_frame", opt.start_at_truth ? "world (filter started at the true pose)"
+                                                     : "each robot's true pose at its start (filter at identity)"},
+                    {"duration_s", opt.duration_s},
+                    {"t_begin_s", res.t_begin_s},
+                    {"t_end_s", res.t_end_s}};
+    std::ostringstream ini;
+    replay_config_write(cfg, ini);
+    j["config_ini"] = ini.str();
+
+    json robots = json::array();
+    double sum_pose = 0.0, sum_head = 0.0, sum_lm = 0.0, sum_step = 0.0, max_step = 0.0;
+    int n_pose = 0, n_lm = 0, sum_spur = 0, sum_miss = 0, sum_est = 0;
+    for (const auto &r : res.robots) {
+        json rj;
+        rj["id"] = r.id;
+        rj["filter"] = filter_kind_name(r.filter);
+        rj["particles"] = r.filter == FilterKind::Ekf ? 0 : cfg.filter.particles;
+        rj["t_start_s"] = r.t_start_s;
+        rj["map_frame_in_world"] = pose_json(r.frame.origin);
+        rj["pose"] = {{"samples", r.pose_samples},         {"rmse_m", r.pose_rmse_m},
+                      {"heading_rmse_rad", r.heading_rmse_rad}, {"heading_rmse_deg", r.heading_rmse_rad * 180.0 / M_PI},
+                      {"nees_mean", r.pose_nees_mean},     {"final_err_m", r.final_pos_err_m}};
+        rj["map"] = score_json(r.final_score);
+        rj["first_merge_t_s"] = r.t_first_merge_s;
+        rj["shown_merge_t_s"] = r.t_shown_merge_s;
+        rj["shown_merge_added"] = r.shown_merge_gain;
+        rj["steps"] = {{"frames", r.frames},           {"updates", r.updates},
+                       {"predictions", r.predictions}, {"step_us_mean", r.step_us_mean},
+                       {"step_us_max", r.step_us_max}, {"filter_s", r.filter_s}};
+        rj["input"] = {{"sightings_used", r.sightings_used},
+                       {"sightings_range_dropped", r.sightings_range_dropped},
+                       {"sightings_known_id_dropped", r.sightings_known_id_dropped},
+                       {"sightings_before_start", r.sightings_before_start},
+                       {"robot_sightings", r.robot_sightings},
+                       {"capacity_errors", r.capacity_errors}};
+        rj["counters"] = r.counters;
+        robots.push_back(rj);
+        if (r.pose_samples > 0) {
+            sum_pose += r.pose_rmse_m;
+            sum_head += r.heading_rmse_rad;
+            n_pose++;
+        }
+        if (r.final_score.valid) {
+            sum_lm += r.final_score.rmse_m;
+            sum_spur += r.final_score.n_spurious;
+            sum_miss += r.final_score.n_missed;
+            sum_est += r.final_score.n_estimated;
+            n_lm++;
+        }
+        sum_step += r.step_us_mean;
+        max_step = std::max(max_step, r.step_us_max);
+    }
+    j["robots"] = robots;
+    const double nr = res.robots.empty() ? 1.0 : static_cast<double>(res.robots.size());
+    j["mean"] = {{"pose_rmse_m", n_pose ? sum_pose / n_pose : 0.0},
+                 {"heading_rmse_rad", n_pose ? sum_head / n_pose : 0.0},
+                 {"landmark_rmse_m", n_lm ? sum_lm / n_lm : 0.0},
+                 {"n_estimated", n_lm ? static_cast<double>(sum_est) / n_lm : 0.0},
+                 {"spurious", n_lm ? static_cast<double>(sum_spur) / n_lm : 0.0},
+                 {"missed", n_lm ? static_cast<double>(sum_miss) / n_lm : 0.0},
+                 {"step_us_mean", sum_step / nr},
+                 {"step_us_max", max_step}};
+
+    json ev = json::array();
+    double se_t = 0.0, max_t = 0.0, se_r = 0.0, sum_nees = 0.0;
+    int n_ok = 0, n_truth = 0;
+    for (const auto &e : res.merges) {
+        json ej = {{"t", e.t_s},
+                   {"receiver", e.receiver},
+                   {"sender", e.sender},
+                   {"t_receiver_sighting_s", e.t_receiver_sighting_s},
+                   {"t_sender_sighting_s", e.t_sender_sighting_s},
+                   {"seq", e.seq},
+                   {"status", coslam_status_str(e.status)},
+                   {"transform", pose_json(e.transform)},
+                   {"transform_cov", cov3_json(e.transform_cov)},
+                   {"fused", e.stats.fused},
+                   {"fused_ci", e.stats.fused_ci},
+                   {"added", e.stats.added},
+                   {"capacity_drops", e.stats.capacity_drops},
+                   {"skipped", e.stats.skipped},
+                   {"map_before", score_json(e.before)},
+                   {"map_after", score_json(e.after)},
+                   {"merge_us", e.merge_us}};
+        if (e.has_truth) {
+            ej["transform_true"] = pose_json(e.transform_true);
+            ej["t_err_m"] = e.t_err_m;
+            ej["t_err_rad"] = e.t_err_rad;
+            ej["t_nees"] = e.t_nees;
+        }
+        ev.push_back(ej);
+        if (e.status == COSLAM_OK || e.status == COSLAM_E_CAPACITY) {
+            n_ok++;
+            if (e.has_truth) {
+                se_t += e.t_err_m * e.t_err_m;
+                se_r += e.t_err_rad * e.t_err_rad;
+                max_t = std::max(max_t, e.t_err_m);
+                sum_nees += e.t_nees;
+                n_truth++;
+            }
+        }
+    }
+    j["merges"] = {{"merged", n_ok},
+                   {"refused_range_check", res.meetings_refused_range},
+                   {"refused_replay", res.merges_refused_replay},
+                   {"failed", res.merges_failed},
+                   {"t_err_rmse_m", n_truth ? std::sqrt(se_t / n_truth) : 0.0},
+                   {"t_err_max_m", max_t},
+                   {"t_err_rmse_rad", n_truth ? std::sqrt(se_r / n_truth) : 0.0},
+                   {"t_nees_mean", n_truth ? sum_nees / n_truth : 0.0},
+                   {"events", ev}};
+    const double replayed = res.t_end_s - res.t_begin_s;
+    j["timing"] = {{"wall_s", res.wall_s},
+                   {"load_s", info.load_s},
+                   {"replayed_s", replayed},
+                   {"realtime_factor", res.wall_s > 0.0 ? replayed / res.wall_s : 0.0}};
+    j["notes"] = res.notes;
+    auto f = open_out(d / "metrics.json");
+    f << std::setw(2) << j << '\n';
+}
+
+void print_summary(std::ostream &out, const ReplayResult &res, const ReplayOptions &opt)
+{
+    const auto flags = out.flags();
+    out << std::fixed << std::setprecision(3);
+    out << "replay " << res.t_begin_s << " .. " << res.t_end_s << " s, " << res.robots.size() << " robot(s), "
+        << (opt.known_ids ? "known" : "unknown") << " identities, map frame "
+        << (opt.start_at_truth ? "world" : "start pose") << "\n";
+    out << "robot  filter     pose_rmse_m  heading_deg  pose_nees  lm_rmse_m  landmarks  spurious  missed  "
+           "step_us(mean/max)\n";
+    for (const auto &r : res.robots) {
+        out << std::setw(5) << r.id << "  " << std::left << std::setw(9) << filter_kind_name(r.filter) << std::right
+            << std::setw(13) << r.pose_rmse_m << std::setw(13) << r.heading_rmse_rad * 180.0 / M_PI << std::setw(11)
+            << r.pose_nees_mean << std::setw(11) << r.final_score.rmse_m << std::setw(11)
+            << r.final_score.n_estimated << std::setw(10) << r.final_score.n_spurious << std::setw(8)
+            << r.final_score.n_missed << "  " << std::setprecision(0) << r.step_us_mean << "/" << r.step_us_max
+            << std::setprecision(3) << "\n";
+    }
+    int n_ok = 0;
+    for (const auto &e : res.merges) {
+        if (e.status == COSLAM_OK || e.status == COSLAM_E_CAPACITY) {
+            n_ok++;
+        }
+    }
+    out << "merges: " << n_ok << " (refused: " << res.meetings_refused_range << " range check, "
+        << res.merges_refused_replay << " replay; failed " << res.merges_failed << ")\n";
+    for (const auto &e : res.merges) {
+        out << "  t=" << std::setprecision(1) << e.t_s << std::setprecision(3) << "  " << e.sender << " -> "
+            << e.receiver << "  " << coslam_status_str(e.status);
+        if (e.has_truth) {
+            out << "  T err " << e.t_err_m << " m " << e.t_err_rad * 180.0 / M_PI << " deg, NEES " << e.t_nees;
+        }
+        out << "  fused " << e.stats.fused << " added " << e.stats.added << "  map rmse " << e.before.rmse_m << " -> "
+            << e.after.rmse_m << " (" << e.before.n_estimated << " -> " << e.after.n_estimated << " landmarks)\n";
+    }
+    out << "wall time " << std::setprecision(2) << res.wall_s << " s for " << (res.t_end_s - res.t_begin_s)
+        << " s of data\n";
+    out.flags(flags);
+}
+
+} // namespace coslam::replay

@@ -1,0 +1,41 @@
+// host/replay/replay_output.h - the run outputs of ../shared/DESIGN.md for a
+// replay, written into one folder:
+//   robot<k>_path.tum            estimated path, map frame (TUM: t x y z qx qy qz qw)
+//   robot<k>_truth_path.tum      true path in the same map frame
+//   robot<k>_map.csv             final map (id,x,y,cxx,cxy,cyy)
+//   robot<k>_map_before_merge.csv, robot<k>_map_after_merge.csv
+//                                the map right before and after the merge that
+//                                added the most landmarks (metrics.json: shown_merge_t_s)
+//   robot<k>_truth_map.csv       true landmarks in the map frame (id,x,y)
+//   errors.csv                   t,robot,pos_err_m,heading_err_rad,nees
+//   map_errors.csv               t,robot,n_estimated,n_matched,n_spurious,n_missed,rmse_m
+//   merge_events.csv             t,robot,sender,... one row per merge (robot = receiver)
+//   metrics.json                 everything above summarised, the configuration,
+//                                the input bookkeeping and the timings
+#ifndef COSLAM_HOST_REPLAY_OUTPUT_H
+#define COSLAM_HOST_REPLAY_OUTPUT_H
+
+#include <iosfwd>
+#include <string>
+
+#include "replay_config.h"
+#include "replay_data.h"
+#include "replay_run.h"
+
+namespace coslam::replay {
+
+struct RunInfo {
+    std::string command;   ///< how the run was started (for metrics.json)
+    double load_s = 0.0;   ///< time to read the dataset
+};
+
+/// Write every output into `dir` (created). Throws ReplayError on I/O errors.
+void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayConfig &cfg, const ReplayOptions &opt,
+                       const ReplayResult &res, const RunInfo &info);
+
+/// Human-readable summary (one line per robot, one per merge, the means).
+void print_summary(std::ostream &out, const ReplayResult &res, const ReplayOptions &opt);
+
+} // namespace coslam::replay
+
+#endif

@@ -1,0 +1,610 @@
+// host/replay/replay_run.cpp - the replay loop, meetings, evaluation.
+#include "replay_run.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <set>
+
+#include "coslam/motion.h"
+#include "coslam/observe.h"
+#include "replay_filter.h"
+#include "replay_odometry.h"
+
+namespace coslam::replay {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double us_since(Clock::time_point t0)
+{
+    return std::chrono::duration<double, std::micro>(Clock::now() - t0).count();
+}
+
+struct Frame {
+    double t_s;
+    std::vector<int> zi; // indices into RobotLog::z
+    std::vector<int> ri; // indices into RobotLog::rz
+};
+
+// The latest sighting robot A made of robot B, and A's map at that moment
+// if a merge with B was due then (the message A would send).
+struct LastSighting {
+    bool valid = false;
+    double t_s = 0.0;
+    double range_m = 0.0;
+    double bearing_rad = 0.0;
+    std::shared_ptr<map_estimate_t> snapshot;
+    uint32_t seq = 0;
+};
+
+struct Robot {
+    const RobotLog *log = nullptr;
+    int idx = 0;
+    uint8_t core_id = 0;
+    std::unique_ptr<OdoTrack> odo;
+    std::unique_ptr<TruthTrack> truth;
+    std::unique_ptr<RobotFilter> filter;
+    std::vector<Frame> frames;
+    double t_filter = 0.0;
+    double next_tick = 0.0;
+    double next_pose_t = 0.0;
+    double next_map_t = 0.0;
+    double pending_us = 0.0;
+    double step_us_sum = 0.0;
+    merge_session_t session{};
+    uint32_t seq = 0;
+    std::vector<LastSighting> last_seen; // by robot index
+    // pose error sums
+    double se_xy = 0.0;
+    double se_th = 0.0;
+    double nees_sum = 0.0;
+    long nees_n = 0;
+    RobotResult res;
+};
+
+bool near_equal(double a, double b)
+{
+    return std::fabs(a - b) <= 1e-9 * std::max(1.0, std::fabs(a));
+}
+
+std::vector<Frame> build_frames(const RobotLog &log)
+{
+    std::vector<Frame> out;
+    size_t iz = 0;
+    size_t ir = 0;
+    while (iz < log.z.size() || ir < log.rz.size()) {
+        const double tz = iz < log.z.size() ? log.z[iz].t_s : std::numeric_limits<double>::infinity();
+        const double tr = ir < log.rz.size() ? log.rz[ir].t_s : std::numeric_limits<double>::infinity();
+        const double t = std::min(tz, tr);
+        Frame f{t, {}, {}};
+        while (iz < log.z.size() && near_equal(log.z[iz].t_s, t)) {
+            f.zi.push_back(static_cast<int>(iz++));
+        }
+        while (ir < log.rz.size() && near_equal(log.rz[ir].t_s, t)) {
+            f.ri.push_back(static_cast<int>(ir++));
+        }
+        out.push_back(std::move(f));
+    }
+    return out;
+}
+
+} // namespace
+
+MapScore score_map(const map_estimate_t &est, const std::vector<point2_t> &truth, const std::vector<int> &n_seen,
+                   const EvalConfig &ec, map_eval_t *detail)
+{
+    MapScore s;
+    if (truth.empty()) {
+        s.n_estimated = est.n_landmarks;
+        return s;
+    }
+    auto ev = std::make_unique<map_eval_t>();
+    eval_map(&est, truth.data(), n_seen.empty() ? nullptr : n_seen.data(), static_cast<int>(truth.size()),
+             ec.min_seen, ec.gate_m, ev.get());
+    s.n_estimated = ev->n_estimated;
+    s.n_matched = ev->n_matched;
+    s.n_spurious = ev->n_spurious;
+    s.n_missed = ev->n_missed;
+    s.rmse_m = ev->rmse_m;
+    s.max_err_m = ev->max_err_m;
+    s.nees_mean = ev->nees_mean;
+    s.valid = true;
+    if (detail != nullptr) {
+        *detail = *ev;
+    }
+    return s;
+}
+
+robot_sighting_t robot_sighting_of(const slam_params_t &p, double range_m, double bearing_rad)
+{
+    const cov2_t q = observe_noise(&p, range_m);
+    robot_sighting_t s;
+    s.range_m = range_m;
+    s.bearing_rad = bearing_rad;
+    s.range_var_m2 = q.xx;
+    s.bearing_var_rad2 = q.yy;
+    return s;
+}
+
+namespace {
+
+class Replay {
+public:
+    Replay(const Dataset &ds, const ReplayConfig &cfg, const ReplayOptions &opt) : ds_(ds), cfg_(cfg), opt_(opt)
+    {
+        replay_config_validate(cfg_);
+        if (opt_.known_ids) {
+            // the identity decides the association (InputConfig)
+            cfg_.slam.gate_chi2 = cfg_.input.known_id_gate_chi2;
+            cfg_.slam.new_landmark_chi2 = std::max(cfg_.slam.new_landmark_chi2, cfg_.input.known_id_gate_chi2);
+            cfg_.slam.new_landmark_log_lik = cfg_.input.known_id_log_lik;
+            cfg_.merge.core.gate_chi2 = std::max(cfg_.merge.core.gate_chi2, cfg_.input.known_id_gate_chi2);
+            replay_config_validate(cfg_);
+        }
+        bm_ = std::make_unique<merge_body_map_t>();
+        scratch_ = std::make_unique<merge_scratch_t>();
+        setup();
+    }
+
+    ReplayResult run();
+
+private:
+    void setup();
+    void advance(Robot &r, double t);
+    void sample(Robot &r);
+    void process_frame(Robot &r, const Frame &f);
+    void on_robot_sighting(Robot &r, const RobotSighting &s);
+    void merge_into(Robot &recv, Robot &send, const LastSighting &rs, const LastSighting &ss, double now);
+    MapScore score_now(Robot &r, map_estimate_t *keep = nullptr);
+    std::optional<pose2_t> truth_in_map(const Robot &r, double t) const;
+
+    const Dataset &ds_;
+    ReplayConfig cfg_;
+    ReplayOptions opt_;
+    std::vector<std::unique_ptr<Robot>> robots_;
+    std::map<int, int> truth_index_; // landmark id -> index into ds_.landmarks
+    std::map<std::pair<int, int>, double> last_merge_;
+    std::unique_ptr<merge_body_map_t> bm_;
+    std::unique_ptr<merge_scratch_t> scratch_;
+    ReplayResult out_;
+};
+
+void Replay::setup()
+{
+    std::vector<int> ids = opt_.robots;
+    if (ids.empty()) {
+        for (const auto &r : ds_.robots) {
+            ids.push_back(r.id);
+        }
+    }
+    if (ids.empty()) {
+        throw ReplayError("the dataset has no robots");
+    }
+    if (ids.size() > COSLAM_MAX_ROBOTS) {
+        throw ReplayError("at most " + std::to_string(COSLAM_MAX_ROBOTS) + " robots per replay");
+    }
+    std::set<int> uniq(ids.begin(), ids.end());
+    if (uniq.size() != ids.size()) {
+        throw ReplayError("a robot is listed twice");
+    }
+    for (size_t i = 0; i < ds_.landmarks.size(); ++i) {
+        truth_index_[ds_.landmarks[i].id] = static_cast<int>(i);
+    }
+    double t_begin = std::numeric_limits<double>::infinity();
+    double t_end = -std::numeric_limits<double>::infinity();
+    for (size_t i = 0; i < ids.size(); ++i) {
+        const RobotLog *log = ds_.robot(ids[i]);
+        if (log == nullptr) {
+            std::string have;
+            for (const auto &r : ds_.robots) {
+                have += (have.empty() ? "" : ", ") + std::to_string(r.id);
+            }
+            throw ReplayError("no robot " + std::to_string(ids[i]) + " in " + ds_.source + " (robots: " + have + ")");
+        }
+        if (opt_.known_ids) {
+            for (const auto &z : log->z) {
+                if (z.landmark_id != -1 && (z.landmark_id < 1 || z.landmark_id > 255)) {
+                    throw ReplayError("--known-ids needs landmark ids in 1..255 (they become the signature); robot " +
+                                      std::to_string(log->id) + " sights landmark " + std::to_string(z.landmark_id));
+                }
+            }
+        }
+        auto r = std::make_unique<Robot>();
+        r->log = log;
+        r->idx = static_cast<int>(i);
+        r->core_id = static_cast<uint8_t>(i);
+        r->frames = build_frames(*log);
+        double start = log->odo.empty() ? (r->frames.empty() ? 0.0 : r->frames.front().t_s) : log->odo.front().t_s;
+        double end = start;
+        if (!log->odo.empty()) {
+            end = std::max(end, log->odo.back().t_s);
+        }
+        if (!r->frames.empty()) {
+            end = std::max(end, r->frames.back().t_s);
+        }
+        r->res.t_start_s = start;
+        t_begin = std::min(t_begin, start);
+        t_end = std::max(t_end, end);
+        r->odo = std::make_unique<OdoTrack>(*log, cfg_.odo_of(log->id), end);
+        r->truth = std::make_unique<TruthTrack>(log->truth);
+        r->last_seen.resize(ids.size());
+        merge_session_init(&r->session);
+        robots_.push_back(std::move(r));
+    }
+    if (opt_.duration_s > 0.0) {
+        t_end = std::min(t_end, t_begin + opt_.duration_s);
+    }
+    out_.t_begin_s = t_begin;
+    out_.t_end_s = t_end;
+
+    for (auto &rp : robots_) {
+        Robot &r = *rp;
+        RobotResult &res = r.res;
+        res.id = r.log->id;
+        res.filter = cfg_.filter_of(res.id);
+        const auto p_start = r.truth->at(res.t_start_s);
+        pose2_t pose0 = {0.0, 0.0, 0.0};
+        if (opt_.start_at_truth) {
+            if (!p_start) {
+                throw ReplayError("robot " + std::to_string(res.id) + ": no ground truth at its start (t = " +
+                                  std::to_string(res.t_start_s) + " s) for --start-at-truth");
+            }
+            pose0 = *p_start;
+            res.frame.origin = {0.0, 0.0, 0.0};
+            res.has_truth = true;
+        } else if (p_start) {
+            res.frame.origin = *p_start;
+            res.has_truth = true;
+        } else {
+            out_.notes.push_back("robot " + std::to_string(res.id) + ": no ground truth at its start, not evaluated");
+        }
+        if (res.has_truth) {
+            for (const auto &l : ds_.landmarks) {
+                res.truth_landmarks.push_back(res.frame.point_in_map(l.pos));
+                res.truth_ids.push_back(l.id);
+            }
+        }
+        res.n_seen.assign(ds_.landmarks.size(), 0);
+        r.filter = std::make_unique<RobotFilter>(res.filter, cfg_, r.core_id, pose0,
+                                                 cfg_.filter.seed + static_cast<uint64_t>(res.id));
+        r.t_filter = res.t_start_s;
+        r.next_tick = res.t_start_s + cfg_.filter.predict_period_s;
+        r.next_pose_t = res.t_start_s;
+        r.next_map_t = res.t_start_s + cfg_.eval.map_period_s;
+    }
+}
+
+std::optional<pose2_t> Replay::truth_in_map(const Robot &r, double t) const
+{
+    if (!r.res.has_truth) {
+        return std::nullopt;
+    }
+    const auto p = r.truth->at(t);
+    if (!p) {
+        return std::nullopt;
+    }
+    return r.res.frame.pose_in_map(*p);
+}
+
+MapScore Replay::score_now(Robot &r, map_estimate_t *keep)
+{
+    auto est = std::make_unique<map_estimate_t>();
+    r.filter->export_map(est.get());
+    const MapScore s = score_map(*est, r.res.truth_landmarks, r.res.n_seen, cfg_.eval);
+    if (keep != nullptr) {
+        *keep = *est;
+    }
+    return s;
+}
+
+void Replay::sample(Robot &r)
+{
+    const double eps = 1e-9;
+    while (r.t_filter >= r.next_pose_t - eps) {
+        pose2_t est;
+        cov3_t cov;
+        r.filter->pose(&est, &cov);
+        const auto tr = truth_in_map(r, r.t_filter);
+        if (tr) {
+            const double ex = est.x - tr->x;
+            const double ey = est.y - tr->y;
+            const double eh = angle_wrap(est.theta - tr->theta);
+            r.se_xy += ex * ex + ey * ey;
+            r.se_th += eh * eh;
+            r.res.pose_samples++;
+            r.res.final_pos_err_m = std::sqrt(ex * ex + ey * ey);
+            const double n = nees_pose(est, cov, *tr);
+            if (std::isfinite(n)) {
+                r.nees_sum += n;
+                r.nees_n++;
+            }
+        }
+        if (opt_.record_history) {
+            r.res.path.push_back({r.t_filter, est, cov, tr.has_value(), tr.value_or(pose2_t{0.0, 0.0, 0.0})});
+        }
+        r.next_pose_t += cfg_.eval.pose_period_s;
+    }
+    while (r.t_filter >= r.next_map_t - eps) {
+        if (opt_.record_history) {
+            r.res.map_series.push_back({r.t_filter, score_now(r)});
+        }
+        r.next_map_t += cfg_.eval.map_period_s;
+    }
+}
+
+void Replay::advance(Robot &r, double t)
+{
+    const double eps = 1e-9;
+    while (r.t_filter < t - eps) {
+        const double t_next = std::min(t, r.next_tick);
+        const odo_increment_t u = r.odo->increment(r.t_filter, t_next);
+        const auto t0 = Clock::now();
+        r.filter->predict(u);
+        r.pending_us += us_since(t0);
+        r.res.predictions++;
+        r.t_filter = t_next;
+        if (t_next >= r.next_tick - eps) {
+            r.next_tick += cfg_.filter.predict_period_s;
+        }
+        sample(r);
+    }
+}
+
+void Replay::process_frame(Robot &r, const Frame &f)
+{
+    advance(r, f.t_s);
+    const RobotLog &log = *r.log;
+    // every sighting goes to the core, which counts what exceeds its capacity
+    std::vector<sighting_t> z;
+    z.reserve(f.zi.size());
+    pose2_t est{};
+    cov3_t cov{};
+    if (opt_.known_ids && cfg_.input.known_id_gate_rad > 0.0) {
+        r.filter->pose(&est, &cov);
+    }
+    for (const int i : f.zi) {
+        const LandmarkSighting &s = log.z[static_cast<size_t>(i)];
+        if (s.range_m < cfg_.input.min_range_m || s.range_m > cfg_.input.max_range_m) {
+            r.res.sightings_range_dropped++;
+            continue;
+        }
+        sighting_t q;
+        q.range_m = s.range_m;
+        q.bearing_rad = s.bearing_rad;
+        q.signature = 0;
+        if (opt_.known_ids && s.landmark_id > 0) {
+            q.signature = static_cast<uint8_t>(s.landmark_id);
+            if (cfg_.input.known_id_gate_rad > 0.0) {
+                const auto lm = r.filter->landmark_of_signature(q.signature);
+                if (lm) {
+                    const sighting_t pred = observe_predict(est, *lm);
+                    if (std::fabs(angle_wrap(q.bearing_rad - pred.bearing_rad)) > cfg_.input.known_id_gate_rad) {
+                        r.res.sightings_known_id_dropped++;
+                        continue;
+                    }
+                }
+            }
+        }
+        z.push_back(q);
+        r.res.sightings_used++;
+        const auto it = truth_index_.find(s.landmark_id);
+        if (it != truth_index_.end()) {
+            r.res.n_seen[static_cast<size_t>(it->second)]++;
+        }
+    }
+    const auto t0 = Clock::now();
+    const coslam_status_t st = r.filter->update(z.data(), static_cast<int>(z.size()));
+    const double update_us = us_since(t0);
+    if (st == COSLAM_E_CAPACITY) {
+        r.res.capacity_errors++;
+    }
+    r.res.updates++;
+    r.res.frames++;
+    const double step = r.pending_us + update_us;
+    r.res.filter_s += step * 1e-6;
+    r.step_us_sum += step;
+    r.res.step_us_max = std::max(r.res.step_us_max, step);
+    r.pending_us = 0.0;
+    for (const int i : f.ri) {
+        on_robot_sighting(r, log.rz[static_cast<size_t>(i)]);
+    }
+}
+
+void Replay::on_robot_sighting(Robot &r, const RobotSighting &s)
+{
+    Robot *o = nullptr;
+    for (auto &p : robots_) {
+        if (p->log->id == s.other_robot) {
+            o = p.get();
+        }
+    }
+    if (o == nullptr) {
+        return; // a robot that is not part of this replay
+    }
+    r.res.robot_sightings++;
+    LastSighting &mine = r.last_seen[static_cast<size_t>(o->idx)];
+    mine.valid = true;
+    mine.t_s = s.t_s;
+    mine.range_m = s.range_m;
+    mine.bearing_rad = s.bearing_rad;
+    mine.snapshot.reset();
+    if (!cfg_.merge.enabled) {
+        return;
+    }
+    const auto key = std::make_pair(std::min(r.idx, o->idx), std::max(r.idx, o->idx));
+    const auto lm = last_merge_.find(key);
+    if (lm != last_merge_.end() && s.t_s - lm->second < cfg_.merge.interval_s) {
+        return; // merged recently: no message
+    }
+    // the message r would send: its map now, at its sighting
+    mine.snapshot = std::make_shared<map_estimate_t>();
+    r.filter->export_map(mine.snapshot.get());
+    mine.seq = ++r.seq;
+    const LastSighting &theirs = o->last_seen[static_cast<size_t>(r.idx)];
+    if (!theirs.valid || !theirs.snapshot || std::fabs(s.t_s - theirs.t_s) > cfg_.merge.window_s) {
+        return;
+    }
+    // both measure the same distance; a misread marker does not
+    const double v1 = observe_noise(&cfg_.slam, mine.range_m).xx;
+    const double v2 = observe_noise(&cfg_.slam, theirs.range_m).xx;
+    const double dr = mine.range_m - theirs.range_m;
+    if (dr * dr / (v1 + v2) > cfg_.merge.range_check_chi2) {
+        out_.meetings_refused_range++;
+        return;
+    }
+    const LastSighting mine_copy = mine;
+    const LastSighting theirs_copy = theirs;
+    const double now = s.t_s;
+    advance(*o, now);
+    merge_into(*o, r, theirs_copy, mine_copy, now);
+    merge_into(r, *o, mine_copy, theirs_copy, now);
+    last_merge_[key] = now;
+    r.last_seen[static_cast<size_t>(o->idx)].snapshot.reset();
+    o->last_seen[static_cast<size_t>(r.idx)].snapshot.reset();
+}
+
+void Replay::merge_into(Robot &recv, Robot &send, const LastSighting &rs, const LastSighting &ss, double now)
+{
+    MergeEvent ev;
+    ev.t_s = now;
+    ev.receiver = recv.log->id;
+    ev.sender = send.log->id;
+    ev.t_receiver_sighting_s = rs.t_s;
+    ev.t_sender_sighting_s = ss.t_s;
+    ev.seq = ss.seq;
+    const robot_sighting_t a = robot_sighting_of(cfg_.slam, rs.range_m, rs.bearing_rad);
+    const robot_sighting_t b = robot_sighting_of(cfg_.slam, ss.range_m, ss.bearing_rad);
+    pose2_t t_est;
+    cov3_t t_cov;
+    ev.status = merge_relative_pose(&a, &b, &t_est, &t_cov);
+    if (ev.status != COSLAM_OK) {
+        out_.merges_failed++;
+        out_.merges.push_back(ev);
+        return;
+    }
+    // the receiver moved since its sighting; the sender may have moved
+    // between the two sightings (bounded)
+    const odo_increment_t u = recv.odo->increment(rs.t_s, now);
+    const cov3_t u_cov = motion_noise_cov(&cfg_.slam, u);
+    const double dt = std::fabs(rs.t_s - ss.t_s);
+    const double dxy = cfg_.merge.sender_speed_mps * dt;
+    const double dth = cfg_.merge.sender_turn_radps * dt;
+    merge_compensate(&t_est, &t_cov, u, &u_cov, dxy * dxy);
+    t_cov.m[2][2] += dth * dth;
+    ev.transform = t_est;
+    ev.transform_cov = t_cov;
+    const auto tr = recv.truth->at(now);
+    const auto ts = send.truth->at(ss.t_s);
+    if (tr && ts) {
+        ev.has_truth = true;
+        ev.transform_true = pose2_between(*tr, *ts);
+        ev.t_err_m = std::hypot(t_est.x - ev.transform_true.x, t_est.y - ev.transform_true.y);
+        ev.t_err_rad = std::fabs(angle_wrap(t_est.theta - ev.transform_true.theta));
+        ev.t_nees = nees_pose(t_est, t_cov, ev.transform_true);
+    }
+    ev.status = merge_session_accept(&recv.session, send.core_id, ss.seq);
+    if (ev.status != COSLAM_OK) {
+        out_.merges_refused_replay++;
+        out_.merges.push_back(ev);
+        return;
+    }
+    auto before = std::make_shared<map_estimate_t>();
+    ev.before = score_now(recv, before.get());
+    const auto t0 = Clock::now();
+    ev.status = merge_transform_map(ss.snapshot.get(), t_est, &t_cov, &cfg_.merge.core, bm_.get(), &ev.stats);
+    if (ev.status == COSLAM_OK) {
+        ev.status = recv.filter->merge(*bm_, cfg_.merge.core, *scratch_, ev.stats);
+    }
+    ev.merge_us = us_since(t0);
+    if (ev.status != COSLAM_OK && ev.status != COSLAM_E_CAPACITY) {
+        out_.merges_failed++;
+    }
+    // the receiver now holds what the sender had seen
+    for (size_t j = 0; j < recv.res.n_seen.size(); ++j) {
+        recv.res.n_seen[j] += send.res.n_seen[j];
+    }
+    auto after = std::make_shared<map_estimate_t>();
+    ev.after = score_now(recv, after.get());
+    if (recv.res.t_first_merge_s < 0.0) {
+        recv.res.t_first_merge_s = now;
+    }
+    const int gain = after->n_landmarks - before->n_landmarks;
+    if (gain > recv.res.shown_merge_gain) {
+        recv.res.map_before_merge = before;
+        recv.res.map_after_merge = after;
+        recv.res.t_shown_merge_s = now;
+        recv.res.shown_merge_gain = gain;
+    }
+    out_.merges.push_back(ev);
+}
+
+ReplayResult Replay::run()
+{
+    const auto wall0 = Clock::now();
+    struct Ev {
+        double t;
+        int robot;
+        int frame;
+    };
+    std::vector<Ev> evs;
+    for (const auto &r : robots_) {
+        for (size_t k = 0; k < r->frames.size(); ++k) {
+            const double t = r->frames[k].t_s;
+            if (t < r->res.t_start_s) {
+                r->res.sightings_before_start += static_cast<long>(r->frames[k].zi.size());
+                continue;
+            }
+            if (t > out_.t_end_s) {
+                break;
+            }
+            evs.push_back({t, r->idx, static_cast<int>(k)});
+        }
+    }
+    std::stable_sort(evs.begin(), evs.end(), [](const Ev &a, const Ev &b) {
+        return a.t < b.t || (a.t == b.t && a.robot < b.robot);
+    });
+    const double span = std::max(1e-9, out_.t_end_s - out_.t_begin_s);
+    for (size_t i = 0; i < evs.size(); ++i) {
+        Robot &r = *robots_[static_cast<size_t>(evs[i].robot)];
+        process_frame(r, r.frames[static_cast<size_t>(evs[i].frame)]);
+        if (opt_.progress && (i % 256) == 0) {
+            opt_.progress((evs[i].t - out_.t_begin_s) / span);
+        }
+    }
+    for (auto &rp : robots_) {
+        Robot &r = *rp;
+        advance(r, out_.t_end_s);
+        RobotResult &res = r.res;
+        res.final_map = std::make_shared<map_estimate_t>();
+        res.final_score = score_now(r, res.final_map.get());
+        if (opt_.record_history && (res.map_series.empty() || res.map_series.back().t_s < r.t_filter)) {
+            res.map_series.push_back({r.t_filter, res.final_score});
+        }
+        if (res.pose_samples > 0) {
+            res.pose_rmse_m = std::sqrt(r.se_xy / res.pose_samples);
+            res.heading_rmse_rad = std::sqrt(r.se_th / res.pose_samples);
+        }
+        res.pose_nees_mean = r.nees_n > 0 ? r.nees_sum / static_cast<double>(r.nees_n) : 0.0;
+        res.step_us_mean = res.frames > 0 ? r.step_us_sum / static_cast<double>(res.frames) : 0.0;
+        res.counters = r.filter->counters();
+        out_.robots.push_back(std::move(res));
+    }
+    if (opt_.progress) {
+        opt_.progress(1.0);
+    }
+    out_.wall_s = std::chrono::duration<double>(Clock::now() - wall0).count();
+    return std::move(out_);
+}
+
+} // namespace
+
+ReplayResult run_replay(const Dataset &ds, const ReplayConfig &cfg, const ReplayOptions &opt)
+{
+    Replay rp(ds, cfg, opt);
+    return rp.run();
+}
+
+} // namespace coslam::replay

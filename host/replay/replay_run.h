@@ -1,0 +1,169 @@
+// host/replay/replay_run.h - the replay: every robot's filter driven by its
+// odometry and camera frames in time order, robot-to-robot meetings turned
+// into map merges, and the evaluation against ground truth.
+//
+// Per robot (as on the robot): odometry is folded into one prediction per
+// predict_period_s and right before each camera frame; a camera frame (all
+// sightings sharing one stamp) is one filter update. Landmark identities are
+// dropped (signature 0) unless known_ids, where the signature is the id and
+// sightings far from the filter's landmark of that id are dropped as
+// misread barcodes.
+//
+// Meetings (docs/replay.md "Merge protocol"): robot A keeps its latest
+// sighting of each robot B with its time, and - when a merge with B is due
+// (none in the last interval_s) - a snapshot of its own map estimate taken
+// at that sighting (the message it would send). When A and B have sighted
+// each other within window_s and both ranges agree (range_check_chi2), both
+// merge, each receiving the other's snapshot:
+//   1. merge_relative_pose on the receiver's and the sender's sightings;
+//   2. merge_compensate with the receiver's odometry from its sighting to
+//      now, plus the sender's possible motion between the two sightings as
+//      extra variance (sender_speed_mps, sender_turn_radps);
+//   3. merge_session_accept on the sender's snapshot sequence number;
+//   4. merge_transform_map and merge_into_{fastslam,ekfslam}.
+// Each merge event is evaluated: transform error and NEES against the true
+// relative pose, receiver map error before and after.
+#ifndef COSLAM_HOST_REPLAY_RUN_H
+#define COSLAM_HOST_REPLAY_RUN_H
+
+#include <functional>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "coslam/map_estimate.h"
+#include "coslam/map_merge.h"
+#include "replay_config.h"
+#include "replay_data.h"
+#include "replay_truth.h"
+#include "stats.h"
+
+namespace coslam::replay {
+
+struct ReplayOptions {
+    std::vector<int> robots;   ///< robot ids to replay; empty: all
+    bool known_ids = false;
+    bool start_at_truth = false;
+    double duration_s = 0.0;   ///< > 0: replay only [begin, begin + duration]
+    bool record_history = true;///< paths and error series (off: summaries only)
+    /// Called now and then with the replayed fraction in [0, 1].
+    std::function<void(double)> progress;
+};
+
+/// A map estimate evaluated against the true landmarks (stats.h eval_map).
+struct MapScore {
+    int n_estimated = 0;
+    int n_matched = 0;
+    int n_spurious = 0;
+    int n_missed = 0;
+    double rmse_m = 0.0;
+    double max_err_m = 0.0;
+    double nees_mean = 0.0;
+    bool valid = false; ///< false when the truth is unknown
+};
+
+struct PoseSample {
+    double t_s;
+    pose2_t est;      ///< map frame
+    cov3_t cov;
+    bool has_truth;
+    pose2_t truth;    ///< map frame
+};
+
+struct MapSample {
+    double t_s;
+    MapScore score;
+};
+
+struct MergeEvent {
+    double t_s = 0.0;
+    int receiver = 0;
+    int sender = 0;
+    double t_receiver_sighting_s = 0.0;
+    double t_sender_sighting_s = 0.0;
+    uint32_t seq = 0;
+    coslam_status_t status = COSLAM_OK; ///< of the merge (OK, or why it failed)
+    pose2_t transform{};                ///< sender (at its snapshot) in the receiver's body frame, now
+    cov3_t transform_cov{};
+    bool has_truth = false;
+    pose2_t transform_true{};
+    double t_err_m = 0.0;
+    double t_err_rad = 0.0;
+    double t_nees = 0.0;
+    merge_stats_t stats{};
+    MapScore before;
+    MapScore after;
+    double merge_us = 0.0;
+};
+
+struct RobotResult {
+    int id = 0;
+    FilterKind filter = FilterKind::FastSlam2;
+    MapFrame frame;                 ///< map frame in the world (truth)
+    bool has_truth = false;
+    double t_start_s = 0.0;
+    std::vector<PoseSample> path;   ///< at pose_period_s
+    std::vector<MapSample> map_series;
+    std::shared_ptr<map_estimate_t> final_map;
+    /// The map right before and after the merge that added the most
+    /// landmarks to it (the figures show this one); null if never merged.
+    std::shared_ptr<map_estimate_t> map_before_merge;
+    std::shared_ptr<map_estimate_t> map_after_merge;
+    double t_shown_merge_s = -1.0;
+    double t_first_merge_s = -1.0;
+    int shown_merge_gain = -1;      ///< landmarks it added
+    std::vector<point2_t> truth_landmarks; ///< true landmarks in the map frame
+    std::vector<int> truth_ids;
+    std::vector<int> n_seen;        ///< sightings of each true landmark (own and merged in)
+    // summaries
+    int pose_samples = 0;
+    double pose_rmse_m = 0.0;
+    double heading_rmse_rad = 0.0;
+    double pose_nees_mean = 0.0;
+    double final_pos_err_m = 0.0;
+    MapScore final_score;
+    // work
+    long frames = 0;
+    long updates = 0;
+    long predictions = 0;
+    double step_us_mean = 0.0;      ///< per camera frame: predictions since the last frame + update
+    double step_us_max = 0.0;
+    double filter_s = 0.0;          ///< total time in the filter (predict + update)
+    // input bookkeeping
+    long sightings_used = 0;
+    long sightings_range_dropped = 0;
+    long sightings_known_id_dropped = 0;
+    long sightings_before_start = 0;
+    long robot_sightings = 0;
+    long capacity_errors = 0;
+    std::map<std::string, long> counters;
+};
+
+struct ReplayResult {
+    std::vector<RobotResult> robots;
+    std::vector<MergeEvent> merges;
+    long meetings_refused_range = 0;  ///< mutual sightings whose ranges disagree
+    long merges_refused_replay = 0;   ///< merge_session_accept refused
+    long merges_failed = 0;
+    double t_begin_s = 0.0;
+    double t_end_s = 0.0;
+    double wall_s = 0.0;
+    std::vector<std::string> notes;
+};
+
+/// Run the replay. Throws ReplayError for an unusable request (unknown
+/// robot id, known_ids with ids outside 1..255, no truth for
+/// start_at_truth, invalid configuration).
+ReplayResult run_replay(const Dataset &ds, const ReplayConfig &cfg, const ReplayOptions &opt);
+
+/// Evaluate `est` against true landmarks (map frame), stats.h eval_map.
+MapScore score_map(const map_estimate_t &est, const std::vector<point2_t> &truth, const std::vector<int> &n_seen,
+                   const EvalConfig &ec, map_eval_t *detail = nullptr);
+
+/// Sighting noise of the camera as robot_sighting_t (map_merge.h).
+robot_sighting_t robot_sighting_of(const slam_params_t &p, double range_m, double bearing_rad);
+
+} // namespace coslam::replay
+
+#endif
