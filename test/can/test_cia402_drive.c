@@ -1,7 +1,7 @@
 /* CANopen frames, the CiA 402 profile tables and one drive node against a
  * fake hal_can: byte-exact frames, every power-state transition, SDO abort
  * and timeout, heartbeat loss, EMCY, NMT and PDO supervision. */
-#include "../core/test_util.h"
+#include "../slam/test_util.h"
 
 #include <string.h>
 

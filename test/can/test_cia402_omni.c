@@ -2,7 +2,7 @@
  * responder: filters, bring-up of three nodes, RPDO velocities from a body
  * velocity, fault on one wheel stopping all, bus errors, and odometry
  * integrated from stamped TPDOs against the closed-form arc. */
-#include "../core/test_util.h"
+#include "../slam/test_util.h"
 
 #include <string.h>
 

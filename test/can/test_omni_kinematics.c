@@ -1,6 +1,6 @@
 /* Omni-wheel kinematics: analytic cases, round trips, saturation, and
  * odometry integrated along an arc against the closed-form trajectory. */
-#include "../core/test_util.h"
+#include "../slam/test_util.h"
 
 #include "coslam/pose2.h"
 #include "coslam/rng.h"

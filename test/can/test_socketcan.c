@@ -8,7 +8,7 @@
  * SO_RXQ_OVFL drop counter. In pass-through mode the real kernel is asked.
  */
 #define _GNU_SOURCE
-#include "../core/test_util.h"
+#include "../slam/test_util.h"
 
 #include <errno.h>
 #include <fcntl.h>

@@ -1,9 +1,9 @@
 /*
- * coslam-bench-core - time per filter step of the SLAM core on seeded
+ * coslam-bench-filters - time per filter step of the SLAM core on seeded
  * synthetic runs (host/synth), for EKF-SLAM and Fast-SLAM 1.0/2.0 with 100
  * and 1000 particles, at 15, 64 and 150 landmarks. A benchmark, not a test:
  * it prints a table and writes it to <out>/core_step_time.{md,json}.
- *   coslam-bench-core [--out DIR] [--seeds N]
+ *   coslam-bench-filters [--out DIR] [--seeds N]
  * Time per step = wall time of one predict (10 Hz odometry) plus, every
  * second step, one update (5 Hz camera), averaged over the run; the max is
  * the slowest single step. Built against the large-capacity core.
@@ -31,10 +31,10 @@ int main(int argc, char **argv)
     for (int i = 1; i < argc; ++i) {
         if (!strcmp(argv[i], "--out") && i + 1 < argc) out = argv[++i];
         else if (!strcmp(argv[i], "--seeds") && i + 1 < argc) seeds = atoi(argv[++i]);
-        else { fprintf(stderr, "usage: coslam-bench-core [--out DIR] [--seeds N]\n"); return 2; }
+        else { fprintf(stderr, "usage: coslam-bench-filters [--out DIR] [--seeds N]\n"); return 2; }
     }
     if (mkdir(out, 0775) != 0 && errno != EEXIST) {
-        fprintf(stderr, "coslam-bench-core: cannot create %s: %s\n", out, strerror(errno));
+        fprintf(stderr, "coslam-bench-filters: cannot create %s: %s\n", out, strerror(errno));
         return 1;
     }
     const bench_filter_t filters[] = {
@@ -62,7 +62,7 @@ int main(int argc, char **argv)
                 o.params = sc.truth;
                 o.n_particles = filters[f].n_particles > 0 ? filters[f].n_particles : 1;
                 if (run_synth(&sc, &o, r) != 0) {
-                    fprintf(stderr, "coslam-bench-core: run failed\n");
+                    fprintf(stderr, "coslam-bench-filters: run failed\n");
                     return 1;
                 }
                 sm += r->step_us_mean;
@@ -82,7 +82,7 @@ int main(int argc, char **argv)
     snprintf(path, sizeof path, "%s/core_step_time.json", out);
     FILE *js = fopen(path, "w");
     if (!md || !js) {
-        fprintf(stderr, "coslam-bench-core: cannot write into %s\n", out);
+        fprintf(stderr, "coslam-bench-filters: cannot write into %s\n", out);
         return 1;
     }
     FILE *sinks[2] = {stdout, md};
