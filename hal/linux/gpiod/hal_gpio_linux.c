@@ -117,13 +117,16 @@ static hal_status_t gl_wait_edge(hal_gpio_t *dev, uint32_t line, hal_gpio_event_
 
     const bool forever = timeout_us == HAL_TIMEOUT_FOREVER;
     const uint64_t deadline = mono_us() + timeout_us;
+    bool first = true;
     for (;;) {
-        /* remaining time; forever waits in one-hour slices */
+        /* remaining time (the whole timeout on the first pass, the rest after
+         * an interruption); forever waits in one-hour slices */
         uint64_t left = 3600u * 1000000u;
         if (!forever) {
             const uint64_t now = mono_us();
-            left = now >= deadline ? 0u : deadline - now;
+            left = first ? timeout_us : (now >= deadline ? 0u : deadline - now);
         }
+        first = false;
         struct timespec ts;
         ts.tv_sec = (time_t)(left / 1000000u);
         ts.tv_nsec = (long)((left % 1000000u) * 1000u);
