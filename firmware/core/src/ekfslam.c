@@ -164,6 +164,48 @@ coslam_status_t ekfslam_predict(ekfslam_t *ekf, odo_increment_t u)
     return COSLAM_OK;
 }
 
+/* H_a P H_b^T for two sightings' Jacobians, each non-zero only on the pose
+ * and its landmark (ja, jb): O(1). With a = b it is the innovation
+ * covariance without Q. */
+static void sparse_hph(const ekfslam_t *ekf, const lm_expect_t *ea, uint16_t ja, const lm_expect_t *eb, uint16_t jb,
+                       double s[2][2])
+{
+    const int ia[5] = {0, 1, 2, 3 + 2 * ja, 4 + 2 * ja};
+    const int ib[5] = {0, 1, 2, 3 + 2 * jb, 4 + 2 * jb};
+    double ha[2][5];
+    double hb[2][5];
+    for (int q = 0; q < 2; ++q) {
+        for (int r = 0; r < 3; ++r) {
+            ha[q][r] = ea->h_pose[q][r];
+            hb[q][r] = eb->h_pose[q][r];
+        }
+        ha[q][3] = ea->h_lm[q][0];
+        ha[q][4] = ea->h_lm[q][1];
+        hb[q][3] = eb->h_lm[q][0];
+        hb[q][4] = eb->h_lm[q][1];
+    }
+    /* t = P_(ia, ib) Hb^T (5 x 2), then Ha t */
+    double t[5][2];
+    for (int r1 = 0; r1 < 5; ++r1) {
+        for (int q = 0; q < 2; ++q) {
+            double acc = 0.0;
+            for (int r2 = 0; r2 < 5; ++r2) {
+                acc += P_(ekf, ia[r1], ib[r2]) * hb[q][r2];
+            }
+            t[r1][q] = acc;
+        }
+    }
+    for (int q1 = 0; q1 < 2; ++q1) {
+        for (int q2 = 0; q2 < 2; ++q2) {
+            double acc = 0.0;
+            for (int r1 = 0; r1 < 5; ++r1) {
+                acc += ha[q1][r1] * t[r1][q2];
+            }
+            s[q1][q2] = acc;
+        }
+    }
+}
+
 /* Expected sighting of landmark j with the full innovation covariance
  * S = H P H^T + Q, H = [H_r 0 .. H_m .. 0]. */
 static coslam_status_t expect_landmark(const ekfslam_t *ekf, uint16_t j, lm_expect_t *e)
@@ -181,27 +223,8 @@ static coslam_status_t expect_landmark(const ekfslam_t *ekf, uint16_t j, lm_expe
     }
     e->zhat = observe_predict(pose, m);
     e->zhat.signature = ekf->meta[j].signature;
-    /* H P H^T over the five non-zero columns */
-    int idx[5] = {0, 1, 2, a, a + 1};
-    double h[2][5];
-    for (int q = 0; q < 2; ++q) {
-        h[q][0] = e->h_pose[q][0];
-        h[q][1] = e->h_pose[q][1];
-        h[q][2] = e->h_pose[q][2];
-        h[q][3] = e->h_lm[q][0];
-        h[q][4] = e->h_lm[q][1];
-    }
-    double s[2][2] = {{0.0, 0.0}, {0.0, 0.0}};
-    for (int r1 = 0; r1 < 5; ++r1) {
-        for (int r2 = 0; r2 < 5; ++r2) {
-            const double pv = P_(ekf, idx[r1], idx[r2]);
-            for (int q1 = 0; q1 < 2; ++q1) {
-                for (int q2 = 0; q2 < 2; ++q2) {
-                    s[q1][q2] += h[q1][r1] * pv * h[q2][r2];
-                }
-            }
-        }
-    }
+    double s[2][2];
+    sparse_hph(ekf, e, j, e, j, s);
     const cov2_t sc = cov2_add(cov2_make(s[0][0], 0.5 * (s[0][1] + s[1][0]), s[1][1]),
                                observe_noise(sp, e->zhat.range_m));
     if (cov2_inverse(sc, &e->s_inv) != COSLAM_OK) {
@@ -372,42 +395,7 @@ void ekfslam_remove_landmark(ekfslam_t *ekf, uint16_t j)
  * landmarks ja and jb (the Q term belongs to the diagonal blocks only). */
 static void joint_block(const ekfslam_t *ekf, uint16_t ja, uint16_t jb, double s[2][2])
 {
-    const lm_expect_t *ea = &ekf->scratch.expect[ja];
-    const lm_expect_t *eb = &ekf->scratch.expect[jb];
-    const int ia[5] = {0, 1, 2, 3 + 2 * ja, 4 + 2 * ja};
-    const int ib[5] = {0, 1, 2, 3 + 2 * jb, 4 + 2 * jb};
-    double ha[2][5];
-    double hb[2][5];
-    for (int q = 0; q < 2; ++q) {
-        for (int r = 0; r < 3; ++r) {
-            ha[q][r] = ea->h_pose[q][r];
-            hb[q][r] = eb->h_pose[q][r];
-        }
-        ha[q][3] = ea->h_lm[q][0];
-        ha[q][4] = ea->h_lm[q][1];
-        hb[q][3] = eb->h_lm[q][0];
-        hb[q][4] = eb->h_lm[q][1];
-    }
-    /* t = P_(ia, ib) Hb^T (5 x 2), then Ha t */
-    double t[5][2];
-    for (int r1 = 0; r1 < 5; ++r1) {
-        for (int q = 0; q < 2; ++q) {
-            double acc = 0.0;
-            for (int r2 = 0; r2 < 5; ++r2) {
-                acc += P_(ekf, ia[r1], ib[r2]) * hb[q][r2];
-            }
-            t[r1][q] = acc;
-        }
-    }
-    for (int q1 = 0; q1 < 2; ++q1) {
-        for (int q2 = 0; q2 < 2; ++q2) {
-            double acc = 0.0;
-            for (int r1 = 0; r1 < 5; ++r1) {
-                acc += ha[q1][r1] * t[r1][q2];
-            }
-            s[q1][q2] = acc;
-        }
-    }
+    sparse_hph(ekf, &ekf->scratch.expect[ja], ja, &ekf->scratch.expect[jb], jb, s);
 }
 
 /*

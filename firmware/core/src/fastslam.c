@@ -379,6 +379,14 @@ static double normalise_log_weights(fastslam_t *fs)
     return sum * sum / sum2;
 }
 
+void fastslam_reweighted(fastslam_t *fs)
+{
+    fs->last_ess = normalise_log_weights(fs);
+    if (fs->last_ess < fs->cfg.resample_ess_fraction * (double)fs->cfg.n_particles) {
+        fastslam_resample(fs);
+    }
+}
+
 void fastslam_weights(const fastslam_t *fs, double *out)
 {
     const uint16_t n = fs->cfg.n_particles;
@@ -483,10 +491,7 @@ coslam_status_t fastslam_update(fastslam_t *fs, const sighting_t *z_in, int n_in
             result = COSLAM_E_CAPACITY;
         }
     }
-    fs->last_ess = normalise_log_weights(fs);
-    if (fs->last_ess < fs->cfg.resample_ess_fraction * (double)fs->cfg.n_particles) {
-        fastslam_resample(fs);
-    }
+    fastslam_reweighted(fs);
     return result;
 }
 

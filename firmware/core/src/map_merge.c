@@ -512,23 +512,7 @@ coslam_status_t merge_into_fastslam(fastslam_t *fs, const merge_body_map_t *bm, 
         }
     }
     if (cfg->reweight_particles) {
-        /* renormalise and resample if the agreement test was decisive */
-        double mx = -INFINITY;
-        for (uint16_t k = 0; k < fs->cfg.n_particles; ++k) {
-            mx = fs->particles[k].log_w > mx ? fs->particles[k].log_w : mx;
-        }
-        double sum = 0.0;
-        double sum2 = 0.0;
-        for (uint16_t k = 0; k < fs->cfg.n_particles; ++k) {
-            fs->particles[k].log_w -= mx;
-            const double w = exp(fs->particles[k].log_w);
-            sum += w;
-            sum2 += w * w;
-        }
-        fs->last_ess = sum * sum / sum2;
-        if (fs->last_ess < fs->cfg.resample_ess_fraction * (double)fs->cfg.n_particles) {
-            fastslam_resample(fs);
-        }
+        fastslam_reweighted(fs); /* resample if the agreement test was decisive */
     }
     return result;
 }

@@ -187,6 +187,13 @@ coslam_status_t fastslam_export(fastslam_t *fs, map_estimate_t *out);
 /** Index of the particle with the largest weight. O(N). */
 uint16_t fastslam_best_particle(const fastslam_t *fs);
 
+/**
+ * After the log weights changed (an update, a merge that re-weights):
+ * normalise them (max = 0), record the ESS in last_ess, and resample if it
+ * fell below resample_ess_fraction * N. O(N), O(N * M) when resampling.
+ */
+void fastslam_reweighted(fastslam_t *fs);
+
 /** Normalised weights w_k (sum 1) into out[0..N-1]. O(N). */
 void fastslam_weights(const fastslam_t *fs, double *out);
 
