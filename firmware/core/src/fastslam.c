@@ -646,6 +646,9 @@ coslam_status_t fastslam_export(fastslam_t *fs, map_estimate_t *out)
     /* pass 2: covariance = within-particle covariance + spread of the means */
     for (uint16_t k = 0; k < n; ++k) {
         const fastslam_particle_t *p = &fs->particles[k];
+        const double c = cos(p->pose.theta);
+        const double sn = sin(p->pose.theta);
+        double rt[2][2] = {{c, sn}, {-sn, c}}; /* R^T: map -> this particle's body frame */
         for (uint16_t j = 0; j < p->n_lm; ++j) {
             const landmark_t *lm = &p->lm[j];
             if (!landmark_is_confirmed(lm, sp)) {
@@ -662,9 +665,6 @@ coslam_status_t fastslam_export(fastslam_t *fs, map_estimate_t *out)
             t->cyy[s] += w[k] * (lm->cov.yy + dy * dy);
             /* relative to this particle's pose, in its body frame */
             const point2_t rel = pose2_apply_inverse(p->pose, lm->mean);
-            const double c = cos(p->pose.theta);
-            const double sn = sin(p->pose.theta);
-            double rt[2][2] = {{c, sn}, {-sn, c}}; /* R^T */
             const cov2_t cr = cov2_congruence(rt, lm->cov);
             const double ex = rel.x - t->rx[s];
             const double ey = rel.y - t->ry[s];
