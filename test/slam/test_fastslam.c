@@ -201,6 +201,9 @@ static void test_negative_evidence(void **state)
     c.slam.exist_miss = 1.0f;
     c.slam.exist_hit = 1.0f;
     c.slam.exist_confirm = 3.0f;
+    /* the rule without decay of confirmed landmarks (test_exist_decay.c has
+     * the decay) */
+    c.slam.exist_miss_confirmed = 0.0f;
     const pose2_t p0 = {0.0, 0.0, 0.0};
     assert_int_equal(fastslam_init(&g_fs, &c, p0, 5U), COSLAM_OK);
     /* a real landmark, seen three times (confirmed), and a clutter sighting once */
@@ -244,7 +247,8 @@ static void test_capacity_and_bad_input(void **state)
 {
     (void)state;
     fastslam_config_t c = config(5);
-    c.slam.exist_confirm = c.slam.exist_init; /* confirmed at once: no removal while filling */
+    c.slam.exist_confirm = c.slam.exist_init; /* confirmed at once and never */
+    c.slam.exist_miss_confirmed = 0.0f;       /* decaying: no removal while filling */
     const pose2_t p0 = {0.0, 0.0, 0.0};
     assert_int_equal(fastslam_init(&g_fs, &c, p0, 7U), COSLAM_OK);
     /* fill the map with well separated landmarks, one per update */

@@ -1,6 +1,8 @@
 /* Landmark EKF, existence bookkeeping and the association helpers. */
 #include "test_util.h"
 
+#include <string.h>
+
 #include "coslam/landmark.h"
 
 static slam_params_t params(void)
@@ -110,9 +112,11 @@ static void test_existence(void **state)
     p.exist_miss = 1.0f;
     p.exist_confirm = 3.0f;
     p.exist_max = 5.0f;
+    p.exist_miss_confirmed = 0.0f; /* the rule before it: confirmed never die */
     float e = p.exist_init;
-    assert_int_equal(exist_miss(&e, &p), 0); /* 1 -> 0 */
-    assert_int_equal(exist_miss(&e, &p), 1); /* 0 -> -1: removed */
+    uint8_t once = 0U;
+    assert_int_equal(exist_miss(&e, &once, 1, &p), 0); /* 1 -> 0 */
+    assert_int_equal(exist_miss(&e, &once, 1, &p), 1); /* 0 -> -1: removed */
     e = p.exist_init;
     exist_hit(&e, &p);
     exist_hit(&e, &p); /* 3: confirmed */
@@ -124,9 +128,85 @@ static void test_existence(void **state)
     }
     ASSERT_NEAR(e, 5.0, 0.0); /* capped */
     for (int i = 0; i < 10; ++i) {
-        assert_int_equal(exist_miss(&e, &p), 0); /* confirmed landmarks are never removed */
+        assert_int_equal(exist_miss(&e, &once, 1, &p), 0); /* confirmed landmarks are never removed */
     }
     ASSERT_NEAR(e, 3.0, 0.0);
+    assert_int_equal(once, 1U);
+}
+
+/* exist_miss_confirmed > 0: a confirmed (or once confirmed) landmark decays
+ * at one slow rate through exist_confirm down to removal; only certain misses
+ * count; tentative ones keep the fast rate. */
+static void test_existence_confirmed_decay(void **state)
+{
+    (void)state;
+    slam_params_t p = params();
+    p.exist_init = 1.0f;
+    p.exist_hit = 1.0f;
+    p.exist_miss = 1.0f;
+    p.exist_confirm = 3.0f;
+    p.exist_max = 5.0f;
+    p.exist_miss_confirmed = 0.5f; /* exact in binary: no rounding in the counts */
+
+    float e = p.exist_max;
+    uint8_t once = 0U;
+    assert_int_equal(exist_miss(&e, &once, 0, &p), 0); /* uncertain: no evidence */
+    ASSERT_NEAR(e, 5.0, 0.0);
+    assert_int_equal(once, 1U); /* but it is marked */
+    int n = 0;
+    int n_confirmed = 0;
+    while (!exist_miss(&e, &once, 1, &p)) {
+        ++n;
+        n_confirmed += e >= p.exist_confirm;
+        assert_true(n < 100);
+    }
+    /* (5 - 3) / 0.5 = 4 misses keep it confirmed; it reaches 0 at the 10th
+     * (5 / 0.5) and is removed at the 11th (below zero) */
+    assert_int_equal(n_confirmed, 4);
+    assert_int_equal(n + 1, 11);
+
+    /* tentative (never confirmed): the fast rate, certain or not */
+    e = 2.0f;
+    once = 0U;
+    assert_int_equal(exist_miss(&e, &once, 0, &p), 0);
+    ASSERT_NEAR(e, 1.0, 0.0);
+    assert_int_equal(once, 0U);
+    /* a hit-miss flicker (1 -> 2 -> 1) never confirmed stays on the fast
+     * rate, however many sightings it collects */
+    e = p.exist_init;
+    for (int i = 0; i < 20; ++i) {
+        exist_hit(&e, &p);
+        assert_int_equal(exist_miss(&e, &once, 1, &p), 0);
+    }
+    assert_int_equal(once, 0U);
+    assert_int_equal(exist_miss(&e, &once, 1, &p), 0); /* 1 -> 0 */
+    assert_int_equal(exist_miss(&e, &once, 1, &p), 1); /* removed */
+    /* received in a merge at exist_confirm (flag clear): the first miss marks
+     * it and ends its export; it survives 3 / 0.5 = 6 misses, the 7th
+     * removes it */
+    e = p.exist_confirm;
+    once = 0U;
+    for (int i = 0; i < 6; ++i) {
+        assert_int_equal(exist_miss(&e, &once, 1, &p), 0);
+        assert_true(e < p.exist_confirm);
+    }
+    assert_int_equal(exist_miss(&e, &once, 1, &p), 1);
+}
+
+static void test_miss_is_certain(void **state)
+{
+    (void)state;
+    slam_params_t p = params();
+    p.sensor_fov_rad = 1.0;
+    p.exist_miss_bearing_sd_frac = 0.2; /* bearing sd <= 0.1 rad */
+    lm_expect_t e;
+    memset(&e, 0, sizeof e);
+    e.s = cov2_make(4.0, 0.0, 0.0099);
+    assert_true(landmark_miss_is_certain(&p, &e));
+    e.s.yy = 0.0101;
+    assert_false(landmark_miss_is_certain(&p, &e));
+    e.s.yy = NAN;
+    assert_false(landmark_miss_is_certain(&p, &e));
 }
 
 static void test_should_be_seen(void **state)
@@ -219,6 +299,8 @@ int main(void)
         cmocka_unit_test(test_kalman_update_hand_computed),
         cmocka_unit_test(test_kalman_update_information_form),
         cmocka_unit_test(test_existence),
+        cmocka_unit_test(test_existence_confirmed_decay),
+        cmocka_unit_test(test_miss_is_certain),
         cmocka_unit_test(test_should_be_seen),
         cmocka_unit_test(test_greedy_mutual_exclusion),
         cmocka_unit_test(test_classify_and_new),

@@ -347,6 +347,7 @@ static coslam_status_t add_landmark(ekfslam_t *ekf, point2_t m, double gr[2][3],
     ekf->x[a + 1] = m.y;
     ekf->lm_first[ekf->n_lm] = m;
     ekf->meta[ekf->n_lm] = *meta;
+    ekf->lm_confirmed_once[ekf->n_lm] = 0U; /* set by exist_miss() if meta->exist confirms it */
     ekf->n_lm++;
     return COSLAM_OK;
 }
@@ -385,6 +386,7 @@ void ekfslam_remove_landmark(ekfslam_t *ekf, uint16_t j)
         }
         ekf->meta[j] = ekf->meta[last];
         ekf->lm_first[j] = ekf->lm_first[last];
+        ekf->lm_confirmed_once[j] = ekf->lm_confirmed_once[last];
     }
     ekf->n_lm = last;
 }
@@ -680,7 +682,9 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
         if (!sc->near[j] || sc->matched[j]) {
             continue;
         }
-        if (landmark_should_be_seen(sp, sc->expect[j].zhat) && exist_miss(&ekf->meta[j].exist, sp)) {
+        const lm_expect_t *ep = &sc->expect[j];
+        if (landmark_should_be_seen(sp, ep->zhat) &&
+            exist_miss(&ekf->meta[j].exist, &ekf->lm_confirmed_once[j], landmark_miss_is_certain(sp, ep), sp)) {
             ekfslam_remove_landmark(ekf, (uint16_t)j);
             ekf->ctr.landmarks_removed++;
         }

@@ -319,7 +319,9 @@ static coslam_status_t update_particle(fastslam_t *fs, uint16_t k, const sightin
             continue;
         }
         landmark_t *lm = &p->lm[j];
-        if (landmark_should_be_seen(sp, sc->expect[j].zhat) && exist_miss(&lm->exist, sp)) {
+        const lm_expect_t *ep = &sc->expect[j];
+        if (landmark_should_be_seen(sp, ep->zhat) &&
+            exist_miss(&lm->exist, &lm->confirmed_once, landmark_miss_is_certain(sp, ep), sp)) {
             particle_remove(p, (uint16_t)j);
             fs->ctr.landmarks_removed++;
         }

@@ -22,7 +22,7 @@ coslam_status_t landmark_init(landmark_t *lm, const slam_params_t *params, pose2
     lm->n_obs = 1;
     lm->src_mask = src_mask;
     lm->signature = z.signature;
-    lm->reserved_ = 0;
+    lm->confirmed_once = 0;
     return COSLAM_OK;
 }
 
@@ -107,8 +107,26 @@ void exist_hit(float *exist, const slam_params_t *params)
     *exist = v > params->exist_max ? params->exist_max : v;
 }
 
-int exist_miss(float *exist, const slam_params_t *params)
+int landmark_miss_is_certain(const slam_params_t *params, const lm_expect_t *e)
 {
+    /* compare variances: no square root, and a NaN variance is not certain */
+    const double sd_max = params->exist_miss_bearing_sd_frac * 0.5 * params->sensor_fov_rad;
+    return e->s.yy <= sd_max * sd_max;
+}
+
+int exist_miss(float *exist, uint8_t *confirmed_once, int certain, const slam_params_t *params)
+{
+    if (*exist >= params->exist_confirm) {
+        *confirmed_once = 1U;
+    }
+    if (params->exist_miss_confirmed > 0.0f && *confirmed_once) {
+        /* one slow rate from exist_max to removal; uncertain misses say
+         * nothing about a confirmed landmark */
+        if (certain) {
+            *exist -= params->exist_miss_confirmed;
+        }
+        return *exist < 0.0f;
+    }
     if (*exist >= params->exist_confirm) {
         /* confirmed: may weaken down to the confirmation level, never below */
         const float v = *exist - params->exist_miss;

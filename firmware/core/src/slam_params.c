@@ -51,6 +51,10 @@ slam_params_t slam_params_default(void)
     p.exist_miss = 1.0f;
     p.exist_confirm = 5.0f;
     p.exist_max = 10.0f;
+    /* a landmark at exist_max stays exported through K = 40 certain misses
+     * (8 s at 5 Hz), is removed at the 81st (slam_params.h) */
+    p.exist_miss_confirmed = 0.125f;
+    p.exist_miss_bearing_sd_frac = 0.25;
     return p;
 }
 
@@ -89,6 +93,10 @@ coslam_status_t slam_params_validate(const slam_params_t *p)
           isfinite(p->exist_confirm) && isfinite(p->exist_max)) ||
         p->exist_init < 0.0f || p->exist_hit < 0.0f || p->exist_miss < 0.0f ||
         p->exist_confirm < p->exist_init || p->exist_max < p->exist_confirm) {
+        return COSLAM_E_ARG;
+    }
+    if (!(isfinite(p->exist_miss_confirmed) && p->exist_miss_confirmed >= 0.0f) ||
+        !(isfinite(p->exist_miss_bearing_sd_frac) && p->exist_miss_bearing_sd_frac > 0.0)) {
         return COSLAM_E_ARG;
     }
     return COSLAM_OK;

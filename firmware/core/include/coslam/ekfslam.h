@@ -138,6 +138,10 @@ typedef struct {
     pose2_t pose_prior;                      /**< pose after the last prediction (FEJ) */
     double p[EKFSLAM_DIM * EKFSLAM_DIM];   /**< row-major, stride EKFSLAM_DIM */
     ekfslam_meta_t meta[COSLAM_MAX_LANDMARKS];
+    /** 1 once landmark j's evidence was seen at or above exist_confirm
+     *  (exist_miss(); like landmark_t.confirmed_once, kept beside meta so
+     *  that callers filling an ekfslam_meta_t need not know it) */
+    uint8_t lm_confirmed_once[COSLAM_MAX_LANDMARKS];
     ekfslam_scratch_t scratch;
 } ekfslam_t;
 

@@ -30,7 +30,9 @@ typedef struct {
     uint16_t n_obs;     /**< sightings fused into it (saturates at 65535) */
     uint16_t src_mask;  /**< provenance: bit k set = holds information from robot k */
     uint8_t signature;  /**< landmark class, see sighting_t */
-    uint8_t reserved_;
+    uint8_t confirmed_once; /**< 1 once its evidence was seen at or above
+                                 exist_confirm (set by exist_miss(); 0 from
+                                 landmark_init() or a zeroed struct) */
 } landmark_t;
 
 /** What a landmark is expected to look like from a pose. */
@@ -76,8 +78,32 @@ int landmark_should_be_seen(const slam_params_t *params, sighting_t zhat);
 /** Positive evidence on an existence counter: the landmark was sighted. */
 void exist_hit(float *exist, const slam_params_t *params);
 
-/** Negative evidence; returns 1 if the landmark should now be removed. */
-int exist_miss(float *exist, const slam_params_t *params);
+/**
+ * 1 if a miss of a landmark expected as `e` is certain enough to count
+ * against a confirmed (or once confirmed) landmark: sqrt(e->s.yy), the
+ * bearing sd of the predicted sighting, is at most
+ * exist_miss_bearing_sd_frac * sensor_fov_rad / 2 (a NaN is not certain).
+ */
+int landmark_miss_is_certain(const slam_params_t *params, const lm_expect_t *e);
+
+/**
+ * Negative evidence: the landmark (evidence *exist, flag *confirmed_once,
+ * see landmark_t) should have been seen (landmark_should_be_seen) but was
+ * not; `certain` is landmark_miss_is_certain() for its prediction. Sets
+ * *confirmed_once if *exist >= exist_confirm. Returns 1 if the landmark
+ * should now be removed (evidence below zero).
+ *  - exist_miss_confirmed > 0 and *confirmed_once (confirmed now, or once:
+ *    by its own sightings, or received in a map merge, which places it at
+ *    exist_confirm): loses exist_miss_confirmed if `certain`, else nothing.
+ *    It drops out of the export below exist_confirm and is removed below
+ *    zero; a landmark at evidence e survives floor(e / exist_miss_confirmed)
+ *    consecutive certain misses.
+ *  - otherwise tentative landmarks (never confirmed) lose exist_miss;
+ *    confirmed ones (only with exist_miss_confirmed == 0) weaken by
+ *    exist_miss down to exist_confirm and never below (the rule before
+ *    exist_miss_confirmed).
+ */
+int exist_miss(float *exist, uint8_t *confirmed_once, int certain, const slam_params_t *params);
 
 int landmark_is_confirmed(const landmark_t *lm, const slam_params_t *params);
 

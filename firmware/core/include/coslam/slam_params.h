@@ -71,16 +71,52 @@ typedef struct {
     double new_landmark_log_lik;
 
     /* Landmark existence (counter in "hits"): a landmark starts at exist_init,
-     * gains exist_hit per sighting, loses exist_miss each update in which it
-     * should have been seen but was not. Tentative while below
-     * exist_confirm: a tentative landmark whose evidence falls below zero is
-     * removed. Confirmed landmarks never fall below exist_confirm (occlusion
-     * by obstacles must not erase a mapped landmark). Capped at exist_max. */
+     * gains exist_hit per sighting, loses evidence each update in which it
+     * should have been seen but was not (a "miss"). Confirmed (exported) while
+     * at or above exist_confirm, tentative below; removed when below zero.
+     * Capped at exist_max. See exist_miss() in landmark.h and
+     * docs/core-slam.md, "Existence". */
     float exist_init;
     float exist_hit;
+    /** Evidence lost per miss by a tentative landmark: one never confirmed
+     *  (clutter must fade fast). */
     float exist_miss;
     float exist_confirm;
     float exist_max;
+    /** Evidence lost per certain miss (exist_miss_bearing_sd_frac) by a
+     *  landmark that is or was confirmed (own, or received in a map merge,
+     *  which places it at exist_confirm). It keeps this rate all the way
+     *  down: below exist_confirm it is no longer exported, below zero it is
+     *  removed. So a wrong confirmed landmark (failed loop closure,
+     *  misassociation, a wrong map received from another robot) dies instead
+     *  of being exported forever, while a real one that is occluded or
+     *  missed for a while survives: from evidence e it stays exported through
+     *  floor((e - exist_confirm) / exist_miss_confirmed) consecutive certain
+     *  misses and stays in the map through floor(e / exist_miss_confirmed).
+     *  Default 0.125 (exact in binary, so these counts are exact): at the
+     *  5 Hz camera a landmark at exist_max stays exported through K = 40
+     *  consecutive certain misses (8 s of looking at it), drops out of the
+     *  export at the 41st and is removed at the 81st (16 s). A robot crossing
+     *  the line of sight hides a marker for about 2 s (0.5 m of robot and
+     *  marker at 0.25 m/s), a robot standing in front of it during a meeting
+     *  for several seconds; with p_detect 0.9 a real landmark in view gains
+     *  0.9 - 0.1 * 0.125 per frame, so missed detections never matter.
+     *  0.25 (K = 20) removed more real landmarks in the simulated arena,
+     *  where boxes hide markers (docs/core-slam.md). 0 restores the old rule:
+     *  confirmed landmarks never fall below exist_confirm (weakening to it at
+     *  exist_miss) and are never removed. */
+    float exist_miss_confirmed;
+    /** A miss of a confirmed (or once confirmed) landmark counts only if its
+     *  prediction is certain: the bearing standard deviation of the
+     *  predicted sighting, sqrt(S_bb) of the innovation covariance
+     *  (lm_expect_t.s: landmark and, where the filter has it, pose
+     *  uncertainty plus sensor noise), is at most this fraction of the half
+     *  field of view. Otherwise the sighting might have fallen outside the
+     *  view or been refused by the association (whose acceptance shrinks as
+     *  S grows), and after a long drift every landmark would die. Default
+     *  0.25: two sigma cover half the half field of view (+-6.25 deg of the
+     *  50 deg camera, whose own bearing noise is 2 deg). > 0. */
+    double exist_miss_bearing_sd_frac;
 } slam_params_t;
 
 /** The noise weights as an array w[0..7] = (w1..w8), for calibration. */
