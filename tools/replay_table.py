@@ -3,6 +3,11 @@
 one row per setting (robots, merging) x filter x identities, the means over
 the robots of each run (and over the runs of a group, e.g. the seven pairs);
 the landmark RMSE is pooled over all matched landmarks of those robots.
+Figures that need the robots' ground truth (pose, map-frame landmark
+figures, transform errors) are null in metrics.json without it: they are
+averaged over the robots that have them, "n/a" if none does. The "fit"
+column (landmark RMSE / spurious / missed after the best rigid fit of each
+map onto the true landmarks, docs/replay.md) needs the landmarks only.
 
 usage: replay_table.py OUT_DIR   (reads OUT_DIR/*/metrics.json)
 """
@@ -15,6 +20,25 @@ import sys
 GROUPS = [("5r", "5 robots, merging"), ("5r-nomerge", "5 robots, each alone"), ("2r", "2 robots (7 pairs), merging")]
 
 
+def mean(values):
+    """Mean of the values that are not None (null: no ground truth), or None."""
+    v = [x for x in values if x is not None]
+    return sum(v) / len(v) if v else None
+
+
+def fmt(fmt_str, value):
+    return "n/a" if value is None else fmt_str % value
+
+
+def pooled_rmse(scores):
+    """RMSE pooled over the matched landmarks of map scores (dicts with rmse_m, n_matched)."""
+    s = [m for m in scores if m.get("n_matched") is not None and m.get("rmse_m") is not None]
+    if not s:
+        return None
+    nm = sum(m["n_matched"] for m in s)
+    return math.sqrt(sum(m["rmse_m"] ** 2 * m["n_matched"] for m in s) / nm) if nm else 0.0
+
+
 def main():
     d = sys.argv[1]
     runs = {}
@@ -25,9 +49,9 @@ def main():
         with open(p) as f:
             runs.setdefault((group, filt, ids), []).append(json.load(f))
     print("| setting | filter | ids | pose RMSE [m] | heading RMSE [deg] | pose NEES | landmark RMSE [m] | "
-          "landmarks | spurious | missed | merges | transform err RMSE [m / deg] | transform NEES | "
-          "time/step mean / max [us] | wall [s] |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+          "landmarks | spurious | missed | fit: landmark RMSE [m] / spurious / missed | merges | "
+          "transform err RMSE [m / deg] | transform NEES | time/step mean / max [us] | wall [s] |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for group, label in GROUPS:
         for filt in ("ekf", "fastslam2"):
             for ids in ("unknown", "known"):
@@ -36,14 +60,19 @@ def main():
                     continue
                 robots = [r for m in ms for r in m["robots"]]
                 n = len(robots)
-                pose = sum(r["pose"]["rmse_m"] for r in robots) / n
-                head = sum(r["pose"]["heading_rmse_deg"] for r in robots) / n
-                nees = sum(r["pose"]["nees_mean"] for r in robots) / n
-                nm = sum(r["map"]["n_matched"] for r in robots)
-                lm = math.sqrt(sum(r["map"]["rmse_m"] ** 2 * r["map"]["n_matched"] for r in robots) / nm) if nm else 0.0
+                pose = mean(r["pose"]["rmse_m"] for r in robots)
+                head = mean(r["pose"]["heading_rmse_deg"] for r in robots)
+                nees = mean(r["pose"]["nees_mean"] for r in robots)
+                lm = pooled_rmse(r["map"] for r in robots)
                 est = sum(r["map"]["n_estimated"] for r in robots) / n
-                spur = sum(r["map"]["n_spurious"] for r in robots) / n
-                miss = sum(r["map"]["n_missed"] for r in robots) / n
+                spur = mean(r["map"].get("n_spurious") for r in robots)
+                miss = mean(r["map"].get("n_missed") for r in robots)
+                fits = [r["map_fit"] for r in robots if r.get("map_fit", {}).get("evaluated")]
+                if fits:
+                    fcol = "%s / %.1f / %.1f" % (fmt("%.3f", pooled_rmse(fits)),
+                                                 mean(f["n_spurious"] for f in fits), mean(f["n_missed"] for f in fits))
+                else:
+                    fcol = "n/a"
                 step = sum(r["steps"]["step_us_mean"] for r in robots) / n
                 stepmax = max(r["steps"]["step_us_max"] for r in robots)
                 merges = sum(m["merges"]["merged"] for m in ms)
@@ -58,8 +87,9 @@ def main():
                     tcol, tn = "-", "-"
                 wall = sum(m["timing"]["wall_s"] for m in ms)
                 fname = filt if filt == "ekf" else "%s (%d)" % (filt, ms[0]["robots"][0]["particles"])
-                print("| %s | %s | %s | %.3f | %.1f | %.1f | %.3f | %.1f | %.1f | %.1f | %d | %s | %s | %.0f / %.0f | %.1f |"
-                      % (label, fname, ids, pose, head, nees, lm, est, spur, miss, merges, tcol, tn, step, stepmax, wall))
+                print("| %s | %s | %s | %s | %s | %s | %s | %.1f | %s | %s | %s | %d | %s | %s | %.0f / %.0f | %.1f |"
+                      % (label, fname, ids, fmt("%.3f", pose), fmt("%.1f", head), fmt("%.1f", nees), fmt("%.3f", lm),
+                         est, fmt("%.1f", spur), fmt("%.1f", miss), fcol, merges, tcol, tn, step, stepmax, wall))
     return 0
 
 
