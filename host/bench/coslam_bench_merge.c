@@ -1,5 +1,6 @@
 /*
- * coslam-bench-merge - time of the map merge into Fast-SLAM for
+ * coslam-bench-merge - time of the map merge (the robot's path: transform,
+ * check before trust against the own map, fusion) into Fast-SLAM for
  * (particles N, landmarks M) = (100, 64), (1000, 256), (1000, 1024), and
  * into EKF-SLAM for M = 64, 256. Own maps hold M landmarks; the incoming
  * map holds M landmarks, half of them duplicates of own ones. Also times a
@@ -31,6 +32,8 @@ static ekfslam_t g_ekf;
 static merge_scratch_t g_sc;
 static merge_body_map_t g_bm;
 static map_estimate_t g_in;
+static map_estimate_t g_own;
+static merge_coverage_t g_cov;
 
 /* M landmarks on a jittered grid 0.7 m apart (distinct, 4 classes). */
 static point2_t site(int i, rng_t *r)
@@ -61,6 +64,30 @@ static void build_incoming(int m, rng_t *r)
         if (i % 2 == 1) {
             l->signature = (uint8_t)((m + i) % 4);
         }
+    }
+}
+
+/* The own map as the filter exports it (the check compares against it). */
+static void build_own_export(int m, rng_t *r)
+{
+    memset(&g_own, 0, sizeof g_own);
+    g_own.pose_cov = cov3_diag(0.01, 0.01, 0.001);
+    g_own.n_landmarks = (uint16_t)m;
+    for (int j = 0; j < m; ++j) {
+        map_landmark_t *l = &g_own.lm[j];
+        l->mean = site(j, r);
+        l->cov = cov2_make(0.01, 0.0, 0.01);
+        l->cov_rel = l->cov;
+        l->id = (uint32_t)(j + 1);
+        l->n_obs = 10;
+        l->src_mask = 1;
+        l->signature = (uint8_t)(j % 4);
+    }
+    /* the robot looked from 64 places (its keyframes), along the own map's
+     * south edge facing south: every look is tested, none vetoes */
+    merge_coverage_init(&g_cov);
+    for (int k = 0; k < 64; ++k) {
+        merge_coverage_note(&g_cov, (pose2_t){0.5 * k - 16.0, -9.0, -0.5 * COSLAM_PI + 0.01 * k});
     }
 }
 
@@ -140,6 +167,8 @@ int main(int argc, char **argv)
         for (int rep = 0; rep < reps; ++rep) {
             build_own_maps(n, m, &r);
             rng_seed(&r, 7U);
+            build_own_export(m, &r);
+            rng_seed(&r, 7U);
             build_incoming(m, &r);
             const pose2_t t = {0.0, 0.0, 0.0};
             const cov3_t tc = cov3_diag(1e-4, 1e-4, 1e-5);
@@ -147,12 +176,15 @@ int main(int argc, char **argv)
             memset(&st, 0, sizeof st);
             const double t0 = now_us();
             merge_transform_map(&g_in, t, &tc, &mc, &g_bm, &st);
+            merge_check(&g_own, &g_cov, NULL, &g_fs.cfg.slam, 0U, &mc, &g_bm, &g_sc, &st);
             merge_into_fastslam(&g_fs, &g_bm, &mc, &g_sc, &st);
             const double dt = now_us() - t0;
             best = dt < best ? dt : best;
             if (rep == 0 && (st.fused != (uint32_t)(n * (m / 2)) || st.added != (uint32_t)(n * (m / 2)))) {
-                fprintf(stderr, "coslam-bench-merge: N=%d M=%d fused %u added %u (expected %d each)\n", n, m,
-                        st.fused, st.added, n * (m / 2));
+                fprintf(stderr,
+                        "coslam-bench-merge: N=%d M=%d fused %u added %u (expected %d each; the check left out %u "
+                        "ambiguous, %u vetoed)\n",
+                        n, m, st.fused, st.added, n * (m / 2), st.ambiguous, st.vetoed);
             }
         }
         fs_us[c] = best;
@@ -175,6 +207,8 @@ int main(int argc, char **argv)
             ekfslam_add_landmark_body(&g_ekf, site(j, &r), cov2_make(0.01, 0.0, 0.01), &meta);
         }
         rng_seed(&r, 7U);
+        build_own_export(m, &r);
+        rng_seed(&r, 7U);
         build_incoming(m, &r);
         const pose2_t t = {0.0, 0.0, 0.0};
         const cov3_t tc = cov3_diag(1e-4, 1e-4, 1e-5);
@@ -182,6 +216,7 @@ int main(int argc, char **argv)
         memset(&st, 0, sizeof st);
         const double t0 = now_us();
         merge_transform_map(&g_in, t, &tc, &mc, &g_bm, &st);
+        merge_check(&g_own, &g_cov, NULL, &g_ekf.cfg.slam, 0U, &mc, &g_bm, &g_sc, &st);
         merge_into_ekfslam(&g_ekf, &g_bm, &mc, &g_sc, &st);
         ekf_us[c] = now_us() - t0;
         fprintf(stderr, ".");
@@ -199,8 +234,8 @@ int main(int argc, char **argv)
     FILE *sinks[2] = {stdout, md};
     for (int k = 0; k < 2; ++k) {
         FILE *o = sinks[k];
-        fprintf(o, "Map merge time (transform + duplicates + fusion), best of %d runs; M own landmarks per particle, "
-                   "M incoming (half duplicates).\n\n", reps);
+        fprintf(o, "Map merge time (transform + check before trust + duplicates + fusion), best of %d runs; M own "
+                   "landmarks per particle, M incoming (half duplicates), 64 keyframes of coverage.\n\n", reps);
         fprintf(o, "| Fast-SLAM (N, M) | merge [ms] | per particle and landmark [ns] | naive all-pairs duplicate search "
                    "alone [ms] |\n|---|---|---|---|\n");
         for (int c = 0; c < 3; ++c) {

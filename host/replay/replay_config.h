@@ -77,17 +77,22 @@ struct InputConfig {
 
 struct MergeParams {
     bool enabled = true;
-    double window_s = 0.5;    ///< both sightings at most this far apart in time
-    double interval_s = 30.0; ///< at most one merge per pair per interval
+    /// The meeting protocol (app/meeting.h) with these settings:
+    double window_s = 0.5;    ///< both sightings at most this far apart in time (pair_window_us)
+    double interval_s = 30.0; ///< after merging a peer, ignore it this long (remerge_period_us)
+    double max_range_m = 1e3; ///< robot sightings farther away do not start or feed a meeting
+    int export_min_obs = 5;   ///< landmarks sent must have this many sightings
+    /// Messages per meeting and peer, and their spacing: MRCLAM's camera
+    /// sees the other robot in a few frames per second at best, so the
+    /// receiver's own sighting within window_s of the sender's comes only
+    /// with more tries than the robot's default (3, 1 s).
+    int max_sends = 10;
+    double resend_s = 0.5;
+    /// Set-up, check and fusion (map_merge.h): range_check_chi2,
+    /// peer_speed_mps / peer_turn_radps (INI: sender_speed_mps,
+    /// sender_turn_radps), check, refine_iters, agree_z, veto_looks,
+    /// max_contradict_fraction, ambiguous_chi2, gate_chi2, min_obs, ...
     merge_config_t core = merge_config_default();
-    /// The two robots measure the same distance: |r1 - r2|^2 / (v1 + v2)
-    /// must stay below this, else a sighting is a misread marker and the
-    /// meeting is refused (counted).
-    double range_check_chi2 = 9.0;
-    /// Bound on the sender's motion between the two sightings, added as
-    /// variance (speed * dt)^2 on x, y and (turn * dt)^2 on the heading.
-    double sender_speed_mps = 0.2;
-    double sender_turn_radps = 0.5;
 };
 
 struct EvalConfig {

@@ -1,5 +1,7 @@
-// host/replay/replay_filter.h - one robot's SLAM filter of the firmware core
-// (Fast-SLAM 1.0/2.0 or EKF-SLAM), called exactly as the robot calls it.
+// host/replay/replay_filter.h - one robot's SLAM filter: the robot app's own
+// filter wrapper (app/slam_filter.h: Fast-SLAM 1.0/2.0 or EKF-SLAM, with
+// the coverage record the merge check uses), called exactly as the robot
+// calls it.
 //
 // The filter state is large (a 1000-particle Fast-SLAM of the large profile
 // is about 15 MB), so it lives on the heap here; the robot keeps it in
@@ -13,6 +15,7 @@
 #include <optional>
 #include <string>
 
+#include "app/slam_filter.h"
 #include "coslam/ekfslam.h"
 #include "coslam/fastslam.h"
 #include "coslam/map_merge.h"
@@ -36,9 +39,8 @@ public:
     void pose(pose2_t *mean, cov3_t *cov) const;
     /// Exports the map estimate (non-const: the core uses scratch in the state).
     coslam_status_t export_map(map_estimate_t *out);
-    /// Steps 3-4 of the merge (map_merge.h) into this filter.
-    coslam_status_t merge(const merge_body_map_t &bm, const merge_config_t &cfg, merge_scratch_t &scratch,
-                          merge_stats_t &stats);
+    /// The robot app's filter (the meeting protocol drives it).
+    slam_filter_t *app() { return f_.get(); }
     /// Mean of the landmark of signature `sig` (known-ids mode: at most one
     /// should exist). EKF: the state; Fast-SLAM: the best particle. The one
     /// with most sightings if several.
@@ -46,13 +48,12 @@ public:
     /// The core's counters by name (capacity drops, rejected input, ...).
     std::map<std::string, long> counters() const;
 
-    const fastslam_t *fastslam() const { return fs_.get(); }
-    const ekfslam_t *ekfslam() const { return ekf_.get(); }
+    const fastslam_t *fastslam() const { return kind_ == FilterKind::Ekf ? nullptr : &f_->u.fs; }
+    const ekfslam_t *ekfslam() const { return kind_ == FilterKind::Ekf ? &f_->u.ekf : nullptr; }
 
 private:
     FilterKind kind_;
-    std::unique_ptr<fastslam_t> fs_;
-    std::unique_ptr<ekfslam_t> ekf_;
+    std::unique_ptr<slam_filter_t> f_;
 };
 
 } // namespace coslam::replay

@@ -43,19 +43,58 @@ void write_map(const fs::path &p, const map_estimate_t &m)
     }
 }
 
-json score_json(const MapScore &s)
-{
-    if (!s.valid) {
-        return json{{"n_estimated", s.n_estimated}, {"evaluated", false}};
-    }
-    return json{{"n_estimated", s.n_estimated}, {"n_matched", s.n_matched}, {"n_spurious", s.n_spurious},
-                {"n_missed", s.n_missed},       {"rmse_m", s.rmse_m},       {"max_err_m", s.max_err_m},
-                {"nees_mean", s.nees_mean}};
-}
-
 json pose_json(pose2_t p)
 {
     return json{p.x, p.y, p.theta};
+}
+
+// null stands for "no ground truth" in metrics.json
+json or_null(bool known, const json &v)
+{
+    return known ? v : json(nullptr);
+}
+
+// map-frame score: needs the robot's ground truth (the map frame in the world)
+json score_json(const MapScore &s)
+{
+    const bool k = s.valid;
+    return json{{"evaluated", k},
+                {"n_estimated", s.n_estimated},
+                {"n_matched", or_null(k, s.n_matched)},
+                {"n_spurious", or_null(k, s.n_spurious)},
+                {"n_missed", or_null(k, s.n_missed)},
+                {"rmse_m", or_null(k, s.rmse_m)},
+                {"max_err_m", or_null(k, s.max_err_m)},
+                {"nees_mean", or_null(k, s.nees_mean)}};
+}
+
+// rigid-fit score (stats.h eval_map_rigid): needs the true landmarks only
+json fit_json(const MapScore &s)
+{
+    const FitScore &f = s.fit;
+    const bool k = f.valid;
+    return json{{"evaluated", k},
+                {"n_estimated", s.n_estimated},
+                {"n_matched", or_null(k, f.n_matched)},
+                {"n_spurious", or_null(k, f.n_spurious)},
+                {"n_missed", or_null(k, f.n_missed)},
+                {"rmse_m", or_null(k && f.n_matched > 0, f.rmse_m)},
+                {"max_err_m", or_null(k && f.n_matched > 0, f.max_err_m)},
+                {"transform", or_null(k, pose_json(f.transform))}};
+}
+
+// a CSV field: the value, or nan where there is no ground truth
+template <typename T>
+std::string csv_or_nan(bool known, T v)
+{
+    std::ostringstream os;
+    os << std::setprecision(10);
+    if (known) {
+        os << v;
+    } else {
+        os << "nan";
+    }
+    return os.str();
 }
 
 json cov3_json(const cov3_t &c)
@@ -118,8 +157,10 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
             errors << s.t_s << ',' << r.id << ',' << e << ',' << h << ',' << (std::isfinite(n) ? n : -1.0) << '\n';
         }
         for (const auto &m : r.map_series) {
-            map_errors << m.t_s << ',' << r.id << ',' << m.score.n_estimated << ',' << m.score.n_matched << ','
-                       << m.score.n_spurious << ',' << m.score.n_missed << ',' << m.score.rmse_m << '\n';
+            const bool k = m.score.valid;
+            map_errors << m.t_s << ',' << r.id << ',' << m.score.n_estimated << ',' << csv_or_nan(k, m.score.n_matched)
+                       << ',' << csv_or_nan(k, m.score.n_spurious) << ',' << csv_or_nan(k, m.score.n_missed) << ','
+                       << csv_or_nan(k, m.score.rmse_m) << '\n';
         }
     }
     {
@@ -132,9 +173,10 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
               << (e.has_truth ? e.t_err_m : -1.0) << ',' << (e.has_truth ? e.t_err_rad : -1.0) << ','
               << (e.has_truth ? e.t_nees : -1.0) << ',' << e.stats.fused << ',' << e.stats.fused_ci << ','
               << e.stats.added << ',' << e.stats.capacity_drops << ',' << e.before.n_estimated << ','
-              << e.before.rmse_m << ',' << e.before.n_spurious << ',' << e.before.n_missed << ','
-              << e.after.n_estimated << ',' << e.after.rmse_m << ',' << e.after.n_spurious << ','
-              << e.after.n_missed << ',' << e.merge_us << '\n';
+              << csv_or_nan(e.before.valid, e.before.rmse_m) << ',' << csv_or_nan(e.before.valid, e.before.n_spurious)
+              << ',' << csv_or_nan(e.before.valid, e.before.n_missed) << ',' << e.after.n_estimated << ','
+              << csv_or_nan(e.after.valid, e.after.rmse_m) << ',' << csv_or_nan(e.after.valid, e.after.n_spurious)
+              << ',' << csv_or_nan(e.after.valid, e.after.n_missed) << ',' << e.merge_us << '\n';
         }
     }
 
@@ -174,8 +216,9 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
     j["config_ini"] = ini.str();
 
     json robots = json::array();
-    double sum_pose = 0.0, sum_head = 0.0, sum_lm = 0.0, sum_step = 0.0, max_step = 0.0;
+    double sum_pose = 0.0, sum_head = 0.0, sum_lm = 0.0, sum_step = 0.0, max_step = 0.0, sum_fit = 0.0;
     int n_pose = 0, n_lm = 0, sum_spur = 0, sum_miss = 0, sum_est = 0;
+    int n_fit = 0, n_fit_rmse = 0, sum_fit_spur = 0, sum_fit_miss = 0;
     for (const auto &r : res.robots) {
         json rj;
         rj["id"] = r.id;
@@ -183,10 +226,15 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
         rj["particles"] = r.filter == FilterKind::Ekf ? 0 : cfg.filter.particles;
         rj["t_start_s"] = r.t_start_s;
         rj["map_frame_in_world"] = pose_json(r.frame.origin);
-        rj["pose"] = {{"samples", r.pose_samples},         {"rmse_m", r.pose_rmse_m},
-                      {"heading_rmse_rad", r.heading_rmse_rad}, {"heading_rmse_deg", r.heading_rmse_rad * 180.0 / M_PI},
-                      {"nees_mean", r.pose_nees_mean},     {"final_err_m", r.final_pos_err_m}};
+        const bool pk = r.pose_samples > 0; // robot ground truth
+        rj["pose"] = {{"samples", r.pose_samples},
+                      {"rmse_m", or_null(pk, r.pose_rmse_m)},
+                      {"heading_rmse_rad", or_null(pk, r.heading_rmse_rad)},
+                      {"heading_rmse_deg", or_null(pk, r.heading_rmse_rad * 180.0 / M_PI)},
+                      {"nees_mean", or_null(pk, r.pose_nees_mean)},
+                      {"final_err_m", or_null(pk, r.final_pos_err_m)}};
         rj["map"] = score_json(r.final_score);
+        rj["map_fit"] = fit_json(r.final_score);
         rj["first_merge_t_s"] = r.t_first_merge_s;
         rj["shown_merge_t_s"] = r.t_shown_merge_s;
         rj["shown_merge_added"] = r.shown_merge_gain;
@@ -213,17 +261,29 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
             sum_est += r.final_score.n_estimated;
             n_lm++;
         }
+        if (r.final_score.fit.valid) {
+            sum_fit_spur += r.final_score.fit.n_spurious;
+            sum_fit_miss += r.final_score.fit.n_missed;
+            n_fit++;
+            if (r.final_score.fit.n_matched > 0) {
+                sum_fit += r.final_score.fit.rmse_m;
+                n_fit_rmse++;
+            }
+        }
         sum_step += r.step_us_mean;
         max_step = std::max(max_step, r.step_us_max);
     }
     j["robots"] = robots;
     const double nr = res.robots.empty() ? 1.0 : static_cast<double>(res.robots.size());
-    j["mean"] = {{"pose_rmse_m", n_pose ? sum_pose / n_pose : 0.0},
-                 {"heading_rmse_rad", n_pose ? sum_head / n_pose : 0.0},
-                 {"landmark_rmse_m", n_lm ? sum_lm / n_lm : 0.0},
-                 {"n_estimated", n_lm ? static_cast<double>(sum_est) / n_lm : 0.0},
-                 {"spurious", n_lm ? static_cast<double>(sum_spur) / n_lm : 0.0},
-                 {"missed", n_lm ? static_cast<double>(sum_miss) / n_lm : 0.0},
+    j["mean"] = {{"pose_rmse_m", or_null(n_pose > 0, n_pose ? sum_pose / n_pose : 0.0)},
+                 {"heading_rmse_rad", or_null(n_pose > 0, n_pose ? sum_head / n_pose : 0.0)},
+                 {"landmark_rmse_m", or_null(n_lm > 0, n_lm ? sum_lm / n_lm : 0.0)},
+                 {"n_estimated", or_null(n_lm > 0, n_lm ? static_cast<double>(sum_est) / n_lm : 0.0)},
+                 {"spurious", or_null(n_lm > 0, n_lm ? static_cast<double>(sum_spur) / n_lm : 0.0)},
+                 {"missed", or_null(n_lm > 0, n_lm ? static_cast<double>(sum_miss) / n_lm : 0.0)},
+                 {"fit_landmark_rmse_m", or_null(n_fit_rmse > 0, n_fit_rmse ? sum_fit / n_fit_rmse : 0.0)},
+                 {"fit_spurious", or_null(n_fit > 0, n_fit ? static_cast<double>(sum_fit_spur) / n_fit : 0.0)},
+                 {"fit_missed", or_null(n_fit > 0, n_fit ? static_cast<double>(sum_fit_miss) / n_fit : 0.0)},
                  {"step_us_mean", sum_step / nr},
                  {"step_us_max", max_step}};
 
@@ -245,6 +305,14 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
                    {"added", e.stats.added},
                    {"capacity_drops", e.stats.capacity_drops},
                    {"skipped", e.stats.skipped},
+                   {"check",
+                    {{"pairs", e.stats.pairs},
+                     {"nis", e.stats.nis},
+                     {"nis_bound", e.stats.nis_bound},
+                     {"vetoed_negative_info", e.stats.vetoed},
+                     {"echoes", e.stats.echoes},
+                     {"ambiguous", e.stats.ambiguous},
+                     {"t_shift", pose_json(e.stats.t_shift)}}},
                    {"map_before", score_json(e.before)},
                    {"map_after", score_json(e.after)},
                    {"merge_us", e.merge_us}};
@@ -269,11 +337,13 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
     j["merges"] = {{"merged", n_ok},
                    {"refused_range_check", res.meetings_refused_range},
                    {"refused_replay", res.merges_refused_replay},
+                   {"refused_disagree", res.merges_refused_disagree},
+                   {"stale", res.merges_stale},
                    {"failed", res.merges_failed},
-                   {"t_err_rmse_m", n_truth ? std::sqrt(se_t / n_truth) : 0.0},
-                   {"t_err_max_m", max_t},
-                   {"t_err_rmse_rad", n_truth ? std::sqrt(se_r / n_truth) : 0.0},
-                   {"t_nees_mean", n_truth ? sum_nees / n_truth : 0.0},
+                   {"t_err_rmse_m", or_null(n_truth > 0, n_truth ? std::sqrt(se_t / n_truth) : 0.0)},
+                   {"t_err_max_m", or_null(n_truth > 0, max_t)},
+                   {"t_err_rmse_rad", or_null(n_truth > 0, n_truth ? std::sqrt(se_r / n_truth) : 0.0)},
+                   {"t_nees_mean", or_null(n_truth > 0, n_truth ? sum_nees / n_truth : 0.0)},
                    {"events", ev}};
     const double replayed = res.t_end_s - res.t_begin_s;
     j["timing"] = {{"wall_s", res.wall_s},
@@ -292,15 +362,47 @@ void print_summary(std::ostream &out, const ReplayResult &res, const ReplayOptio
     out << "replay " << res.t_begin_s << " .. " << res.t_end_s << " s, " << res.robots.size() << " robot(s), "
         << (opt.known_ids ? "known" : "unknown") << " identities, map frame "
         << (opt.start_at_truth ? "world" : "start pose") << "\n";
+    // n/a: no ground truth for that figure (pose and map-frame figures need
+    // the robot's; the fit_ figures, after the best rigid fit of the map onto
+    // the true landmarks, only the landmarks')
     out << "robot  filter     pose_rmse_m  heading_deg  pose_nees  lm_rmse_m  landmarks  spurious  missed  "
-           "step_us(mean/max)\n";
+           "fit_rmse_m  fit_spurious  fit_missed  step_us(mean/max)\n";
+    const auto cell = [&out](int w, bool known, auto v) -> std::ostream & {
+        if (known) {
+            return out << std::setw(w) << v;
+        }
+        return out << std::setw(w) << "n/a";
+    };
     for (const auto &r : res.robots) {
-        out << std::setw(5) << r.id << "  " << std::left << std::setw(9) << filter_kind_name(r.filter) << std::right
-            << std::setw(13) << r.pose_rmse_m << std::setw(13) << r.heading_rmse_rad * 180.0 / M_PI << std::setw(11)
-            << r.pose_nees_mean << std::setw(11) << r.final_score.rmse_m << std::setw(11)
-            << r.final_score.n_estimated << std::setw(10) << r.final_score.n_spurious << std::setw(8)
-            << r.final_score.n_missed << "  " << std::setprecision(0) << r.step_us_mean << "/" << r.step_us_max
-            << std::setprecision(3) << "\n";
+        const bool pk = r.pose_samples > 0;
+        const MapScore &m = r.final_score;
+        out << std::setw(5) << r.id << "  " << std::left << std::setw(9) << filter_kind_name(r.filter) << std::right;
+        cell(13, pk, r.pose_rmse_m);
+        cell(13, pk, r.heading_rmse_rad * 180.0 / M_PI);
+        cell(11, pk, r.pose_nees_mean);
+        cell(11, m.valid, m.rmse_m);
+        out << std::setw(11) << m.n_estimated;
+        cell(10, m.valid, m.n_spurious);
+        cell(8, m.valid, m.n_missed);
+        cell(12, m.fit.valid && m.fit.n_matched > 0, m.fit.rmse_m);
+        cell(14, m.fit.valid, m.fit.n_spurious);
+        cell(12, m.fit.valid, m.fit.n_missed);
+        out << "  " << std::setprecision(0) << r.step_us_mean << "/" << r.step_us_max << std::setprecision(3) << "\n";
+    }
+    bool any_fit = false;
+    for (const auto &r : res.robots) {
+        any_fit = any_fit || r.final_score.fit.valid;
+    }
+    if (any_fit) {
+        out << "rigid fit (map frame in the world: x y [m] theta [deg]):";
+        for (const auto &r : res.robots) {
+            const FitScore &f = r.final_score.fit;
+            if (f.valid) {
+                out << "  " << r.id << ": " << std::setprecision(2) << f.transform.x << " " << f.transform.y << " "
+                    << std::setprecision(1) << f.transform.theta * 180.0 / M_PI << std::setprecision(3);
+            }
+        }
+        out << "\n";
     }
     int n_ok = 0;
     for (const auto &e : res.merges) {
@@ -309,15 +411,20 @@ void print_summary(std::ostream &out, const ReplayResult &res, const ReplayOptio
         }
     }
     out << "merges: " << n_ok << " (refused: " << res.meetings_refused_range << " range check, "
-        << res.merges_refused_replay << " replay; failed " << res.merges_failed << ")\n";
+        << res.merges_refused_disagree << " maps disagree, " << res.merges_refused_replay << " replay; "
+        << res.merges_stale << " stale; failed " << res.merges_failed << ")\n";
     for (const auto &e : res.merges) {
         out << "  t=" << std::setprecision(1) << e.t_s << std::setprecision(3) << "  " << e.sender << " -> "
             << e.receiver << "  " << coslam_status_str(e.status);
         if (e.has_truth) {
             out << "  T err " << e.t_err_m << " m " << e.t_err_rad * 180.0 / M_PI << " deg, NEES " << e.t_nees;
         }
-        out << "  fused " << e.stats.fused << " added " << e.stats.added << "  map rmse " << e.before.rmse_m << " -> "
-            << e.after.rmse_m << " (" << e.before.n_estimated << " -> " << e.after.n_estimated << " landmarks)\n";
+        out << "  pairs " << e.stats.pairs << " NIS " << std::setprecision(1) << e.stats.nis << "/" << e.stats.nis_bound
+            << std::setprecision(3) << " refused " << e.stats.vetoed << "+" << e.stats.echoes << "+"
+            << e.stats.ambiguous << "  fused " << e.stats.fused << " added " << e.stats.added << "  map rmse ";
+        cell(0, e.before.valid, e.before.rmse_m) << " -> ";
+        cell(0, e.after.valid, e.after.rmse_m) << " (" << e.before.n_estimated << " -> " << e.after.n_estimated
+                                                << " landmarks)\n";
     }
     out << "wall time " << std::setprecision(2) << res.wall_s << " s for " << (res.t_end_s - res.t_begin_s)
         << " s of data\n";

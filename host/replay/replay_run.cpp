@@ -5,8 +5,10 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <deque>
 #include <set>
 
+#include "app/meeting.h"
 #include "coslam/motion.h"
 #include "coslam/observe.h"
 #include "replay_filter.h"
@@ -29,15 +31,70 @@ struct Frame {
     std::vector<int> ri; // indices into RobotLog::rz
 };
 
-// The latest sighting robot A made of robot B, and A's map at that moment
-// if a merge with B was due then (the message A would send).
-struct LastSighting {
-    bool valid = false;
-    double t_s = 0.0;
-    double range_m = 0.0;
-    double bearing_rad = 0.0;
-    std::shared_ptr<map_estimate_t> snapshot;
-    uint32_t seq = 0;
+// The inter-robot link of the replay: every datagram is delivered whole,
+// at once, in order (the recorded robots were in radio reach throughout).
+// A hal_link_t endpoint per robot, so the robot's meeting protocol runs
+// unchanged on top.
+class ReplayLink {
+public:
+    explicit ReplayLink(size_t n) : eps_(n)
+    {
+        for (size_t i = 0; i < n; ++i) {
+            eps_[i].hub = this;
+            eps_[i].id = static_cast<uint16_t>(i);
+            eps_[i].handle.ops = &kOps;
+            eps_[i].handle.backend = &eps_[i];
+        }
+    }
+    hal_link_t *endpoint(size_t i) { return &eps_[i].handle; }
+    uint64_t now_us = 0;
+
+private:
+    struct Datagram {
+        uint16_t src;
+        uint64_t stamp_us;
+        std::vector<uint8_t> data;
+    };
+    struct Endpoint {
+        ReplayLink *hub = nullptr;
+        uint16_t id = 0;
+        std::deque<Datagram> rx;
+        hal_link_t handle{};
+    };
+    static hal_status_t op_self_id(hal_link_t *dev, uint16_t *id)
+    {
+        *id = static_cast<Endpoint *>(dev->backend)->id;
+        return HAL_OK;
+    }
+    static hal_status_t op_send(hal_link_t *dev, uint16_t dest, const uint8_t *data, size_t len, uint32_t)
+    {
+        auto *ep = static_cast<Endpoint *>(dev->backend);
+        if (dest == ep->id) {
+            return HAL_E_ARG;
+        }
+        for (auto &o : ep->hub->eps_) {
+            if (o.id != ep->id && (dest == HAL_LINK_BROADCAST || dest == o.id)) {
+                o.rx.push_back({ep->id, ep->hub->now_us, std::vector<uint8_t>(data, data + len)});
+            }
+        }
+        return HAL_OK;
+    }
+    static hal_status_t op_recv(hal_link_t *dev, uint8_t *buf, size_t cap, hal_link_rx_info_t *info, uint32_t)
+    {
+        auto *ep = static_cast<Endpoint *>(dev->backend);
+        if (ep->rx.empty()) {
+            return HAL_E_TIMEOUT;
+        }
+        const Datagram d = std::move(ep->rx.front());
+        ep->rx.pop_front();
+        info->len = d.data.size();
+        info->src_id = d.src;
+        info->stamp_us = d.stamp_us;
+        std::copy_n(d.data.begin(), std::min(cap, d.data.size()), buf);
+        return d.data.size() > cap ? HAL_E_OVERFLOW : HAL_OK;
+    }
+    static constexpr hal_link_ops_t kOps = {op_self_id, op_send, op_recv, nullptr};
+    std::vector<Endpoint> eps_;
 };
 
 struct Robot {
@@ -54,9 +111,10 @@ struct Robot {
     double next_map_t = 0.0;
     double pending_us = 0.0;
     double step_us_sum = 0.0;
-    merge_session_t session{};
-    uint32_t seq = 0;
-    std::vector<LastSighting> last_seen; // by robot index
+    std::unique_ptr<meeting_t> meeting;  // the robot's meeting protocol
+    hal_link_t *link = nullptr;
+    pose2_t odo_pose{0.0, 0.0, 0.0};     // dead reckoning, as the robot keeps it
+    double travel_m = 0.0;               // odometer (wheel travel)
     // pose error sums
     double se_xy = 0.0;
     double se_th = 0.0;
@@ -118,6 +176,31 @@ MapScore score_map(const map_estimate_t &est, const std::vector<point2_t> &truth
     return s;
 }
 
+FitScore score_map_fit(const map_estimate_t &est, const std::vector<point2_t> &truth_world,
+                       const std::vector<int> &n_seen, const EvalConfig &ec, map_eval_t *detail)
+{
+    FitScore s;
+    if (truth_world.empty()) {
+        return s;
+    }
+    auto ev = std::make_unique<map_eval_t>();
+    const bool seen = n_seen.size() == truth_world.size();
+    if (eval_map_rigid(&est, truth_world.data(), seen ? n_seen.data() : nullptr, static_cast<int>(truth_world.size()),
+                       ec.min_seen, ec.gate_m, &s.transform, ev.get()) != COSLAM_OK) {
+        return s;
+    }
+    s.n_matched = ev->n_matched;
+    s.n_spurious = ev->n_spurious;
+    s.n_missed = ev->n_missed;
+    s.rmse_m = ev->rmse_m;
+    s.max_err_m = ev->max_err_m;
+    s.valid = true;
+    if (detail != nullptr) {
+        *detail = *ev;
+    }
+    return s;
+}
+
 robot_sighting_t robot_sighting_of(const slam_params_t &p, double range_m, double bearing_rad)
 {
     const cov2_t q = observe_noise(&p, range_m);
@@ -144,8 +227,6 @@ public:
             cfg_.merge.core.gate_chi2 = std::max(cfg_.merge.core.gate_chi2, cfg_.input.known_id_gate_chi2);
             replay_config_validate(cfg_);
         }
-        bm_ = std::make_unique<merge_body_map_t>();
-        scratch_ = std::make_unique<merge_scratch_t>();
         setup();
     }
 
@@ -157,7 +238,11 @@ private:
     void sample(Robot &r);
     void process_frame(Robot &r, const Frame &f);
     void on_robot_sighting(Robot &r, const RobotSighting &s);
-    void merge_into(Robot &recv, Robot &send, const LastSighting &rs, const LastSighting &ss, double now);
+    void poll_meeting(Robot &r);
+    void record_event(Robot &recv, const meeting_event_t &e, const MapScore *before,
+                      const std::shared_ptr<map_estimate_t> &before_map, double merge_us);
+    uint64_t stamp_us(double t_s) const;
+    double time_s(uint64_t stamp) const;
     MapScore score_now(Robot &r, map_estimate_t *keep = nullptr);
     std::optional<pose2_t> truth_in_map(const Robot &r, double t) const;
 
@@ -166,9 +251,7 @@ private:
     ReplayOptions opt_;
     std::vector<std::unique_ptr<Robot>> robots_;
     std::map<int, int> truth_index_; // landmark id -> index into ds_.landmarks
-    std::map<std::pair<int, int>, double> last_merge_;
-    std::unique_ptr<merge_body_map_t> bm_;
-    std::unique_ptr<merge_scratch_t> scratch_;
+    std::unique_ptr<ReplayLink> link_;
     ReplayResult out_;
 };
 
@@ -230,8 +313,6 @@ void Replay::setup()
         t_end = std::max(t_end, end);
         r->odo = std::make_unique<OdoTrack>(*log, cfg_.odo_of(log->id), end);
         r->truth = std::make_unique<TruthTrack>(log->truth);
-        r->last_seen.resize(ids.size());
-        merge_session_init(&r->session);
         robots_.push_back(std::move(r));
     }
     if (opt_.duration_s > 0.0) {
@@ -239,6 +320,7 @@ void Replay::setup()
     }
     out_.t_begin_s = t_begin;
     out_.t_end_s = t_end;
+    link_ = std::make_unique<ReplayLink>(robots_.size());
 
     for (auto &rp : robots_) {
         Robot &r = *rp;
@@ -271,6 +353,26 @@ void Replay::setup()
         r.filter = std::make_unique<RobotFilter>(res.filter, cfg_, r.core_id, pose0,
                                                  cfg_.filter.seed + static_cast<uint64_t>(res.id));
         r.t_filter = res.t_start_s;
+        if (cfg_.merge.enabled && robots_.size() >= 2) {
+            // the robot's meeting protocol, with the replay's settings
+            meeting_config_t mc = meeting_config_default();
+            const cov2_t q = observe_noise(&cfg_.slam, 1.0);
+            mc.robot_range_var_m2 = q.xx; // replaced per sighting below (range dependent)
+            mc.robot_bearing_var_rad2 = q.yy;
+            mc.link_latency_us = 0U;
+            mc.pair_window_us = static_cast<uint32_t>(std::llround(cfg_.merge.window_s * 1e6));
+            mc.remerge_period_us = static_cast<uint32_t>(std::llround(cfg_.merge.interval_s * 1e6));
+            mc.max_range_m = cfg_.merge.max_range_m;
+            mc.export_min_obs = static_cast<uint16_t>(cfg_.merge.export_min_obs);
+            mc.max_sends = static_cast<uint8_t>(cfg_.merge.max_sends);
+            mc.resend_period_us = static_cast<uint32_t>(std::llround(cfg_.merge.resend_s * 1e6));
+            mc.merge = cfg_.merge.core;
+            r.meeting = std::make_unique<meeting_t>();
+            if (meeting_init(r.meeting.get(), &mc, r.core_id, static_cast<uint8_t>(robots_.size())) != COSLAM_OK) {
+                throw ReplayError("meeting_init refused the [merge] configuration");
+            }
+            r.link = link_->endpoint(static_cast<size_t>(r.idx));
+        }
         r.next_tick = res.t_start_s + cfg_.filter.predict_period_s;
         r.next_pose_t = res.t_start_s;
         r.next_map_t = res.t_start_s + cfg_.eval.map_period_s;
@@ -341,6 +443,8 @@ void Replay::advance(Robot &r, double t)
     while (r.t_filter < t - eps) {
         const double t_next = std::min(t, r.next_tick);
         const odo_increment_t u = r.odo->increment(r.t_filter, t_next);
+        r.odo_pose = motion_apply(r.odo_pose, u);
+        r.travel_m += motion_travel_m(u, cfg_.slam.base_radius_m);
         const auto t0 = Clock::now();
         r.filter->predict(u);
         r.pending_us += us_since(t0);
@@ -411,6 +515,20 @@ void Replay::process_frame(Robot &r, const Frame &f)
     for (const int i : f.ri) {
         on_robot_sighting(r, log.rz[static_cast<size_t>(i)]);
     }
+    if (r.meeting) {
+        poll_meeting(r);
+    }
+}
+
+uint64_t Replay::stamp_us(double t_s) const
+{
+    // the robots' clock: microseconds from one second before the replay starts
+    return static_cast<uint64_t>(std::llround((t_s - out_.t_begin_s + 1.0) * 1e6));
+}
+
+double Replay::time_s(uint64_t stamp) const
+{
+    return static_cast<double>(stamp) * 1e-6 + out_.t_begin_s - 1.0;
 }
 
 void Replay::on_robot_sighting(Robot &r, const RobotSighting &s)
@@ -425,102 +543,99 @@ void Replay::on_robot_sighting(Robot &r, const RobotSighting &s)
         return; // a robot that is not part of this replay
     }
     r.res.robot_sightings++;
-    LastSighting &mine = r.last_seen[static_cast<size_t>(o->idx)];
-    mine.valid = true;
-    mine.t_s = s.t_s;
-    mine.range_m = s.range_m;
-    mine.bearing_rad = s.bearing_rad;
-    mine.snapshot.reset();
-    if (!cfg_.merge.enabled) {
+    if (!r.meeting) {
         return;
     }
-    const auto key = std::make_pair(std::min(r.idx, o->idx), std::max(r.idx, o->idx));
-    const auto lm = last_merge_.find(key);
-    if (lm != last_merge_.end() && s.t_s - lm->second < cfg_.merge.interval_s) {
-        return; // merged recently: no message
-    }
-    // the message r would send: its map now, at its sighting
-    mine.snapshot = std::make_shared<map_estimate_t>();
-    r.filter->export_map(mine.snapshot.get());
-    mine.seq = ++r.seq;
-    const LastSighting &theirs = o->last_seen[static_cast<size_t>(r.idx)];
-    if (!theirs.valid || !theirs.snapshot || std::fabs(s.t_s - theirs.t_s) > cfg_.merge.window_s) {
-        return;
-    }
-    // both measure the same distance; a misread marker does not
-    const double v1 = observe_noise(&cfg_.slam, mine.range_m).xx;
-    const double v2 = observe_noise(&cfg_.slam, theirs.range_m).xx;
-    const double dr = mine.range_m - theirs.range_m;
-    if (dr * dr / (v1 + v2) > cfg_.merge.range_check_chi2) {
-        out_.meetings_refused_range++;
-        return;
-    }
-    const LastSighting mine_copy = mine;
-    const LastSighting theirs_copy = theirs;
-    const double now = s.t_s;
-    advance(*o, now);
-    merge_into(*o, r, theirs_copy, mine_copy, now);
-    merge_into(r, *o, mine_copy, theirs_copy, now);
-    last_merge_[key] = now;
-    r.last_seen[static_cast<size_t>(o->idx)].snapshot.reset();
-    o->last_seen[static_cast<size_t>(r.idx)].snapshot.reset();
+    // the camera's noise at this range (the robot app takes one variance;
+    // the replay's camera model grows with the range)
+    const cov2_t q = observe_noise(&cfg_.slam, s.range_m);
+    r.meeting->cfg.robot_range_var_m2 = q.xx;
+    r.meeting->cfg.robot_bearing_var_rad2 = q.yy;
+    link_->now_us = stamp_us(s.t_s);
+    (void)meeting_on_sighting(r.meeting.get(), r.filter->app(), r.link, link_->now_us, static_cast<uint8_t>(o->idx),
+                              s.range_m, s.bearing_rad, link_->now_us, r.odo_pose, r.travel_m);
 }
 
-void Replay::merge_into(Robot &recv, Robot &send, const LastSighting &rs, const LastSighting &ss, double now)
+void Replay::poll_meeting(Robot &r)
 {
+    meeting_t *m = r.meeting.get();
+    link_->now_us = stamp_us(r.t_filter);
+    (void)meeting_poll_link(m, r.link);
+    MapScore before;
+    std::shared_ptr<map_estimate_t> before_map;
+    const bool pending = m->have_pending != 0U;
+    if (pending) {
+        before_map = std::make_shared<map_estimate_t>();
+        before = score_now(r, before_map.get());
+    }
+    const auto t0 = Clock::now();
+    (void)meeting_poll(m, r.filter->app(), link_->now_us, r.odo_pose, r.travel_m);
+    const double merge_us = us_since(t0);
+    meeting_event_t ev;
+    while (meeting_take_event(m, &ev) == COSLAM_OK) {
+        if (ev.kind != MEETING_EV_SENT) {
+            record_event(r, ev, pending ? &before : nullptr, before_map, merge_us);
+        }
+    }
+}
+
+void Replay::record_event(Robot &recv, const meeting_event_t &e, const MapScore *before,
+                          const std::shared_ptr<map_estimate_t> &before_map, double merge_us)
+{
+    if (e.peer >= robots_.size()) {
+        out_.merges_failed++; // undecodable datagram: cannot happen on this link
+        return;
+    }
+    Robot &send = *robots_[e.peer];
     MergeEvent ev;
-    ev.t_s = now;
+    ev.t_s = time_s(e.stamp_us);
     ev.receiver = recv.log->id;
     ev.sender = send.log->id;
-    ev.t_receiver_sighting_s = rs.t_s;
-    ev.t_sender_sighting_s = ss.t_s;
-    ev.seq = ss.seq;
-    const robot_sighting_t a = robot_sighting_of(cfg_.slam, rs.range_m, rs.bearing_rad);
-    const robot_sighting_t b = robot_sighting_of(cfg_.slam, ss.range_m, ss.bearing_rad);
-    pose2_t t_est;
-    cov3_t t_cov;
-    ev.status = merge_relative_pose(&a, &b, &t_est, &t_cov);
-    if (ev.status != COSLAM_OK) {
+    ev.t_receiver_sighting_s = e.own_sighting_us > 0U ? time_s(e.own_sighting_us) : ev.t_s;
+    ev.t_sender_sighting_s = e.sender_sighting_us > 0U ? time_s(e.sender_sighting_us) : ev.t_s;
+    ev.seq = e.seq;
+    ev.status = e.status;
+    ev.transform = e.other_in_self;
+    ev.transform_cov = e.other_in_self_cov;
+    ev.stats = e.stats;
+    ev.merge_us = merge_us;
+    const bool merged = e.kind == MEETING_EV_MERGED;
+    switch (e.status) {
+    case COSLAM_OK:
+    case COSLAM_E_CAPACITY:
+        break;
+    case COSLAM_E_MERGE_RANGE:
+        out_.meetings_refused_range++;
+        break;
+    case COSLAM_E_MERGE_REPLAY:
+        out_.merges_refused_replay++;
+        break;
+    case COSLAM_E_MERGE_DISAGREE:
+        out_.merges_refused_disagree++;
+        break;
+    case COSLAM_E_MERGE_STALE:
+        out_.merges_stale++;
+        return; // no own sighting came: nothing was evaluated
+    default:
         out_.merges_failed++;
-        out_.merges.push_back(ev);
-        return;
+        break;
     }
-    // the receiver moved since its sighting; the sender may have moved
-    // between the two sightings (bounded)
-    const odo_increment_t u = recv.odo->increment(rs.t_s, now);
-    const cov3_t u_cov = motion_noise_cov(&cfg_.slam, u);
-    const double dt = std::fabs(rs.t_s - ss.t_s);
-    const double dxy = cfg_.merge.sender_speed_mps * dt;
-    const double dth = cfg_.merge.sender_turn_radps * dt;
-    merge_compensate(&t_est, &t_cov, u, &u_cov, dxy * dxy);
-    t_cov.m[2][2] += dth * dth;
-    ev.transform = t_est;
-    ev.transform_cov = t_cov;
-    const auto tr = recv.truth->at(now);
-    const auto ts = send.truth->at(ss.t_s);
-    if (tr && ts) {
+    const auto tr = recv.truth->at(ev.t_s);
+    const auto ts = send.truth->at(ev.t_sender_sighting_s);
+    if (tr && ts && (merged || e.status == COSLAM_E_MERGE_DISAGREE)) {
         ev.has_truth = true;
         ev.transform_true = pose2_between(*tr, *ts);
-        ev.t_err_m = std::hypot(t_est.x - ev.transform_true.x, t_est.y - ev.transform_true.y);
-        ev.t_err_rad = std::fabs(angle_wrap(t_est.theta - ev.transform_true.theta));
-        ev.t_nees = nees_pose(t_est, t_cov, ev.transform_true);
+        ev.t_err_m = std::hypot(ev.transform.x - ev.transform_true.x, ev.transform.y - ev.transform_true.y);
+        ev.t_err_rad = std::fabs(angle_wrap(ev.transform.theta - ev.transform_true.theta));
+        ev.t_nees = nees_pose(ev.transform, ev.transform_cov, ev.transform_true);
     }
-    ev.status = merge_session_accept(&recv.session, send.core_id, ss.seq);
-    if (ev.status != COSLAM_OK) {
-        out_.merges_refused_replay++;
+    if (before != nullptr) {
+        ev.before = *before;
+    }
+    if (!merged) {
+        ev.after = ev.before;
         out_.merges.push_back(ev);
         return;
-    }
-    auto before = std::make_shared<map_estimate_t>();
-    ev.before = score_now(recv, before.get());
-    const auto t0 = Clock::now();
-    ev.status = merge_transform_map(ss.snapshot.get(), t_est, &t_cov, &cfg_.merge.core, bm_.get(), &ev.stats);
-    if (ev.status == COSLAM_OK) {
-        ev.status = recv.filter->merge(*bm_, cfg_.merge.core, *scratch_, ev.stats);
-    }
-    ev.merge_us = us_since(t0);
-    if (ev.status != COSLAM_OK && ev.status != COSLAM_E_CAPACITY) {
-        out_.merges_failed++;
     }
     // the receiver now holds what the sender had seen
     for (size_t j = 0; j < recv.res.n_seen.size(); ++j) {
@@ -529,13 +644,13 @@ void Replay::merge_into(Robot &recv, Robot &send, const LastSighting &rs, const 
     auto after = std::make_shared<map_estimate_t>();
     ev.after = score_now(recv, after.get());
     if (recv.res.t_first_merge_s < 0.0) {
-        recv.res.t_first_merge_s = now;
+        recv.res.t_first_merge_s = ev.t_s;
     }
-    const int gain = after->n_landmarks - before->n_landmarks;
+    const int gain = after->n_landmarks - (before_map ? before_map->n_landmarks : 0);
     if (gain > recv.res.shown_merge_gain) {
-        recv.res.map_before_merge = before;
+        recv.res.map_before_merge = before_map;
         recv.res.map_after_merge = after;
-        recv.res.t_shown_merge_s = now;
+        recv.res.t_shown_merge_s = ev.t_s;
         recv.res.shown_merge_gain = gain;
     }
     out_.merges.push_back(ev);
@@ -574,12 +689,17 @@ ReplayResult Replay::run()
             opt_.progress((evs[i].t - out_.t_begin_s) / span);
         }
     }
+    std::vector<point2_t> truth_world; // for the rigid-fit score, which needs no robot truth
+    for (const auto &l : ds_.landmarks) {
+        truth_world.push_back(l.pos);
+    }
     for (auto &rp : robots_) {
         Robot &r = *rp;
         advance(r, out_.t_end_s);
         RobotResult &res = r.res;
         res.final_map = std::make_shared<map_estimate_t>();
         res.final_score = score_now(r, res.final_map.get());
+        res.final_score.fit = score_map_fit(*res.final_map, truth_world, res.n_seen, cfg_.eval);
         if (opt_.record_history && (res.map_series.empty() || res.map_series.back().t_s < r.t_filter)) {
             res.map_series.push_back({r.t_filter, res.final_score});
         }
@@ -590,6 +710,19 @@ ReplayResult Replay::run()
         res.pose_nees_mean = r.nees_n > 0 ? r.nees_sum / static_cast<double>(r.nees_n) : 0.0;
         res.step_us_mean = res.frames > 0 ? r.step_us_sum / static_cast<double>(res.frames) : 0.0;
         res.counters = r.filter->counters();
+        if (r.meeting) {
+            const meeting_counters_t *mc = meeting_counters(r.meeting.get());
+            res.counters["meeting_sent"] = mc->sent;
+            res.counters["meeting_weak_not_sent"] = mc->weak_not_sent;
+            res.counters["meeting_received"] = mc->received;
+            res.counters["meeting_merged"] = mc->merged;
+            res.counters["meeting_refused_range"] = mc->refused_range;
+            res.counters["meeting_refused_disagree"] = mc->refused_disagree;
+            res.counters["meeting_replays"] = mc->replays;
+            res.counters["meeting_stale"] = mc->stale;
+            res.counters["meeting_ignored_recent"] = mc->ignored_recent;
+            res.counters["meeting_merge_failures"] = mc->merge_failures;
+        }
         out_.robots.push_back(std::move(res));
     }
     if (opt_.progress) {

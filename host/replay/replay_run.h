@@ -9,20 +9,15 @@
 // sightings far from the filter's landmark of that id are dropped as
 // misread barcodes.
 //
-// Meetings (docs/replay.md "Merge protocol"): robot A keeps its latest
-// sighting of each robot B with its time, and - when a merge with B is due
-// (none in the last interval_s) - a snapshot of its own map estimate taken
-// at that sighting (the message it would send). When A and B have sighted
-// each other within window_s and both ranges agree (range_check_chi2), both
-// merge, each receiving the other's snapshot:
-//   1. merge_relative_pose on the receiver's and the sender's sightings;
-//   2. merge_compensate with the receiver's odometry from its sighting to
-//      now, plus the sender's possible motion between the two sightings as
-//      extra variance (sender_speed_mps, sender_turn_radps);
-//   3. merge_session_accept on the sender's snapshot sequence number;
-//   4. merge_transform_map and merge_into_{fastslam,ekfslam}.
-// Each merge event is evaluated: transform error and NEES against the true
-// relative pose, receiver map error before and after.
+// Meetings (docs/replay.md "Merge protocol"): each robot runs the robot
+// app's own filter wrapper and meeting protocol (app/slam_filter.h,
+// app/meeting.h) over an in-process link that delivers every datagram at
+// once: a robot sighting goes to meeting_on_sighting (which sends the map
+// when the protocol says so), and after each camera frame the robot polls
+// its link and merges a pending message through slam_filter_merge_map (the
+// one merge path: set-up, check, fusion). Nothing here re-implements a merge
+// step. Each merge or refusal is evaluated: transform error and NEES
+// against the true relative pose, receiver map error before and after.
 #ifndef COSLAM_HOST_REPLAY_RUN_H
 #define COSLAM_HOST_REPLAY_RUN_H
 
@@ -51,6 +46,20 @@ struct ReplayOptions {
     std::function<void(double)> progress;
 };
 
+/// A map estimate scored after the best rigid fit onto the true landmarks
+/// in the world frame (stats.h eval_map_rigid): needs no robot ground
+/// truth, measures the map's shape only (the fit absorbs the unknown start
+/// pose and any rotation or offset common to the whole map).
+struct FitScore {
+    bool valid = false;     ///< false: not computed (no true landmarks)
+    pose2_t transform{};    ///< the estimate's map frame in the world: world = transform (+) map
+    int n_matched = 0;
+    int n_spurious = 0;     ///< no true landmark within the gate once the map is moved by `transform`
+    int n_missed = 0;
+    double rmse_m = 0.0;    ///< over matched pairs (0 if none)
+    double max_err_m = 0.0;
+};
+
 /// A map estimate evaluated against the true landmarks (stats.h eval_map).
 struct MapScore {
     int n_estimated = 0;
@@ -60,7 +69,8 @@ struct MapScore {
     double rmse_m = 0.0;
     double max_err_m = 0.0;
     double nees_mean = 0.0;
-    bool valid = false; ///< false when the truth is unknown
+    bool valid = false; ///< false when the truth is unknown (no robot ground truth: no map frame)
+    FitScore fit;       ///< rigid-fit score; computed for the final maps only (RobotResult::final_score)
 };
 
 struct PoseSample {
@@ -122,7 +132,7 @@ struct RobotResult {
     double heading_rmse_rad = 0.0;
     double pose_nees_mean = 0.0;
     double final_pos_err_m = 0.0;
-    MapScore final_score;
+    MapScore final_score;           ///< map frame (needs truth); .fit: rigid fit (every robot)
     // work
     long frames = 0;
     long updates = 0;
@@ -145,6 +155,8 @@ struct ReplayResult {
     std::vector<MergeEvent> merges;
     long meetings_refused_range = 0;  ///< mutual sightings whose ranges disagree
     long merges_refused_replay = 0;   ///< merge_session_accept refused
+    long merges_refused_disagree = 0; ///< merge_check: the maps disagree
+    long merges_stale = 0;            ///< no own sighting within the window
     long merges_failed = 0;
     double t_begin_s = 0.0;
     double t_end_s = 0.0;
@@ -160,6 +172,12 @@ ReplayResult run_replay(const Dataset &ds, const ReplayConfig &cfg, const Replay
 /// Evaluate `est` against true landmarks (map frame), stats.h eval_map.
 MapScore score_map(const map_estimate_t &est, const std::vector<point2_t> &truth, const std::vector<int> &n_seen,
                    const EvalConfig &ec, map_eval_t *detail = nullptr);
+
+/// Score `est` after its best rigid fit onto the true landmarks given in the
+/// world frame (stats.h eval_map_rigid, gate and min_seen of `ec`): works
+/// without robot ground truth. Not valid if `truth_world` is empty.
+FitScore score_map_fit(const map_estimate_t &est, const std::vector<point2_t> &truth_world,
+                       const std::vector<int> &n_seen, const EvalConfig &ec, map_eval_t *detail = nullptr);
 
 /// Sighting noise of the camera as robot_sighting_t (map_merge.h).
 robot_sighting_t robot_sighting_of(const slam_params_t &p, double range_m, double bearing_rad);

@@ -106,6 +106,13 @@ nlohmann::json merge_json(const MergeRecord &m)
         j["fused_ci"] = m.stats.fused_ci;
         j["added"] = m.stats.added;
         j["capacity_drops"] = m.stats.capacity_drops;
+        j["check"] = {{"pairs", m.stats.pairs},
+                      {"nis", m.stats.nis},
+                      {"nis_bound", m.stats.nis_bound},
+                      {"vetoed_negative_info", m.stats.vetoed},
+                      {"echoes", m.stats.echoes},
+                      {"ambiguous", m.stats.ambiguous},
+                      {"t_shift", {m.stats.t_shift.x, m.stats.t_shift.y, m.stats.t_shift.theta}}};
         j["map_before"] = eval_json(m.before);
         j["map_after"] = eval_json(m.after);
     }
@@ -163,7 +170,10 @@ nlohmann::json run_metrics(const Simulation &sim)
                          {"received", rr.meeting.received}, {"rx_errors", rr.meeting.rx_errors},
                          {"ignored_recent", rr.meeting.ignored_recent}, {"replays", rr.meeting.replays},
                          {"stale", rr.meeting.stale}, {"merged", rr.meeting.merged},
-                         {"merge_failures", rr.meeting.merge_failures}}},
+                         {"merge_failures", rr.meeting.merge_failures},
+                         {"refused_range", rr.meeting.refused_range},
+                         {"refused_disagree", rr.meeting.refused_disagree},
+                         {"weak_not_sent", rr.meeting.weak_not_sent}}},
             {"laser", {{"scans_ok", rr.laser.scans_ok}, {"err_checksum", rr.laser.err_checksum},
                        {"err_line", rr.laser.err_line}, {"err_timeout", rr.laser.err_timeout}}},
         };
@@ -286,7 +296,8 @@ std::string run_summary(const Simulation &sim, const std::string &out_dir)
           << " <- " << r.robots[static_cast<size_t>(m.peer)].name << " (" << m.n_landmarks_in << " landmarks: "
           << m.stats.fused / per << " fused, " << m.stats.added / per << " added"
           << (m.stats.fused_ci ? ", " + std::to_string(m.stats.fused_ci / per) + " by CI" : std::string())
-          << "), transform error " << std::setprecision(3) << m.transform_err_m << " m / " << std::setprecision(2)
+          << "; not added: " << m.stats.vetoed << " where it looked and saw nothing, " << m.stats.echoes
+          << " echoes, " << m.stats.ambiguous << " ambiguous), transform error " << std::setprecision(3) << m.transform_err_m << " m / " << std::setprecision(2)
           << m.transform_err_rad * kRad2Deg << " deg, sightings " << std::setprecision(0) << m.dt_sightings_ms
           << " ms apart\n";
     }

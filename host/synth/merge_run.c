@@ -21,55 +21,29 @@ merge_run_opts_t merge_run_opts_default(run_filter_t a, run_filter_t b)
     return o;
 }
 
-typedef struct {
-    run_filter_t kind;
-    fastslam_t *fs;
-    ekfslam_t *ekf;
-} robot_filter_t;
-
-static int filter_init(robot_filter_t *f, run_filter_t kind, const merge_run_opts_t *o, int k)
+/* The robot app's filter wrapper (app/slam_filter.h): the synthetic
+ * meetings run the robot's own merge path. */
+static int filter_init(slam_filter_t **f, run_filter_t kind, const merge_run_opts_t *o, int k)
 {
     const pose2_t origin = {0.0, 0.0, 0.0};
-    f->kind = kind;
-    f->fs = NULL;
-    f->ekf = NULL;
-    if (kind == RUN_EKFSLAM) {
-        f->ekf = malloc(sizeof *f->ekf);
-        ekfslam_config_t c = ekfslam_config_default();
-        c.slam = o->params;
-        c.robot_id = (uint8_t)k;
-        return f->ekf != NULL && ekfslam_init(f->ekf, &c, origin) == COSLAM_OK ? 0 : -1;
+    *f = malloc(sizeof **f);
+    if (*f == NULL) {
+        return -1;
     }
-    f->fs = malloc(sizeof *f->fs);
-    fastslam_config_t c = fastslam_config_default();
+    slam_filter_config_t c = slam_filter_config_default();
+    c.kind = kind == RUN_EKFSLAM ? SLAM_FILTER_EKF : kind == RUN_FASTSLAM2 ? SLAM_FILTER_FASTSLAM2 : SLAM_FILTER_FASTSLAM1;
     c.slam = o->params;
     c.robot_id = (uint8_t)k;
     c.n_particles = (uint16_t)o->n_particles;
-    c.proposal = kind == RUN_FASTSLAM2 ? FASTSLAM_PROPOSAL_OPTIMAL : FASTSLAM_PROPOSAL_MOTION;
-    return f->fs != NULL && fastslam_init(f->fs, &c, origin, o->filter_seed + (uint64_t)k) == COSLAM_OK ? 0 : -1;
+    c.seed = o->filter_seed + (uint64_t)k;
+    return slam_filter_init(*f, &c, origin) == COSLAM_OK ? 0 : -1;
 }
 
-static void filter_step(robot_filter_t *f, const synth2_robot_step_t *r, int is_frame)
+static void filter_step(slam_filter_t *f, const synth2_robot_step_t *r, int is_frame)
 {
-    if (f->ekf) {
-        ekfslam_predict(f->ekf, r->u);
-        if (is_frame) {
-            ekfslam_update(f->ekf, r->z, r->n_z);
-        }
-    } else {
-        fastslam_predict(f->fs, r->u);
-        if (is_frame) {
-            fastslam_update(f->fs, r->z, r->n_z);
-        }
-    }
-}
-
-static void filter_export(robot_filter_t *f, map_estimate_t *m)
-{
-    if (f->ekf) {
-        ekfslam_export(f->ekf, m);
-    } else {
-        fastslam_export(f->fs, m);
+    slam_filter_predict(f, r->u);
+    if (is_frame) {
+        slam_filter_update(f, r->z, r->n_z);
     }
 }
 
@@ -96,12 +70,11 @@ int merge_run(const synth2_config_t *scfg, const merge_run_opts_t *o, merge_run_
     synth2_step_t *st = malloc(sizeof *st);
     map_estimate_t *est[2] = {malloc(sizeof(map_estimate_t)), malloc(sizeof(map_estimate_t))};
     map_estimate_t *after = malloc(sizeof(map_estimate_t));
-    merge_body_map_t *bm = malloc(sizeof *bm);
-    merge_scratch_t *sc = malloc(sizeof *sc);
+    slam_merge_work_t *work = malloc(sizeof *work);
     point2_t *truth = malloc(sizeof(point2_t) * SYNTH_MAX_LANDMARKS);
-    robot_filter_t f[2] = {{0}};
+    slam_filter_t *f[2] = {NULL, NULL};
     int rc = -1;
-    if (!w || !st || !est[0] || !est[1] || !after || !bm || !sc || !truth) {
+    if (!w || !st || !est[0] || !est[1] || !after || !work || !truth) {
         goto out;
     }
     synth2_init(w, scfg);
@@ -115,14 +88,10 @@ int merge_run(const synth2_config_t *scfg, const merge_run_opts_t *o, merge_run_
     while (synth2_next(w, st) && !done) {
         n_steps++;
         for (int k = 0; k < 2; ++k) {
-            filter_step(&f[k], &st->r[k], st->is_frame);
+            filter_step(f[k], &st->r[k], st->is_frame);
             pose2_t e;
             cov3_t c;
-            if (f[k].ekf) {
-                ekfslam_pose(f[k].ekf, &e, &c);
-            } else {
-                fastslam_pose_estimate(f[k].fs, &e, &c);
-            }
+            slam_filter_pose(f[k], &e, &c);
             const pose2_t tr = pose2_between(synth2_start_pose(k), st->r[k].true_pose);
             se[k] += (e.x - tr.x) * (e.x - tr.x) + (e.y - tr.y) * (e.y - tr.y);
         }
@@ -134,7 +103,7 @@ int merge_run(const synth2_config_t *scfg, const merge_run_opts_t *o, merge_run_
         }
         /* the meeting: both export, exchange, and merge the other's map */
         for (int k = 0; k < 2; ++k) {
-            filter_export(&f[k], est[k]);
+            slam_filter_export(f[k], est[k]);
         }
         for (int k = 0; k < 2; ++k) {
             merge_robot_result_t *rr = &res->r[k];
@@ -147,34 +116,35 @@ int merge_run(const synth2_config_t *scfg, const merge_run_opts_t *o, merge_run_
             const robot_sighting_t o_s = {st->r[ok].other.range_m, st->r[ok].other.bearing_rad,
                                           scfg->robot_range_sd_m * scfg->robot_range_sd_m,
                                           scfg->robot_bearing_sd_rad * scfg->robot_bearing_sd_rad};
-            pose2_t t;
-            cov3_t tc;
-            if (merge_relative_pose(&s_o, &o_s, &t, &tc) != COSLAM_OK) {
-                continue;
-            }
-            const pose2_t t_true = pose2_between(st->r[k].true_pose, st->r[ok].true_pose);
-            rr->t_err_m = hypot(t.x - t_true.x, t.y - t_true.y);
-            rr->t_err_rad = fabs(angle_wrap(t.theta - t_true.theta));
-            rr->t_nees = nees_pose(t, tc, t_true);
+            /* the meeting is instantaneous: no own motion, no time between the sightings */
+            merge_geometry_t g;
+            memset(&g, 0, sizeof g);
+            g.self_sees_other = s_o;
+            g.other_sees_self = o_s;
             pose2_t pose_before;
             cov3_t pose_cov_before;
-            if (f[k].ekf) {
-                ekfslam_pose(f[k].ekf, &pose_before, &pose_cov_before);
-            } else {
-                fastslam_pose_estimate(f[k].fs, &pose_before, &pose_cov_before);
-            }
+            slam_filter_pose(f[k], &pose_before, &pose_cov_before);
+            pose2_t t;
+            cov3_t tc;
             const double t0 = now_us();
-            if (merge_transform_map(est[ok], t, &tc, &o->merge, bm, &rr->stats) != COSLAM_OK) {
+            const coslam_status_t mst = slam_filter_merge_map(f[k], est[ok], &g, &o->merge, NULL, work, &rr->stats, &t, &tc);
+            const pose2_t t_true = pose2_between(st->r[k].true_pose, st->r[ok].true_pose);
+            rr->t_err_refined_m = hypot(t.x - t_true.x, t.y - t_true.y);
+            rr->t_err_refined_rad = fabs(angle_wrap(t.theta - t_true.theta));
+            /* the sightings' transform: the refined one less the shift */
+            const pose2_t t_prior = {t.x - rr->stats.t_shift.x, t.y - rr->stats.t_shift.y,
+                                angle_wrap(t.theta - rr->stats.t_shift.theta)};
+            rr->t_err_m = hypot(t_prior.x - t_true.x, t_prior.y - t_true.y);
+            rr->t_err_rad = fabs(angle_wrap(t_prior.theta - t_true.theta));
+            rr->t_nees = nees_pose(t_prior, tc, t_true);
+            rr->status = mst;
+            if (mst != COSLAM_OK && mst != COSLAM_E_CAPACITY) {
                 continue;
             }
-            if (f[k].ekf) {
-                merge_into_ekfslam(f[k].ekf, bm, &o->merge, sc, &rr->stats);
-            } else {
-                merge_into_fastslam(f[k].fs, bm, &o->merge, sc, &rr->stats);
-            }
+            const merge_body_map_t *bm = &work->body;
             rr->merge_us = now_us() - t0;
             rr->merged = 1;
-            filter_export(&f[k], after);
+            slam_filter_export(f[k], after);
             const pose2_t true_pose_k = pose2_between(synth2_start_pose(k), st->r[k].true_pose);
             eval_map(after, truth, w->n_seen[k], w->n_lm, 5, o->gate_m, &rr->after);
             /* the other robot's estimates of the same truth, moved into this
@@ -248,13 +218,11 @@ int merge_run(const synth2_config_t *scfg, const merge_run_opts_t *o, merge_run_
     rc = 0;
 out:
     for (int k = 0; k < 2; ++k) {
-        free(f[k].fs);
-        free(f[k].ekf);
+        free(f[k]);
         free(est[k]);
     }
     free(after);
-    free(bm);
-    free(sc);
+    free(work);
     free(truth);
     free(w);
     free(st);

@@ -1,11 +1,13 @@
 /*
  * merge_run.h - a two-robot synthetic meeting (synth2.h) run through the
- * core filters and the map merge, evaluated against ground truth. Shared
- * by the merge tests, the merge benchmark and the demo.
+ * robot app's filter wrapper and its merge path (slam_filter_merge_map:
+ * set-up, check, fusion), evaluated against ground truth. Shared by the
+ * merge tests, the merge benchmark and the demo.
  */
 #ifndef COSLAM_TEST_MERGE_RUN_H
 #define COSLAM_TEST_MERGE_RUN_H
 
+#include "app/slam_filter.h"
 #include "coslam/map_merge.h"
 #include "slam_run.h"
 #include "synth2.h"
@@ -27,9 +29,12 @@ typedef struct {
 typedef struct {
     /* per receiving robot k */
     int merged;                 /**< 1 if the merge took place */
+    coslam_status_t status;     /**< of slam_filter_merge_map (refusals included) */
     double t_err_m;             /**< error of the estimated transform (position) */
     double t_err_rad;
-    double t_nees;              /**< 3 dof */
+    double t_nees;              /**< 3 dof, of the sightings' transform */
+    double t_err_refined_m;     /**< the transform refined by the shared landmarks (merge_check) */
+    double t_err_refined_rad;
     map_eval_t before;          /**< own map before the merge, in own frame */
     map_eval_t after;           /**< after the merge */
     double after_nees_added;    /**< mean NEES over landmarks that came from the other robot */

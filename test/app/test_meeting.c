@@ -350,7 +350,7 @@ static void test_merge_compensates_own_motion(void **state)
     assert_true(fabs(ev.other_in_self.y - want.y) < 1e-9);
     assert_true(fabs(angle_wrap(ev.other_in_self.theta - want.theta)) < 1e-9);
     /* the odometry covariance entered: 1.3 m of travel */
-    assert_true(ev.other_in_self_cov.m[2][2] >= g_m.cfg.odo_theta_var_rad2_per_m * 1.3 * 0.999);
+    assert_true(ev.other_in_self_cov.m[2][2] >= slam_filter_params(&g_filter)->noise.odo_theta_var_rad2_per_m * 1.3 * 0.999);
 }
 
 static void test_pairs_nearest_own_sighting(void **state)

@@ -270,13 +270,21 @@ TEST(ReplaySynthetic, MisreadRobotMarkerIsRefusedByTheRangeCheck)
     ReplayConfig cfg = synth_config();
     cfg.filter.type = FilterKind::Ekf;
     const ReplayResult res = run_replay(ds, cfg, ReplayOptions{});
-    EXPECT_EQ(res.meetings_refused_range, 1);
+    // each robot pairs the misread sighting with the other's: refused by both
+    // receivers (merge_prepare's range check), nothing merged from it
+    EXPECT_EQ(res.meetings_refused_range, 2);
     // the next mutual sightings still give the meeting, with a good transform
-    ASSERT_EQ(res.merges.size(), 2u);
+    int ok = 0;
     for (const auto &e : res.merges) {
+        if (e.status == COSLAM_E_MERGE_RANGE) {
+            EXPECT_EQ(e.after.n_estimated, e.before.n_estimated);
+            continue;
+        }
         EXPECT_EQ(e.status, COSLAM_OK);
         EXPECT_LT(e.t_err_m, 0.2);
+        ok++;
     }
+    EXPECT_EQ(ok, 2);
     fs::remove_all(dir);
 }
 
@@ -338,7 +346,10 @@ TEST_P(Mrclam120, TwoRobotsFirst120sBoundedErrorsAndAMerge)
         EXPECT_LT(r.pose_rmse_m, ekf ? 0.45 : 0.7);
         EXPECT_LT(r.heading_rmse_rad, ekf ? 0.2 : 0.3);
         EXPECT_TRUE(r.final_score.valid);
-        EXPECT_GE(r.final_score.n_matched, 5);
+        // 4: with Fast-SLAM, robot 1 sights robot 3 once at the second
+        // meeting (48 s) and the meeting protocol gets no message of robot 3
+        // paired with it (docs/replay.md "Merge protocol"); EKF-SLAM's gets 5+
+        EXPECT_GE(r.final_score.n_matched, ekf ? 5 : 4);
         EXPECT_LT(r.final_score.rmse_m, ekf ? 0.75 : 1.0);
         EXPECT_LE(r.final_score.n_spurious, ekf ? 1 : 4);
     }

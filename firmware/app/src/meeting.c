@@ -6,21 +6,17 @@
 
 meeting_config_t meeting_config_default(void)
 {
-    const slam_params_t p = slam_params_default();
     meeting_config_t c;
     c.robot_range_var_m2 = 0.05 * 0.05;
     c.robot_bearing_var_rad2 = 0.035 * 0.035;
-    c.odo_xy_var_m2_per_m = p.noise.odo_xy_var_m2_per_m;
-    c.odo_theta_var_rad2_per_m = p.noise.odo_theta_var_rad2_per_m;
     c.link_latency_us = 2000U;
     c.pair_window_us = 300000U;
     c.resend_period_us = 1000000U;
     c.max_sends = 3U;
     c.meeting_gap_us = 5000000U;
     c.remerge_period_us = 60000000U;
-    c.peer_speed_mps = 0.3;
-    c.peer_turn_radps = 0.5;
     c.max_range_m = 3.0;
+    c.export_min_obs = 5U;
     c.merge = merge_config_default();
     return c;
 }
@@ -37,8 +33,8 @@ coslam_status_t meeting_init(meeting_t *m, const meeting_config_t *cfg, uint8_t 
     }
     if (!(isfinite(cfg->robot_range_var_m2) && cfg->robot_range_var_m2 > 0.0) ||
         !(isfinite(cfg->robot_bearing_var_rad2) && cfg->robot_bearing_var_rad2 > 0.0) ||
-        !finite_nonneg(cfg->odo_xy_var_m2_per_m) || !finite_nonneg(cfg->odo_theta_var_rad2_per_m) ||
-        !finite_nonneg(cfg->peer_speed_mps) || !finite_nonneg(cfg->peer_turn_radps) || cfg->pair_window_us == 0U ||
+        !finite_nonneg(cfg->merge.peer_speed_mps) || !finite_nonneg(cfg->merge.peer_turn_radps) ||
+        !finite_nonneg(cfg->merge.range_check_chi2) || cfg->pair_window_us == 0U || cfg->export_min_obs == 0U ||
         !(isfinite(cfg->max_range_m) && cfg->max_range_m > 0.0)) {
         return COSLAM_E_ARG;
     }
@@ -141,6 +137,17 @@ static coslam_status_t send_map(meeting_t *m, slam_filter_t *filter, hal_link_t 
         m->ctr.send_failures++;
         return st;
     }
+    /* weakly supported landmarks stay home: they would spread to every
+     * partner before this robot has had the chance to drop them */
+    uint16_t kept = 0;
+    for (uint16_t i = 0; i < msg->map.n_landmarks; ++i) {
+        if (msg->map.lm[i].n_obs >= m->cfg.export_min_obs) {
+            msg->map.lm[kept++] = msg->map.lm[i];
+        } else {
+            m->ctr.weak_not_sent++;
+        }
+    }
+    msg->map.n_landmarks = kept;
     /* A robot that has not moved yet has a zero pose covariance, which the
      * codec refuses: floor it (the merge does not use it). */
     if (!cov3_is_pd(msg->map.pose_cov)) {
@@ -169,6 +176,7 @@ static coslam_status_t send_map(meeting_t *m, slam_filter_t *filter, hal_link_t 
         return COSLAM_E_LINK;
     }
     m->ctr.sent++;
+    m->peer[peer].sent_n_landmarks = msg->map.n_landmarks;
     meeting_event_t *ev = push_event(m, MEETING_EV_SENT, now_us, peer, msg->seq, COSLAM_OK);
     ev->n_landmarks = msg->map.n_landmarks;
     return COSLAM_OK;
@@ -200,10 +208,13 @@ coslam_status_t meeting_on_sighting(meeting_t *m, slam_filter_t *filter, hal_lin
     if (!p->in_meeting || stamp_us - p->last_seen_us > m->cfg.meeting_gap_us) {
         p->in_meeting = 1U;
         p->sends = 0U;
+        p->meeting_start_us = stamp_us;
     }
     p->last_seen_us = stamp_us;
     if (p->sends >= m->cfg.max_sends || (p->sends > 0U && now_us - p->last_sent_us < m->cfg.resend_period_us) ||
-        (p->acked && now_us - p->acked_at_us < m->cfg.remerge_period_us)) {
+        (p->acked && p->acked_at_us >= p->meeting_start_us && now_us - p->acked_at_us < m->cfg.remerge_period_us)) {
+        /* an acknowledgement counts within its meeting only: holding some of
+         * our landmarks from an earlier meeting is not holding our map now */
         return COSLAM_OK;
     }
     p->sends++; /* a failed send still uses up its slot: no retry storm */
@@ -227,15 +238,19 @@ static void accept_message(meeting_t *m, const hal_link_rx_info_t *info)
         return;
     }
     meeting_peer_t *p = &m->peer[from];
-    /* implicit acknowledgement: does the sender hold our map already? */
+    /* implicit acknowledgement: does the sender hold the map we last sent
+     * it? It does if at least half as many of its landmarks carry our
+     * provenance bit as that message had landmarks (ours fuse into its own
+     * ones, so the counts are close, not equal). A few landmarks from an
+     * older meeting are not our map. */
     const uint16_t own_bit = (uint16_t)(1U << m->self_id);
-    int holds_ours = 0;
+    uint32_t n_ours = 0;
     for (uint16_t i = 0; i < msg->map.n_landmarks; ++i) {
         if ((msg->map.lm[i].src_mask & own_bit) != 0U) {
-            holds_ours = 1;
-            break;
+            n_ours++;
         }
     }
+    const int holds_ours = n_ours > 0U && 2U * n_ours >= p->sent_n_landmarks;
     if (holds_ours) {
         p->acked = 1U;
         p->acked_at_us = info->stamp_us;
@@ -342,37 +357,36 @@ coslam_status_t meeting_poll(meeting_t *m, slam_filter_t *filter, uint64_t now_u
     }
     m->have_pending = 0U;
 
-    /* 5. relative pose at the own sighting, moved to now */
-    const robot_sighting_t z_self = {best->range_m, best->bearing_rad, m->cfg.robot_range_var_m2,
-                                     m->cfg.robot_bearing_var_rad2};
-    const robot_sighting_t z_other = {msg->sighting.range_m, msg->sighting.bearing_rad, msg->sighting.range_var_m2,
-                                      msg->sighting.bearing_var_rad2};
-    pose2_t t;
-    cov3_t tc;
-    coslam_status_t st = merge_relative_pose(&z_self, &z_other, &t, &tc);
+    /* 5. the one merge path: set-up, check, fusion */
+    merge_geometry_t g;
+    g.self_sees_other = (robot_sighting_t){best->range_m, best->bearing_rad, m->cfg.robot_range_var_m2,
+                                           m->cfg.robot_bearing_var_rad2};
+    g.other_sees_self = (robot_sighting_t){msg->sighting.range_m, msg->sighting.bearing_rad,
+                                           msg->sighting.range_var_m2, msg->sighting.bearing_var_rad2};
+    const pose2_t moved = pose2_between(best->odo_pose, odo_pose);
+    g.own_motion = (odo_increment_t){moved.x, moved.y, moved.theta};
+    g.own_travel_m = travel_m > best->travel_m ? travel_m - best->travel_m : 0.0;
+    g.sighting_dt_s = (double)best_dt * 1e-6;
+    pose2_t t = {0.0, 0.0, 0.0};
+    cov3_t tc = cov3_zero();
     merge_stats_t stats;
     memset(&stats, 0, sizeof stats);
-    if (st == COSLAM_OK) {
-        const pose2_t moved = pose2_between(best->odo_pose, odo_pose);
-        const odo_increment_t u = {moved.x, moved.y, moved.theta};
-        const double s_m = travel_m > best->travel_m ? travel_m - best->travel_m : 0.0;
-        const cov3_t u_cov =
-            cov3_diag(m->cfg.odo_xy_var_m2_per_m * s_m, m->cfg.odo_xy_var_m2_per_m * s_m, m->cfg.odo_theta_var_rad2_per_m * s_m);
-        const double dt_s = (double)best_dt * 1e-6;
-        const double dxy = m->cfg.peer_speed_mps * dt_s;
-        const double dth = m->cfg.peer_turn_radps * dt_s;
-        merge_compensate(&t, &tc, u, &u_cov, dxy * dxy);
-        tc.m[2][2] += dth * dth;
-        /* 6. the incoming map into the own body frame, then into the filter */
-        st = merge_transform_map(&msg->map, t, &tc, &m->cfg.merge, &m->body, &stats);
-        if (st == COSLAM_OK) {
-            st = slam_filter_merge(filter, &m->body, &m->cfg.merge, &m->scratch, &stats);
-        }
-    }
+    const coslam_status_t st = slam_filter_merge_map(filter, &msg->map, &g, &m->cfg.merge, m->grid, &m->work, &stats, &t, &tc);
     if (st != COSLAM_OK && st != COSLAM_E_CAPACITY) {
-        m->ctr.merge_failures++;
+        if (st == COSLAM_E_MERGE_RANGE) {
+            m->ctr.refused_range++;
+        } else if (st == COSLAM_E_MERGE_DISAGREE) {
+            m->ctr.refused_disagree++;
+        } else {
+            m->ctr.merge_failures++;
+        }
         meeting_event_t *ev = push_event(m, MEETING_EV_REFUSED, now_us, from, msg->seq, st);
         ev->n_landmarks = msg->map.n_landmarks;
+        ev->own_sighting_us = best->stamp_us;
+        ev->sender_sighting_us = t_s;
+        ev->other_in_self = t;
+        ev->other_in_self_cov = tc;
+        ev->stats = stats;
         return st;
     }
     m->ctr.merged++;
@@ -386,4 +400,11 @@ coslam_status_t meeting_poll(meeting_t *m, slam_filter_t *filter, uint64_t now_u
     ev->other_in_self_cov = tc;
     ev->stats = stats;
     return st;
+}
+
+void meeting_set_grid(meeting_t *m, const occ_grid_t *grid)
+{
+    if (m != NULL) {
+        m->grid = grid;
+    }
 }

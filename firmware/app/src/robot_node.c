@@ -71,6 +71,7 @@ coslam_status_t robot_node_init(robot_node_t *n, const robot_node_config_t *cfg,
     }
     if (st == COSLAM_OK) {
         st = meeting_init(&n->meeting, &n->cfg.meeting, cfg->robot_id, cfg->n_robots);
+        meeting_set_grid(&n->meeting, &n->grid); /* occlusion for the merge check */
     }
     if (st == COSLAM_OK) {
         st = behaviour_init(&n->behaviour, &n->cfg.behaviour);

@@ -11,6 +11,18 @@ merge_config_t merge_config_default(void)
     c.transform_uncertainty = 1U;
     c.reweight_particles = 0U;
     c.min_obs = 1U;
+    c.fuse_ci_always = 0U;
+    c.peer_speed_mps = 0.3;
+    c.peer_turn_radps = 0.5;
+    c.range_check_chi2 = 9.0;
+    c.check = 1U;
+    c.refine_iters = 3U;
+    c.refine_check_only = 0U;
+    c.refine_eff_pairs = 2.0;
+    c.agree_z = 2.33;
+    c.veto_looks = 5U;
+    c.max_contradict_fraction = 0.3;
+    c.ambiguous_chi2 = 25.0;
     return c;
 }
 
@@ -117,6 +129,7 @@ coslam_status_t merge_transform_map(const map_estimate_t *in, pose2_t t, const c
     out->n = 0;
     out->t = t;
     out->t_cov = (t_cov != 0 && cfg->transform_uncertainty) ? *t_cov : cov3_zero();
+    out->t_cov_post = out->t_cov;
     if (!pose2_is_finite(t) || !pose2_is_finite(in->pose) || (t_cov != 0 && !cov3_is_finite(*t_cov))) {
         return COSLAM_E_NUMERIC;
     }
@@ -286,7 +299,7 @@ static int32_t cell_of(double v, double cell)
  * incoming covariances the largest, sqrt(gate * 2 lambda_max) covers an own
  * covariance as large as the incoming one. Never below grid_cell_m.
  */
-static double grid_cell_size(const merge_body_map_t *bm, const merge_config_t *cfg)
+static double grid_cell_size(const merge_body_map_t *bm, const merge_config_t *cfg, double gate_chi2)
 {
     double lmax_all = 0.0;
     for (uint16_t i = 0; i < bm->n; ++i) {
@@ -295,7 +308,7 @@ static double grid_cell_size(const merge_body_map_t *bm, const merge_config_t *c
         cov2_eigenvalues(bm->cov[i], &lo, &hi);
         lmax_all = hi > lmax_all ? hi : lmax_all;
     }
-    const double reach = sqrt(cfg->gate_chi2 * 2.0 * lmax_all);
+    const double reach = sqrt(gate_chi2 * 2.0 * lmax_all);
     return reach > cfg->grid_cell_m ? reach : cfg->grid_cell_m;
 }
 
@@ -419,7 +432,7 @@ static merge_stats_t *begin_merge(merge_scratch_t *sc, const merge_body_map_t *b
         memset(local, 0, sizeof *local);
         stats = local;
     }
-    grid_build(sc, bm, grid_cell_size(bm, cfg));
+    grid_build(sc, bm, grid_cell_size(bm, cfg, cfg->gate_chi2));
     return stats;
 }
 
@@ -478,7 +491,7 @@ coslam_status_t merge_into_fastslam(fastslam_t *fs, const merge_body_map_t *bm, 
                     const cov2_t sum = cov2_add(lm->cov, wc);
                     p->log_w += -0.5 * sc->match_d2[i] - log(COSLAM_TWO_PI * sqrt(cov2_det(sum)));
                 }
-                if ((lm->src_mask & bm->src_mask[i]) == 0U) {
+                if ((lm->src_mask & bm->src_mask[i]) == 0U && !cfg->fuse_ci_always) {
                     st = merge_fuse_kalman(lm->mean, lm->cov, wm, wc, &xm, &xc);
                 } else {
                     st = merge_fuse_ci(lm->mean, lm->cov, wm, wc, &xm, &xc, 0);
@@ -498,7 +511,7 @@ coslam_status_t merge_into_fastslam(fastslam_t *fs, const merge_body_map_t *bm, 
                 lm.mean = wm;
                 lm.cov = wc;
                 lm.id = sc->new_id[i];
-                lm.exist = sp->exist_confirm; /* the sender confirmed it */
+                lm.exist = sp->exist_max; /* the sender confirmed it and the check let it in */
                 lm.n_obs = bm->n_obs[i];
                 lm.src_mask = bm->src_mask[i];
                 lm.signature = bm->signature[i];
@@ -554,7 +567,7 @@ coslam_status_t merge_into_ekfslam(ekfslam_t *ekf, const merge_body_map_t *bm, c
             stats->skipped++;
             continue;
         }
-        if ((meta->src_mask & bm->src_mask[i]) != 0U) {
+        if ((meta->src_mask & bm->src_mask[i]) != 0U || cfg->fuse_ci_always) {
             /* covariance intersection on the relative marginals, applied as
              * the information it adds over the own estimate,
              * (1 - w) (S_b^-1 - S_a^-1), clipped to its positive directions:
@@ -599,7 +612,7 @@ coslam_status_t merge_into_ekfslam(ekfslam_t *ekf, const merge_body_map_t *bm, c
         }
         ekfslam_meta_t meta;
         meta.id = ekf->next_id;
-        meta.exist = sp->exist_confirm;
+        meta.exist = sp->exist_max; /* the sender confirmed it and the check let it in */
         meta.n_obs = bm->n_obs[i];
         meta.src_mask = bm->src_mask[i];
         meta.signature = bm->signature[i];
@@ -616,4 +629,373 @@ coslam_status_t merge_into_ekfslam(ekfslam_t *ekf, const merge_body_map_t *bm, c
     }
     ekfslam_merge_end(ekf);
     return result;
+}
+
+/* ---- one set-up for every caller ---------------------------------------- */
+
+coslam_status_t merge_prepare(const map_estimate_t *in, const merge_geometry_t *g, const slam_params_t *own_params,
+                              const merge_config_t *cfg, merge_body_map_t *out, merge_stats_t *stats)
+{
+    if (in == 0 || g == 0 || own_params == 0 || cfg == 0 || out == 0) {
+        return COSLAM_E_ARG;
+    }
+    out->n = 0;
+    if (!isfinite(g->own_travel_m) || !isfinite(g->sighting_dt_s) || !isfinite(g->own_motion.dx) ||
+        !isfinite(g->own_motion.dy) || !isfinite(g->own_motion.dtheta)) {
+        return COSLAM_E_NUMERIC;
+    }
+    if (!(cfg->peer_speed_mps >= 0.0) || !(cfg->peer_turn_radps >= 0.0) || !(cfg->range_check_chi2 >= 0.0)) {
+        return COSLAM_E_ARG;
+    }
+    const robot_sighting_t *a = &g->self_sees_other;
+    const robot_sighting_t *b = &g->other_sees_self;
+    pose2_t t;
+    cov3_t tc;
+    const coslam_status_t st = merge_relative_pose(a, b, &t, &tc);
+    if (st != COSLAM_OK) {
+        return st;
+    }
+    if (cfg->range_check_chi2 > 0.0) {
+        /* both robots measured one distance; a misread marker does not agree */
+        const double dr = a->range_m - b->range_m;
+        if (!(dr * dr <= cfg->range_check_chi2 * (a->range_var_m2 + b->range_var_m2))) {
+            return COSLAM_E_MERGE_RANGE;
+        }
+    }
+    const double s_m = g->own_travel_m > 0.0 ? g->own_travel_m : 0.0;
+    const cov3_t u_cov = cov3_diag(own_params->noise.odo_xy_var_m2_per_m * s_m,
+                                   own_params->noise.odo_xy_var_m2_per_m * s_m,
+                                   own_params->noise.odo_theta_var_rad2_per_m * s_m);
+    const double dt = fabs(g->sighting_dt_s);
+    const double dxy = cfg->peer_speed_mps * dt;
+    const double dth = cfg->peer_turn_radps * dt;
+    merge_compensate(&t, &tc, g->own_motion, &u_cov, dxy * dxy);
+    tc.m[2][2] += dth * dth;
+    return merge_transform_map(in, t, &tc, cfg, out, stats);
+}
+
+/* ---- coverage: where the receiver has looked ---------------------------- */
+
+void merge_coverage_init(merge_coverage_t *c)
+{
+    memset(c, 0, sizeof *c);
+    c->step_m = 0.3;
+    c->step_rad = 0.2618; /* 15 deg */
+}
+
+void merge_coverage_note(merge_coverage_t *c, pose2_t pose)
+{
+    if (!pose2_is_finite(pose)) {
+        return;
+    }
+    if (c->n > 0U) {
+        const pose2_t last = c->pose[c->n - 1U];
+        const double d = hypot(pose.x - last.x, pose.y - last.y);
+        if (d < c->step_m && fabs(angle_wrap(pose.theta - last.theta)) < c->step_rad) {
+            return;
+        }
+    }
+    if (c->n == COSLAM_COVERAGE_KEYFRAMES) {
+        /* full: keep every second keyframe, double the spacing */
+        uint16_t k = 0;
+        for (uint16_t i = 0; i < c->n; i += 2U) {
+            c->pose[k++] = c->pose[i];
+        }
+        c->n = k;
+        c->step_m *= 2.0;
+        c->step_rad *= 2.0;
+        c->thinned++;
+    }
+    c->pose[c->n++] = pose;
+}
+
+uint16_t merge_coverage_looks(const merge_coverage_t *c, const slam_params_t *p, const occ_grid_t *grid, point2_t pt)
+{
+    uint16_t looks = 0;
+    for (uint16_t i = 0; i < c->n; ++i) {
+        if (landmark_should_be_seen(p, observe_predict(c->pose[i], pt)) &&
+            (grid == 0 || occ_grid_line_free(grid, (point2_t){c->pose[i].x, c->pose[i].y}, pt, 0.0, 0.1))) {
+            looks++;
+        }
+    }
+    return looks;
+}
+
+/* ---- check before trust ------------------------------------------------- */
+
+/* Chi-square quantile of `dof` degrees of freedom at normal quantile z
+ * (Wilson-Hilferty; within 1 % for dof >= 2 at the tails used here). */
+static double chi2_bound(double dof, double z)
+{
+    const double a = 2.0 / (9.0 * dof);
+    const double c = 1.0 - a + z * sqrt(a);
+    return dof * c * c * c;
+}
+
+/* Incoming landmark i moved by transform t: body-frame mean, covariance
+ * R rel_cov R^T + J_T t_cov J_T^T. */
+static void move_incoming(const merge_body_map_t *bm, uint16_t i, pose2_t t, const cov3_t *t_cov, point2_t *mean,
+                          cov2_t *cov)
+{
+    const double c = cos(t.theta);
+    const double s = sin(t.theta);
+    double rot[2][2] = {{c, -s}, {s, c}};
+    *mean = pose2_apply(t, bm->rel[i]);
+    *cov = cov2_congruence(rot, bm->rel_cov[i]);
+    double jt[2][3];
+    pose2_apply_jacobians(t, bm->rel[i], jt, 0);
+    cov3_t tc = *t_cov;
+    *cov = cov2_add(*cov, cov2_from_3x3(jt, tc.m));
+}
+
+/* The incoming map moved by t (prior covariance), grid, pairs. */
+static void check_pair(merge_scratch_t *sc, merge_body_map_t *bm, const merge_config_t *cfg, pose2_t t,
+                       const cov3_t *t_cov, int n_own, merge_stats_t *stats)
+{
+    for (uint16_t i = 0; i < bm->n; ++i) {
+        move_incoming(bm, i, t, t_cov, &bm->mean[i], &bm->cov[i]);
+    }
+    /* cells wide enough for the ambiguity search too (merge_check step 3) */
+    const double gate = cfg->ambiguous_chi2 > cfg->gate_chi2 ? cfg->ambiguous_chi2 : cfg->gate_chi2;
+    grid_build(sc, bm, grid_cell_size(bm, cfg, gate));
+    pair_and_select(sc, bm, cfg, n_own, stats);
+}
+
+/* Mark (sc->drop = 2) every unpaired incoming landmark that lies within
+ * ambiguous_chi2 of an own landmark left unpaired: through the grid built
+ * by check_pair, O(M_own + candidates). */
+static void mark_ambiguous(merge_scratch_t *sc, const merge_body_map_t *bm, const merge_config_t *cfg, int n_own)
+{
+    for (int j = 0; j < n_own; ++j) {
+        if (sc->own_used[j]) {
+            continue;
+        }
+        const int32_t cx = cell_of(sc->own_body[j].x, sc->cell_m);
+        const int32_t cy = cell_of(sc->own_body[j].y, sc->cell_m);
+        for (int32_t dx = -1; dx <= 1; ++dx) {
+            for (int32_t dy = -1; dy <= 1; ++dy) {
+                for (int32_t i = sc->bucket_head[cell_hash(cx + dx, cy + dy)]; i >= 0; i = sc->next[i]) {
+                    double d2;
+                    if (sc->cell_x[i] != cx + dx || sc->cell_y[i] != cy + dy || sc->match_of_in[i] >= 0 ||
+                        bm->signature[i] != sc->own_sig[j]) {
+                        continue;
+                    }
+                    if (cov2_mahalanobis2(cov2_add(sc->own_cov[j], bm->cov[i]), bm->mean[i].x - sc->own_body[j].x,
+                                          bm->mean[i].y - sc->own_body[j].y, &d2) == COSLAM_OK &&
+                        d2 < cfg->ambiguous_chi2) {
+                        sc->drop[i] = 2U;
+                    }
+                }
+            }
+        }
+    }
+}
+
+/* Residual of pair (i, j) under t and its information matrix W. */
+static int pair_residual(const merge_scratch_t *sc, const merge_body_map_t *bm, int32_t i, int32_t j, pose2_t t,
+                         double r[2], cov2_t *w, double jt[2][3])
+{
+    const double c = cos(t.theta);
+    const double s = sin(t.theta);
+    double rot[2][2] = {{c, -s}, {s, c}};
+    const point2_t pred = pose2_apply(t, bm->rel[i]);
+    r[0] = sc->own_body[j].x - pred.x;
+    r[1] = sc->own_body[j].y - pred.y;
+    pose2_apply_jacobians(t, bm->rel[i], jt, 0);
+    return cov2_inverse(cov2_add(sc->own_cov[j], cov2_congruence(rot, bm->rel_cov[i])), w) == COSLAM_OK;
+}
+
+/* Over the current pairs at transform t: their NIS (returned) and count,
+ * and, if h and g are not NULL, their part of the Gauss-Newton normal
+ * equations, h += J^T W J, g += J^T W r. */
+static double pairs_accumulate(const merge_scratch_t *sc, const merge_body_map_t *bm, pose2_t t, uint32_t *n_pairs,
+                               double h[3][3], double g[3])
+{
+    double nis = 0.0;
+    *n_pairs = 0;
+    for (uint16_t i = 0; i < bm->n; ++i) {
+        const int32_t j = sc->match_of_in[i];
+        double r[2];
+        double jt[2][3];
+        cov2_t w;
+        if (j < 0 || !pair_residual(sc, bm, (int32_t)i, j, t, r, &w, jt)) {
+            continue;
+        }
+        (*n_pairs)++;
+        const double wr[2] = {w.xx * r[0] + w.xy * r[1], w.xy * r[0] + w.yy * r[1]};
+        nis += r[0] * wr[0] + r[1] * wr[1];
+        if (h == 0 || g == 0) {
+            continue;
+        }
+        for (int a = 0; a < 3; ++a) {
+            const double wj0 = w.xx * jt[0][a] + w.xy * jt[1][a];
+            const double wj1 = w.xy * jt[0][a] + w.yy * jt[1][a];
+            g[a] += jt[0][a] * wr[0] + jt[1][a] * wr[1];
+            for (int b = 0; b < 3; ++b) {
+                h[a][b] += wj0 * jt[0][b] + wj1 * jt[1][b];
+            }
+        }
+    }
+    return nis;
+}
+
+static void keep_landmark(merge_body_map_t *bm, uint16_t from, uint16_t to)
+{
+    if (from == to) {
+        return;
+    }
+    bm->mean[to] = bm->mean[from];
+    bm->cov[to] = bm->cov[from];
+    bm->src_mask[to] = bm->src_mask[from];
+    bm->n_obs[to] = bm->n_obs[from];
+    bm->signature[to] = bm->signature[from];
+    bm->id[to] = bm->id[from];
+    bm->rel[to] = bm->rel[from];
+    bm->rel_cov[to] = bm->rel_cov[from];
+}
+
+coslam_status_t merge_check(const map_estimate_t *own, const merge_coverage_t *coverage, const occ_grid_t *grid,
+                            const slam_params_t *own_params, uint8_t own_id, const merge_config_t *cfg, merge_body_map_t *bm, merge_scratch_t *sc,
+                            merge_stats_t *stats)
+{
+    if (own == 0 || own_params == 0 || cfg == 0 || bm == 0 || sc == 0 || stats == 0 || own_id >= COSLAM_MAX_ROBOTS ||
+        !config_ok(cfg)) {
+        return COSLAM_E_ARG;
+    }
+    stats->t_shift = (pose2_t){0.0, 0.0, 0.0};
+    if (!cfg->check) {
+        return COSLAM_OK;
+    }
+    const int n_own = own->n_landmarks < COSLAM_MAX_LANDMARKS ? own->n_landmarks : COSLAM_MAX_LANDMARKS;
+    for (int j = 0; j < n_own; ++j) {
+        sc->own_body[j] = pose2_apply_inverse(own->pose, own->lm[j].mean);
+        sc->own_cov[j] = own->lm[j].cov_rel;
+        sc->own_sig[j] = own->lm[j].signature;
+    }
+    const pose2_t t0 = bm->t;
+    const cov3_t c0 = bm->t_cov;
+    cov3_t c0_inv;
+    /* no transform uncertainty (paper mode): nothing to refine */
+    const int can_refine = cov3_inverse(c0, &c0_inv) == COSLAM_OK;
+    pose2_t t = t0;
+    cov3_t t_post = c0;
+    merge_stats_t tmp;
+    memset(&tmp, 0, sizeof tmp);
+    check_pair(sc, bm, cfg, t, &c0, n_own, &tmp);
+    for (uint8_t it = 0; can_refine && it < cfg->refine_iters; ++it) {
+        /* Gauss-Newton on sum_pairs r^T W r + (t - t0)^T C0^-1 (t - t0) */
+        double h[3][3];
+        double g[3];
+        const double d0[3] = {t0.x - t.x, t0.y - t.y, angle_wrap(t0.theta - t.theta)};
+        double hp[3][3] = {{0.0}};
+        double gp[3] = {0.0, 0.0, 0.0};
+        uint32_t n_pairs = 0;
+        (void)pairs_accumulate(sc, bm, t, &n_pairs, hp, gp);
+        /* the pairs' errors are correlated through each robot's pose: their
+         * information on T counts as that of at most refine_eff_pairs
+         * independent pairs (docs/map-merge.md) */
+        const double kappa =
+            cfg->refine_eff_pairs > 0.0 && (double)n_pairs > cfg->refine_eff_pairs ? (double)n_pairs / cfg->refine_eff_pairs
+                                                                                    : 1.0;
+        for (int a = 0; a < 3; ++a) {
+            g[a] = gp[a] / kappa;
+            for (int b = 0; b < 3; ++b) {
+                h[a][b] = c0_inv.m[a][b] + hp[a][b] / kappa;
+                g[a] += c0_inv.m[a][b] * d0[b];
+            }
+        }
+        if (n_pairs == 0U) {
+            break;
+        }
+        cov3_t hc;
+        cov3_t hinv;
+        memcpy(hc.m, h, sizeof h);
+        if (cov3_inverse(cov3_symmetrize(hc), &hinv) != COSLAM_OK) {
+            break;
+        }
+        double delta[3];
+        for (int a = 0; a < 3; ++a) {
+            delta[a] = hinv.m[a][0] * g[0] + hinv.m[a][1] * g[1] + hinv.m[a][2] * g[2];
+        }
+        t.x += delta[0];
+        t.y += delta[1];
+        t.theta = angle_wrap(t.theta + delta[2]);
+        t_post = hinv;
+        check_pair(sc, bm, cfg, t, &c0, n_own, &tmp);
+    }
+    stats->t_shift = (pose2_t){t.x - t0.x, t.y - t0.y, angle_wrap(t.theta - t0.theta)};
+
+    /* 2. joint agreement test over the pairs */
+    uint32_t n_pairs = 0;
+    double nis = pairs_accumulate(sc, bm, t, &n_pairs, 0, 0);
+    if (can_refine) {
+        const double d[3] = {t.x - t0.x, t.y - t0.y, angle_wrap(t.theta - t0.theta)};
+        double d2 = 0.0;
+        if (cov3_mahalanobis2(c0, d, &d2) == COSLAM_OK) {
+            nis += d2;
+        }
+    }
+    stats->pairs = n_pairs;
+    stats->nis = nis;
+    stats->nis_bound = n_pairs > 0U ? chi2_bound(2.0 * (double)n_pairs, cfg->agree_z) : 0.0;
+    if (n_pairs > 0U && !(nis <= stats->nis_bound)) {
+        return COSLAM_E_MERGE_DISAGREE;
+    }
+
+    /* 3. what may be added */
+    const uint16_t own_bit = (uint16_t)(1U << own_id);
+    uint32_t vetoed = 0;
+    uint32_t echoes = 0;
+    uint32_t ambiguous = 0;
+    for (uint16_t i = 0; i < bm->n; ++i) {
+        sc->drop[i] = 0U;
+    }
+    mark_ambiguous(sc, bm, cfg, n_own);
+    for (uint16_t i = 0; i < bm->n; ++i) {
+        if (sc->match_of_in[i] >= 0) {
+            continue;
+        }
+        if ((bm->src_mask[i] & own_bit) != 0U) {
+            echoes++;
+            sc->drop[i] = 1U;
+            continue;
+        }
+        if (sc->drop[i] != 0U) {
+            ambiguous++;
+            continue;
+        }
+        if (coverage != 0 && cfg->veto_looks > 0U &&
+            merge_coverage_looks(coverage, own_params, grid, pose2_apply(own->pose, pose2_apply(t, bm->rel[i]))) >=
+                cfg->veto_looks) {
+            vetoed++;
+            sc->drop[i] = 1U;
+        }
+    }
+    stats->vetoed = vetoed;
+    stats->echoes = echoes;
+    stats->ambiguous = ambiguous;
+    if (vetoed >= 2U && (double)vetoed > cfg->max_contradict_fraction * (double)(n_pairs + vetoed)) {
+        return COSLAM_E_MERGE_DISAGREE;
+    }
+
+    /* 4. keep what is fused or added, moved by the refined transform */
+    uint16_t k = 0;
+    for (uint16_t i = 0; i < bm->n; ++i) {
+        const int paired = sc->match_of_in[i] >= 0;
+        if (!paired && sc->drop[i]) {
+            continue;
+        }
+        /* the refined mean, the sightings' covariance: the landmarks' errors
+         * within one map are correlated (the message drops that), so the
+         * pairs' information on the transform is overcounted; the prior is
+         * the conservative choice (docs/map-merge.md) */
+        move_incoming(bm, i, cfg->refine_check_only ? t0 : t, &c0, &bm->mean[i], &bm->cov[i]);
+        keep_landmark(bm, i, k);
+        k++;
+    }
+    bm->n = k;
+    bm->t = cfg->refine_check_only ? t0 : t;
+    bm->t_cov = c0;
+    bm->t_cov_post = t_post;
+    return COSLAM_OK;
 }

@@ -117,6 +117,30 @@ const occ_grid_stats_t *occ_grid_stats(const occ_grid_t *g)
     return g != NULL ? &g->stats : NULL;
 }
 
+int occ_grid_line_free(const occ_grid_t *g, point2_t a, point2_t b, double l_occupied, double skip_end_m)
+{
+    if (g == NULL) {
+        return 1;
+    }
+    const double dx = b.x - a.x;
+    const double dy = b.y - a.y;
+    const double len = sqrt(dx * dx + dy * dy);
+    const double step = 0.5 * (double)COSLAM_GRID_CELL_MM * 1e-3;
+    if (!isfinite(len) || len > 1e4) {
+        return 1;
+    }
+    const double end = len - skip_end_m;
+    for (double s = 0.0; s < end; s += step) {
+        int32_t ix;
+        int32_t iy;
+        const double f = s / len;
+        if (occ_grid_cell_of(g, a.x + f * dx, a.y + f * dy, &ix, &iy) && occ_grid_logodds(g, ix, iy) > l_occupied) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
 /* Add q to a cell inside the grid, clamped to [q_min, q_max]. */
 static void update(occ_grid_t *g, int32_t ix, int32_t iy, int16_t q, occ_grid_result_t *r)
 {

@@ -6,6 +6,8 @@
  * footprint of the default configuration. Build with -DFOOTPRINT_FASTSLAM or
  * -DFOOTPRINT_EKFSLAM: a robot runs one filter.
  */
+#include <string.h>
+
 #include "coslam/ekfslam.h"
 #include "coslam/fastslam.h"
 #include "coslam/map_estimate.h"
@@ -26,6 +28,8 @@ static map_msg_t g_in;
 static uint8_t g_wire[MAP_MSG_MAX_BYTES];
 static merge_body_map_t g_body;
 static merge_scratch_t g_merge_scratch;
+static map_estimate_t g_own;
+static merge_coverage_t g_coverage;
 
 int main(void)
 {
@@ -33,7 +37,10 @@ int main(void)
     const odo_increment_t u = {0.01, 0.0, 0.001};
     const sighting_t z = {2.0, 0.1, 0};
     const merge_config_t mcfg = merge_config_default();
-    merge_stats_t stats = {0U, 0U, 0U, 0U, 0U};
+    merge_stats_t stats;
+    memset(&stats, 0, sizeof stats);
+    merge_coverage_init(&g_coverage);
+    merge_coverage_note(&g_coverage, start);
     size_t len = 0U;
 #if defined(FOOTPRINT_FASTSLAM)
     const fastslam_config_t cfg = fastslam_config_default();
@@ -57,10 +64,15 @@ int main(void)
     (void)map_msg_encode(&g_out, g_wire, sizeof g_wire, &len);
     if (map_msg_decode(g_wire, len, &g_in) == COSLAM_OK) {
         const robot_sighting_t a = {2.0, 0.0, 0.01, 0.001};
-        pose2_t t;
-        cov3_t tc;
-        if (merge_relative_pose(&a, &a, &t, &tc) == COSLAM_OK &&
-            merge_transform_map(&g_in.map, t, &tc, &mcfg, &g_body, &stats) == COSLAM_OK) {
+        merge_geometry_t g;
+        g.self_sees_other = a;
+        g.other_sees_self = a;
+        g.own_motion = u;
+        g.own_travel_m = 0.01;
+        g.sighting_dt_s = 0.1;
+        if (merge_prepare(&g_in.map, &g, &cfg.slam, &mcfg, &g_body, &stats) == COSLAM_OK &&
+            merge_check(&g_out.map, &g_coverage, NULL, &cfg.slam, 0U, &mcfg, &g_body, &g_merge_scratch, &stats) ==
+                COSLAM_OK) {
 #if defined(FOOTPRINT_FASTSLAM)
             (void)merge_into_fastslam(&g_filter, &g_body, &mcfg, &g_merge_scratch, &stats);
 #else
@@ -68,5 +80,6 @@ int main(void)
 #endif
         }
     }
+    (void)g_own;
     return (int)stats.added;
 }

@@ -168,16 +168,14 @@ Simulation::Simulation(const Scenario &sc, const SimulationOptions &opt)
             sq(rs.filter_noise.robot_bearing_sd_deg.value_or(sc.camera.robot_bearing_sd_deg) * kDeg);
         if (c.meeting.robot_range_var_m2 <= 0.0) c.meeting.robot_range_var_m2 = 1e-6;
         if (c.meeting.robot_bearing_var_rad2 <= 0.0) c.meeting.robot_bearing_var_rad2 = 1e-8;
-        c.meeting.odo_xy_var_m2_per_m = c.filter.slam.noise.odo_xy_var_m2_per_m;
-        c.meeting.odo_theta_var_rad2_per_m = c.filter.slam.noise.odo_theta_var_rad2_per_m;
         c.meeting.link_latency_us = static_cast<uint32_t>(sc.link.latency_ms * 1000.0);
         c.meeting.pair_window_us = static_cast<uint32_t>(sc.meeting.pair_window_ms * 1000.0);
         c.meeting.resend_period_us = static_cast<uint32_t>(sc.meeting.resend_s * 1e6);
         c.meeting.max_sends = static_cast<uint8_t>(sc.meeting.max_sends);
         c.meeting.meeting_gap_us = static_cast<uint32_t>(sc.meeting.meeting_gap_s * 1e6);
         c.meeting.remerge_period_us = static_cast<uint32_t>(std::fmin(sc.meeting.remerge_s * 1e6, 4.0e9));
-        c.meeting.peer_speed_mps = sc.meeting.peer_speed_mps;
-        c.meeting.peer_turn_radps = sc.meeting.peer_turn_dps * kDeg;
+        c.meeting.merge.peer_speed_mps = sc.meeting.peer_speed_mps;
+        c.meeting.merge.peer_turn_radps = sc.meeting.peer_turn_dps * kDeg;
         c.meeting.max_range_m = sc.meeting.max_range_m;
         c.meeting.merge.transform_uncertainty = sc.meeting.transform_uncertainty ? 1u : 0u;
         c.meeting.merge.gate_chi2 = sc.meeting.gate_chi2;

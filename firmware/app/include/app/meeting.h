@@ -40,15 +40,16 @@
  *     the own sighting nearest to t_s is used if |t_own - t_s| <=
  *     pair_window_us. If none comes before now > t_s + pair_window_us the
  *     message is dropped as stale (COSLAM_E_MERGE_STALE, counted);
- *  5. relative pose from the two sightings (merge_relative_pose), moved to
- *     now with this robot's odometry since its own sighting
- *     (merge_compensate; odometry covariance diag(w3 s, w3 s, w4 s) for the
- *     wheel travel s since then), plus the sender's possible motion between
- *     the two sightings: (peer_speed_mps |dt|)^2 on x and y,
- *     (peer_turn_radps |dt|)^2 on the heading;
- *  6. merge_transform_map + merge into the filter (slam_filter_merge); the
- *     filter's pose must be current (the caller predicts with all odometry
- *     before meeting_poll).
+ *  5. slam_filter_merge_map, the one merge path (app/slam_filter.h): the
+ *     two sightings, this robot's odometry since its own sighting (noise
+ *     from the filter's own parameters) and |t_own - t_s| go to
+ *     merge_prepare; then merge_check against the own map and coverage,
+ *     then the fusion. The filter's pose must be current (the caller
+ *     predicts with all odometry before meeting_poll). A refused merge
+ *     (ranges or maps disagree) is an event with its reason and changes
+ *     nothing.
+ * Sending exports only landmarks with at least export_min_obs sightings
+ * (never tentative ones: the filters export confirmed landmarks only).
  * Every send, merge and refusal is queued as a meeting_event_t.
  *
  * Memory: meeting_t holds two map messages, the wire buffer and the merge
@@ -78,18 +79,15 @@ extern "C" {
 typedef struct {
     double robot_range_var_m2;       /**< variance of own robot sightings' range [m^2], > 0 */
     double robot_bearing_var_rad2;   /**< and bearing [rad^2], > 0 */
-    double odo_xy_var_m2_per_m;      /**< own odometry noise w3 [m^2/m], >= 0 (compensation) */
-    double odo_theta_var_rad2_per_m; /**< own odometry noise w4 [rad^2/m], >= 0 */
     uint32_t link_latency_us;        /**< nominal one-way link latency [us] */
     uint32_t pair_window_us;         /**< largest |own sighting - sender's sighting| [us], > 0 */
     uint32_t resend_period_us;       /**< between two messages to one peer [us] */
     uint8_t max_sends;               /**< messages per meeting and peer (0: never send) */
     uint32_t meeting_gap_us;         /**< a peer unseen this long ends the meeting [us] */
     uint32_t remerge_period_us;      /**< after merging a peer, ignore it this long [us] */
-    double peer_speed_mps;           /**< bound on a peer's speed [m/s], >= 0 */
-    double peer_turn_radps;          /**< bound on a peer's turn rate [rad/s], >= 0 */
     double max_range_m;              /**< peers sighted farther away do not start or feed a meeting [m], > 0 */
-    merge_config_t merge;
+    uint16_t export_min_obs;         /**< landmarks sent must have this many sightings (>= 1) */
+    merge_config_t merge;            /**< set-up, check and fusion (map_merge.h) */
 } meeting_config_t;
 
 /** An own sighting of a peer, with the odometry state at that moment. */
@@ -113,6 +111,8 @@ typedef struct {
     uint64_t merged_at_us;
     uint8_t acked;          /**< the peer's last message showed it holds our map */
     uint64_t acked_at_us;
+    uint64_t meeting_start_us; /**< first sighting of the current meeting */
+    uint16_t sent_n_landmarks; /**< landmarks in the last message sent to it */
 } meeting_peer_t;
 
 typedef enum {
@@ -133,7 +133,7 @@ typedef struct {
     uint64_t sender_sighting_us;/**< sender's sighting, estimated in own clock */
     pose2_t other_in_self;      /**< sender at its sighting, in own body frame at stamp_us */
     cov3_t other_in_self_cov;
-    merge_stats_t stats;
+    merge_stats_t stats;        /**< MERGED and refusals by the check */
 } meeting_event_t;
 
 typedef struct {
@@ -147,7 +147,10 @@ typedef struct {
     uint32_t pending_replaced;  /**< a pending message replaced by a newer one */
     uint32_t stale;             /**< no own sighting within the window */
     uint32_t merged;            /**< maps merged */
-    uint32_t merge_failures;    /**< relative pose / transform / merge refused */
+    uint32_t merge_failures;    /**< relative pose / transform / merge failed */
+    uint32_t refused_range;     /**< the mutual ranges disagree (COSLAM_E_MERGE_RANGE) */
+    uint32_t refused_disagree;  /**< the maps disagree (COSLAM_E_MERGE_DISAGREE) */
+    uint32_t weak_not_sent;     /**< landmarks left out of sent maps (below export_min_obs) */
     uint32_t events_dropped;    /**< events overwritten before they were read */
 } meeting_counters_t;
 
@@ -163,18 +166,17 @@ typedef struct {
     map_msg_t rx;
     map_msg_t tx;
     uint8_t wire[MAP_MSG_MAX_BYTES];
-    merge_body_map_t body;
-    merge_scratch_t scratch;
+    slam_merge_work_t work;
+    const occ_grid_t *grid;      /**< occlusion for the merge check (meeting_set_grid), or NULL */
     meeting_event_t ev[COSLAM_APP_EVENT_QUEUE];
     uint8_t ev_head;
     uint8_t ev_n;
     meeting_counters_t ctr;
 } meeting_t;
 
-/** Defaults: robot sighting sd 0.05 m and 2 deg, odometry noise of
- *  slam_params_default(), latency 2 ms, window 300 ms, resend 1 s, 3 sends,
- *  gap 5 s, remerge 60 s, peer bounds 0.3 m/s and 0.5 rad/s, range 3 m,
- *  merge_config_default(). */
+/** Defaults: robot sighting sd 0.05 m and 2 deg, latency 2 ms, window
+ *  300 ms, resend 1 s, 3 sends, gap 5 s, remerge 60 s, range 3 m,
+ *  export_min_obs 5, merge_config_default(). */
 meeting_config_t meeting_config_default(void);
 
 /** Initialise for robot self_id in a team of n_robots (ids 0..n-1). No I/O.
@@ -230,6 +232,11 @@ int meeting_acked_all(const meeting_t *m);
 
 /** Counters of this instance. */
 const meeting_counters_t *meeting_counters(const meeting_t *m);
+
+/** The occupancy grid (map frame) the merge check may use to tell a spot
+ *  hidden behind an obstacle from one looked at; NULL (the default after
+ *  meeting_init) when the robot has no laser. Not copied. */
+void meeting_set_grid(meeting_t *m, const occ_grid_t *grid);
 
 #ifdef __cplusplus
 }

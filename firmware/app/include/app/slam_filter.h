@@ -40,10 +40,19 @@ typedef struct {
     uint16_t n_particles;    /**< Fast-SLAM only: 1 .. COSLAM_MAX_PARTICLES */
     uint64_t seed;           /**< Fast-SLAM only: particle RNG seed */
     uint8_t robot_id;        /**< own provenance bit, < COSLAM_MAX_ROBOTS */
+    double resample_ess_fraction; /**< Fast-SLAM: fastslam_config_t */
+    double export_min_weight;     /**< Fast-SLAM: fastslam_config_t */
+    ekfslam_assoc_t assoc;        /**< EKF-SLAM: ekfslam_config_t */
+    uint32_t jcbb_max_nodes;      /**< EKF-SLAM: ekfslam_config_t */
+    uint8_t fej;                  /**< EKF-SLAM: ekfslam_config_t */
 } slam_filter_config_t;
 
 typedef struct {
     slam_filter_kind_t kind;
+    uint8_t robot_id;            /**< own provenance bit */
+    /** Keyframes from which this robot looked (noted after every update);
+     *  the merge's negative information (merge_check). */
+    merge_coverage_t coverage;
     union {
         fastslam_t fs;
         ekfslam_t ekf;
@@ -51,7 +60,8 @@ typedef struct {
 } slam_filter_t;
 
 /** Fast-SLAM 2.0 with 100 particles (or the profile's maximum), default
- *  slam_params, seed 1, robot 0. */
+ *  slam_params, seed 1, robot 0; the rest as fastslam_config_default() and
+ *  ekfslam_config_default(). */
 slam_filter_config_t slam_filter_config_default(void);
 
 /** Start at pose0 (the robot's map frame is its start pose: pass the
@@ -72,9 +82,40 @@ void slam_filter_pose(const slam_filter_t *f, pose2_t *pose, cov3_t *cov);
 coslam_status_t slam_filter_export(slam_filter_t *f, map_estimate_t *out);
 
 /** merge_into_fastslam / merge_into_ekfslam of an incoming map already in
- *  this robot's body frame (merge_transform_map). */
+ *  this robot's body frame (merge_transform_map), unchecked. Prefer
+ *  slam_filter_merge_map. */
 coslam_status_t slam_filter_merge(slam_filter_t *f, const merge_body_map_t *bm, const merge_config_t *cfg,
                                   merge_scratch_t *scratch, merge_stats_t *stats);
+
+/** The filter's parameters (noise, gates): the one settings source the
+ *  meeting's compensation and the merge check use. */
+const slam_params_t *slam_filter_params(const slam_filter_t *f);
+
+/** Caller-owned working memory of one merge (the meeting holds one). */
+typedef struct {
+    merge_body_map_t body;      /**< the incoming map in the own body frame */
+    merge_scratch_t scratch;
+    map_estimate_t own;         /**< the own map, exported for the check */
+} slam_merge_work_t;
+
+/**
+ * The whole merge of a received map, the one path the robot, the replay
+ * and the simulator take (map_merge.h): merge_prepare (range check,
+ * relative pose, compensation, sender motion, transform), the own export,
+ * merge_check (refined transform, agreement, negative information against
+ * this filter's coverage, occlusion by `grid` (the laser's occupancy grid
+ * in the map frame; NULL: none known), echoes, ambiguity), then the fusion into the
+ * filter. A refused merge (COSLAM_E_MERGE_RANGE, COSLAM_E_MERGE_DISAGREE,
+ * or any failure before the fusion) leaves the filter unchanged.
+ * COSLAM_E_CAPACITY: merged, some landmarks did not fit (counted).
+ * *t_out / *t_cov_out (may be NULL): the transform used (sender at its
+ * sighting in the own body frame now), refined by the shared landmarks,
+ * and the covariance the merge used (the sightings'; see merge_check).
+ * O(merge_check + fusion).
+ */
+coslam_status_t slam_filter_merge_map(slam_filter_t *f, const map_estimate_t *in, const merge_geometry_t *g,
+                                      const merge_config_t *cfg, const occ_grid_t *grid, slam_merge_work_t *w,
+                                      merge_stats_t *stats, pose2_t *t_out, cov3_t *t_cov_out);
 
 /** "fastslam1", "fastslam2", "ekf", or "?" (static strings). */
 const char *slam_filter_kind_name(slam_filter_kind_t kind);

@@ -62,7 +62,9 @@
 #include "coslam/fastslam.h"
 #include "coslam/map_estimate.h"
 #include "coslam/motion.h"
+#include "coslam/occ_grid.h"
 #include "coslam/pose2.h"
+#include "coslam/slam_params.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -97,9 +99,65 @@ typedef struct {
     uint8_t reweight_particles;
     /** Import only landmarks the sender sighted at least this often. */
     uint16_t min_obs;
+    /** 1: fuse every duplicate by covariance intersection, not only those of
+     *  overlapping provenance: the message drops the correlations between
+     *  the sender's landmarks (they share its pose errors), and CI is
+     *  consistent for any correlation (docs/map-merge.md). 0: Kalman fusion
+     *  of disjoint provenance (paper eqs. 4-5). */
+    uint8_t fuse_ci_always;
+
+    /* ---- set-up (merge_prepare) ---- */
+    /** Bound on the sender's speed and turn rate between its sighting and
+     *  the receiver's [m/s, rad/s], >= 0: (v dt)^2 is added to the
+     *  transform's x and y variance, (w dt)^2 to its heading variance. */
+    double peer_speed_mps;
+    double peer_turn_radps;
+    /** Both robots measure the same distance: (r1 - r2)^2 / (v1 + v2) above
+     *  this refuses the merge (COSLAM_E_MERGE_RANGE; a misread marker).
+     *  0 disables the check. */
+    double range_check_chi2;
+
+    /* ---- check before trust (merge_check) ---- */
+    /** 1: merge_check runs (agreement test, transform refinement, negative
+     *  information, echo and ambiguity rules); 0: every incoming landmark is
+     *  fused or added as in the paper (for comparison). */
+    uint8_t check;
+    /** Gauss-Newton refinements of the transform from the shared landmarks
+     *  (each re-pairs the landmarks first); 0 keeps the sightings' transform. */
+    uint8_t refine_iters;
+    /** 1: the refined transform is only used for the check (pairing and
+     *  agreement test); the incoming map keeps the sightings' transform.
+     *  0: the incoming map is moved by the refined transform. */
+    uint8_t refine_check_only;
+    /** The pairs' information on the transform counts as that of at most
+     *  this many independent pairs (their errors are correlated through
+     *  each robot's pose; the message drops those correlations); 0: every
+     *  pair counts fully. */
+    double refine_eff_pairs;
+    /** Normal quantile of the joint agreement test: the pairs' normalised
+     *  innovation squared plus the transform shift's, against the chi-square
+     *  quantile of 2 n_pairs dof at this z (Wilson-Hilferty); 2.33 = 99 %. */
+    double agree_z;
+    /** An unpaired incoming landmark that the receiver should have seen from
+     *  at least this many of its keyframes (merge_coverage_t) and did not
+     *  map is refused (negative information). 0 disables. */
+    uint16_t veto_looks;
+    /** The merge is refused when more than this fraction of the checked
+     *  incoming landmarks (paired + refused by negative information) was
+     *  refused, and at least two were. */
+    double max_contradict_fraction;
+    /** An unpaired incoming landmark closer than this squared Mahalanobis
+     *  distance to an own landmark left unpaired is ambiguous (a failed
+     *  pairing, not a new object) and is not added. */
+    double ambiguous_chi2;
 } merge_config_t;
 
-/** Defaults: gate 9.21 (99 %), cell 1 m, full uncertainty, no reweighting, min_obs 1. */
+/** Defaults: gate 9.21 (99 %), cell 1 m, full uncertainty, no reweighting,
+ *  min_obs 1, Kalman fusion of disjoint provenance, peer bounds 0.3 m/s and
+ *  0.5 rad/s, range check 9, check on with 3 refinements moving the map
+ *  and counting as 2 independent pairs, agree_z 2.33 (99 %), veto_looks 5,
+ *  contradict fraction 0.3, ambiguous_chi2 25. docs/map-merge.md says why
+ *  and on what they were chosen. */
 merge_config_t merge_config_default(void);
 
 /** The incoming map in self's body frame (output of merge_transform_map). */
@@ -116,6 +174,8 @@ typedef struct {
     cov2_t rel_cov[COSLAM_MAX_MSG_LANDMARKS];    /**< [m^2], sender's body frame, no transform term */
     pose2_t t;                                   /**< the transform used (sender body in receiver body) */
     cov3_t t_cov;                                /**< its covariance (zero in paper mode) */
+    cov3_t t_cov_post;                           /**< after merge_check: the refined transform's
+                                                      covariance given the shared landmarks (else t_cov) */
 } merge_body_map_t;
 
 /** Gated duplicate candidate: own landmark, incoming landmark, distance. */
@@ -137,6 +197,7 @@ typedef struct {
     /* per-particle / per-filter pairing */
     int32_t match_of_in[COSLAM_MAX_MSG_LANDMARKS];     /**< own landmark index, -1 */
     double match_d2[COSLAM_MAX_MSG_LANDMARKS];
+    uint8_t drop[COSLAM_MAX_MSG_LANDMARKS];         /**< merge_check: unpaired and refused */
     point2_t world_mean[COSLAM_MAX_MSG_LANDMARKS];
     cov2_t world_cov[COSLAM_MAX_MSG_LANDMARKS];
     /* one own map seen from the robot (per particle for Fast-SLAM) */
@@ -155,6 +216,14 @@ typedef struct {
     uint32_t added;         /**< incoming landmarks added (summed over particles) */
     uint32_t capacity_drops;/**< landmarks that did not fit */
     uint32_t skipped;       /**< incoming landmarks below min_obs or numerically unusable */
+    /* merge_check */
+    uint32_t pairs;         /**< incoming landmarks paired with own ones */
+    uint32_t vetoed;        /**< unpaired, where the receiver looked and saw nothing */
+    uint32_t echoes;        /**< unpaired, holding the receiver's own information */
+    uint32_t ambiguous;     /**< unpaired, next to an unpaired own landmark */
+    double nis;             /**< joint normalised innovation squared of the pairs */
+    double nis_bound;       /**< its chi-square bound (0: no pairs) */
+    pose2_t t_shift;        /**< refined transform minus the sightings' one */
 } merge_stats_t;
 
 /** Per-robot record of what was merged from whom. */
@@ -227,6 +296,91 @@ coslam_status_t merge_into_fastslam(fastslam_t *fs, const merge_body_map_t *bm, 
  */
 coslam_status_t merge_into_ekfslam(ekfslam_t *ekf, const merge_body_map_t *bm, const merge_config_t *cfg,
                                    merge_scratch_t *scratch, merge_stats_t *stats);
+
+/* ---- one merge set-up for every caller (robot, replay, simulator) ----- */
+
+/** What the receiver knows about a meeting besides the two maps. */
+typedef struct {
+    robot_sighting_t self_sees_other;  /**< own sighting of the sender (own body frame) */
+    robot_sighting_t other_sees_self;  /**< the sender's sighting of self (from its message) */
+    odo_increment_t own_motion;        /**< own odometry from own sighting to now */
+    double own_travel_m;               /**< wheel travel over own_motion [m], >= 0 */
+    double sighting_dt_s;              /**< |own sighting time - sender's sighting time| [s] */
+} merge_geometry_t;
+
+/**
+ * Steps 1-2 in one call, the only set-up any caller uses: the range check
+ * (range_check_chi2), merge_relative_pose, merge_compensate with the own
+ * odometry (covariance diag(w3 s, w3 s, w4 s) from own_params, s the
+ * travel), the sender's possible motion during sighting_dt_s (peer bounds,
+ * on x, y and heading), then merge_transform_map. Returns COSLAM_OK,
+ * COSLAM_E_MERGE_RANGE, or the status of the failing step. O(M).
+ */
+coslam_status_t merge_prepare(const map_estimate_t *in, const merge_geometry_t *g, const slam_params_t *own_params,
+                              const merge_config_t *cfg, merge_body_map_t *out, merge_stats_t *stats);
+
+/* ---- where the receiver has looked (negative information) ------------- */
+
+/** Keyframes kept; when full, every second one is dropped and the spacing
+ *  doubles (so the record spans the whole run at a coarser step). */
+#ifndef COSLAM_COVERAGE_KEYFRAMES
+#define COSLAM_COVERAGE_KEYFRAMES 256
+#endif
+
+/** Poses (map frame) from which the robot looked with a working camera. */
+typedef struct {
+    pose2_t pose[COSLAM_COVERAGE_KEYFRAMES];
+    uint16_t n;
+    double step_m;          /**< a new keyframe after this much translation */
+    double step_rad;        /**< or this much rotation */
+    uint32_t thinned;       /**< times the record was thinned (capacity) */
+} merge_coverage_t;
+
+/** Empty record; keyframes every 0.3 m or 15 deg at first. O(1). */
+void merge_coverage_init(merge_coverage_t *c);
+
+/** Note that the robot looked from `pose` (map frame) after a camera frame;
+ *  kept as a keyframe if far enough from the last one. O(1) (O(K) when it
+ *  thins). */
+void merge_coverage_note(merge_coverage_t *c, pose2_t pose);
+
+/** Keyframes from which a point (map frame) lies inside the sensor
+ *  footprint with the visibility margin of `p` and, if `grid` is not NULL,
+ *  in a clear line of sight through the occupancy grid (an obstacle
+ *  between hides the point: that look is no evidence). O(K) (O(K * ray)
+ *  with a grid). */
+uint16_t merge_coverage_looks(const merge_coverage_t *c, const slam_params_t *p, const occ_grid_t *grid, point2_t pt);
+
+/**
+ * Check before trust (docs/map-merge.md "Check before trust"). `own` is the
+ * receiver's exported map (confirmed landmarks; cov_rel relative to its
+ * pose); `bm` the incoming map from merge_prepare. With cfg->check:
+ *  1. pair incoming and own landmarks (same signature, gate_chi2, one to
+ *     one by distance) and refine the transform by Gauss-Newton on the
+ *     pairs with the sightings' transform as prior (refine_iters rounds,
+ *     re-pairing each time), so one sighting pair's heading error does not
+ *     misplace far landmarks;
+ *  2. agreement test: the pairs' NIS under the refined transform plus the
+ *     shift's own NIS against the prior, below the chi-square bound of
+ *     2 n_pairs dof (agree_z);
+ *  3. each unpaired incoming landmark: refused if it carries own_id's
+ *     provenance bit (an echo of the receiver's own information that the
+ *     receiver no longer holds), if an unpaired own landmark is within
+ *     ambiguous_chi2 (a failed pairing), or if coverage (may be NULL) shows
+ *     the receiver looked at the spot from veto_looks keyframes, in line of
+ *     sight through `grid` if given (negative information);
+ *  4. too many contradictions (max_contradict_fraction) refuse the merge.
+ * On COSLAM_OK `bm` holds only the landmarks to fuse or add, moved by the
+ * refined transform, with the sightings' transform covariance: the pairs'
+ * errors are correlated through each robot's pose (the message drops those
+ * correlations), so their information on the transform is overcounted and
+ * t_cov_post (kept for reports) is overconfident; the prior is the
+ * conservative choice. On COSLAM_E_MERGE_DISAGREE nothing may be merged. Figures in stats.
+ * O((M_own + M_in) * refine_iters + M_in * K).
+ */
+coslam_status_t merge_check(const map_estimate_t *own, const merge_coverage_t *coverage, const occ_grid_t *grid,
+                            const slam_params_t *own_params, uint8_t own_id, const merge_config_t *cfg, merge_body_map_t *bm, merge_scratch_t *scratch,
+                            merge_stats_t *stats);
 
 /**
  * Paper eqs. 4-5, the Kalman form of fusing two estimates of one point:

@@ -136,6 +136,14 @@ double occ_grid_prob(const occ_grid_t *g, int32_t ix, int32_t iy);
 /** Counters of this grid. */
 const occ_grid_stats_t *occ_grid_stats(const occ_grid_t *g);
 
+/**
+ * 1 if the segment a -> b (map frame) crosses no cell with log-odds above
+ * l_occupied, ignoring the last skip_end_m before b (the target itself, a
+ * post the laser sees); cells outside the grid count as free. Sampled every
+ * half cell. O(|ab| / cell), no memory.
+ */
+int occ_grid_line_free(const occ_grid_t *g, point2_t a, point2_t b, double l_occupied, double skip_end_m);
+
 #ifdef __cplusplus
 }
 #endif

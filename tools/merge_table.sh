@@ -1,0 +1,32 @@
+#!/bin/sh
+# Merging on real data, the table of issue 8: MRCLAM Datasets 6 and 1, all
+# robots, unknown identities, EKF-SLAM and Fast-SLAM 2.0 (PARTICLES, 300),
+# each with and without merging; maps scored after the best rigid fit to the
+# landmark truth (Dataset 1 has no robot truth: pose "n/a"). Parameters:
+# host/replay/mrclam6.ini, chosen on Dataset 6 only (docs/replay.md).
+#   tools/merge_table.sh [BUILD] [OUT]     -> OUT/merge_table.md
+# Environment: COSLAM_DATA_DIR (folder holding mrclam/), PARTICLES.
+set -eu
+build=${1:-build}
+out=${2:-out/merge_table}
+data=${COSLAM_DATA_DIR:-../shared/data}/mrclam
+particles=${PARTICLES:-300}
+bin="$build/host/replay/coslam-replay"
+for d in 6 1; do
+  if [ ! -d "$data/MRCLAM_Dataset$d" ]; then
+    echo "merge_table: SKIPPED, no $data/MRCLAM_Dataset$d (set COSLAM_DATA_DIR)"
+    exit 0
+  fi
+done
+mkdir -p "$out"
+run() { # dataset filter merge-flag
+  tag="d$1_$2${3:+_alone}"
+  "$bin" run "$data/MRCLAM_Dataset$1" -c host/replay/mrclam6.ini -f "$2" -p "$particles" $3 -q --no-plots \
+    -o "$out/$tag" > "$out/$tag.txt" 2>&1
+}
+for d in 6 1; do
+  (run $d ekf ""; run $d ekf --no-merge) &
+  (run $d fastslam2 ""; run $d fastslam2 --no-merge) &
+  wait
+done
+/usr/bin/python3 tools/merge_table.py "$out" | tee "$out/merge_table.md"
