@@ -422,6 +422,20 @@ static void test_replay_refused(void **state)
     assert_int_equal(count_events(MEETING_EV_REFUSED, COSLAM_E_MERGE_REPLAY, &ev), 1);
     assert_int_equal(ev.seq, 5);
     assert_int_equal(g_m.ctr.merged, 1);
+    /* the same message replayed after the merge: refused, the map unchanged */
+    static map_estimate_t before;
+    static map_estimate_t after;
+    assert_int_equal(slam_filter_export(&g_filter, &before), COSLAM_OK);
+    assert_true(before.n_landmarks >= 1);
+    meeting_on_sighting(&g_m, &g_filter, link, t + 900000, 1, 2.0, 0.0, t + 900000, kOrigin, 0.0);
+    inject(g_buf, len, 1, t + 1000000);
+    meeting_poll_link(&g_m, link);
+    assert_int_equal(meeting_poll(&g_m, &g_filter, t + 1001000, kOrigin, 0.0), COSLAM_OK);
+    assert_int_equal(g_m.ctr.replays, 2);
+    assert_int_equal(g_m.ctr.merged, 1);
+    assert_int_equal(slam_filter_export(&g_filter, &after), COSLAM_OK);
+    assert_int_equal(after.n_landmarks, before.n_landmarks);
+    assert_memory_equal(after.lm, before.lm, sizeof before.lm[0] * before.n_landmarks);
 }
 
 static void test_screening(void **state)

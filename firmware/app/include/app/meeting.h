@@ -11,6 +11,10 @@
  *    out of view for meeting_gap_us. During a meeting the robot sends j its
  *    map at most max_sends times, resend_period_us apart, each time on a
  *    frame in which it sees j (the link is unreliable: retries, not acks).
+ *  - Implicit acknowledgement: a message from j in which at least half as
+ *    many landmarks carry this robot's provenance bit as the last message
+ *    sent to j had landmarks ends the sending to j for that meeting; a
+ *    message from j without our bit renews the budget (j still needs it).
  *  - The message (coslam/map_msg.h) is addressed to j and carries:
  *      map        the sender's map estimate exported NOW (pose, pose
  *                 covariance, landmarks with cov and cov_rel), map frame;
