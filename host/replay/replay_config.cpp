@@ -290,6 +290,7 @@ std::vector<Key> keys_of(ReplayConfig &c)
         dkey("merge", "resend_s", &c.merge.resend_s),
         ikey("merge", "check", &c.merge.core.check, 0, 1),
         ikey("merge", "fuse_ci_always", &c.merge.core.fuse_ci_always, 0, 1),
+        dkey("merge", "fuse_eff_pairs", &c.merge.core.fuse_eff_pairs),
         ikey("merge", "refine_iters", &c.merge.core.refine_iters, 0, 50),
         ikey("merge", "refine_check_only", &c.merge.core.refine_check_only, 0, 1),
         dkey("merge", "refine_eff_pairs", &c.merge.core.refine_eff_pairs),

@@ -12,6 +12,7 @@ merge_config_t merge_config_default(void)
     c.reweight_particles = 0U;
     c.min_obs = 1U;
     c.fuse_ci_always = 0U;
+    c.fuse_eff_pairs = 2.0;
     c.peer_speed_mps = 0.3;
     c.peer_turn_radps = 0.5;
     c.range_check_chi2 = 9.0;
@@ -448,6 +449,21 @@ static void absorb_meta(uint16_t *src_mask, uint16_t *n_obs, float *exist, const
     }
 }
 
+/* Weight of each duplicate's information: the n duplicates of one message
+ * count as at most fuse_eff_pairs independent ones (their errors relative
+ * to the sender share its pose error; the message drops the correlation). */
+static double duplicate_weight(const merge_scratch_t *sc, const merge_body_map_t *bm, const merge_config_t *cfg)
+{
+    if (!(cfg->fuse_eff_pairs > 0.0)) {
+        return 1.0;
+    }
+    uint32_t n = 0;
+    for (uint16_t i = 0; i < bm->n; ++i) {
+        n += sc->match_of_in[i] >= 0;
+    }
+    return (double)n > cfg->fuse_eff_pairs ? cfg->fuse_eff_pairs / (double)n : 1.0;
+}
+
 /* ---- Fast-SLAM ---------------------------------------------------------- */
 
 coslam_status_t merge_into_fastslam(fastslam_t *fs, const merge_body_map_t *bm, const merge_config_t *cfg,
@@ -477,10 +493,12 @@ coslam_status_t merge_into_fastslam(fastslam_t *fs, const merge_body_map_t *bm, 
             sc->own_sig[j] = p->lm[j].signature;
         }
         pair_and_select(sc, bm, cfg, p->n_lm, stats);
+        const double dup_w = duplicate_weight(sc, bm, cfg);
         for (uint16_t i = 0; i < bm->n; ++i) {
             const point2_t wm = pose2_apply(p->pose, bm->mean[i]);
-            const cov2_t wc = cov2_congruence(r, bm->cov[i]);
             const int32_t j = sc->match_of_in[i];
+            /* a duplicate's information scaled by dup_w: its covariance by 1 / dup_w */
+            const cov2_t wc = cov2_scale(cov2_congruence(r, bm->cov[i]), j >= 0 ? 1.0 / dup_w : 1.0);
             if (j >= 0) {
                 landmark_t *lm = &p->lm[j];
                 point2_t xm;
@@ -548,6 +566,7 @@ coslam_status_t merge_into_ekfslam(ekfslam_t *ekf, const merge_body_map_t *bm, c
         sc->own_sig[j] = ekf->meta[j].signature;
     }
     pair_and_select(sc, bm, cfg, n_own, stats);
+    const double dup_w = duplicate_weight(sc, bm, cfg);
     if (ekfslam_merge_begin(ekf, &bm->t_cov) != COSLAM_OK) {
         return COSLAM_E_ARG;
     }
@@ -599,7 +618,7 @@ coslam_status_t merge_into_ekfslam(ekfslam_t *ekf, const merge_body_map_t *bm, c
                 info = cov2_clamp_eigen(info, 0.0);
             }
         }
-        if (ekfslam_merge_observe(ekf, (uint16_t)j, bm->t, bm->rel[i], info) != COSLAM_OK) {
+        if (ekfslam_merge_observe(ekf, (uint16_t)j, bm->t, bm->rel[i], cov2_scale(info, dup_w)) != COSLAM_OK) {
             stats->skipped++;
             continue;
         }

@@ -105,6 +105,11 @@ typedef struct {
      *  consistent for any correlation (docs/map-merge.md). 0: Kalman fusion
      *  of disjoint provenance (paper eqs. 4-5). */
     uint8_t fuse_ci_always;
+    /** The duplicates of one message count as at most this many independent
+     *  observations (each one's information scaled by fuse_eff_pairs / n):
+     *  their errors relative to the sender share its pose error, which the
+     *  message drops. 0: every duplicate counts fully. */
+    double fuse_eff_pairs;
 
     /* ---- set-up (merge_prepare) ---- */
     /** Bound on the sender's speed and turn rate between its sighting and
@@ -153,7 +158,8 @@ typedef struct {
 } merge_config_t;
 
 /** Defaults: gate 9.21 (99 %), cell 1 m, full uncertainty, no reweighting,
- *  min_obs 1, Kalman fusion of disjoint provenance, peer bounds 0.3 m/s and
+ *  min_obs 1, Kalman fusion of disjoint provenance with the duplicates
+ *  counting as 2 independent ones, peer bounds 0.3 m/s and
  *  0.5 rad/s, range check 9, check on with 3 refinements moving the map
  *  and counting as 2 independent pairs, agree_z 2.33 (99 %), veto_looks 5,
  *  contradict fraction 0.3, ambiguous_chi2 25. docs/map-merge.md says why
