@@ -151,6 +151,25 @@ std::vector<Frame> build_frames(const RobotLog &log)
 
 } // namespace
 
+namespace {
+
+// The figures MapScore and FitScore share, from one evaluation.
+template <typename Score> Score fill_score(Score s, const map_eval_t &ev, map_eval_t *detail)
+{
+    s.n_matched = ev.n_matched;
+    s.n_spurious = ev.n_spurious;
+    s.n_missed = ev.n_missed;
+    s.rmse_m = ev.rmse_m;
+    s.max_err_m = ev.max_err_m;
+    s.valid = true;
+    if (detail != nullptr) {
+        *detail = ev;
+    }
+    return s;
+}
+
+} // namespace
+
 MapScore score_map(const map_estimate_t &est, const std::vector<point2_t> &truth, const std::vector<int> &n_seen,
                    const EvalConfig &ec, map_eval_t *detail)
 {
@@ -163,17 +182,8 @@ MapScore score_map(const map_estimate_t &est, const std::vector<point2_t> &truth
     eval_map(&est, truth.data(), n_seen.empty() ? nullptr : n_seen.data(), static_cast<int>(truth.size()),
              ec.min_seen, ec.gate_m, ev.get());
     s.n_estimated = ev->n_estimated;
-    s.n_matched = ev->n_matched;
-    s.n_spurious = ev->n_spurious;
-    s.n_missed = ev->n_missed;
-    s.rmse_m = ev->rmse_m;
-    s.max_err_m = ev->max_err_m;
     s.nees_mean = ev->nees_mean;
-    s.valid = true;
-    if (detail != nullptr) {
-        *detail = *ev;
-    }
-    return s;
+    return fill_score(s, *ev, detail);
 }
 
 FitScore score_map_fit(const map_estimate_t &est, const std::vector<point2_t> &truth_world,
@@ -189,16 +199,7 @@ FitScore score_map_fit(const map_estimate_t &est, const std::vector<point2_t> &t
                        ec.min_seen, ec.gate_m, &s.transform, ev.get()) != COSLAM_OK) {
         return s;
     }
-    s.n_matched = ev->n_matched;
-    s.n_spurious = ev->n_spurious;
-    s.n_missed = ev->n_missed;
-    s.rmse_m = ev->rmse_m;
-    s.max_err_m = ev->max_err_m;
-    s.valid = true;
-    if (detail != nullptr) {
-        *detail = *ev;
-    }
-    return s;
+    return fill_score(s, *ev, detail);
 }
 
 robot_sighting_t robot_sighting_of(const slam_params_t &p, double range_m, double bearing_rad)
