@@ -289,11 +289,22 @@ void Replay::setup()
             throw ReplayError("no robot " + std::to_string(ids[i]) + " in " + ds_.source + " (robots: " + have + ")");
         }
         if (opt_.known_ids) {
+            long unknown = 0;
             for (const auto &z : log->z) {
                 if (z.landmark_id != -1 && (z.landmark_id < 1 || z.landmark_id > 255)) {
                     throw ReplayError("--known-ids needs landmark ids in 1..255 (they become the signature); robot " +
                                       std::to_string(log->id) + " sights landmark " + std::to_string(z.landmark_id));
                 }
+                unknown += z.landmark_id == -1;
+            }
+            if (!log->z.empty() && unknown == static_cast<long>(log->z.size())) {
+                throw ReplayError("--known-ids: robot " + std::to_string(log->id) + "'s " +
+                                  std::to_string(log->z.size()) +
+                                  " landmark sightings carry no identity (all -1); replay without --known-ids");
+            }
+            if (unknown > 0) {
+                out_.notes.push_back("robot " + std::to_string(log->id) + ": " + std::to_string(unknown) +
+                                     " sightings without identity (-1) treated as non-unique under --known-ids");
             }
         }
         auto r = std::make_unique<Robot>();
