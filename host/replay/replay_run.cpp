@@ -730,6 +730,7 @@ ReplayResult Replay::run()
             res.counters["meeting_merged"] = mc->merged;
             res.counters["meeting_refused_range"] = mc->refused_range;
             res.counters["meeting_refused_disagree"] = mc->refused_disagree;
+            res.counters["meeting_ignored_disagreed"] = mc->ignored_disagreed;
             res.counters["meeting_replays"] = mc->replays;
             res.counters["meeting_stale"] = mc->stale;
             res.counters["meeting_ignored_recent"] = mc->ignored_recent;

@@ -173,6 +173,7 @@ nlohmann::json run_metrics(const Simulation &sim)
                          {"merge_failures", rr.meeting.merge_failures},
                          {"refused_range", rr.meeting.refused_range},
                          {"refused_disagree", rr.meeting.refused_disagree},
+                         {"ignored_disagreed", rr.meeting.ignored_disagreed},
                          {"weak_not_sent", rr.meeting.weak_not_sent}}},
             {"laser", {{"scans_ok", rr.laser.scans_ok}, {"err_checksum", rr.laser.err_checksum},
                        {"err_line", rr.laser.err_line}, {"err_timeout", rr.laser.err_timeout}}},

@@ -438,6 +438,32 @@ static void test_replay_refused(void **state)
     assert_memory_equal(after.lm, before.lm, sizeof before.lm[0] * before.n_landmarks);
 }
 
+/* A peer whose map was refused as disagreeing is not retried message by
+ * message within the remerge period (a retry passes the test by chance). */
+static void test_disagreeing_peer_not_retried(void **state)
+{
+    (void)state;
+    hal_link_t *link = fake_link_reset(0);
+    setup_robot0(NULL);
+    const uint64_t t = 3000000;
+    g_m.peer[1].disagreed = 1U; /* as meeting_poll leaves it after COSLAM_E_MERGE_DISAGREE */
+    g_m.peer[1].disagreed_at_us = t;
+    meeting_on_sighting(&g_m, &g_filter, link, t + 100000, 1, 2.0, 0.0, t + 100000, kOrigin, 0.0);
+    size_t len = make_msg_from1(7, t + 100000, t + 100000, 2.0, 0.0, (point2_t){1.0, 0.0}, 1U << 1, 0);
+    inject(g_buf, len, 1, t + 102000);
+    meeting_poll_link(&g_m, link);
+    assert_int_equal(g_m.ctr.ignored_disagreed, 1);
+    assert_false(g_m.have_pending);
+    /* after the remerge period the peer is heard again */
+    const uint64_t later = t + g_m.cfg.remerge_period_us + 1000000;
+    meeting_on_sighting(&g_m, &g_filter, link, later, 1, 2.0, 0.0, later, kOrigin, 0.0);
+    len = make_msg_from1(8, later, later, 2.0, 0.0, (point2_t){1.0, 0.0}, 1U << 1, 0);
+    inject(g_buf, len, 1, later + 2000);
+    meeting_poll_link(&g_m, link);
+    assert_int_equal(g_m.ctr.ignored_disagreed, 1);
+    assert_true(g_m.have_pending);
+}
+
 static void test_screening(void **state)
 {
     (void)state;
@@ -506,6 +532,7 @@ int main(void)
         cmocka_unit_test(test_pairs_nearest_own_sighting),
         cmocka_unit_test(test_waits_then_stale),
         cmocka_unit_test(test_replay_refused),
+        cmocka_unit_test(test_disagreeing_peer_not_retried),
         cmocka_unit_test(test_screening),
         cmocka_unit_test(test_event_queue_overflow_counted),
     };

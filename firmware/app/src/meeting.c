@@ -261,6 +261,12 @@ static void accept_message(meeting_t *m, const hal_link_rx_info_t *info)
         m->ctr.ignored_recent++;
         return;
     }
+    /* maps that disagreed do not agree a second later: retrying each message
+     * of the meeting would only let one through by chance (multiple tests) */
+    if (p->disagreed && info->stamp_us - p->disagreed_at_us < m->cfg.remerge_period_us) {
+        m->ctr.ignored_disagreed++;
+        return;
+    }
     const coslam_status_t st = merge_session_accept(&m->session, from, msg->seq);
     if (st != COSLAM_OK) {
         m->ctr.replays++;
@@ -377,6 +383,8 @@ coslam_status_t meeting_poll(meeting_t *m, slam_filter_t *filter, uint64_t now_u
             m->ctr.refused_range++;
         } else if (st == COSLAM_E_MERGE_DISAGREE) {
             m->ctr.refused_disagree++;
+            m->peer[from].disagreed = 1U;
+            m->peer[from].disagreed_at_us = now_us;
         } else {
             m->ctr.merge_failures++;
         }

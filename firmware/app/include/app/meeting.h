@@ -33,7 +33,8 @@
  *  1. decode (every COSLAM_E_MSG_* refusal is counted and logged); drop
  *     messages not addressed to this robot, or without a sighting;
  *  2. ignore the sender for remerge_period_us after its map was merged (the
- *     remaining retries of the same meeting);
+ *     remaining retries of the same meeting), or refused because the maps
+ *     disagreed (a retry would pass the test only by chance);
  *  3. merge_session_accept: sequence number newer than the last accepted
  *     one from that sender, else refused as a replay (counted);
  *  4. the message waits (one pending slot; a newer one replaces it,
@@ -117,6 +118,8 @@ typedef struct {
     uint64_t acked_at_us;
     uint64_t meeting_start_us; /**< first sighting of the current meeting */
     uint16_t sent_n_landmarks; /**< landmarks in the last message sent to it */
+    uint8_t disagreed;         /**< its map was refused as disagreeing ... */
+    uint64_t disagreed_at_us;  /**< ... then: its messages are ignored for remerge_period_us */
 } meeting_peer_t;
 
 typedef enum {
@@ -154,6 +157,7 @@ typedef struct {
     uint32_t merge_failures;    /**< relative pose / transform / merge failed */
     uint32_t refused_range;     /**< the mutual ranges disagree (COSLAM_E_MERGE_RANGE) */
     uint32_t refused_disagree;  /**< the maps disagree (COSLAM_E_MERGE_DISAGREE) */
+    uint32_t ignored_disagreed; /**< from a peer whose map disagreed within remerge_period_us */
     uint32_t weak_not_sent;     /**< landmarks left out of sent maps (below export_min_obs) */
     uint32_t events_dropped;    /**< events overwritten before they were read */
 } meeting_counters_t;
