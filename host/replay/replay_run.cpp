@@ -368,9 +368,10 @@ void Replay::setup()
         if (cfg_.merge.enabled && robots_.size() >= 2) {
             // the robot's meeting protocol, with the replay's settings
             meeting_config_t mc = meeting_config_default();
-            const cov2_t q = observe_noise(&cfg_.slam, 1.0);
-            mc.robot_range_var_m2 = q.xx; // replaced per sighting below (range dependent)
-            mc.robot_bearing_var_rad2 = q.yy;
+            // the camera model of the config: range variance growing with range^2
+            mc.robot_range_var_m2 = cfg_.slam.noise.range_var_m2;
+            mc.robot_range_var_per_m2 = cfg_.slam.noise.range_var_per_m2;
+            mc.robot_bearing_var_rad2 = cfg_.slam.noise.bearing_var_rad2;
             mc.link_latency_us = 0U;
             mc.pair_window_us = static_cast<uint32_t>(std::llround(cfg_.merge.window_s * 1e6));
             mc.remerge_period_us = static_cast<uint32_t>(std::llround(cfg_.merge.interval_s * 1e6));
@@ -558,11 +559,6 @@ void Replay::on_robot_sighting(Robot &r, const RobotSighting &s)
     if (!r.meeting) {
         return;
     }
-    // the camera's noise at this range (the robot app takes one variance;
-    // the replay's camera model grows with the range)
-    const cov2_t q = observe_noise(&cfg_.slam, s.range_m);
-    r.meeting->cfg.robot_range_var_m2 = q.xx;
-    r.meeting->cfg.robot_bearing_var_rad2 = q.yy;
     link_->now_us = stamp_us(s.t_s);
     (void)meeting_on_sighting(r.meeting.get(), r.filter->app(), r.link, link_->now_us, static_cast<uint8_t>(o->idx),
                               s.range_m, s.bearing_rad, link_->now_us, r.odo_pose, r.travel_m);

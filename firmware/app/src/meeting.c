@@ -8,6 +8,7 @@ meeting_config_t meeting_config_default(void)
 {
     meeting_config_t c;
     c.robot_range_var_m2 = 0.05 * 0.05;
+    c.robot_range_var_per_m2 = 0.0;
     c.robot_bearing_var_rad2 = 0.035 * 0.035;
     c.link_latency_us = 2000U;
     c.pair_window_us = 300000U;
@@ -33,6 +34,7 @@ coslam_status_t meeting_init(meeting_t *m, const meeting_config_t *cfg, uint8_t 
     }
     if (!(isfinite(cfg->robot_range_var_m2) && cfg->robot_range_var_m2 > 0.0) ||
         !(isfinite(cfg->robot_bearing_var_rad2) && cfg->robot_bearing_var_rad2 > 0.0) ||
+        !finite_nonneg(cfg->robot_range_var_per_m2) ||
         !finite_nonneg(cfg->merge.peer_speed_mps) || !finite_nonneg(cfg->merge.peer_turn_radps) ||
         !finite_nonneg(cfg->merge.range_check_chi2) || cfg->pair_window_us == 0U || cfg->export_min_obs == 0U ||
         !(isfinite(cfg->max_range_m) && cfg->max_range_m > 0.0)) {
@@ -126,6 +128,12 @@ const meeting_counters_t *meeting_counters(const meeting_t *m)
     return &m->ctr;
 }
 
+/* Range variance of an own sighting of a robot at range_m. */
+static double robot_range_var(const meeting_t *m, double range_m)
+{
+    return m->cfg.robot_range_var_m2 + m->cfg.robot_range_var_per_m2 * range_m * range_m;
+}
+
 /* Export, encode and send the map to `peer`, with the sighting just made. */
 static coslam_status_t send_map(meeting_t *m, slam_filter_t *filter, hal_link_t *link, uint64_t now_us, uint8_t peer,
                                 const meeting_sighting_t *s)
@@ -162,7 +170,7 @@ static coslam_status_t send_map(meeting_t *m, slam_filter_t *filter, hal_link_t 
     msg->sighting.valid = true;
     msg->sighting.range_m = s->range_m;
     msg->sighting.bearing_rad = angle_wrap(s->bearing_rad);
-    msg->sighting.range_var_m2 = m->cfg.robot_range_var_m2;
+    msg->sighting.range_var_m2 = robot_range_var(m, s->range_m);
     msg->sighting.bearing_var_rad2 = m->cfg.robot_bearing_var_rad2;
     msg->sighting.stamp_us = s->stamp_us;
     size_t len = 0;
@@ -365,7 +373,7 @@ coslam_status_t meeting_poll(meeting_t *m, slam_filter_t *filter, uint64_t now_u
 
     /* 5. the one merge path: set-up, check, fusion */
     merge_geometry_t g;
-    g.self_sees_other = (robot_sighting_t){best->range_m, best->bearing_rad, m->cfg.robot_range_var_m2,
+    g.self_sees_other = (robot_sighting_t){best->range_m, best->bearing_rad, robot_range_var(m, best->range_m),
                                            m->cfg.robot_bearing_var_rad2};
     g.other_sees_self = (robot_sighting_t){msg->sighting.range_m, msg->sighting.bearing_rad,
                                            msg->sighting.range_var_m2, msg->sighting.bearing_var_rad2};

@@ -21,7 +21,8 @@
  *      stamp_us   the export time (sender's clock);
  *      sighting   the sender's sighting of j in the frame just processed:
  *                 range, bearing (sender's body frame), their variances
- *                 (robot_range_var_m2, robot_bearing_var_rad2) and the
+ *                 (robot_range_var_m2 + robot_range_var_per_m2 range^2,
+ *                 robot_bearing_var_rad2) and the
  *                 frame's capture stamp_us (sender's clock).
  *    So the exported pose is the sender's pose at its sighting of j, up to
  *    stamp_us - sighting.stamp_us (less than one control period: the export
@@ -83,6 +84,7 @@ extern "C" {
 
 typedef struct {
     double robot_range_var_m2;       /**< variance of own robot sightings' range [m^2], > 0 */
+    double robot_range_var_per_m2;   /**< plus this * range^2 (distance from blob size) [1], >= 0 */
     double robot_bearing_var_rad2;   /**< and bearing [rad^2], > 0 */
     uint32_t link_latency_us;        /**< nominal one-way link latency [us] */
     uint32_t pair_window_us;         /**< largest |own sighting - sender's sighting| [us], > 0 */
