@@ -5,10 +5,11 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
-#include <deque>
 #include <set>
 
 #include "app/meeting.h"
+#include "sim_hal/sim_clock.hpp"
+#include "sim_hal/sim_link.hpp"
 #include "coslam/motion.h"
 #include "coslam/observe.h"
 #include "replay_filter.h"
@@ -29,72 +30,6 @@ struct Frame {
     double t_s;
     std::vector<int> zi; // indices into RobotLog::z
     std::vector<int> ri; // indices into RobotLog::rz
-};
-
-// The inter-robot link of the replay: every datagram is delivered whole,
-// at once, in order (the recorded robots were in radio reach throughout).
-// A hal_link_t endpoint per robot, so the robot's meeting protocol runs
-// unchanged on top.
-class ReplayLink {
-public:
-    explicit ReplayLink(size_t n) : eps_(n)
-    {
-        for (size_t i = 0; i < n; ++i) {
-            eps_[i].hub = this;
-            eps_[i].id = static_cast<uint16_t>(i);
-            eps_[i].handle.ops = &kOps;
-            eps_[i].handle.backend = &eps_[i];
-        }
-    }
-    hal_link_t *endpoint(size_t i) { return &eps_[i].handle; }
-    uint64_t now_us = 0;
-
-private:
-    struct Datagram {
-        uint16_t src;
-        uint64_t stamp_us;
-        std::vector<uint8_t> data;
-    };
-    struct Endpoint {
-        ReplayLink *hub = nullptr;
-        uint16_t id = 0;
-        std::deque<Datagram> rx;
-        hal_link_t handle{};
-    };
-    static hal_status_t op_self_id(hal_link_t *dev, uint16_t *id)
-    {
-        *id = static_cast<Endpoint *>(dev->backend)->id;
-        return HAL_OK;
-    }
-    static hal_status_t op_send(hal_link_t *dev, uint16_t dest, const uint8_t *data, size_t len, uint32_t)
-    {
-        auto *ep = static_cast<Endpoint *>(dev->backend);
-        if (dest == ep->id) {
-            return HAL_E_ARG;
-        }
-        for (auto &o : ep->hub->eps_) {
-            if (o.id != ep->id && (dest == HAL_LINK_BROADCAST || dest == o.id)) {
-                o.rx.push_back({ep->id, ep->hub->now_us, std::vector<uint8_t>(data, data + len)});
-            }
-        }
-        return HAL_OK;
-    }
-    static hal_status_t op_recv(hal_link_t *dev, uint8_t *buf, size_t cap, hal_link_rx_info_t *info, uint32_t)
-    {
-        auto *ep = static_cast<Endpoint *>(dev->backend);
-        if (ep->rx.empty()) {
-            return HAL_E_TIMEOUT;
-        }
-        const Datagram d = std::move(ep->rx.front());
-        ep->rx.pop_front();
-        info->len = d.data.size();
-        info->src_id = d.src;
-        info->stamp_us = d.stamp_us;
-        std::copy_n(d.data.begin(), std::min(cap, d.data.size()), buf);
-        return d.data.size() > cap ? HAL_E_OVERFLOW : HAL_OK;
-    }
-    static constexpr hal_link_ops_t kOps = {op_self_id, op_send, op_recv, nullptr};
-    std::vector<Endpoint> eps_;
 };
 
 struct Robot {
@@ -202,17 +137,6 @@ FitScore score_map_fit(const map_estimate_t &est, const std::vector<point2_t> &t
     return fill_score(s, *ev, detail);
 }
 
-robot_sighting_t robot_sighting_of(const slam_params_t &p, double range_m, double bearing_rad)
-{
-    const cov2_t q = observe_noise(&p, range_m);
-    robot_sighting_t s;
-    s.range_m = range_m;
-    s.bearing_rad = bearing_rad;
-    s.range_var_m2 = q.xx;
-    s.bearing_var_rad2 = q.yy;
-    return s;
-}
-
 namespace {
 
 class Replay {
@@ -252,7 +176,10 @@ private:
     ReplayOptions opt_;
     std::vector<std::unique_ptr<Robot>> robots_;
     std::map<int, int> truth_index_; // landmark id -> index into ds_.landmarks
-    std::unique_ptr<ReplayLink> link_;
+    // the robots' clock and link: the simulator's radio hub, every datagram
+    // delivered at once and in order (the recorded robots were in reach)
+    std::unique_ptr<sim::SimClock> clock_;
+    std::unique_ptr<sim::SimLinkHub> link_;
     ReplayResult out_;
 };
 
@@ -332,7 +259,12 @@ void Replay::setup()
     }
     out_.t_begin_s = t_begin;
     out_.t_end_s = t_end;
-    link_ = std::make_unique<ReplayLink>(robots_.size());
+    clock_ = std::make_unique<sim::SimClock>(stamp_us(t_begin));
+    sim::SimLinkParams lp;
+    lp.range_m = std::numeric_limits<double>::infinity();
+    lp.latency_us = 0;
+    lp.rx_queue_depth = 1U << 16;
+    link_ = std::make_unique<sim::SimLinkHub>(*clock_, robots_.size(), lp);
 
     for (auto &rp : robots_) {
         Robot &r = *rp;
@@ -384,7 +316,7 @@ void Replay::setup()
             if (meeting_init(r.meeting.get(), &mc, r.core_id, static_cast<uint8_t>(robots_.size())) != COSLAM_OK) {
                 throw ReplayError("meeting_init refused the [merge] configuration");
             }
-            r.link = link_->endpoint(static_cast<size_t>(r.idx));
+            r.link = link_->endpoint(static_cast<uint16_t>(r.idx));
         }
         r.next_tick = res.t_start_s + cfg_.filter.predict_period_s;
         r.next_pose_t = res.t_start_s;
@@ -559,15 +491,17 @@ void Replay::on_robot_sighting(Robot &r, const RobotSighting &s)
     if (!r.meeting) {
         return;
     }
-    link_->now_us = stamp_us(s.t_s);
-    (void)meeting_on_sighting(r.meeting.get(), r.filter->app(), r.link, link_->now_us, static_cast<uint8_t>(o->idx),
-                              s.range_m, s.bearing_rad, link_->now_us, r.odo_pose, r.travel_m);
+    const uint64_t now = stamp_us(s.t_s);
+    clock_->advance_to(now);
+    (void)meeting_on_sighting(r.meeting.get(), r.filter->app(), r.link, now, static_cast<uint8_t>(o->idx),
+                              s.range_m, s.bearing_rad, now, r.odo_pose, r.travel_m);
 }
 
 void Replay::poll_meeting(Robot &r)
 {
     meeting_t *m = r.meeting.get();
-    link_->now_us = stamp_us(r.t_filter);
+    const uint64_t now = stamp_us(r.t_filter);
+    clock_->advance_to(now);
     (void)meeting_poll_link(m, r.link);
     MapScore before;
     std::shared_ptr<map_estimate_t> before_map;
@@ -577,7 +511,7 @@ void Replay::poll_meeting(Robot &r)
         before = score_now(r, before_map.get());
     }
     const auto t0 = Clock::now();
-    (void)meeting_poll(m, r.filter->app(), link_->now_us, r.odo_pose, r.travel_m);
+    (void)meeting_poll(m, r.filter->app(), now, r.odo_pose, r.travel_m);
     const double merge_us = us_since(t0);
     meeting_event_t ev;
     while (meeting_take_event(m, &ev) == COSLAM_OK) {

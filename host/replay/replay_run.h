@@ -179,9 +179,6 @@ MapScore score_map(const map_estimate_t &est, const std::vector<point2_t> &truth
 FitScore score_map_fit(const map_estimate_t &est, const std::vector<point2_t> &truth_world,
                        const std::vector<int> &n_seen, const EvalConfig &ec, map_eval_t *detail = nullptr);
 
-/// Sighting noise of the camera as robot_sighting_t (map_merge.h).
-robot_sighting_t robot_sighting_of(const slam_params_t &p, double range_m, double bearing_rad);
-
 } // namespace coslam::replay
 
 #endif

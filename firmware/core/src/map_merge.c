@@ -11,14 +11,12 @@ merge_config_t merge_config_default(void)
     c.transform_uncertainty = 1U;
     c.reweight_particles = 0U;
     c.min_obs = 1U;
-    c.fuse_ci_always = 0U;
     c.fuse_eff_pairs = 2.0;
     c.peer_speed_mps = 0.3;
     c.peer_turn_radps = 0.5;
     c.range_check_chi2 = 9.0;
     c.check = 1U;
     c.refine_iters = 3U;
-    c.refine_check_only = 0U;
     c.refine_eff_pairs = 2.0;
     c.agree_z = 2.33;
     c.veto_looks = 5U;
@@ -124,19 +122,33 @@ void merge_compensate(pose2_t *t, cov3_t *cov, odo_increment_t u, const cov3_t *
     *cov = nc;
 }
 
+/* A landmark at rel (covariance rel_cov) in the sender's body frame, moved
+ * into the receiver's body frame by t: mean t (+) rel, covariance
+ * R rel_cov R^T + J_T t_cov J_T^T (t_cov may be NULL: no transform term). */
+static void body_landmark(pose2_t t, const cov3_t *t_cov, point2_t rel, cov2_t rel_cov, point2_t *mean, cov2_t *cov)
+{
+    const double c = cos(t.theta);
+    const double s = sin(t.theta);
+    double rot[2][2] = {{c, -s}, {s, c}};
+    *mean = pose2_apply(t, rel);
+    *cov = cov2_congruence(rot, rel_cov);
+    if (t_cov != 0) {
+        double jt[2][3];
+        pose2_apply_jacobians(t, rel, jt, 0);
+        cov3_t tc = *t_cov;
+        *cov = cov2_add(*cov, cov2_from_3x3(jt, tc.m));
+    }
+}
+
 coslam_status_t merge_transform_map(const map_estimate_t *in, pose2_t t, const cov3_t *t_cov,
                                     const merge_config_t *cfg, merge_body_map_t *out, merge_stats_t *stats)
 {
     out->n = 0;
     out->t = t;
     out->t_cov = (t_cov != 0 && cfg->transform_uncertainty) ? *t_cov : cov3_zero();
-    out->t_cov_post = out->t_cov;
     if (!pose2_is_finite(t) || !pose2_is_finite(in->pose) || (t_cov != 0 && !cov3_is_finite(*t_cov))) {
         return COSLAM_E_NUMERIC;
     }
-    const double c = cos(t.theta);
-    const double s = sin(t.theta);
-    double rot[2][2] = {{c, -s}, {s, c}};
     /* paper mode: the map-frame covariance rotated from the other's map
      * frame into self's body frame, nothing else (eq. 3 with R, not T) */
     const double fth = t.theta - in->pose.theta;
@@ -150,19 +162,14 @@ coslam_status_t merge_transform_map(const map_estimate_t *in, pose2_t t, const c
             continue;
         }
         const point2_t rel = pose2_apply_inverse(in->pose, l->mean);
-        const point2_t mb = pose2_apply(t, rel);
+        point2_t mb;
         cov2_t cb;
         cov2_t rel_cov;
         if (cfg->transform_uncertainty) {
             rel_cov = l->cov_rel;
-            cb = cov2_congruence(rot, l->cov_rel);
-            if (t_cov != 0) {
-                double jt[2][3];
-                pose2_apply_jacobians(t, rel, jt, 0);
-                cov3_t tc = *t_cov;
-                cb = cov2_add(cb, cov2_from_3x3(jt, tc.m));
-            }
+            body_landmark(t, t_cov, rel, rel_cov, &mb, &cb);
         } else {
+            mb = pose2_apply(t, rel);
             cb = cov2_congruence(rot_f, l->cov);
             /* the same, expressed in the sender's body frame */
             const double cp = cos(in->pose.theta);
@@ -364,6 +371,51 @@ static void sort_pairs(merge_pair_t *p, int n)
     }
 }
 
+/* Visit every incoming landmark of own landmark j's signature in the 3x3
+ * grid cells around it with squared Mahalanobis distance below gate (on
+ * S_own + S_in). The cell is wide enough for the gate (grid_cell_size). */
+typedef void (*grid_visit_fn)(merge_scratch_t *sc, int32_t j, int32_t i, double d2, void *ctx);
+
+static void grid_gated(merge_scratch_t *sc, const merge_body_map_t *bm, int32_t j, double gate, grid_visit_fn visit,
+                       void *ctx)
+{
+    const int32_t cx = cell_of(sc->own_body[j].x, sc->cell_m);
+    const int32_t cy = cell_of(sc->own_body[j].y, sc->cell_m);
+    for (int32_t dx = -1; dx <= 1; ++dx) {
+        for (int32_t dy = -1; dy <= 1; ++dy) {
+            for (int32_t i = sc->bucket_head[cell_hash(cx + dx, cy + dy)]; i >= 0; i = sc->next[i]) {
+                double d2;
+                if (sc->cell_x[i] != cx + dx || sc->cell_y[i] != cy + dy || bm->signature[i] != sc->own_sig[j]) {
+                    continue;
+                }
+                if (cov2_mahalanobis2(cov2_add(sc->own_cov[j], bm->cov[i]), bm->mean[i].x - sc->own_body[j].x,
+                                      bm->mean[i].y - sc->own_body[j].y, &d2) == COSLAM_OK &&
+                    d2 < gate) {
+                    visit(sc, j, i, d2, ctx);
+                }
+            }
+        }
+    }
+}
+
+typedef struct {
+    int n_pairs;
+    merge_stats_t *stats;
+} pair_ctx_t;
+
+static void collect_pair(merge_scratch_t *sc, int32_t j, int32_t i, double d2, void *ctx)
+{
+    pair_ctx_t *pc = (pair_ctx_t *)ctx;
+    if (pc->n_pairs < MERGE_MAX_PAIRS) {
+        sc->pairs[pc->n_pairs].own = j;
+        sc->pairs[pc->n_pairs].in = i;
+        sc->pairs[pc->n_pairs].d2 = d2;
+        pc->n_pairs++;
+    } else if (pc->stats != 0) {
+        pc->stats->skipped++;
+    }
+}
+
 /*
  * Duplicates between one own map (sc->own_body/own_cov/own_sig, n_own, in
  * the receiver's body frame) and the incoming map: candidates from the 3x3
@@ -374,39 +426,16 @@ static void sort_pairs(merge_pair_t *p, int n)
 static void pair_and_select(merge_scratch_t *sc, const merge_body_map_t *bm, const merge_config_t *cfg, int n_own,
                             merge_stats_t *stats)
 {
-    int n_pairs = 0;
+    pair_ctx_t pc = {0, stats};
     for (uint16_t i = 0; i < bm->n; ++i) {
         sc->match_of_in[i] = -1;
         sc->match_d2[i] = INFINITY;
     }
     for (int j = 0; j < n_own; ++j) {
         sc->own_used[j] = 0;
-        const int32_t cx = cell_of(sc->own_body[j].x, sc->cell_m);
-        const int32_t cy = cell_of(sc->own_body[j].y, sc->cell_m);
-        for (int32_t dx = -1; dx <= 1; ++dx) {
-            for (int32_t dy = -1; dy <= 1; ++dy) {
-                for (int32_t i = sc->bucket_head[cell_hash(cx + dx, cy + dy)]; i >= 0; i = sc->next[i]) {
-                    if (sc->cell_x[i] != cx + dx || sc->cell_y[i] != cy + dy || bm->signature[i] != sc->own_sig[j]) {
-                        continue;
-                    }
-                    double d2;
-                    if (cov2_mahalanobis2(cov2_add(sc->own_cov[j], bm->cov[i]), bm->mean[i].x - sc->own_body[j].x,
-                                          bm->mean[i].y - sc->own_body[j].y, &d2) != COSLAM_OK ||
-                        !(d2 < cfg->gate_chi2)) {
-                        continue;
-                    }
-                    if (n_pairs < MERGE_MAX_PAIRS) {
-                        sc->pairs[n_pairs].own = j;
-                        sc->pairs[n_pairs].in = i;
-                        sc->pairs[n_pairs].d2 = d2;
-                        n_pairs++;
-                    } else if (stats != 0) {
-                        stats->skipped++;
-                    }
-                }
-            }
-        }
+        grid_gated(sc, bm, (int32_t)j, cfg->gate_chi2, collect_pair, &pc);
     }
+    const int n_pairs = pc.n_pairs;
     sort_pairs(sc->pairs, n_pairs);
     for (int p = 0; p < n_pairs; ++p) {
         const int32_t i = sc->pairs[p].in;
@@ -509,7 +538,7 @@ coslam_status_t merge_into_fastslam(fastslam_t *fs, const merge_body_map_t *bm, 
                     const cov2_t sum = cov2_add(lm->cov, wc);
                     p->log_w += -0.5 * sc->match_d2[i] - log(COSLAM_TWO_PI * sqrt(cov2_det(sum)));
                 }
-                if ((lm->src_mask & bm->src_mask[i]) == 0U && !cfg->fuse_ci_always) {
+                if ((lm->src_mask & bm->src_mask[i]) == 0U) {
                     st = merge_fuse_kalman(lm->mean, lm->cov, wm, wc, &xm, &xc);
                 } else {
                     st = merge_fuse_ci(lm->mean, lm->cov, wm, wc, &xm, &xc, 0);
@@ -586,7 +615,7 @@ coslam_status_t merge_into_ekfslam(ekfslam_t *ekf, const merge_body_map_t *bm, c
             stats->skipped++;
             continue;
         }
-        if ((meta->src_mask & bm->src_mask[i]) != 0U || cfg->fuse_ci_always) {
+        if ((meta->src_mask & bm->src_mask[i]) != 0U) {
             /* covariance intersection on the relative marginals, applied as
              * the information it adds over the own estimate,
              * (1 - w) (S_b^-1 - S_a^-1), clipped to its positive directions:
@@ -751,28 +780,12 @@ static double chi2_bound(double dof, double z)
     return dof * c * c * c;
 }
 
-/* Incoming landmark i moved by transform t: body-frame mean, covariance
- * R rel_cov R^T + J_T t_cov J_T^T. */
-static void move_incoming(const merge_body_map_t *bm, uint16_t i, pose2_t t, const cov3_t *t_cov, point2_t *mean,
-                          cov2_t *cov)
-{
-    const double c = cos(t.theta);
-    const double s = sin(t.theta);
-    double rot[2][2] = {{c, -s}, {s, c}};
-    *mean = pose2_apply(t, bm->rel[i]);
-    *cov = cov2_congruence(rot, bm->rel_cov[i]);
-    double jt[2][3];
-    pose2_apply_jacobians(t, bm->rel[i], jt, 0);
-    cov3_t tc = *t_cov;
-    *cov = cov2_add(*cov, cov2_from_3x3(jt, tc.m));
-}
-
 /* The incoming map moved by t (prior covariance), grid, pairs. */
 static void check_pair(merge_scratch_t *sc, merge_body_map_t *bm, const merge_config_t *cfg, pose2_t t,
                        const cov3_t *t_cov, int n_own, merge_stats_t *stats)
 {
     for (uint16_t i = 0; i < bm->n; ++i) {
-        move_incoming(bm, i, t, t_cov, &bm->mean[i], &bm->cov[i]);
+        body_landmark(t, t_cov, bm->rel[i], bm->rel_cov[i], &bm->mean[i], &bm->cov[i]);
     }
     /* cells wide enough for the ambiguity search too (merge_check step 3) */
     const double gate = cfg->ambiguous_chi2 > cfg->gate_chi2 ? cfg->ambiguous_chi2 : cfg->gate_chi2;
@@ -783,29 +796,21 @@ static void check_pair(merge_scratch_t *sc, merge_body_map_t *bm, const merge_co
 /* Mark (sc->drop = 2) every unpaired incoming landmark that lies within
  * ambiguous_chi2 of an own landmark left unpaired: through the grid built
  * by check_pair, O(M_own + candidates). */
+static void mark_if_unpaired(merge_scratch_t *sc, int32_t j, int32_t i, double d2, void *ctx)
+{
+    (void)j;
+    (void)d2;
+    (void)ctx;
+    if (sc->match_of_in[i] < 0) {
+        sc->drop[i] = 2U;
+    }
+}
+
 static void mark_ambiguous(merge_scratch_t *sc, const merge_body_map_t *bm, const merge_config_t *cfg, int n_own)
 {
     for (int j = 0; j < n_own; ++j) {
-        if (sc->own_used[j]) {
-            continue;
-        }
-        const int32_t cx = cell_of(sc->own_body[j].x, sc->cell_m);
-        const int32_t cy = cell_of(sc->own_body[j].y, sc->cell_m);
-        for (int32_t dx = -1; dx <= 1; ++dx) {
-            for (int32_t dy = -1; dy <= 1; ++dy) {
-                for (int32_t i = sc->bucket_head[cell_hash(cx + dx, cy + dy)]; i >= 0; i = sc->next[i]) {
-                    double d2;
-                    if (sc->cell_x[i] != cx + dx || sc->cell_y[i] != cy + dy || sc->match_of_in[i] >= 0 ||
-                        bm->signature[i] != sc->own_sig[j]) {
-                        continue;
-                    }
-                    if (cov2_mahalanobis2(cov2_add(sc->own_cov[j], bm->cov[i]), bm->mean[i].x - sc->own_body[j].x,
-                                          bm->mean[i].y - sc->own_body[j].y, &d2) == COSLAM_OK &&
-                        d2 < cfg->ambiguous_chi2) {
-                        sc->drop[i] = 2U;
-                    }
-                }
-            }
+        if (!sc->own_used[j]) {
+            grid_gated(sc, bm, (int32_t)j, cfg->ambiguous_chi2, mark_if_unpaired, 0);
         }
     }
 }
@@ -897,7 +902,6 @@ coslam_status_t merge_check(const map_estimate_t *own, const merge_coverage_t *c
     /* no transform uncertainty (paper mode): nothing to refine */
     const int can_refine = cov3_inverse(c0, &c0_inv) == COSLAM_OK;
     pose2_t t = t0;
-    cov3_t t_post = c0;
     merge_stats_t tmp;
     memset(&tmp, 0, sizeof tmp);
     check_pair(sc, bm, cfg, t, &c0, n_own, &tmp);
@@ -939,7 +943,6 @@ coslam_status_t merge_check(const map_estimate_t *own, const merge_coverage_t *c
         t.x += delta[0];
         t.y += delta[1];
         t.theta = angle_wrap(t.theta + delta[2]);
-        t_post = hinv;
         check_pair(sc, bm, cfg, t, &c0, n_own, &tmp);
     }
     stats->t_shift = (pose2_t){t.x - t0.x, t.y - t0.y, angle_wrap(t.theta - t0.theta)};
@@ -1008,13 +1011,12 @@ coslam_status_t merge_check(const map_estimate_t *own, const merge_coverage_t *c
          * within one map are correlated (the message drops that), so the
          * pairs' information on the transform is overcounted; the prior is
          * the conservative choice (docs/map-merge.md) */
-        move_incoming(bm, i, cfg->refine_check_only ? t0 : t, &c0, &bm->mean[i], &bm->cov[i]);
+        body_landmark(t, &c0, bm->rel[i], bm->rel_cov[i], &bm->mean[i], &bm->cov[i]);
         keep_landmark(bm, i, k);
         k++;
     }
     bm->n = k;
-    bm->t = cfg->refine_check_only ? t0 : t;
+    bm->t = t;
     bm->t_cov = c0;
-    bm->t_cov_post = t_post;
     return COSLAM_OK;
 }

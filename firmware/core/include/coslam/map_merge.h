@@ -99,12 +99,6 @@ typedef struct {
     uint8_t reweight_particles;
     /** Import only landmarks the sender sighted at least this often. */
     uint16_t min_obs;
-    /** 1: fuse every duplicate by covariance intersection, not only those of
-     *  overlapping provenance: the message drops the correlations between
-     *  the sender's landmarks (they share its pose errors), and CI is
-     *  consistent for any correlation (docs/map-merge.md). 0: Kalman fusion
-     *  of disjoint provenance (paper eqs. 4-5). */
-    uint8_t fuse_ci_always;
     /** The duplicates of one message count as at most this many independent
      *  observations (each one's information scaled by fuse_eff_pairs / n):
      *  their errors relative to the sender share its pose error, which the
@@ -130,10 +124,6 @@ typedef struct {
     /** Gauss-Newton refinements of the transform from the shared landmarks
      *  (each re-pairs the landmarks first); 0 keeps the sightings' transform. */
     uint8_t refine_iters;
-    /** 1: the refined transform is only used for the check (pairing and
-     *  agreement test); the incoming map keeps the sightings' transform.
-     *  0: the incoming map is moved by the refined transform. */
-    uint8_t refine_check_only;
     /** The pairs' information on the transform counts as that of at most
      *  this many independent pairs (their errors are correlated through
      *  each robot's pose; the message drops those correlations); 0: every
@@ -180,8 +170,6 @@ typedef struct {
     cov2_t rel_cov[COSLAM_MAX_MSG_LANDMARKS];    /**< [m^2], sender's body frame, no transform term */
     pose2_t t;                                   /**< the transform used (sender body in receiver body) */
     cov3_t t_cov;                                /**< its covariance (zero in paper mode) */
-    cov3_t t_cov_post;                           /**< after merge_check: the refined transform's
-                                                      covariance given the shared landmarks (else t_cov) */
 } merge_body_map_t;
 
 /** Gated duplicate candidate: own landmark, incoming landmark, distance. */
@@ -380,7 +368,7 @@ uint16_t merge_coverage_looks(const merge_coverage_t *c, const slam_params_t *p,
  * refined transform, with the sightings' transform covariance: the pairs'
  * errors are correlated through each robot's pose (the message drops those
  * correlations), so their information on the transform is overcounted and
- * t_cov_post (kept for reports) is overconfident; the prior is the
+ * the refinement's posterior is overconfident; the prior is the
  * conservative choice. On COSLAM_E_MERGE_DISAGREE nothing may be merged. Figures in stats.
  * O((M_own + M_in) * refine_iters + M_in * K).
  */
