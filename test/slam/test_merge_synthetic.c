@@ -42,6 +42,7 @@ typedef struct {
     int added;
     int spurious_before;
     int spurious_after;
+    int refused;          /* robot-merges refused by the check (maps disagree) */
 } merge_agg_t;
 
 static void run_many(run_filter_t a, run_filter_t b, int n_signatures, uint8_t transform_uncertainty, int seeds,
@@ -61,11 +62,8 @@ static void run_many(run_filter_t a, run_filter_t b, int n_signatures, uint8_t t
          * overconfident transform fails the check before trust */
         o.merge.check = transform_uncertainty;
         assert_int_equal(merge_run(&sc, &o, res), 0);
-        if (!(res->r[0].merged && res->r[1].merged)) {
-            printf("seed %d: merge refused (%s, %s)\n", s, coslam_status_str(res->r[0].status),
-                   coslam_status_str(res->r[1].status));
-        }
-        assert_true(res->r[0].merged && res->r[1].merged);
+        /* the sightings' transform is evaluated whether or not the check
+         * then refuses the maps */
         g->t_nees_sum += res->r[0].t_nees;
         g->meetings++;
         for (int k = 0; k < 2; ++k) {
@@ -74,6 +72,12 @@ static void run_many(run_filter_t a, run_filter_t b, int n_signatures, uint8_t t
         }
         for (int k = 0; k < 2; ++k) {
             const merge_robot_result_t *r = &res->r[k];
+            if (!r->merged) {
+                /* only the check may refuse these meetings */
+                assert_int_equal(r->status, COSLAM_E_MERGE_DISAGREE);
+                g->refused++;
+                continue;
+            }
             const int n = r->n_added_eval + r->n_common;
             if (n > 0) {
                 g->nees_sum += (r->after_nees_added * r->n_added_eval + r->nees_common_merged) / n;
@@ -93,10 +97,10 @@ static void run_many(run_filter_t a, run_filter_t b, int n_signatures, uint8_t t
 
 static void print_agg(const char *name, const merge_agg_t *g)
 {
-    printf("%s: %d merges, landmark NEES after merge %.2f, transform NEES %.2f, RMS error %.3f m (refined "
+    printf("%s: %d merges (%d refused), landmark NEES after merge %.2f, transform NEES %.2f, RMS error %.3f m (refined "
            "%.3f m), common landmarks %d: relative RMSE own %.3f received %.3f merged %.3f, added %d, spurious "
            "%d -> %d\n",
-           name, g->merges, g->nees_sum / g->merges, g->t_nees_sum / g->meetings,
+           name, g->merges, g->refused, g->nees_sum / g->merges, g->t_nees_sum / g->meetings,
            sqrt(g->t_se / (2 * g->meetings)), sqrt(g->t_se_refined / (2 * g->meetings)), g->n_common,
            sqrt(g->rel_self / g->n_common), sqrt(g->rel_recv / g->n_common), sqrt(g->rel_merged / g->n_common),
            g->added, g->spurious_before, g->spurious_after);
@@ -129,6 +133,11 @@ static void test_merge_consistent(void **state)
      * can remove it) */
     ASSERT_TRUE_MSG(ours.rel_merged <= ours.rel_self && ours.rel_merged <= ours.rel_recv,
                     "merged error above the better input\n");
+    /* consistent maps fail the 99 % agreement test 1 % of the time: at most
+     * 1 % + 3 binomial sd of the robot-merges (and never all) */
+    const int tests = ours.merges + ours.refused;
+    ASSERT_TRUE_MSG(ours.refused <= (int)(0.01 * tests + 3.0 * sqrt(0.01 * 0.99 * tests)) + 1,
+                    "%d of %d consistent merges refused\n", ours.refused, tests);
     assert_true(ours.added > 0 && ours.n_common > 0);
 }
 
@@ -138,8 +147,12 @@ static void combo(run_filter_t a, run_filter_t b, const char *name)
     merge_agg_t g;
     run_many(a, b, 4, 1, SEEDS_COMBO, &g);
     print_agg(name, &g);
-    assert_int_equal(g.merges, 2 * SEEDS_COMBO);
-    assert_true(g.added >= 10 * SEEDS_COMBO); /* each robot learns the other half */
+    assert_int_equal(g.merges + g.refused, 2 * SEEDS_COMBO);
+    /* refusals of these correct maps are false alarms: 1 % for consistent
+     * inputs, more for a Fast-SLAM party whose exported covariances are too
+     * confident (issue 9); at most one in ten */
+    ASSERT_TRUE_MSG(g.refused * 10 <= 2 * SEEDS_COMBO, "%d of %d merges refused\n", g.refused, 2 * SEEDS_COMBO);
+    assert_true(g.added >= 10 * (2 * SEEDS_COMBO - g.refused) / 2); /* each merging robot learns the other half */
     /* the merged estimate of a common landmark, relative to the receiver, is
      * at least as good as what was received. Not yet for a Fast-SLAM
      * receiver: its exported covariances are 10-40x too confident (landmark
