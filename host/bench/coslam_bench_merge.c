@@ -203,7 +203,7 @@ int main(int argc, char **argv)
         ekfslam_init(&g_ekf, &ec, p0);
         rng_seed(&r, 7U);
         for (int j = 0; j < m; ++j) {
-            ekfslam_meta_t meta = {(uint32_t)(j + 1), 10.0f, 10, 1, (uint8_t)(j % 4)};
+            ekfslam_meta_t meta = {(uint32_t)(j + 1), 10.0f, 10, 1, (uint8_t)(j % 4), 0};
             ekfslam_add_landmark_body(&g_ekf, site(j, &r), cov2_make(0.01, 0.0, 0.01), &meta);
         }
         rng_seed(&r, 7U);

@@ -72,7 +72,7 @@ static void add_landmark(slam_filter_t *f, point2_t pt)
         pose2_t pose;
         cov3_t pc;
         slam_filter_pose(f, &pose, &pc);
-        ekfslam_meta_t meta = {f->u.ekf.next_id, sp->exist_max, 20, (uint16_t)(1U << f->robot_id), 0};
+        ekfslam_meta_t meta = {f->u.ekf.next_id, sp->exist_max, 20, (uint16_t)(1U << f->robot_id), 0, 0};
         assert_int_equal(ekfslam_add_landmark_body(&f->u.ekf, pose2_apply_inverse(pose, pt), cov, &meta), COSLAM_OK);
         (void)ekfslam_new_id(&f->u.ekf);
         return;

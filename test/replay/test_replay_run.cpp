@@ -390,7 +390,11 @@ TEST_P(Mrclam120, TwoRobotsFirst120sBoundedErrorsAndAMerge)
         // paired with it (docs/replay.md "Merge protocol"); EKF-SLAM's gets 5+
         EXPECT_GE(r.final_score.n_matched, ekf ? 5 : 4);
         EXPECT_LT(r.final_score.rmse_m, ekf ? 0.75 : 1.0);
-        EXPECT_LE(r.final_score.n_spurious, ekf ? 1 : 4);
+        // EKF-SLAM: 1 until its association held back ambiguous loop
+        // closures (docs/consistency.md); since then 2 on one robot here,
+        // while on the held-out Dataset 1 the five robots' spurious
+        // landmarks fell from 17 to 5.
+        EXPECT_LE(r.final_score.n_spurious, ekf ? 2 : 4);
     }
     int ok = 0;
     for (const auto &e : res.merges) {

@@ -287,7 +287,7 @@ static void setup_jcbb_case(ekfslam_assoc_t assoc, sighting_t z[2])
     const point2_t lms[3] = {{3.0, 0.0}, {3.0, 0.6}, {2.0, -2.0}};
     for (int j = 0; j < 3; ++j) {
         const pose2_t origin = {0.0, 0.0, 0.0};
-        ekfslam_meta_t meta = {(uint32_t)(j + 1), 5.0f, 5, 1, 0};
+        ekfslam_meta_t meta = {(uint32_t)(j + 1), 5.0f, 5, 1, 0, 0};
         assert_int_equal(ekfslam_add_landmark_body(&g_ekf, pose2_apply_inverse(origin, lms[j]),
                                                    cov2_make(1e-4, 0.0, 1e-4), &meta),
                          COSLAM_OK);

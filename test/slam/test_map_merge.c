@@ -331,7 +331,14 @@ static void test_merge_into_fastslam(void **state)
     c.robot_id = 0;
     const pose2_t p0 = {0.0, 0.0, 0.0};
     assert_int_equal(fastslam_init(&g_fs, &c, p0, 3U), COSLAM_OK);
-    const landmark_t own = {{2.0, 0.0}, {0.02, 0.0, 0.02}, 1U, 6.0f, 8, 1, 0, 0};
+    landmark_t own;
+    memset(&own, 0, sizeof own);
+    own.mean = (point2_t){2.0, 0.0};
+    own.cov = cov2_make(0.02, 0.0, 0.02);
+    own.id = 1U;
+    own.exist = 6.0f;
+    own.n_obs = 8;
+    own.src_mask = 1;
     for (uint16_t k = 0; k < 20; ++k) {
         g_fs.particles[k].pose.theta = 0.3;
         assert_int_equal(fastslam_particle_add(&g_fs, k, &own), COSLAM_OK);

@@ -61,7 +61,8 @@ static const char *filter_name(run_filter_t f)
  * so we use the band of K single landmarks (K * 2 dof), which is the
  * conservative choice.
  */
-static void consistency(run_filter_t filter, int n_particles, int stop_after, int every, int n_seeds)
+static void consistency(run_filter_t filter, int n_particles, int stop_after, int every, int n_seeds,
+                        double pose_lo_factor)
 {
     double ckpt_sum[RUN_MAX_CKPT] = {0};
     int n_ckpt = 0;
@@ -93,7 +94,7 @@ static void consistency(run_filter_t filter, int n_particles, int stop_after, in
     for (int k = 0; k < n_ckpt; ++k) {
         const double a = ckpt_sum[k] / n_seeds;
         printf(" %.2f", a);
-        inside += a >= lo3 && a <= hi3;
+        inside += a >= pose_lo_factor * lo3 && a <= hi3;
     }
     const double lm_anees = lm_nees_sum / n_seeds;
     printf("\n  inside %d/%d; landmark ANEES %.2f band [%.2f, %.2f]\n", inside, n_ckpt, lm_anees, lo2, hi2);
@@ -108,7 +109,7 @@ static void consistency(run_filter_t filter, int n_particles, int stop_after, in
 static void test_ekf_consistent_over_the_loop(void **state)
 {
     (void)state;
-    consistency(RUN_EKFSLAM, 0, 0, 50, SEEDS_EKF_CONSISTENCY);
+    consistency(RUN_EKFSLAM, 0, 0, 50, SEEDS_EKF_CONSISTENCY, 1.0);
 }
 
 /*
@@ -116,13 +117,18 @@ static void test_ekf_consistent_over_the_loop(void **state)
  * particles (Bailey, Nieto, Nebot, "Consistency of the FastSLAM
  * algorithm", ICRA 2006): resampling loses the path diversity that carries
  * the absolute uncertainty. We test that short-term consistency: Fast-SLAM
- * 2.0 with 1000 particles over the first 30 s. (Over the whole loop with
- * 100 particles its NEES is 10-100x too large; docs/core-slam.md.)
+ * 2.0 with 1000 particles over the first 20 s. The exported pose covariance
+ * bounds (Loewner maximum) the particles' mixture and their anchored pose
+ * marginals (coslam/marginal.h), which keep the exported map honest after
+ * resampling has depleted the particles (test_worlds.c) but do not re-anchor
+ * a landmark, so over these 20 s they are about 1.5x conservative: the pose
+ * band's lower end is halved (never overconfident, at most 2x conservative).
+ * The landmark NEES must be inside the band.
  */
 static void test_fastslam_consistent_short_term(void **state)
 {
     (void)state;
-    consistency(RUN_FASTSLAM2, 1000, 200, 25, SEEDS_FS_CONSISTENCY);
+    consistency(RUN_FASTSLAM2, 1000, 200, 25, SEEDS_FS_CONSISTENCY, 0.5);
 }
 
 /*

@@ -13,6 +13,9 @@ ekfslam_config_t ekfslam_config_default(void)
     c.robot_id = 0;
     c.assoc = EKFSLAM_ASSOC_JCBB;
     c.jcbb_max_nodes = 20000U;
+    c.jcbb_ambiguity_d2 = 9.21;
+    c.jcbb_min_closure_pairs = 1U;
+    c.jcbb_closure_gap = 25U;
     c.fej = 1U;
     return c;
 }
@@ -51,6 +54,7 @@ coslam_status_t ekfslam_init(ekfslam_t *ekf, const ekfslam_config_t *cfg, pose2_
     COSLAM_ASSERT(ekf != 0 && cfg != 0);
     if (slam_params_validate(&cfg->slam) != COSLAM_OK || cfg->robot_id >= COSLAM_MAX_ROBOTS || cfg->fej > 1U ||
         (cfg->assoc != EKFSLAM_ASSOC_NN && cfg->assoc != EKFSLAM_ASSOC_JCBB) || cfg->jcbb_max_nodes < 1U ||
+        !(cfg->jcbb_ambiguity_d2 >= 0.0 && cfg->jcbb_ambiguity_d2 < 1e6) || cfg->jcbb_min_closure_pairs < 1U ||
         !pose2_is_finite(pose0)) {
         return COSLAM_E_ARG;
     }
@@ -347,6 +351,7 @@ static coslam_status_t add_landmark(ekfslam_t *ekf, point2_t m, double gr[2][3],
     ekf->x[a + 1] = m.y;
     ekf->lm_first[ekf->n_lm] = m;
     ekf->meta[ekf->n_lm] = *meta;
+    ekf->meta[ekf->n_lm].last_seen = ekf->ctr.updates;
     ekf->lm_confirmed_once[ekf->n_lm] = 0U; /* set by exist_miss() if meta->exist confirms it */
     ekf->n_lm++;
     return COSLAM_OK;
@@ -406,7 +411,7 @@ static void joint_block(const ekfslam_t *ekf, uint16_t ja, uint16_t jb, double s
  * returns the new joint squared Mahalanobis distance, or INFINITY if the
  * joint covariance is not positive definite.
  */
-static double jcbb_extend(ekfslam_t *ekf, const sighting_t *z, int k, int pi)
+static double jcbb_extend(ekfslam_t *ekf, const sighting_t *z, int k, int pi, double *logdet_inc)
 {
     ekfslam_scratch_t *sc = &ekf->scratch;
     const assoc_pair_t *pa = &sc->pairs[pi];
@@ -457,6 +462,7 @@ static double jcbb_extend(ekfslam_t *ekf, const sighting_t *z, int k, int pi)
         return INFINITY;
     }
     const double l11 = sqrt(rem);
+    *logdet_inc = 2.0 * (log(l00) + log(l11));
     l[n][n] = l00;
     l[n][n + 1] = 0.0;
     l[n + 1][n] = l10;
@@ -487,19 +493,87 @@ static int landmark_in_hyp(const ekfslam_scratch_t *sc, int ns, int32_t j)
     return 0;
 }
 
-static void jcbb_search(ekfslam_t *ekf, const sighting_t *z, int ns, int i, int k, double d2)
+/* Joint hypotheses are ranked by likelihood: the joint Gaussian density of
+ * the paired sightings' innovations, times the new-landmark density p0 for
+ * each sighting that had a candidate but is left unpaired. (Ranking by the
+ * number of pairings, as plain JCBB does, prefers a wrong pairing of a
+ * first-seen marker with an old identical one whenever the pose is
+ * uncertain enough for it to be jointly compatible.) */
+static void jcbb_leaf(ekfslam_t *ekf, int ns, int k, double score)
+{
+    ekfslam_scratch_t *sc = &ekf->scratch;
+    if (score > sc->best_score) {
+        sc->second_score = sc->best_score;
+        sc->second_pairings = sc->best_pairings;
+        for (int q = 0; q < ns; ++q) {
+            sc->second[q] = sc->best[q];
+        }
+        sc->best_score = score;
+        sc->best_pairings = k;
+        for (int q = 0; q < ns; ++q) {
+            sc->best[q] = sc->hyp[q];
+        }
+    } else if (score > sc->second_score) {
+        sc->second_score = score;
+        sc->second_pairings = k;
+        for (int q = 0; q < ns; ++q) {
+            sc->second[q] = sc->hyp[q];
+        }
+    }
+}
+
+/* A pairing is a loop closure if its landmark was not sighted for a while
+ * (a revisit) and the robot-landmark uncertainty, not the sensor, dominates
+ * its innovation: det S > 4 det Q (its error ellipse more than twice the
+ * sensor's in area). */
+static int pair_is_closure(const ekfslam_t *ekf, int32_t j)
+{
+    if (ekf->ctr.updates - ekf->meta[j].last_seen <= ekf->cfg.jcbb_closure_gap) {
+        return 0;
+    }
+    const lm_expect_t *e = &ekf->scratch.expect[j];
+    const cov2_t q = observe_noise(&ekf->cfg.slam, e->zhat.range_m);
+    return cov2_det(e->s) > 4.0 * cov2_det(q);
+}
+
+static void jcbb_search(ekfslam_t *ekf, const sighting_t *z, int ns, int i, int k, double d2, double logdet,
+                        int n_unpaired, int n_closure)
 {
     ekfslam_scratch_t *sc = &ekf->scratch;
     if (sc->nodes >= ekf->cfg.jcbb_max_nodes) {
         return;
     }
     sc->nodes++;
+    /* branch and bound: the score so far plus the most the remaining
+     * sightings can add (ub_rest) must beat the best (pass 0) or come
+     * within the ambiguity margin of it (pass 1) */
+    {
+        const double partial = -0.5 * (d2 + logdet) - (double)k * log(COSLAM_TWO_PI) +
+                               (double)n_unpaired * ekf->cfg.slam.new_landmark_log_lik;
+        const double floor = sc->pass == 0U ? sc->best_score : sc->best_score - 0.5 * ekf->cfg.jcbb_ambiguity_d2;
+        if (partial + sc->ub_rest[i] <= floor) {
+            return;
+        }
+    }
     if (i == ns) {
-        if (k > sc->best_pairings || (k == sc->best_pairings && d2 < sc->best_d2)) {
-            sc->best_pairings = k;
-            sc->best_d2 = d2;
+        if (n_closure > 0 && n_closure < (int)ekf->cfg.jcbb_min_closure_pairs) {
+            sc->closures_short++; /* too few loop-closing pairings to trust */
+            return;
+        }
+        const double score = -0.5 * (d2 + logdet) - (double)k * log(COSLAM_TWO_PI) +
+                             (double)n_unpaired * ekf->cfg.slam.new_landmark_log_lik;
+        if (sc->pass == 0U) {
+            jcbb_leaf(ekf, ns, k, score);
+        } else {
+            /* second pass: the best alternative for each sighting */
             for (int q = 0; q < ns; ++q) {
-                sc->best[q] = sc->hyp[q];
+                if (sc->hyp[q] == sc->best[q]) {
+                    continue;
+                }
+                double *alt = sc->hyp[q] >= 0 ? &sc->alt_other[q] : &sc->alt_none[q];
+                if (score > *alt) {
+                    *alt = score;
+                }
             }
         }
         return;
@@ -509,19 +583,19 @@ static void jcbb_search(ekfslam_t *ekf, const sighting_t *z, int ns, int i, int 
         if (landmark_in_hyp(sc, i, j)) {
             continue;
         }
-        const double d2n = jcbb_extend(ekf, z, k, pi);
+        double inc = 0.0;
+        const double d2n = jcbb_extend(ekf, z, k, pi, &inc);
         if (d2n < sc->chi2_joint[k + 1]) {
             sc->hyp[i] = j;
             sc->hyp_pair[k] = pi;
-            jcbb_search(ekf, z, ns, i + 1, k + 1, d2n);
+            jcbb_search(ekf, z, ns, i + 1, k + 1, d2n, logdet + inc, n_unpaired,
+                        n_closure + pair_is_closure(ekf, j));
             sc->hyp[i] = -1;
         }
     }
-    /* leave sighting i unpaired only if that can still tie or beat the best */
-    if (k + (ns - i - 1) >= sc->best_pairings) {
-        sc->hyp[i] = -1;
-        jcbb_search(ekf, z, ns, i + 1, k, d2);
-    }
+    sc->hyp[i] = -1;
+    jcbb_search(ekf, z, ns, i + 1, k, d2, logdet,
+                n_unpaired + (sc->cand_begin[i + 1] > sc->cand_begin[i] ? 1 : 0), n_closure);
 }
 
 /* Chi-square quantiles for 2, 4, ..., 2 ns dof at the confidence of the
@@ -572,14 +646,83 @@ static void jcbb_associate(ekfslam_t *ekf, const sighting_t *z, int ns, int n_pa
         sc->best[i] = -1;
     }
     sc->best_pairings = 0;
-    sc->best_d2 = 0.0;
+    sc->best_score = -INFINITY;
+    sc->second_pairings = -1;
+    sc->second_score = -INFINITY;
+    /* Upper bound of each sighting's share of the score: unpaired, the
+     * new-landmark density; paired, the Gaussian density at zero innovation
+     * with the smallest conditional covariance possible, the sensor noise
+     * Q (the conditional innovation covariance is Q plus a PSD term). */
+    sc->ub_rest[ns] = 0.0;
+    for (int i = ns - 1; i >= 0; --i) {
+        double ub = sc->cand_begin[i + 1] > sc->cand_begin[i] ? ekf->cfg.slam.new_landmark_log_lik : 0.0;
+        for (int q = sc->cand_begin[i]; q < sc->cand_begin[i + 1]; ++q) {
+            const lm_expect_t *e = &sc->expect[sc->pairs[q].landmark];
+            const double r0 = fmin(e->zhat.range_m, z[i].range_m);
+            const cov2_t qn = observe_noise(&ekf->cfg.slam, r0 > 0.0 ? r0 : 0.0);
+            const double b = -log(COSLAM_TWO_PI) - 0.5 * log(cov2_det(qn));
+            if (b > ub) {
+                ub = b;
+            }
+        }
+        sc->ub_rest[i] = sc->ub_rest[i + 1] + ub;
+    }
     sc->nodes = 0U;
-    jcbb_search(ekf, z, ns, 0, 0, 0.0);
+    sc->closures_short = 0U;
+    sc->pass = 0U;
+    jcbb_search(ekf, z, ns, 0, 0, 0.0, 0.0, 0, 0);
+    if (sc->closures_short > 0U) {
+        ekf->ctr.jcbb_closures_held++;
+    }
+    /* second pass: for each sighting, the most likely hypothesis that reads
+     * it differently (pairs it with another landmark, or with none) */
+    for (int i = 0; i < ns; ++i) {
+        sc->alt_other[i] = -INFINITY;
+        sc->alt_none[i] = -INFINITY;
+    }
+    if (ekf->cfg.jcbb_ambiguity_d2 > 0.0 && sc->best_pairings > 0) {
+        sc->pass = 1U;
+        jcbb_search(ekf, z, ns, 0, 0, 0.0, 0.0, 0, 0);
+    }
     if (sc->nodes >= ekf->cfg.jcbb_max_nodes) {
         ekf->ctr.jcbb_budget_hits++;
     }
+    /* A loop-closing pairing is used only if it is decisively the most
+     * likely reading of its sighting (by ambiguity_d2 / 2 in log-likelihood)
+     * against both pairing it with another landmark and with none; else the
+     * sighting is held back (neither paired nor new). Pairings with
+     * landmarks in view lately are left to the joint likelihood: holding
+     * them back starves the filter where identical markers stand close
+     * (MRCLAM's clusters) while their pose error is already small. */
+    const double margin = 0.5 * ekf->cfg.jcbb_ambiguity_d2;
+    int n_with_cand = 0;
     for (int i = 0; i < ns; ++i) {
+        n_with_cand += sc->cand_begin[i + 1] > sc->cand_begin[i];
+    }
+    int ambiguous = 0;
+    for (int i = 0; i < ns; ++i) {
+        sc->held[i] = 0U;
         sc->assign[i] = sc->best[i];
+        if (sc->best[i] >= 0 && pair_is_closure(ekf, sc->best[i]) &&
+            (sc->alt_other[i] > sc->best_score - margin ||
+             (n_with_cand >= 2 && sc->alt_none[i] > sc->best_score - margin))) {
+            sc->assign[i] = -1;
+            sc->held[i] = 1U;
+            ambiguous = 1;
+        }
+        if (sc->assign[i] < 0 && !sc->held[i]) {
+            /* unpaired but it had a loop-closing candidate: not new either,
+             * wait for a frame that closes the loop with enough pairings */
+            for (int q = sc->cand_begin[i]; q < sc->cand_begin[i + 1]; ++q) {
+                if (pair_is_closure(ekf, sc->pairs[q].landmark)) {
+                    sc->held[i] = 1U;
+                    break;
+                }
+            }
+        }
+    }
+    if (ambiguous) {
+        ekf->ctr.jcbb_ambiguous++;
     }
 }
 
@@ -654,11 +797,15 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
         jcbb_associate(ekf, z, ns, n_pairs);
     } else {
         assoc_greedy(sc->pairs, n_pairs, ns, sc->assign);
+        for (int i = 0; i < ns; ++i) {
+            sc->held[i] = 0U;
+        }
     }
     /* decide now which unpaired sightings start landmarks (needs the pairs) */
     uint8_t make_new[COSLAM_MAX_SIGHTINGS];
     for (int i = 0; i < ns; ++i) {
-        make_new[i] = sc->assign[i] < 0 && assoc_unpaired_is_new(sc->pairs, n_pairs, i, sc->assign, ns, sc->n_near);
+        make_new[i] = sc->assign[i] < 0 && !sc->held[i] &&
+                      assoc_unpaired_is_new(sc->pairs, n_pairs, i, sc->assign, ns, sc->n_near);
     }
 
     /* 3. sequential updates, relinearised at the current state */
@@ -669,6 +816,7 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
         }
         if (update_one(ekf, (uint16_t)j, z[i]) == COSLAM_OK) {
             ekfslam_meta_t *m = &ekf->meta[j];
+            m->last_seen = ekf->ctr.updates;
             exist_hit(&m->exist, sp);
             if (m->n_obs < UINT16_MAX) {
                 m->n_obs++;

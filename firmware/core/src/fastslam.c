@@ -3,6 +3,8 @@
 #include <math.h>
 #include <string.h>
 
+#include "coslam/marginal.h"
+
 fastslam_config_t fastslam_config_default(void)
 {
     fastslam_config_t c;
@@ -92,6 +94,7 @@ coslam_status_t fastslam_init(fastslam_t *fs, const fastslam_config_t *cfg, pose
         p->pose.y = pose0.y + d[1];
         p->pose.theta = angle_wrap(pose0.theta + d[2]);
         p->pending_cov = cov3_zero();
+        p->pose_marg = p0;
         p->log_w = 0.0;
         p->n_lm = 0;
     }
@@ -107,21 +110,21 @@ coslam_status_t fastslam_predict(fastslam_t *fs, odo_increment_t u)
     const slam_params_t *sp = &fs->cfg.slam;
     const uint16_t n = fs->cfg.n_particles;
     fs->ctr.predictions++;
-    if (fs->cfg.proposal == FASTSLAM_PROPOSAL_MOTION) {
-        for (uint16_t k = 0; k < n; ++k) {
-            fastslam_particle_t *p = &fs->particles[k];
+    const cov3_t r = motion_noise_cov(sp, u);
+    const int fs1 = fs->cfg.proposal == FASTSLAM_PROPOSAL_MOTION;
+    for (uint16_t k = 0; k < n; ++k) {
+        fastslam_particle_t *p = &fs->particles[k];
+        double g[3][3];
+        double v[3][3];
+        motion_jacobians(p->pose, u, g, v);
+        const cov3_t vrv = cov3_congruence(v, r);
+        p->pose_marg = cov3_add(cov3_congruence(g, p->pose_marg), vrv);
+        if (fs1) {
             p->pose = motion_apply(p->pose, motion_sample(sp, u, &fs->rng));
-        }
-    } else {
-        /* Fast-SLAM 2.0: propagate the proposal mean; accumulate the
-         * linearised motion covariance, the pose is sampled at the update. */
-        const cov3_t r = motion_noise_cov(sp, u);
-        for (uint16_t k = 0; k < n; ++k) {
-            fastslam_particle_t *p = &fs->particles[k];
-            double g[3][3];
-            double v[3][3];
-            motion_jacobians(p->pose, u, g, v);
-            p->pending_cov = cov3_add(cov3_congruence(g, p->pending_cov), cov3_congruence(v, r));
+        } else {
+            /* Fast-SLAM 2.0: propagate the proposal mean; accumulate the
+             * linearised motion covariance, the pose is sampled at the update. */
+            p->pending_cov = cov3_add(cov3_congruence(g, p->pending_cov), vrv);
             p->pose = motion_apply(p->pose, u);
         }
     }
@@ -209,6 +212,15 @@ static void fs2_improve_and_sample(fastslam_t *fs, fastslam_particle_t *p, const
     fs2_commit_pose(fs, p);
 }
 
+/* A sighting's share of the pose-marginal update (marginal.h). */
+typedef struct {
+    cov3_t anchor;
+    point2_t at;
+    double hp[2][3];
+    cov2_t n;
+    double key;
+} marg_obs_t;
+
 /* Remove landmark j from particle p, keeping order irrelevant (swap with last). */
 static void particle_remove(fastslam_particle_t *p, uint16_t j)
 {
@@ -285,6 +297,8 @@ static coslam_status_t update_particle(fastslam_t *fs, uint16_t k, const sightin
     }
 
     /* 3. weights and landmark updates */
+    marg_obs_t mobs[COSLAM_MAX_SIGHTINGS];
+    int n_mobs = 0;
     if (fs2) {
         fs2_improve_and_sample(fs, p, z, ns, sc->assign);
     }
@@ -307,9 +321,35 @@ static coslam_status_t update_particle(fastslam_t *fs, uint16_t k, const sightin
         } else {
             p->log_w += landmark_log_lik(ep, landmark_mahalanobis2(ep, z[i]));
         }
+        /* pose marginal: the sighting bounds the drift since the landmark's
+         * anchor; applied below, after the frame's other sightings */
+        {
+            marg_obs_t *mo = &mobs[n_mobs++];
+            mo->n = cov2_add(cov2_congruence((double(*)[2])ep->h_lm, lm->cov), observe_noise(sp, ep->zhat.range_m));
+            mo->anchor = landmark_anchor(lm);
+            mo->at = (point2_t){lm->anchor_xy[0], lm->anchor_xy[1]};
+            memcpy(mo->hp, ep->h_pose, sizeof mo->hp);
+            mo->key = mo->anchor.m[0][0] + mo->anchor.m[1][1];
+        }
         landmark_update(lm, sp, ep, z[i]);
         exist_hit(&lm->exist, sp);
         sc->matched[j] = 1;
+    }
+    /* Each sighting leaves the pose marginal at least its landmark's
+     * anchor (carried forward): take the loosest anchors first, so that the
+     * tightest one sets the floor (insertion sort, n <= sightings). */
+    for (int a = 1; a < n_mobs; ++a) {
+        for (int b = a; b > 0 && mobs[b].key > mobs[b - 1].key; --b) {
+            const marg_obs_t tmp = mobs[b];
+            mobs[b] = mobs[b - 1];
+            mobs[b - 1] = tmp;
+        }
+    }
+    for (int a = 0; a < n_mobs; ++a) {
+        if (marginal_pose_observe(&p->pose_marg, p->pose, &mobs[a].anchor, mobs[a].at, mobs[a].hp, mobs[a].n) !=
+            COSLAM_OK) {
+            fs->ctr.numeric_faults++;
+        }
     }
 
     /* 5. negative evidence (before adding, so that freed slots can be reused);
@@ -342,6 +382,7 @@ static coslam_status_t update_particle(fastslam_t *fs, uint16_t k, const sightin
             fs->ctr.numeric_faults++;
             continue;
         }
+        landmark_set_anchor(&lm, &p->pose_marg, (point2_t){p->pose.x, p->pose.y});
         if (fastslam_particle_add(fs, k, &lm) != COSLAM_OK) {
             result = COSLAM_E_CAPACITY;
         }
@@ -412,6 +453,7 @@ static void copy_particle(fastslam_particle_t *dst, const fastslam_particle_t *s
 {
     dst->pose = src->pose;
     dst->pending_cov = src->pending_cov;
+    dst->pose_marg = src->pose_marg;
     dst->log_w = src->log_w;
     dst->n_lm = src->n_lm;
     memcpy(dst->lm, src->lm, (size_t)src->n_lm * sizeof src->lm[0]);
@@ -534,6 +576,7 @@ void fastslam_pose_estimate(const fastslam_t *fs, pose2_t *mean, cov3_t *cov)
     pose2_t m = {sx / sw, sy / sw, atan2(ss, scs)};
     m.theta = angle_wrap(m.theta);
     cov3_t c = cov3_zero();
+    cov3_t g = cov3_zero();
     for (uint16_t k = 0; k < n; ++k) {
         const fastslam_particle_t *p = &fs->particles[k];
         const double w = exp(p->log_w - mx) / sw;
@@ -541,11 +584,12 @@ void fastslam_pose_estimate(const fastslam_t *fs, pose2_t *mean, cov3_t *cov)
         for (int r = 0; r < 3; ++r) {
             for (int q = 0; q < 3; ++q) {
                 c.m[r][q] += w * (d[r] * d[q] + p->pending_cov.m[r][q]);
+                g.m[r][q] += w * (d[r] * d[q] + p->pose_marg.m[r][q]);
             }
         }
     }
     *mean = m;
-    *cov = cov3_symmetrize(c);
+    *cov = cov3_loewner_max(cov3_symmetrize(c), cov3_symmetrize(g));
 }
 
 /* Slot of identity `id` in the export table, inserting (zeroed) if absent; -1 if full. */
@@ -572,6 +616,9 @@ static int export_slot(fastslam_export_scratch_t *t, uint32_t id, int insert)
             t->rxx[h] = 0.0;
             t->rxy[h] = 0.0;
             t->ryy[h] = 0.0;
+            t->gxx[h] = 0.0;
+            t->gxy[h] = 0.0;
+            t->gyy[h] = 0.0;
             t->nobs[h] = 0.0;
             t->src_mask[h] = 0U;
             t->signature[h] = 0U;
@@ -665,9 +712,18 @@ coslam_status_t fastslam_export(fastslam_t *fs, map_estimate_t *out)
             t->cxx[s] += w[k] * (lm->cov.xx + dx * dx);
             t->cxy[s] += w[k] * (lm->cov.xy + dx * dy);
             t->cyy[s] += w[k] * (lm->cov.yy + dy * dy);
-            /* relative to this particle's pose, in its body frame */
+            const cov2_t g = landmark_marginal(lm);
+            t->gxx[s] += w[k] * (g.xx + dx * dx);
+            t->gxy[s] += w[k] * (g.xy + dx * dy);
+            t->gyy[s] += w[k] * (g.yy + dy * dy);
+            /* relative to this particle's pose, in its body frame: sensor
+             * noise plus the pose drift since the landmark's anchor
+             * (marginal_relative_drift) */
             const point2_t rel = pose2_apply_inverse(p->pose, lm->mean);
-            const cov2_t cr = cov2_congruence(rt, lm->cov);
+            const cov3_t anchor = landmark_anchor(lm);
+            const cov2_t cr = cov2_add(cov2_congruence(rt, lm->cov),
+                                       marginal_relative_drift(&p->pose_marg, p->pose, &anchor,
+                                                               (point2_t){lm->anchor_xy[0], lm->anchor_xy[1]}, rel));
             const double ex = rel.x - t->rx[s];
             const double ey = rel.y - t->ry[s];
             t->rxx[s] += w[k] * (cr.xx + ex * ex);
@@ -696,7 +752,10 @@ coslam_status_t fastslam_export(fastslam_t *fs, map_estimate_t *out)
         const double inv_w = 1.0 / t->w[s];
         o->mean.x = t->mx[s];
         o->mean.y = t->my[s];
-        o->cov = cov2_make(t->cxx[s] * inv_w, t->cxy[s] * inv_w, t->cyy[s] * inv_w);
+        /* the marginal mixture bounds the conditional one (G A G^T >= 0);
+         * the max guards rounding */
+        o->cov = cov2_loewner_max(cov2_make(t->gxx[s] * inv_w, t->gxy[s] * inv_w, t->gyy[s] * inv_w),
+                                  cov2_make(t->cxx[s] * inv_w, t->cxy[s] * inv_w, t->cyy[s] * inv_w));
         o->cov_rel = cov2_make(t->rxx[s] * inv_w, t->rxy[s] * inv_w, t->ryy[s] * inv_w);
         o->id = t->id[s];
         const double nobs = t->nobs[s] * inv_w + 0.5;

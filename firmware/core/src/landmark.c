@@ -23,7 +23,48 @@ coslam_status_t landmark_init(landmark_t *lm, const slam_params_t *params, pose2
     lm->src_mask = src_mask;
     lm->signature = z.signature;
     lm->confirmed_once = 0;
+    for (int i = 0; i < 6; ++i) {
+        lm->anchor_cov[i] = 0.0f;
+    }
+    lm->anchor_xy[0] = (float)pose.x;
+    lm->anchor_xy[1] = (float)pose.y;
     return COSLAM_OK;
+}
+
+cov3_t landmark_anchor(const landmark_t *lm)
+{
+    const float *c = lm->anchor_cov;
+    cov3_t p;
+    p.m[0][0] = c[0];
+    p.m[0][1] = p.m[1][0] = c[1];
+    p.m[0][2] = p.m[2][0] = c[2];
+    p.m[1][1] = c[3];
+    p.m[1][2] = p.m[2][1] = c[4];
+    p.m[2][2] = c[5];
+    return p;
+}
+
+void landmark_set_anchor(landmark_t *lm, const cov3_t *p, point2_t at)
+{
+    float *c = lm->anchor_cov;
+    c[0] = (float)p->m[0][0];
+    c[1] = (float)p->m[0][1];
+    c[2] = (float)p->m[0][2];
+    c[3] = (float)p->m[1][1];
+    c[4] = (float)p->m[1][2];
+    c[5] = (float)p->m[2][2];
+    lm->anchor_xy[0] = (float)at.x;
+    lm->anchor_xy[1] = (float)at.y;
+}
+
+cov2_t landmark_marginal(const landmark_t *lm)
+{
+    const cov3_t a = landmark_anchor(lm);
+    double g[2][3] = {{1.0, 0.0, -(lm->mean.y - (double)lm->anchor_xy[1])},
+                      {0.0, 1.0, lm->mean.x - (double)lm->anchor_xy[0]}};
+    const cov2_t d = cov2_from_3x3(g, (double(*)[3])a.m);
+    const cov2_t m = cov2_add(lm->cov, d);
+    return cov2_is_pd(m) ? m : lm->cov;
 }
 
 coslam_status_t landmark_expect(const landmark_t *lm, const slam_params_t *params, pose2_t pose,

@@ -562,6 +562,9 @@ coslam_status_t merge_into_fastslam(fastslam_t *fs, const merge_body_map_t *bm, 
                 lm.n_obs = bm->n_obs[i];
                 lm.src_mask = bm->src_mask[i];
                 lm.signature = bm->signature[i];
+                /* placed through this particle's pose: its pose error is the
+                 * received landmark's anchor (marginal.h) */
+                landmark_set_anchor(&lm, &p->pose_marg, (point2_t){p->pose.x, p->pose.y});
                 if (fastslam_particle_add(fs, k, &lm) != COSLAM_OK) {
                     stats->capacity_drops++;
                     result = COSLAM_E_CAPACITY;

@@ -20,7 +20,12 @@
  *      smaller joint Mahalanobis distance. Individual NN fails at loop
  *      closure, where the robot's pose error is shared by all sightings of a
  *      frame; JCBB does not. The search is capped at jcbb_max_nodes
- *      (counted when hit; the best hypothesis found so far is used);
+ *      (counted when hit; the best hypothesis found so far is used). Among
+ *      non-unique landmarks a wrong hypothesis can be jointly compatible
+ *      too when the pose is uncertain: if a different hypothesis with as
+ *      many pairings is almost as likely (jcbb_ambiguity_d2), only the
+ *      pairings both share are used and the other sightings are held back
+ *      (neither matched nor new), counted in jcbb_ambiguous;
  *   3. matched sightings are applied one after the other, each relinearised
  *      at the current state, in the symmetric Joseph form computed in
  *      O(D^2) thanks to the sparsity of H;
@@ -68,6 +73,21 @@ typedef struct {
     uint8_t robot_id;          /**< own provenance bit, < COSLAM_MAX_ROBOTS */
     ekfslam_assoc_t assoc;
     uint32_t jcbb_max_nodes;   /**< search budget per update (>= 1) */
+    double jcbb_ambiguity_d2;  /**< the best joint hypothesis is ambiguous if another
+                                    one with as many pairings has a joint distance
+                                    less than this much larger; then only the
+                                    pairings they share are used, the other
+                                    sightings are held back (no new landmark).
+                                    0 disables. Default 9.21 (likelihood ratio
+                                    about 100, the 99 % point of 2 dof) */
+    uint32_t jcbb_min_closure_pairs; /**< a hypothesis with loop-closing pairings
+                                    (robot-landmark uncertainty well above the
+                                    sensor's) needs at least this many of them;
+                                    with fewer, those sightings are held back.
+                                    Default 2 (>= 1; 1 = plain JCBB) */
+    uint32_t jcbb_closure_gap;  /**< a pairing is loop-closing if its landmark was
+                                    last sighted more than this many updates ago
+                                    and det S > 4 det Q. Default 25 (5 s at 5 Hz) */
     /** First-estimates Jacobians (Huang, Mourikis, Roumeliotis 2008): the
      *  propagation Jacobian uses the previous *predicted* pose and the
      *  measurement Jacobians the predicted pose and each landmark's first
@@ -85,6 +105,7 @@ typedef struct {
     uint16_t n_obs;
     uint16_t src_mask;
     uint8_t signature;
+    uint32_t last_seen;   /**< ctr.updates when last sighted (or added) */
 } ekfslam_meta_t;
 
 typedef struct {
@@ -99,6 +120,8 @@ typedef struct {
     uint32_t rejected_controls;
     uint32_t numeric_faults;          /**< update skipped: S not PD, degenerate geometry */
     uint32_t jcbb_budget_hits;        /**< JCBB searches cut at jcbb_max_nodes */
+    uint32_t jcbb_ambiguous;          /**< frames whose best hypothesis was ambiguous */
+    uint32_t jcbb_closures_held;      /**< frames with a loop closure of too few pairings */
 } ekfslam_counters_t;
 
 /** Largest joint innovation handled by JCBB (2 rows per sighting). */
@@ -120,7 +143,16 @@ typedef struct {
     double chi2_joint[COSLAM_MAX_SIGHTINGS + 1];
     int32_t best[COSLAM_MAX_SIGHTINGS];
     int best_pairings;
-    double best_d2;
+    double best_score;                            /**< joint log-likelihood (see ekfslam.c) */
+    int32_t second[COSLAM_MAX_SIGHTINGS];         /**< the runner-up hypothesis */
+    int second_pairings;
+    double second_score;
+    uint8_t held[COSLAM_MAX_SIGHTINGS];           /**< sighting held back: ambiguous */
+    uint32_t closures_short;                      /**< leaves refused: too few closure pairings */
+    uint32_t pass;                                /**< 0: find the best; 1: the alternatives */
+    double alt_other[COSLAM_MAX_SIGHTINGS];       /**< best score pairing sighting i elsewhere */
+    double alt_none[COSLAM_MAX_SIGHTINGS];        /**< best score leaving sighting i unpaired */
+    double ub_rest[COSLAM_MAX_SIGHTINGS + 1];     /**< bound of the score of sightings i.. */
     uint32_t nodes;
     double pht[EKFSLAM_DIM][2];
     double k[EKFSLAM_DIM][2];

@@ -71,6 +71,9 @@ typedef struct {
     pose2_t pose;          /**< [m, m, rad], map frame */
     cov3_t pending_cov;    /**< Fast-SLAM 2.0: motion covariance accumulated
                                 since the pose was last sampled (else zero) */
+    cov3_t pose_marg;      /**< conservative marginal covariance of the pose
+                                (marginal.h): odometry noise in, sightings of
+                                landmarks out by covariance intersection */
     double log_w;          /**< log importance weight, max over particles = 0 */
     uint16_t n_lm;
     landmark_t lm[COSLAM_MAX_LANDMARKS];
@@ -117,6 +120,9 @@ typedef struct {
     double rxx[COSLAM_MAX_EXPORT_IDS];      /**< relative covariance */
     double rxy[COSLAM_MAX_EXPORT_IDS];
     double ryy[COSLAM_MAX_EXPORT_IDS];
+    double gxx[COSLAM_MAX_EXPORT_IDS];      /**< mixture of the marginals */
+    double gxy[COSLAM_MAX_EXPORT_IDS];
+    double gyy[COSLAM_MAX_EXPORT_IDS];
     double nobs[COSLAM_MAX_EXPORT_IDS];
     uint16_t src_mask[COSLAM_MAX_EXPORT_IDS];
     uint8_t signature[COSLAM_MAX_EXPORT_IDS];
@@ -164,9 +170,12 @@ coslam_status_t fastslam_predict(fastslam_t *fs, odo_increment_t u);
 coslam_status_t fastslam_update(fastslam_t *fs, const sighting_t *z, int n);
 
 /**
- * Moment-matched pose estimate over the particles: weighted mean (circular
- * mean for the heading) and covariance (including the Fast-SLAM 2.0 pending
- * covariance). O(N).
+ * Pose estimate over the particles: weighted mean (circular mean for the
+ * heading); covariance: the bound (cov3_loewner_max) of the particles'
+ * mixture covariance (spread plus the Fast-SLAM 2.0 pending covariance) and
+ * the mixture of their conservative marginals (pose_marg plus spread), so
+ * that it stays honest after resampling has collapsed the spread
+ * (marginal.h). O(N).
  */
 void fastslam_pose_estimate(const fastslam_t *fs, pose2_t *mean, cov3_t *cov);
 
@@ -176,7 +185,11 @@ void fastslam_pose_estimate(const fastslam_t *fs, pose2_t *mean, cov3_t *cov);
  *   W = sum_k w_k,  mean = sum_k w_k mu_k / W,
  *   cov = sum_k w_k (Sigma_k + (mu_k - mean)(mu_k - mean)^T) / W,
  * over the particles in which the landmark is confirmed; a landmark is
- * exported if W >= export_min_weight. cov_rel is the same mixture of the
+ * exported if W >= export_min_weight. The exported cov bounds
+ * (cov2_loewner_max) both that mixture and the same mixture of the
+ * landmark's conservative marginals (landmark_t.marg, marginal.h), which
+ * carry the pose uncertainty that resampling removes from the spread.
+ * cov_rel is the mixture (of the conditional covariances) of the
  * positions relative to each particle's own pose (R_k^T (mu_k - x_k), with
  * covariance R_k^T Sigma_k R_k). Landmarks are ordered by identity.
  * Returns COSLAM_E_CAPACITY (counted) if the identity table or the message

@@ -33,7 +33,23 @@ typedef struct {
     uint8_t confirmed_once; /**< 1 once its evidence was seen at or above
                                  exist_confirm (set by exist_miss(); 0 from
                                  landmark_init() or a zeroed struct) */
+    float anchor_cov[6];/**< robot pose marginal when the landmark was started
+                             (xx, xy, xt, yy, yt, tt; marginal.h): the part of
+                             the pose error it shares; all zero = exact */
+    float anchor_xy[2]; /**< [m] robot position when it was started */
 } landmark_t;
+
+/** The anchor's pose covariance (all zero if none). */
+cov3_t landmark_anchor(const landmark_t *lm);
+/** Set the anchor: pose marginal `p` at position `at` (rounded to float). */
+void landmark_set_anchor(landmark_t *lm, const cov3_t *p, point2_t at);
+/**
+ * Marginal covariance of the landmark in the map frame: cov + G A G^T, with
+ * A the anchor covariance and G = [1 0 -(m_y - a_y); 0 1 m_x - a_x] the
+ * Jacobian of the landmark with respect to the anchoring pose (a rotation
+ * of that pose turns the landmark about the anchor position). O(1).
+ */
+cov2_t landmark_marginal(const landmark_t *lm);
 
 /** What a landmark is expected to look like from a pose. */
 typedef struct {
@@ -48,7 +64,8 @@ typedef struct {
 /**
  * Start a landmark from a sighting taken at `pose` (treated as exact, as in
  * a Fast-SLAM particle): mean from the inverse model, covariance
- * G_z Q G_z^T + w8 I. Returns COSLAM_E_NOT_PD if the result is not PD.
+ * G_z Q G_z^T + w8 I; no anchor (set it with landmark_set_anchor).
+ * Returns COSLAM_E_NOT_PD if the result is not PD.
  */
 coslam_status_t landmark_init(landmark_t *lm, const slam_params_t *params, pose2_t pose,
                               sighting_t z, uint32_t id, uint16_t src_mask);

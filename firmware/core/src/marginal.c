@@ -1,0 +1,271 @@
+#include "coslam/marginal.h"
+
+#include <math.h>
+
+/* P - Phi A Phi^T, the drift since the anchor, negative directions clipped
+ * to zero; *clipped set if any was. */
+static cov3_t drift_since(const cov3_t *p, pose2_t pose, const cov3_t *anchor, point2_t anchor_xy, cov3_t *shared,
+                          int *clipped)
+{
+    /* the anchoring pose error carried forward: a heading error at the
+     * anchor moves the robot's position by its rotation about the anchor */
+    double phi[3][3] = {{1.0, 0.0, -(pose.y - anchor_xy.y)}, {0.0, 1.0, pose.x - anchor_xy.x}, {0.0, 0.0, 1.0}};
+    *shared = cov3_congruence(phi, *anchor);
+    cov3_t q;
+    for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) {
+            q.m[i][j] = p->m[i][j] - shared->m[i][j];
+        }
+    }
+    /* clip only if q is not positive definite (the common case is) */
+    double chol[3][3];
+    *clipped = cov3_cholesky(q, chol) != COSLAM_OK;
+    return *clipped ? cov3_clamp_eigen(q, 0.0) : q;
+}
+
+cov2_t marginal_relative_drift(const cov3_t *p, pose2_t pose, const cov3_t *anchor, point2_t anchor_xy, point2_t rel)
+{
+    if (!cov3_is_finite(*p) || !cov3_is_finite(*anchor)) {
+        return cov2_make(0.0, 0.0, 0.0);
+    }
+    cov3_t shared;
+    int clipped;
+    cov3_t d = drift_since(p, pose, anchor, anchor_xy, &shared, &clipped);
+    /* b = R^T (m - t): d b / d t = -R^T, d b / d theta = (b_y, -b_x) */
+    const double c = cos(pose.theta);
+    const double s = sin(pose.theta);
+    double j[2][3] = {{-c, -s, rel.y}, {s, -c, -rel.x}};
+    return cov2_from_3x3(j, d.m);
+}
+
+coslam_status_t marginal_pose_observe(cov3_t *p, pose2_t pose, const cov3_t *anchor, point2_t anchor_xy,
+                                      double hp[2][3], cov2_t n)
+{
+    if (!cov3_is_finite(*p) || !cov3_is_finite(*anchor) || !cov2_is_pd(n)) {
+        return COSLAM_E_NOT_PD;
+    }
+    cov3_t shared;
+    int clipped;
+    cov3_t qc = drift_since(p, pose, anchor, anchor_xy, &shared, &clipped);
+    /* Kalman update of the drift with the sighting: z = Hp d + noise n */
+    const cov2_t s2 = cov2_add(cov2_from_3x3(hp, qc.m), n);
+    cov2_t si;
+    if (cov2_inverse(s2, &si) != COSLAM_OK) {
+        return COSLAM_E_NOT_PD;
+    }
+    double c[3][2];
+    for (int i = 0; i < 3; ++i) {
+        for (int k = 0; k < 2; ++k) {
+            c[i][k] = qc.m[i][0] * hp[k][0] + qc.m[i][1] * hp[k][1] + qc.m[i][2] * hp[k][2];
+        }
+    }
+    cov3_t np;
+    for (int i = 0; i < 3; ++i) {
+        const double ci0 = c[i][0] * si.xx + c[i][1] * si.xy;
+        const double ci1 = c[i][0] * si.xy + c[i][1] * si.yy;
+        for (int j = 0; j < 3; ++j) {
+            np.m[i][j] = shared.m[i][j] + qc.m[i][j] - (ci0 * c[j][0] + ci1 * c[j][1]);
+        }
+    }
+    np = cov3_symmetrize(np);
+    /* without clipping P' = shared + post(d) <= shared + q = P; clipping
+     * can raise a direction above the prior: then keep the covariance
+     * intersection of the prior and the update */
+    *p = clipped ? cov3_ci(*p, np) : np;
+    return COSLAM_OK;
+}
+
+/* det of w a + (1 - w) b, symmetric 3x3 given by their upper triangles */
+static double det3_mix(const cov3_t *a, const cov3_t *b, double w)
+{
+    double m[3][3];
+    for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) {
+            m[i][j] = w * a->m[i][j] + (1.0 - w) * b->m[i][j];
+        }
+    }
+    return m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0]) +
+           m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
+}
+
+static double det2_mix(const cov2_t *a, const cov2_t *b, double w)
+{
+    return cov2_det(cov2_add(cov2_scale(*a, w), cov2_scale(*b, 1.0 - w)));
+}
+
+/* w in [0, 1] maximising the information determinant (golden section, end points included) */
+#define CI_MAXIMISE(DETF, IA, IB, W_OUT)                                                                              \
+    do {                                                                                                               \
+        const double g_ = 0.6180339887498949;                                                                          \
+        double lo_ = 0.0, hi_ = 1.0;                                                                                   \
+        double x1_ = hi_ - g_ * (hi_ - lo_), x2_ = lo_ + g_ * (hi_ - lo_);                                             \
+        double f1_ = DETF(IA, IB, x1_), f2_ = DETF(IA, IB, x2_);                                                       \
+        for (int it_ = 0; it_ < 24; ++it_) {                                                                           \
+            if (f1_ >= f2_) {                                                                                          \
+                hi_ = x2_; x2_ = x1_; f2_ = f1_; x1_ = hi_ - g_ * (hi_ - lo_); f1_ = DETF(IA, IB, x1_);               \
+            } else {                                                                                                   \
+                lo_ = x1_; x1_ = x2_; f1_ = f2_; x2_ = lo_ + g_ * (hi_ - lo_); f2_ = DETF(IA, IB, x2_);               \
+            }                                                                                                          \
+        }                                                                                                              \
+        double w_ = 0.5 * (lo_ + hi_);                                                                                 \
+        if (DETF(IA, IB, 1.0) >= DETF(IA, IB, w_)) w_ = 1.0;                                                           \
+        else if (DETF(IA, IB, 0.0) >= DETF(IA, IB, w_)) w_ = 0.0;                                                      \
+        (W_OUT) = w_;                                                                                                  \
+    } while (0)
+
+cov3_t cov3_ci(cov3_t a, cov3_t b)
+{
+    cov3_t ia;
+    cov3_t ib;
+    if (cov3_inverse(a, &ia) != COSLAM_OK || cov3_inverse(b, &ib) != COSLAM_OK) {
+        /* a singular bound: keep the one with the smaller trace */
+        return a.m[0][0] + a.m[1][1] + a.m[2][2] <= b.m[0][0] + b.m[1][1] + b.m[2][2] ? a : b;
+    }
+    double w;
+    CI_MAXIMISE(det3_mix, &ia, &ib, w);
+    cov3_t info;
+    for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) {
+            info.m[i][j] = w * ia.m[i][j] + (1.0 - w) * ib.m[i][j];
+        }
+    }
+    cov3_t out;
+    if (cov3_inverse(cov3_symmetrize(info), &out) != COSLAM_OK) {
+        return a;
+    }
+    return out;
+}
+
+cov2_t cov2_ci(cov2_t a, cov2_t b)
+{
+    cov2_t ia;
+    cov2_t ib;
+    if (cov2_inverse(a, &ia) != COSLAM_OK || cov2_inverse(b, &ib) != COSLAM_OK) {
+        return cov2_trace(a) <= cov2_trace(b) ? a : b;
+    }
+    double w;
+    CI_MAXIMISE(det2_mix, &ia, &ib, w);
+    cov2_t out;
+    if (cov2_inverse(cov2_add(cov2_scale(ia, w), cov2_scale(ib, 1.0 - w)), &out) != COSLAM_OK) {
+        return a;
+    }
+    return out;
+}
+
+cov2_t cov2_loewner_max(cov2_t a, cov2_t b)
+{
+    double l[3];
+    if (cov2_cholesky(a, l) != COSLAM_OK || !cov2_is_finite(b)) {
+        return cov2_add(a, b);
+    }
+    /* c = L^-1 b L^-T, L = [l0 0; l1 l2] */
+    const double i00 = 1.0 / l[0];
+    const double i11 = 1.0 / l[2];
+    const double i10 = -l[1] * i00 * i11;
+    double li[2][2] = {{i00, 0.0}, {i10, i11}};
+    const cov2_t c = cov2_congruence(li, b);
+    double lo, hi;
+    cov2_eigenvalues(c, &lo, &hi);
+    if (lo <= 1.0 + 1e-6 && hi <= 1.0 + 1e-6) {
+        return a; /* b inside a, up to rounding */
+    }
+    double lm[2][2] = {{l[0], 0.0}, {l[1], l[2]}};
+    return cov2_congruence(lm, cov2_clamp_eigen(c, 1.0));
+}
+
+void cov3_eigen(cov3_t a, double lam[3], double v[3][3])
+{
+    double m[3][3];
+    for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) {
+            m[i][j] = 0.5 * (a.m[i][j] + a.m[j][i]);
+            v[i][j] = i == j ? 1.0 : 0.0;
+        }
+    }
+    for (int sweep = 0; sweep < 32; ++sweep) {
+        const double off = m[0][1] * m[0][1] + m[0][2] * m[0][2] + m[1][2] * m[1][2];
+        const double diag = m[0][0] * m[0][0] + m[1][1] * m[1][1] + m[2][2] * m[2][2];
+        if (off <= 1e-30 * diag || off == 0.0) {
+            break;
+        }
+        for (int p = 0; p < 2; ++p) {
+            for (int q = p + 1; q < 3; ++q) {
+                if (m[p][q] == 0.0) {
+                    continue;
+                }
+                /* rotation zeroing m[p][q] (Golub and Van Loan, sec. 8.5) */
+                const double theta = (m[q][q] - m[p][p]) / (2.0 * m[p][q]);
+                const double t = (theta >= 0.0 ? 1.0 : -1.0) / (fabs(theta) + sqrt(theta * theta + 1.0));
+                const double c = 1.0 / sqrt(t * t + 1.0);
+                const double s = t * c;
+                for (int k = 0; k < 3; ++k) {
+                    const double mkp = m[k][p];
+                    const double mkq = m[k][q];
+                    m[k][p] = c * mkp - s * mkq;
+                    m[k][q] = s * mkp + c * mkq;
+                }
+                for (int k = 0; k < 3; ++k) {
+                    const double mpk = m[p][k];
+                    const double mqk = m[q][k];
+                    m[p][k] = c * mpk - s * mqk;
+                    m[q][k] = s * mpk + c * mqk;
+                }
+                for (int k = 0; k < 3; ++k) {
+                    const double vkp = v[k][p];
+                    const double vkq = v[k][q];
+                    v[k][p] = c * vkp - s * vkq;
+                    v[k][q] = s * vkp + c * vkq;
+                }
+            }
+        }
+    }
+    for (int i = 0; i < 3; ++i) {
+        lam[i] = m[i][i];
+    }
+}
+
+cov3_t cov3_clamp_eigen(cov3_t a, double min_eig)
+{
+    double lam[3];
+    double v[3][3];
+    cov3_eigen(a, lam, v);
+    cov3_t out;
+    for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) {
+            double s = 0.0;
+            for (int k = 0; k < 3; ++k) {
+                s += v[i][k] * (lam[k] > min_eig ? lam[k] : min_eig) * v[j][k];
+            }
+            out.m[i][j] = s;
+        }
+    }
+    return out;
+}
+
+cov3_t cov3_loewner_max(cov3_t a, cov3_t b)
+{
+    double l[3][3];
+    if (cov3_cholesky(a, l) != COSLAM_OK || !cov3_is_finite(b)) {
+        return cov3_symmetrize(cov3_add(a, b));
+    }
+    /* li = L^-1 (lower triangular) */
+    double li[3][3] = {{0.0, 0.0, 0.0}, {0.0, 0.0, 0.0}, {0.0, 0.0, 0.0}};
+    for (int j = 0; j < 3; ++j) {
+        li[j][j] = 1.0 / l[j][j];
+        for (int i = j + 1; i < 3; ++i) {
+            double s = 0.0;
+            for (int k = j; k < i; ++k) {
+                s += l[i][k] * li[k][j];
+            }
+            li[i][j] = -s / l[i][i];
+        }
+    }
+    const cov3_t c = cov3_congruence(li, b);
+    double lam[3];
+    double u[3][3];
+    cov3_eigen(c, lam, u);
+    if (lam[0] <= 1.0 + 1e-6 && lam[1] <= 1.0 + 1e-6 && lam[2] <= 1.0 + 1e-6) {
+        return a; /* b inside a, up to rounding */
+    }
+    return cov3_congruence(l, cov3_clamp_eigen(c, 1.0));
+}

@@ -1,0 +1,56 @@
+/*
+ * eval_worlds.h - the named synthetic worlds of the consistency and
+ * loop-closure evaluation (docs/consistency.md), shared by
+ * coslam-eval-worlds and the tests so both measure the same thing.
+ *
+ *  - EVAL_WORLD_PAPER: the paper's scale. 1.25 turns of a 2.5 m circle
+ *    (20 m) at 0.3 m/s among 64 landmarks of 4 classes in a 4 m wide ring.
+ *  - EVAL_WORLD_LOOP: one large loop. 1.15 turns of an 8 m circle (58 m)
+ *    among 160 landmarks of 4 classes in a 3 m wide ring; the robot comes
+ *    back to its start after 50 m of dead reckoning and must recognise it.
+ * Both with the default ("paper") noise of slam_params_default(), the
+ * filter given the truth's model.
+ */
+#ifndef COSLAM_EVAL_WORLDS_H
+#define COSLAM_EVAL_WORLDS_H
+
+#include "slam_run.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum { EVAL_WORLD_PAPER = 1, EVAL_WORLD_LOOP = 2 } eval_world_t;
+
+/** World configuration for a seed. */
+synth_config_t eval_world_config(eval_world_t world, uint64_t seed);
+
+int eval_world_parse(const char *name, eval_world_t *out);
+int eval_filter_parse(const char *name, run_filter_t *out);
+
+/** One run: world seed `seed`, filter seed derived from it. Returns 0 on success. */
+int eval_world_run(eval_world_t world, run_filter_t filter, int n_particles, uint64_t seed, run_result_t *r);
+
+/** The loop-closure criterion of issue 9: final position error < 0.5 m and at
+ *  most 2 % of the exported landmarks spurious. */
+int eval_closed(const run_result_t *r);
+
+typedef struct {
+    int n;
+    int closed;
+    int estimated;
+    int spurious;
+    double pose_rmse_sum;
+    double nees_sum;
+    double nees[1000];
+} eval_summary_t;
+
+void eval_summary_init(eval_summary_t *s);
+void eval_summary_add(eval_summary_t *s, const run_result_t *r);
+double eval_summary_median_nees(const eval_summary_t *s);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif

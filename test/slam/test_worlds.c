@@ -1,0 +1,102 @@
+/*
+ * The consistency and loop-closure worlds of docs/consistency.md (the same
+ * runs as coslam-eval-worlds): exported-map NEES, loop closure and the
+ * accuracy of Fast-SLAM 2.0 against EKF-SLAM, with non-unique landmarks
+ * (4 classes) and the filters given the truth's noise model.
+ *
+ * Bounds and why:
+ *  - landmark NEES of the exported map (2 dof, ideal 2): the median over
+ *    the runs of each run's mean must lie in [1, 4] (issue 9). The median,
+ *    because one run whose association failed has a mean NEES of 50-200
+ *    (its map is wrong, not its covariance) and the run counts below police
+ *    those;
+ *  - loop closure (final position error < 0.5 m and at most 2 % spurious
+ *    landmarks): EKF-SLAM in at least 8 of 10 runs of the long loop and of
+ *    the paper world;
+ *  - Fast-SLAM 2.0 with 100 particles: mean pose RMSE at most 1.3x EKF-SLAM's
+ *    on the paper world.
+ * Fast-SLAM on the long loop is printed, not asserted: it closes 4/10
+ * (100 particles) and 6/10 (1000), see docs/consistency.md.
+ * CI runs world seeds 1-10; COSLAM_TEST_FULL adds the held-out seeds
+ * 101-130, never used while choosing anything.
+ */
+#include "test_util.h"
+
+#include <stdlib.h>
+
+#include "eval_worlds.h"
+
+#if COSLAM_TEST_FULL
+#define WORLD_SEEDS 30
+#define WORLD_SEED0 101U
+#else
+#define WORLD_SEEDS 10
+#define WORLD_SEED0 1U
+#endif
+
+static void run_set(eval_world_t w, run_filter_t f, int particles, int n_seeds, eval_summary_t *out)
+{
+    run_result_t *r = malloc(sizeof *r);
+    assert_non_null(r);
+    eval_summary_init(out);
+    for (int k = 0; k < n_seeds; ++k) {
+        assert_int_equal(eval_world_run(w, f, particles, WORLD_SEED0 + (uint64_t)k, r), 0);
+        eval_summary_add(out, r);
+    }
+    char name[64];
+    if (f == RUN_EKFSLAM) {
+        snprintf(name, sizeof name, "EKF-SLAM");
+    } else {
+        snprintf(name, sizeof name, "Fast-SLAM %s, %d particles", f == RUN_FASTSLAM2 ? "2.0" : "1.0", particles);
+    }
+    printf("%s, %s: closed %d/%d, mean pose RMSE %.3f m, median landmark NEES %.2f, spurious %d of %d\n",
+           w == EVAL_WORLD_PAPER ? "paper" : "loop", name, out->closed, out->n, out->pose_rmse_sum / out->n,
+           eval_summary_median_nees(out), out->spurious, out->estimated);
+    free(r);
+}
+
+static void assert_nees(const eval_summary_t *s)
+{
+    const double m = eval_summary_median_nees(s);
+    ASSERT_TRUE_MSG(m >= 1.0 && m <= 4.0, "median landmark NEES %.2f outside [1, 4]\n", m);
+}
+
+static void test_paper_world(void **state)
+{
+    (void)state;
+    static eval_summary_t ekf, fs100, fs1000;
+    run_set(EVAL_WORLD_PAPER, RUN_EKFSLAM, 0, WORLD_SEEDS, &ekf);
+    run_set(EVAL_WORLD_PAPER, RUN_FASTSLAM2, 100, WORLD_SEEDS, &fs100);
+    run_set(EVAL_WORLD_PAPER, RUN_FASTSLAM2, 1000, WORLD_SEEDS, &fs1000);
+    assert_nees(&ekf);
+    assert_nees(&fs100);
+    assert_nees(&fs1000);
+    ASSERT_TRUE_MSG(ekf.closed * 10 >= 8 * ekf.n, "EKF-SLAM closed %d of %d\n", ekf.closed, ekf.n);
+    const double ratio = fs100.pose_rmse_sum / ekf.pose_rmse_sum;
+    printf("Fast-SLAM 2.0 (100) / EKF-SLAM pose RMSE: %.2f\n", ratio);
+    ASSERT_TRUE_MSG(ratio <= 1.3, "Fast-SLAM 2.0 pose RMSE %.2fx EKF-SLAM's\n", ratio);
+}
+
+static void test_long_loop(void **state)
+{
+    (void)state;
+    static eval_summary_t ekf, fs100, fs1000;
+    run_set(EVAL_WORLD_LOOP, RUN_EKFSLAM, 0, WORLD_SEEDS, &ekf);
+    run_set(EVAL_WORLD_LOOP, RUN_FASTSLAM2, 100, WORLD_SEEDS, &fs100);
+#if COSLAM_TEST_FULL
+    run_set(EVAL_WORLD_LOOP, RUN_FASTSLAM2, 1000, WORLD_SEEDS, &fs1000); /* 14 s a run */
+#else
+    (void)fs1000;
+#endif
+    ASSERT_TRUE_MSG(ekf.closed * 10 >= 8 * ekf.n, "EKF-SLAM closed the loop %d of %d\n", ekf.closed, ekf.n);
+    assert_nees(&ekf);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_paper_world),
+        cmocka_unit_test(test_long_loop),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
