@@ -4,6 +4,7 @@
 //
 //   coslam-replay run DATASET [options]     replay, write out/<run>/, plot
 //   coslam-replay fit-odometry DATASET      fit the odometry model (scale, delay)
+//   coslam-replay fit-noise DATASET         measure the sighting noise model
 //   coslam-replay convert DATASET OUT_DIR   write DATASET as a landmark log
 //   coslam-replay print-config [--config F] the configuration in effect, as INI
 #include <CLI/CLI.hpp>
@@ -13,12 +14,14 @@
 #include <cstdio>
 #include <cstdlib>
 #include <iomanip>
+#include <fstream>
 #include <iostream>
 #include <sstream>
 #include <unistd.h>
 
 #include "replay_config.h"
 #include "replay_data.h"
+#include "replay_noise.h"
 #include "replay_odometry.h"
 #include "replay_output.h"
 #include "replay_run.h"
@@ -86,6 +89,65 @@ std::string plot_script()
     return std::string(COSLAM_SOURCE_DIR) + "/tools/plot_replay.py";
 }
 
+void print_noise_row(std::ostream &os, const std::string &who, const NoiseStats &s)
+{
+    if (!s.has_truth) {
+        os << std::setw(7) << who << ": no ground truth\n";
+        return;
+    }
+    os << std::fixed << std::setw(7) << who << std::setw(8) << s.used << std::setw(6) << s.rejected
+       << std::setprecision(2) << std::setw(7) << 100.0 * s.rejected_fraction() << std::setprecision(4)
+       << std::setw(10) << s.range_bias_m << std::setw(10) << s.bearing_bias_rad << std::setw(9) << s.range_sd_m
+       << std::setprecision(6) << std::setw(13) << s.range_var_m2 << std::setw(13) << s.range_var_per_m2
+       << std::setw(13) << s.bearing_var_rad2 << std::setprecision(4) << std::setw(9) << std::sqrt(s.range_var_m2)
+       << std::setw(9) << std::sqrt(s.range_var_per_m2) << std::setw(9) << std::sqrt(s.bearing_var_rad2)
+       << std::setprecision(2) << std::setw(8) << std::sqrt(s.bearing_var_rad2) * 180.0 / M_PI << "\n";
+}
+
+void print_noise_fit(std::ostream &os, const NoiseFit &nf, const ReplayConfig &cfg)
+{
+    const NoiseStats &o = nf.overall;
+    os << "sighting noise against ground truth: residual = measured - true, var(range) = range_var_m2 + "
+          "range_var_per_m2 * r^2\n"
+       << o.sightings << " landmark sightings: " << o.unknown_id << " without known landmark, " << o.no_truth
+       << " without robot truth, " << o.out_of_range << " outside [input] range limits, " << o.used << " used\n";
+    os << "  robot    used  rej  rej_%  r_bias_m  b_bias_r  r_sd_m  range_var_m2 r_var_per_m2 bearing_var2"
+          "  sd_r0_m  sd_frac  sd_b_r  sd_b_deg\n";
+    for (const auto &s : nf.robots) {
+        print_noise_row(os, std::to_string(s.robot), s);
+    }
+    print_noise_row(os, "all", o);
+    os << "range bins (all robots, inliers): r_mean_m n sd_m model_sd_m\n";
+    for (const auto &b : o.bins) {
+        os << std::fixed << std::setprecision(2) << "  " << std::setw(6) << b.r_mean_m << std::setw(7) << b.n
+           << std::setprecision(4) << std::setw(9) << std::sqrt(b.var_m2) << std::setw(9)
+           << std::sqrt(o.range_var_m2 + o.range_var_per_m2 * b.r2_mean_m2) << "\n";
+    }
+    auto corr_row = [&](const char *what, const NoiseCorrelation &c) {
+        os << std::setprecision(3) << "  " << std::setw(8) << what;
+        for (size_t k = 0; k < 5; ++k) {
+            os << std::setw(8) << (k < c.rho.size() ? c.rho[k] : 0.0);
+        }
+        os << std::setw(7) << c.lags_summed << std::setw(8) << c.tau << std::setw(8) << c.factor << "\n";
+    };
+    os << "residual correlation along tracks (one robot, one landmark, gaps <= track gap): " << nf.tracks
+       << " tracks, " << nf.samples << " inliers\n"
+       << "             rho_1   rho_2   rho_3   rho_4   rho_5  lags     tau  factor  (tau = 1 + 2 sum rho_k while "
+          "rho_k > 0; factor = (1 - rho_1) + n rho_1, n = mean track length: the inflation used)\n";
+    corr_row("range", nf.range_corr);
+    corr_row("bearing", nf.bearing_corr);
+    os << std::setprecision(6) << "  raw:      range_var_m2 " << o.range_var_m2 << " range_var_per_m2 "
+       << o.range_var_per_m2 << " bearing_var_rad2 " << o.bearing_var_rad2 << std::setprecision(4) << "  (sd_frac "
+       << std::sqrt(o.range_var_per_m2) << ", sd_b_deg " << std::sqrt(o.bearing_var_rad2) * 180.0 / M_PI << ")\n"
+       << std::setprecision(6) << "  inflated: range_var_m2 " << nf.range_var_m2_eff << " range_var_per_m2 "
+       << nf.range_var_per_m2_eff << " bearing_var_rad2 " << nf.bearing_var_rad2_eff << std::setprecision(4)
+       << "  (sd_frac " << std::sqrt(nf.range_var_per_m2_eff) << ", sd_b_deg "
+       << std::sqrt(nf.bearing_var_rad2_eff) * 180.0 / M_PI << ")\n";
+    const auto &n = cfg.slam.noise;
+    os << std::setprecision(6) << "configuration in effect: range_var_m2 " << n.range_var_m2 << " range_var_per_m2 "
+       << n.range_var_per_m2 << " bearing_var_rad2 " << n.bearing_var_rad2 << "\n";
+}
+
 } // namespace
 
 int main(int argc, char **argv)
@@ -136,6 +198,21 @@ int main(int argc, char **argv)
     fit->add_option("--format", format, "auto | mrclam | log");
     fit->add_option("--window", window, "fit window [s]");
 
+    auto *fitn = app.add_subcommand("fit-noise", "measure the sighting noise (range, bearing) against ground truth");
+    std::string noise_out;
+    bool noise_inflate = false;
+    NoiseFitOptions nopt;
+    fitn->add_option("dataset", dataset, "dataset folder (needs robot and landmark ground truth)")->required();
+    fitn->add_option("--format", format, "auto | mrclam | log");
+    fitn->add_option("-c,--config", config_files, "INI file(s): [input] range limits, and the values compared with");
+    fitn->add_option("-o,--out", noise_out, "write the fitted [slam] noise keys to this INI file");
+    fitn->add_option("--bin", nopt.bin_m, "range bin width of the range fit [m]");
+    fitn->add_option("--reject-sd", nopt.reject_sd, "reject residuals beyond this many robust sd");
+    fitn->add_flag("--inflate", noise_inflate,
+                   "write the variances inflated for a per-track offset ((1 - rho_1) + n rho_1) to -o");
+    fitn->add_option("--track-gap", nopt.track_gap_s, "sightings further apart start a new track [s]");
+    fitn->add_option("--max-lag", nopt.max_lag, "autocorrelation lags 1..N [sightings]");
+
     auto *conv = app.add_subcommand("convert", "write a dataset in the generic landmark-log format");
     std::string conv_out;
     conv->add_option("dataset", dataset, "dataset folder")->required();
@@ -174,6 +251,22 @@ int main(int argc, char **argv)
         if (*conv) {
             write_landmark_log(ds, conv_out);
             std::cout << "wrote " << ds.robots.size() << " robot log(s) to " << conv_out << "\n";
+            return 0;
+        }
+        if (*fitn) {
+            // the sightings the replay would drop are not measured either
+            nopt.min_range_m = cfg.input.min_range_m;
+            nopt.max_range_m = cfg.input.max_range_m;
+            const NoiseFit nf = fit_noise(ds, nopt);
+            print_noise_fit(std::cout, nf, cfg);
+            if (!noise_out.empty()) {
+                std::ofstream f(noise_out);
+                write_noise_ini(nf, ds, f, noise_inflate);
+                if (!f) {
+                    throw ReplayError(noise_out, 0, "cannot write");
+                }
+                std::cout << "wrote " << noise_out << "\n";
+            }
             return 0;
         }
         if (*fit) {

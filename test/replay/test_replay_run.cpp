@@ -4,9 +4,12 @@
 //    truth, the outputs are written and complete (runs everywhere);
 //  - the first 120 s of robots 1 and 3 of MRCLAM Dataset 6, both filters,
 //    with bounds on pose and landmark error and a merge whose transform
-//    error is bounded (skipped with a message when the data is absent).
+//    error is bounded (skipped with a message when the data is absent);
+//  - the sighting noise fitted against Dataset 6's ground truth (fit_noise)
+//    is a plausible, valid sensor model; without truth it is an error.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -19,6 +22,7 @@
 
 #include "replay_config.h"
 #include "replay_data.h"
+#include "replay_noise.h"
 #include "replay_output.h"
 #include "replay_run.h"
 #include "synth2.h"
@@ -421,3 +425,130 @@ INSTANTIATE_TEST_SUITE_P(Filters, Mrclam120, ::testing::Values(FilterKind::Ekf, 
                          [](const ::testing::TestParamInfo<FilterKind> &i) {
                              return std::string(i.param == FilterKind::Ekf ? "Ekf" : "FastSlam2");
                          });
+
+// The sighting noise measured against the Vicon truth of Dataset 6
+// (coslam-replay fit-noise): the camera's bearing sd is a fraction of a
+// degree to a few degrees, the range model's coefficients are valid
+// variances, and the gross outliers (misread barcodes) are a small minority.
+TEST(MrclamNoise, FitNoiseDataset6GivesPlausibleSensorModel)
+{
+    const std::string dir = data_dir();
+    if (!fs::is_directory(dir)) {
+        GTEST_SKIP() << "MRCLAM Dataset 6 not found at " << dir
+                     << " (set COSLAM_DATA_DIR to the folder holding mrclam/MRCLAM_Dataset6)";
+    }
+    const Dataset ds = load_mrclam(dir);
+    const NoiseFit fit = fit_noise(ds);
+    ASSERT_EQ(fit.robots.size(), ds.robots.size());
+    const NoiseStats &o = fit.overall;
+    EXPECT_GT(o.used, 1000);
+    const double bearing_sd = std::sqrt(o.bearing_var_rad2);
+    EXPECT_GT(bearing_sd, 0.005);
+    EXPECT_LT(bearing_sd, 0.2);
+    EXPECT_TRUE(std::isfinite(o.range_var_m2));
+    EXPECT_TRUE(std::isfinite(o.range_var_per_m2));
+    EXPECT_GE(o.range_var_m2, 0.0);
+    EXPECT_GE(o.range_var_per_m2, 0.0);
+    EXPECT_LT(o.rejected_fraction(), 0.2);
+    for (const NoiseStats &s : fit.robots) {
+        ASSERT_TRUE(s.has_truth) << "robot " << s.robot;
+        EXPECT_LT(s.rejected_fraction(), 0.2) << "robot " << s.robot;
+        EXPECT_GT(std::sqrt(s.bearing_var_rad2), 0.005) << "robot " << s.robot;
+        EXPECT_LT(std::sqrt(s.bearing_var_rad2), 0.2) << "robot " << s.robot;
+    }
+    // the written fragment is a valid replay configuration
+    std::ostringstream ini;
+    write_noise_ini(fit, ds, ini);
+    ReplayConfig cfg = replay_config_default();
+    replay_config_load_string(cfg, ini.str(), "fit-noise.ini");
+    EXPECT_NO_THROW(replay_config_validate(cfg));
+    EXPECT_NEAR(cfg.slam.noise.range_var_per_m2, o.range_var_per_m2, 1e-5 * o.range_var_per_m2);
+    EXPECT_NEAR(cfg.slam.noise.bearing_var_rad2, o.bearing_var_rad2, 1e-5 * o.bearing_var_rad2);
+
+    // the residual correlation along tracks: tau, factor >= 1, the inflated model is factor times the fit
+    EXPECT_GT(fit.tracks, 0);
+    ASSERT_EQ(fit.range_corr.rho.size(), 20u);
+    ASSERT_EQ(fit.bearing_corr.rho.size(), 20u);
+    EXPECT_GT(fit.range_corr.pairs[0], 100);
+    for (const NoiseCorrelation *c : {&fit.range_corr, &fit.bearing_corr}) {
+        EXPECT_TRUE(std::isfinite(c->tau));
+        EXPECT_GE(c->tau, 1.0);
+        EXPECT_GE(c->factor, 1.0);
+        // a track offset cannot inflate by more than the track length
+        EXPECT_LE(c->factor, static_cast<double>(fit.samples) / static_cast<double>(fit.tracks) + 1e-9);
+        EXPECT_GE(c->lags_summed, 0);
+        EXPECT_LE(c->lags_summed, 20);
+    }
+    const double tr = fit.range_corr.factor, tb = fit.bearing_corr.factor;
+    EXPECT_DOUBLE_EQ(fit.range_var_m2_eff, tr * o.range_var_m2);
+    EXPECT_DOUBLE_EQ(fit.range_var_per_m2_eff, tr * o.range_var_per_m2);
+    EXPECT_DOUBLE_EQ(fit.bearing_var_rad2_eff, tb * o.bearing_var_rad2);
+    std::ostringstream ini_eff;
+    write_noise_ini(fit, ds, ini_eff, true);
+    ReplayConfig cfg_eff = replay_config_default();
+    replay_config_load_string(cfg_eff, ini_eff.str(), "fit-noise-inflated.ini");
+    EXPECT_NO_THROW(replay_config_validate(cfg_eff));
+    EXPECT_NEAR(cfg_eff.slam.noise.range_var_per_m2, fit.range_var_per_m2_eff, 1e-5 * fit.range_var_per_m2_eff);
+    EXPECT_NEAR(cfg_eff.slam.noise.bearing_var_rad2, fit.bearing_var_rad2_eff, 1e-5 * fit.bearing_var_rad2_eff);
+    EXPECT_NEAR(cfg_eff.slam.noise.range_var_m2, std::max(fit.range_var_m2_eff, 1e-6), 1e-5);
+}
+
+// The autocorrelation estimate on a synthetic track: a constant error shared
+// by a whole track (fully correlated) gives rho ~1 at every lag and tau
+// 1 + 2 K; alternating errors give rho_1 < 0 and tau 1.
+TEST(MrclamNoise, ResidualCorrelationTau)
+{
+    Dataset ds;
+    ds.source = "synthetic";
+    ds.landmarks.push_back({6, {0.0, 0.0}});
+    ds.landmarks.push_back({7, {0.0, 0.0}});
+    RobotLog r;
+    r.id = 1;
+    for (int i = 0; i <= 1000; ++i) {
+        r.truth.push_back({0.1 * i, {-2.0, 0.0, 0.0}});
+    }
+    // landmark 6: tracks of 30 sightings 0.1 s apart, separated by 5 s, each
+    // with its own constant range error; landmark 7 alternates (bearing too).
+    for (int tr = 0; tr < 3; ++tr) {
+        const double e = (tr % 2 == 0 ? 0.05 : -0.05) * (1 + tr);
+        for (int i = 0; i < 30; ++i) {
+            r.z.push_back({tr * 8.0 + 0.1 * i, 6, 2.0 + e, 0.0});
+        }
+    }
+    for (int i = 0; i < 60; ++i) {
+        const double s = i % 2 == 0 ? 1.0 : -1.0;
+        r.z.push_back({30.0 + 0.1 * i, 7, 2.0 + 0.05 * s, 0.01 * s});
+    }
+    std::stable_sort(r.z.begin(), r.z.end(), [](const auto &a, const auto &b) { return a.t_s < b.t_s; });
+    ds.robots.push_back(r);
+    NoiseFitOptions opt;
+    opt.reject_sd = 1e9;
+    const NoiseFit fit = fit_noise(ds, opt);
+    EXPECT_EQ(fit.tracks, 4);
+    EXPECT_EQ(fit.samples, 150);
+    // bearing: only landmark 7 has an error, alternating -> rho_1 < 0, tau 1
+    EXPECT_LT(fit.bearing_corr.rho[0], 0.0);
+    EXPECT_EQ(fit.bearing_corr.lags_summed, 0);
+    EXPECT_DOUBLE_EQ(fit.bearing_corr.tau, 1.0);
+    EXPECT_DOUBLE_EQ(fit.bearing_corr.factor, 1.0); /* rho_1 < 0: no offset to inflate for */
+    EXPECT_GE(fit.range_corr.tau, 1.0);
+    EXPECT_GT(fit.range_corr.factor, 1.0);
+    EXPECT_DOUBLE_EQ(fit.bearing_var_rad2_eff, fit.bearing_corr.factor * fit.overall.bearing_var_rad2);
+}
+
+// Without robot ground truth (Dataset 1) there is nothing to measure against:
+// a clear error, not a fit of nothing.
+TEST(MrclamNoise, FitNoiseWithoutRobotTruthThrows)
+{
+    Dataset ds;
+    ds.source = "no-truth";
+    ds.landmarks.push_back({6, {1.0, 2.0}});
+    RobotLog r;
+    r.id = 1;
+    r.z.push_back({0.0, 6, 2.0, 0.1});
+    ds.robots.push_back(r);
+    EXPECT_THROW(fit_noise(ds), ReplayError);
+    ds.robots[0].truth.push_back({0.0, {0.0, 0.0, 0.0}});
+    ds.landmarks.clear();
+    EXPECT_THROW(fit_noise(ds), ReplayError);
+}
