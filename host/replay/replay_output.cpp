@@ -80,6 +80,7 @@ json fit_json(const MapScore &s)
                 {"n_missed", or_null(k, f.n_missed)},
                 {"rmse_m", or_null(k && f.n_matched > 0, f.rmse_m)},
                 {"max_err_m", or_null(k && f.n_matched > 0, f.max_err_m)},
+                {"nees_mean", or_null(k && f.n_matched > 0, f.nees_mean)},
                 {"transform", or_null(k, pose_json(f.transform))}};
 }
 

@@ -96,6 +96,7 @@ template <typename Score> Score fill_score(Score s, const map_eval_t &ev, map_ev
     s.n_missed = ev.n_missed;
     s.rmse_m = ev.rmse_m;
     s.max_err_m = ev.max_err_m;
+    s.nees_mean = ev.nees_mean;
     s.valid = true;
     if (detail != nullptr) {
         *detail = ev;
@@ -117,7 +118,6 @@ MapScore score_map(const map_estimate_t &est, const std::vector<point2_t> &truth
     eval_map(&est, truth.data(), n_seen.empty() ? nullptr : n_seen.data(), static_cast<int>(truth.size()),
              ec.min_seen, ec.gate_m, ev.get());
     s.n_estimated = ev->n_estimated;
-    s.nees_mean = ev->nees_mean;
     return fill_score(s, *ev, detail);
 }
 

@@ -58,6 +58,9 @@ struct FitScore {
     int n_missed = 0;
     double rmse_m = 0.0;    ///< over matched pairs (0 if none)
     double max_err_m = 0.0;
+    double nees_mean = 0.0; ///< landmark NEES over matched pairs after the fit (covariances
+                            ///< rotated with the map); the fit removes the map's common
+                            ///< offset, which the covariances still hold: a lower bound
 };
 
 /// A map estimate evaluated against the true landmarks (stats.h eval_map).
