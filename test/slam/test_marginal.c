@@ -10,6 +10,7 @@
 #include <string.h>
 
 #include "coslam/landmark.h"
+#include "coslam/map_merge.h"
 #include "coslam/marginal.h"
 #include "coslam/rng.h"
 
@@ -115,7 +116,12 @@ static void test_covariance_intersection(void **state)
 {
     (void)state;
     /* diag(1, 4) and diag(4, 1): w = 1/2 by symmetry, information 5/8 each */
-    const cov2_t c = cov2_ci(cov2_make(1.0, 0.0, 4.0), cov2_make(4.0, 0.0, 1.0));
+    /* the 2x2 intersection is map_merge's */
+    point2_t xm;
+    cov2_t c;
+    assert_int_equal(merge_fuse_ci((point2_t){0.0, 0.0}, cov2_make(1.0, 0.0, 4.0), (point2_t){0.0, 0.0},
+                                   cov2_make(4.0, 0.0, 1.0), &xm, &c, NULL),
+                     COSLAM_OK);
     ASSERT_NEAR(c.xx, 1.6, 1e-6);
     ASSERT_NEAR(c.yy, 1.6, 1e-6);
     ASSERT_NEAR(c.xy, 0.0, 1e-9);

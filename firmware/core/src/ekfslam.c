@@ -589,7 +589,7 @@ static void jcbb_search(ekfslam_t *ekf, const sighting_t *z, int ns, int i, int 
             sc->hyp[i] = j;
             sc->hyp_pair[k] = pi;
             jcbb_search(ekf, z, ns, i + 1, k + 1, d2n, logdet + inc, n_unpaired,
-                        n_closure + pair_is_closure(ekf, j));
+                        n_closure + sc->closure[j]);
             sc->hyp[i] = -1;
         }
     }
@@ -667,6 +667,11 @@ static void jcbb_associate(ekfslam_t *ekf, const sighting_t *z, int ns, int n_pa
         }
         sc->ub_rest[i] = sc->ub_rest[i + 1] + ub;
     }
+    /* loop-closing candidates, once per update (the search asks often) */
+    for (int q = 0; q < n_pairs; ++q) {
+        const int32_t j = sc->pairs[q].landmark;
+        sc->closure[j] = (uint8_t)pair_is_closure(ekf, j);
+    }
     sc->nodes = 0U;
     sc->closures_short = 0U;
     sc->pass = 0U;
@@ -703,7 +708,7 @@ static void jcbb_associate(ekfslam_t *ekf, const sighting_t *z, int ns, int n_pa
     for (int i = 0; i < ns; ++i) {
         sc->held[i] = 0U;
         sc->assign[i] = sc->best[i];
-        if (sc->best[i] >= 0 && pair_is_closure(ekf, sc->best[i]) &&
+        if (sc->best[i] >= 0 && sc->closure[sc->best[i]] &&
             (sc->alt_other[i] > sc->best_score - margin ||
              (n_with_cand >= 2 && sc->alt_none[i] > sc->best_score - margin))) {
             sc->assign[i] = -1;
@@ -714,7 +719,7 @@ static void jcbb_associate(ekfslam_t *ekf, const sighting_t *z, int ns, int n_pa
             /* unpaired but it had a loop-closing candidate: not new either,
              * wait for a frame that closes the loop with enough pairings */
             for (int q = sc->cand_begin[i]; q < sc->cand_begin[i + 1]; ++q) {
-                if (pair_is_closure(ekf, sc->pairs[q].landmark)) {
+                if (sc->closure[sc->pairs[q].landmark]) {
                     sc->held[i] = 1U;
                     break;
                 }

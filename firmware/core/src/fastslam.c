@@ -616,9 +616,6 @@ static int export_slot(fastslam_export_scratch_t *t, uint32_t id, int insert)
             t->rxx[h] = 0.0;
             t->rxy[h] = 0.0;
             t->ryy[h] = 0.0;
-            t->gxx[h] = 0.0;
-            t->gxy[h] = 0.0;
-            t->gyy[h] = 0.0;
             t->nobs[h] = 0.0;
             t->src_mask[h] = 0U;
             t->signature[h] = 0U;
@@ -709,13 +706,10 @@ coslam_status_t fastslam_export(fastslam_t *fs, map_estimate_t *out)
             }
             const double dx = lm->mean.x - t->mx[s];
             const double dy = lm->mean.y - t->my[s];
-            t->cxx[s] += w[k] * (lm->cov.xx + dx * dx);
-            t->cxy[s] += w[k] * (lm->cov.xy + dx * dy);
-            t->cyy[s] += w[k] * (lm->cov.yy + dy * dy);
             const cov2_t g = landmark_marginal(lm);
-            t->gxx[s] += w[k] * (g.xx + dx * dx);
-            t->gxy[s] += w[k] * (g.xy + dx * dy);
-            t->gyy[s] += w[k] * (g.yy + dy * dy);
+            t->cxx[s] += w[k] * (g.xx + dx * dx);
+            t->cxy[s] += w[k] * (g.xy + dx * dy);
+            t->cyy[s] += w[k] * (g.yy + dy * dy);
             /* relative to this particle's pose, in its body frame: sensor
              * noise plus the pose drift since the landmark's anchor
              * (marginal_relative_drift) */
@@ -752,10 +746,7 @@ coslam_status_t fastslam_export(fastslam_t *fs, map_estimate_t *out)
         const double inv_w = 1.0 / t->w[s];
         o->mean.x = t->mx[s];
         o->mean.y = t->my[s];
-        /* the marginal mixture bounds the conditional one (G A G^T >= 0);
-         * the max guards rounding */
-        o->cov = cov2_loewner_max(cov2_make(t->gxx[s] * inv_w, t->gxy[s] * inv_w, t->gyy[s] * inv_w),
-                                  cov2_make(t->cxx[s] * inv_w, t->cxy[s] * inv_w, t->cyy[s] * inv_w));
+        o->cov = cov2_make(t->cxx[s] * inv_w, t->cxy[s] * inv_w, t->cyy[s] * inv_w);
         o->cov_rel = cov2_make(t->rxx[s] * inv_w, t->rxy[s] * inv_w, t->ryy[s] * inv_w);
         o->id = t->id[s];
         const double nobs = t->nobs[s] * inv_w + 0.5;

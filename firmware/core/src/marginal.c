@@ -88,30 +88,38 @@ static double det3_mix(const cov3_t *a, const cov3_t *b, double w)
            m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
 }
 
-static double det2_mix(const cov2_t *a, const cov2_t *b, double w)
+/* w in [0, 1] maximising det(w ia + (1 - w) ib): golden section, end points included */
+static double ci_weight(const cov3_t *ia, const cov3_t *ib)
 {
-    return cov2_det(cov2_add(cov2_scale(*a, w), cov2_scale(*b, 1.0 - w)));
+    const double g = 0.6180339887498949;
+    double lo = 0.0;
+    double hi = 1.0;
+    double x1 = hi - g * (hi - lo);
+    double x2 = lo + g * (hi - lo);
+    double f1 = det3_mix(ia, ib, x1);
+    double f2 = det3_mix(ia, ib, x2);
+    for (int it = 0; it < 24; ++it) {
+        if (f1 >= f2) {
+            hi = x2;
+            x2 = x1;
+            f2 = f1;
+            x1 = hi - g * (hi - lo);
+            f1 = det3_mix(ia, ib, x1);
+        } else {
+            lo = x1;
+            x1 = x2;
+            f1 = f2;
+            x2 = lo + g * (hi - lo);
+            f2 = det3_mix(ia, ib, x2);
+        }
+    }
+    const double w = 0.5 * (lo + hi);
+    const double fw = det3_mix(ia, ib, w);
+    if (det3_mix(ia, ib, 1.0) >= fw) {
+        return 1.0;
+    }
+    return det3_mix(ia, ib, 0.0) >= fw ? 0.0 : w;
 }
-
-/* w in [0, 1] maximising the information determinant (golden section, end points included) */
-#define CI_MAXIMISE(DETF, IA, IB, W_OUT)                                                                              \
-    do {                                                                                                               \
-        const double g_ = 0.6180339887498949;                                                                          \
-        double lo_ = 0.0, hi_ = 1.0;                                                                                   \
-        double x1_ = hi_ - g_ * (hi_ - lo_), x2_ = lo_ + g_ * (hi_ - lo_);                                             \
-        double f1_ = DETF(IA, IB, x1_), f2_ = DETF(IA, IB, x2_);                                                       \
-        for (int it_ = 0; it_ < 24; ++it_) {                                                                           \
-            if (f1_ >= f2_) {                                                                                          \
-                hi_ = x2_; x2_ = x1_; f2_ = f1_; x1_ = hi_ - g_ * (hi_ - lo_); f1_ = DETF(IA, IB, x1_);               \
-            } else {                                                                                                   \
-                lo_ = x1_; x1_ = x2_; f1_ = f2_; x2_ = lo_ + g_ * (hi_ - lo_); f2_ = DETF(IA, IB, x2_);               \
-            }                                                                                                          \
-        }                                                                                                              \
-        double w_ = 0.5 * (lo_ + hi_);                                                                                 \
-        if (DETF(IA, IB, 1.0) >= DETF(IA, IB, w_)) w_ = 1.0;                                                           \
-        else if (DETF(IA, IB, 0.0) >= DETF(IA, IB, w_)) w_ = 0.0;                                                      \
-        (W_OUT) = w_;                                                                                                  \
-    } while (0)
 
 cov3_t cov3_ci(cov3_t a, cov3_t b)
 {
@@ -121,8 +129,7 @@ cov3_t cov3_ci(cov3_t a, cov3_t b)
         /* a singular bound: keep the one with the smaller trace */
         return a.m[0][0] + a.m[1][1] + a.m[2][2] <= b.m[0][0] + b.m[1][1] + b.m[2][2] ? a : b;
     }
-    double w;
-    CI_MAXIMISE(det3_mix, &ia, &ib, w);
+    const double w = ci_weight(&ia, &ib);
     cov3_t info;
     for (int i = 0; i < 3; ++i) {
         for (int j = 0; j < 3; ++j) {
@@ -131,22 +138,6 @@ cov3_t cov3_ci(cov3_t a, cov3_t b)
     }
     cov3_t out;
     if (cov3_inverse(cov3_symmetrize(info), &out) != COSLAM_OK) {
-        return a;
-    }
-    return out;
-}
-
-cov2_t cov2_ci(cov2_t a, cov2_t b)
-{
-    cov2_t ia;
-    cov2_t ib;
-    if (cov2_inverse(a, &ia) != COSLAM_OK || cov2_inverse(b, &ib) != COSLAM_OK) {
-        return cov2_trace(a) <= cov2_trace(b) ? a : b;
-    }
-    double w;
-    CI_MAXIMISE(det2_mix, &ia, &ib, w);
-    cov2_t out;
-    if (cov2_inverse(cov2_add(cov2_scale(ia, w), cov2_scale(ib, 1.0 - w)), &out) != COSLAM_OK) {
         return a;
     }
     return out;

@@ -131,6 +131,7 @@ typedef struct {
     lm_expect_t expect[COSLAM_MAX_LANDMARKS];
     uint8_t near[COSLAM_MAX_LANDMARKS];
     uint8_t matched[COSLAM_MAX_LANDMARKS];
+    uint8_t closure[COSLAM_MAX_LANDMARKS];      /**< candidate is loop-closing (valid for paired landmarks) */
     assoc_pair_t pairs[COSLAM_MAX_SIGHTINGS * COSLAM_MAX_LANDMARKS];
     uint8_t n_near[COSLAM_MAX_SIGHTINGS];
     int32_t assign[COSLAM_MAX_SIGHTINGS];

@@ -112,7 +112,7 @@ typedef struct {
     double w[COSLAM_MAX_EXPORT_IDS];
     double mx[COSLAM_MAX_EXPORT_IDS];
     double my[COSLAM_MAX_EXPORT_IDS];
-    double cxx[COSLAM_MAX_EXPORT_IDS];
+    double cxx[COSLAM_MAX_EXPORT_IDS];      /**< mixture of the marginals */
     double cxy[COSLAM_MAX_EXPORT_IDS];
     double cyy[COSLAM_MAX_EXPORT_IDS];
     double rx[COSLAM_MAX_EXPORT_IDS];       /**< relative (body-frame) mean */
@@ -120,9 +120,6 @@ typedef struct {
     double rxx[COSLAM_MAX_EXPORT_IDS];      /**< relative covariance */
     double rxy[COSLAM_MAX_EXPORT_IDS];
     double ryy[COSLAM_MAX_EXPORT_IDS];
-    double gxx[COSLAM_MAX_EXPORT_IDS];      /**< mixture of the marginals */
-    double gxy[COSLAM_MAX_EXPORT_IDS];
-    double gyy[COSLAM_MAX_EXPORT_IDS];
     double nobs[COSLAM_MAX_EXPORT_IDS];
     uint16_t src_mask[COSLAM_MAX_EXPORT_IDS];
     uint8_t signature[COSLAM_MAX_EXPORT_IDS];
@@ -185,13 +182,14 @@ void fastslam_pose_estimate(const fastslam_t *fs, pose2_t *mean, cov3_t *cov);
  *   W = sum_k w_k,  mean = sum_k w_k mu_k / W,
  *   cov = sum_k w_k (Sigma_k + (mu_k - mean)(mu_k - mean)^T) / W,
  * over the particles in which the landmark is confirmed; a landmark is
- * exported if W >= export_min_weight. The exported cov bounds
- * (cov2_loewner_max) both that mixture and the same mixture of the
- * landmark's conservative marginals (landmark_t.marg, marginal.h), which
- * carry the pose uncertainty that resampling removes from the spread.
- * cov_rel is the mixture (of the conditional covariances) of the
- * positions relative to each particle's own pose (R_k^T (mu_k - x_k), with
- * covariance R_k^T Sigma_k R_k). Landmarks are ordered by identity.
+ * exported if W >= export_min_weight, with Sigma_k the landmark's marginal
+ * (landmark_marginal: its EKF covariance plus its anchor's pose error,
+ * marginal.h), which carries the pose uncertainty that resampling removes
+ * from the spread.
+ * cov_rel is the mixture of the positions relative to each particle's own
+ * pose (R_k^T (mu_k - x_k), with covariance R_k^T C_k R_k, C_k the EKF
+ * covariance, plus the pose drift since the anchor,
+ * marginal_relative_drift). Landmarks are ordered by identity.
  * Returns COSLAM_E_CAPACITY (counted) if the identity table or the message
  * overflowed, the heaviest landmarks being kept. O(N * M) time.
  */

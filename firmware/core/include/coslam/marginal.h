@@ -74,12 +74,11 @@ cov2_t cov2_loewner_max(cov2_t a, cov2_t b);
 cov3_t cov3_loewner_max(cov3_t a, cov3_t b);
 
 /**
- * Covariance intersection of two bounds of the same error with unknown
+ * Covariance intersection of two bounds of the same pose error with unknown
  * correlation: (w a^-1 + (1 - w) b^-1)^-1, w in [0, 1] maximising the
  * information determinant. If either is singular, the one with the smaller
- * trace. O(1).
+ * trace. O(1). (For 2x2 estimates: merge_fuse_ci in map_merge.h.)
  */
-cov2_t cov2_ci(cov2_t a, cov2_t b);
 cov3_t cov3_ci(cov3_t a, cov3_t b);
 
 /** Eigen decomposition of a symmetric 3x3: a = V diag(lam) V^T (cyclic Jacobi). */
