@@ -89,6 +89,9 @@ std::map<std::string, long> RobotFilter::counters() const
         m["rejected_controls"] = c.rejected_controls;
         m["numeric_faults"] = c.numeric_faults;
         m["jcbb_budget_hits"] = c.jcbb_budget_hits;
+        m["jcbb_ambiguous"] = c.jcbb_ambiguous;
+        m["jcbb_closures_held"] = c.jcbb_closures_held;
+        m["jcbb_closures_nonlinear"] = c.jcbb_closures_nonlinear;
         m["landmarks_in_state"] = ekf->n_lm;
     } else {
         const fastslam_counters_t &c = fastslam()->ctr;

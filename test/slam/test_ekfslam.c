@@ -325,6 +325,47 @@ static void test_jcbb_beats_nn(void **state)
     assert_int_equal(g_ekf.ctr.jcbb_budget_hits, 0);
 }
 
+/* A revisit whose robot-landmark offset is uncertain against its range
+ * (sd 0.8 m at 1 m) is held back: no update, no new landmark, counted.
+ * The same uncertainty at 4 m is a usable closure. */
+static int closure_case(double range_m)
+{
+    ekfslam_config_t c = config();
+    c.slam.new_landmark_log_lik = -20.0; /* the pairing is admissible */
+    const pose2_t p0 = {0.0, 0.0, 0.0};
+    assert_int_equal(ekfslam_init(&g_ekf, &c, p0), COSLAM_OK);
+    const point2_t lm = {range_m, 0.0};
+    ekfslam_meta_t meta = {1U, 5.0f, 5, 1, 0, 0};
+    assert_int_equal(ekfslam_add_landmark_body(&g_ekf, lm, cov2_make(1e-4, 0.0, 1e-4), &meta), COSLAM_OK);
+    for (int r = 0; r < 5; ++r) {
+        for (int k = 0; k < 5; ++k) {
+            PE(&g_ekf, r, k) = 0.0;
+        }
+    }
+    PE(&g_ekf, 0, 0) = 0.64;
+    PE(&g_ekf, 1, 1) = 0.64;
+    PE(&g_ekf, 2, 2) = 0.01;
+    PE(&g_ekf, 3, 3) = 1e-4;
+    PE(&g_ekf, 4, 4) = 1e-4;
+    g_ekf.ctr.updates = 100U; /* last sighted at update 0: a revisit */
+    const pose2_t truth = {0.3, 0.2, 0.05};
+    const sighting_t z = observe_predict(truth, lm);
+    assert_int_equal(ekfslam_update(&g_ekf, &z, 1), COSLAM_OK);
+    assert_int_equal(g_ekf.n_lm, 1);
+    return g_ekf.ctr.jcbb_closures_nonlinear == 1U;
+}
+
+static void test_nonlinear_closure_held(void **state)
+{
+    (void)state;
+    assert_true(closure_case(1.0));
+    assert_true(g_ekf.x[0] == 0.0 && g_ekf.x[1] == 0.0 && g_ekf.x[2] == 0.0); /* untouched */
+    assert_true(PE(&g_ekf, 0, 0) == 0.64);
+    assert_false(closure_case(4.0));
+    assert_true(PE(&g_ekf, 0, 0) < 0.6); /* updated */
+    assert_true(g_ekf.x[0] != 0.0 || g_ekf.x[1] != 0.0);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -334,6 +375,7 @@ int main(void)
         cmocka_unit_test(test_remove_keeps_the_rest),
         cmocka_unit_test(test_capacity_and_bad_input),
         cmocka_unit_test(test_jcbb_beats_nn),
+        cmocka_unit_test(test_nonlinear_closure_held),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -16,6 +16,7 @@ ekfslam_config_t ekfslam_config_default(void)
     c.jcbb_ambiguity_d2 = 9.21;
     c.jcbb_min_closure_pairs = 1U;
     c.jcbb_closure_gap = 25U;
+    c.jcbb_closure_max_spread = 0.7;
     c.fej = 1U;
     return c;
 }
@@ -55,7 +56,7 @@ coslam_status_t ekfslam_init(ekfslam_t *ekf, const ekfslam_config_t *cfg, pose2_
     if (slam_params_validate(&cfg->slam) != COSLAM_OK || cfg->robot_id >= COSLAM_MAX_ROBOTS || cfg->fej > 1U ||
         (cfg->assoc != EKFSLAM_ASSOC_NN && cfg->assoc != EKFSLAM_ASSOC_JCBB) || cfg->jcbb_max_nodes < 1U ||
         !(cfg->jcbb_ambiguity_d2 >= 0.0 && cfg->jcbb_ambiguity_d2 < 1e6) || cfg->jcbb_min_closure_pairs < 1U ||
-        !pose2_is_finite(pose0)) {
+        !(cfg->jcbb_closure_max_spread > 0.0) || !pose2_is_finite(pose0)) {
         return COSLAM_E_ARG;
     }
     ekf->cfg = *cfg;
@@ -536,6 +537,27 @@ static int pair_is_closure(const ekfslam_t *ekf, int32_t j)
     return cov2_det(e->s) > 4.0 * cov2_det(q);
 }
 
+/* The linearisation of a range-bearing sighting holds while the
+ * robot-landmark offset is well known against its length: with an offset
+ * standard deviation s (largest axis of its covariance, correlations
+ * included) at range r, the bearing's Jacobian varies by about s / r over
+ * the uncertainty. Returns s / r. */
+static double pair_spread(const ekfslam_t *ekf, int32_t j)
+{
+    const int a = 3 + 2 * (int)j;
+    const double cxx = P_(ekf, 0, 0) + P_(ekf, a, a) - 2.0 * P_(ekf, 0, a);
+    const double cyy = P_(ekf, 1, 1) + P_(ekf, a + 1, a + 1) - 2.0 * P_(ekf, 1, a + 1);
+    const double cxy = P_(ekf, 0, 1) + P_(ekf, a, a + 1) - P_(ekf, 0, a + 1) - P_(ekf, 1, a);
+    const double half_tr = 0.5 * (cxx + cyy);
+    const double d = sqrt(0.25 * (cxx - cyy) * (cxx - cyy) + cxy * cxy);
+    const double lmax = half_tr + d;
+    const double r = ekf->scratch.expect[j].zhat.range_m;
+    if (!(lmax >= 0.0) || !(r > 1e-6)) {
+        return INFINITY;
+    }
+    return sqrt(lmax) / r;
+}
+
 static void jcbb_search(ekfslam_t *ekf, const sighting_t *z, int ns, int i, int k, double d2, double logdet,
                         int n_unpaired, int n_closure)
 {
@@ -705,6 +727,7 @@ static void jcbb_associate(ekfslam_t *ekf, const sighting_t *z, int ns, int n_pa
         n_with_cand += sc->cand_begin[i + 1] > sc->cand_begin[i];
     }
     int ambiguous = 0;
+    int nonlinear = 0;
     for (int i = 0; i < ns; ++i) {
         sc->held[i] = 0U;
         sc->assign[i] = sc->best[i];
@@ -714,6 +737,14 @@ static void jcbb_associate(ekfslam_t *ekf, const sighting_t *z, int ns, int n_pa
             sc->assign[i] = -1;
             sc->held[i] = 1U;
             ambiguous = 1;
+        } else if (sc->best[i] >= 0 && sc->closure[sc->best[i]] &&
+                   pair_spread(ekf, sc->best[i]) > ekf->cfg.jcbb_closure_max_spread) {
+            /* a revisit whose linearisation fails: one EKF step would turn
+             * the robot by far more than the sighting supports; wait until
+             * the robot is farther from the landmark or knows more */
+            sc->assign[i] = -1;
+            sc->held[i] = 1U;
+            nonlinear = 1;
         }
         if (sc->assign[i] < 0 && !sc->held[i]) {
             /* unpaired but it had a loop-closing candidate: not new either,
@@ -728,6 +759,9 @@ static void jcbb_associate(ekfslam_t *ekf, const sighting_t *z, int ns, int n_pa
     }
     if (ambiguous) {
         ekf->ctr.jcbb_ambiguous++;
+    }
+    if (nonlinear) {
+        ekf->ctr.jcbb_closures_nonlinear++;
     }
 }
 

@@ -88,6 +88,13 @@ typedef struct {
     uint32_t jcbb_closure_gap;  /**< a pairing is loop-closing if its landmark was
                                     last sighted more than this many updates ago
                                     and det S > 4 det Q. Default 25 (5 s at 5 Hz) */
+    double jcbb_closure_max_spread; /**< a loop-closing pairing whose robot-landmark
+                                    offset standard deviation (largest axis) exceeds
+                                    this fraction of the range is held back: its
+                                    linearisation fails (the bearing's Jacobian
+                                    changes by about that fraction over the
+                                    uncertainty). Default 0.7, chosen on MRCLAM
+                                    Dataset 6 (docs/consistency.md); > 0 */
     /** First-estimates Jacobians (Huang, Mourikis, Roumeliotis 2008): the
      *  propagation Jacobian uses the previous *predicted* pose and the
      *  measurement Jacobians the predicted pose and each landmark's first
@@ -122,6 +129,7 @@ typedef struct {
     uint32_t jcbb_budget_hits;        /**< JCBB searches cut at jcbb_max_nodes */
     uint32_t jcbb_ambiguous;          /**< frames whose best hypothesis was ambiguous */
     uint32_t jcbb_closures_held;      /**< frames with a loop closure of too few pairings */
+    uint32_t jcbb_closures_nonlinear; /**< frames with a loop closure held back as too nonlinear */
 } ekfslam_counters_t;
 
 /** Largest joint innovation handled by JCBB (2 rows per sighting). */
