@@ -9,6 +9,11 @@
 # An optional second argument selects another list instead of the build's:
 #   mrpt   MRPT's SLAM library, only for `make bench-mrpt` (large: kept out
 #          of the default list so that CI stays fast)
+#   cross  the aarch64 cross build (`make robot`, `make cross`, `make package`):
+#          Debian's cross compilers, qemu-user, and the robot's libraries as
+#          arm64 multiarch packages (adds the arm64 architecture to dpkg;
+#          docs/packaging.md). idlc stays the host's (cyclonedds-tools above).
+#   chroot debootstrap, for tools/package_check.sh
 set -eu
 
 PACKAGES="
@@ -30,15 +35,37 @@ libinih-dev
 nlohmann-json3-dev
 libcli11-dev
 libgpiod-dev
+libturbojpeg0-dev
+cyclonedds-dev
+cyclonedds-tools
+libsodium-dev
 "
 
 PACKAGES_MRPT="
 libmrpt-slam-dev
 "
+PACKAGES_CROSS="
+gcc-aarch64-linux-gnu
+g++-aarch64-linux-gnu
+qemu-user
+file
+dpkg-dev
+libcmocka-dev:arm64
+libinih-dev:arm64
+libgpiod-dev:arm64
+libsodium-dev:arm64
+cyclonedds-dev:arm64
+libturbojpeg0-dev:arm64
+"
+PACKAGES_CHROOT="
+debootstrap
+"
 case "${2:-}" in
   "") ;;
   mrpt) PACKAGES=$PACKAGES_MRPT ;;
-  *) echo "deps: unknown package set '$2' (known: mrpt)" >&2; exit 2 ;;
+  cross) PACKAGES=$PACKAGES_CROSS ;;
+  chroot) PACKAGES=$PACKAGES_CHROOT ;;
+  *) echo "deps: unknown package set '$2' (known: mrpt cross chroot)" >&2; exit 2 ;;
 esac
 
 missing() {
@@ -63,15 +90,23 @@ case "$cmd" in
     fi
     m=$(missing)
     [ -z "$m" ] && exit 0
+    # ":arm64" packages need the architecture known to dpkg first
+    foreign=$(printf '%s\n' $m | sed -n 's/.*:\([a-z0-9]*\)$/\1/p' | sort -u)
     if [ "$(id -u)" -eq 0 ]; then
+      for a in $foreign; do
+        dpkg --print-foreign-architectures | grep -qx "$a" || dpkg --add-architecture "$a"
+      done
       echo "deps: installing $m"
       export DEBIAN_FRONTEND=noninteractive
       apt-get update
       apt-get install -y --no-install-recommends $m
     else
       echo "deps: missing Debian packages. Run as root:" >&2
+      for a in $foreign; do
+        echo "  dpkg --add-architecture $a && apt-get update" >&2
+      done
       echo "  apt-get install -y --no-install-recommends $m" >&2
       exit 1
     fi ;;
-  *) echo "usage: $0 check|ensure|install|list [mrpt]" >&2; exit 2 ;;
+  *) echo "usage: $0 check|ensure|install|list [mrpt|cross|chroot]" >&2; exit 2 ;;
 esac

@@ -9,6 +9,8 @@
 
 namespace {
 
+// A frame with dlc as given, even an invalid one (dlc > 8, for the refusal
+// tests); the payload fills at most the HAL_CAN_MAX_DLC bytes data[] holds.
 hal_can_frame_t frame(uint32_t id, uint8_t flags, uint8_t dlc, uint8_t seed)
 {
     hal_can_frame_t f;
@@ -17,7 +19,8 @@ hal_can_frame_t frame(uint32_t id, uint8_t flags, uint8_t dlc, uint8_t seed)
     f.flags = flags;
     f.dlc = dlc;
     if ((flags & HAL_CAN_FLAG_RTR) == 0u) {
-        for (uint8_t i = 0; i < dlc; ++i) f.data[i] = static_cast<uint8_t>(seed * 31u + i * 7u);
+        const uint8_t n = dlc < HAL_CAN_MAX_DLC ? dlc : static_cast<uint8_t>(HAL_CAN_MAX_DLC);
+        for (uint8_t i = 0; i < n; ++i) f.data[i] = static_cast<uint8_t>(seed * 31u + i * 7u);
     }
     return f;
 }

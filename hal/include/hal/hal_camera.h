@@ -22,8 +22,9 @@
  *    it, else the driver's dequeue time), hal_clock time base.
  *
  * Backends: simulator (sim/hal: frames pushed by the simulator's
- * renderer), null (hal_camera_null(); the Linux V4L2 backend is not
- * written yet).
+ * renderer), Linux V4L2 (hal/linux/v4l2, hal_camera_v4l2_open(): YUYV or
+ * MJPEG webcams, mmap streaming; docs/camera-v4l2.md), null
+ * (hal_camera_null()).
  */
 #ifndef HAL_CAMERA_H
 #define HAL_CAMERA_H

@@ -23,7 +23,11 @@
  *    truncated UDP read): size the buffer with HAL_LINK_MAX_PAYLOAD.
  *
  * Backends: simulator hub (sim/hal: range limit, latency, seeded loss),
- * null (hal_link_null(); the Linux DDS link is not written yet).
+ * null (hal_link_null()), Cyclone DDS (hal/linux/dds, hal_link_dds.h:
+ * carries codec map messages plus a trailer of at most 64 bytes only,
+ * anything else is HAL_E_ARG; docs/link-dds.md). Decorator: authentication
+ * (hal/linux/auth, hal_link_auth.h: signs sent map messages, refuses and
+ * counts unauthenticated ones; docs/security.md), in front of any backend.
  */
 #ifndef HAL_LINK_H
 #define HAL_LINK_H
