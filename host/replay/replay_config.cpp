@@ -12,6 +12,7 @@
 #include <sstream>
 #include <vector>
 
+#include "app/slam_params_ini.h"
 #include "replay_data.h"
 
 namespace coslam::replay {
@@ -131,6 +132,11 @@ ReplayConfig replay_config_default()
 
 namespace {
 
+// A value outside its key's domain: the message is complete as it is.
+struct DomainError : std::invalid_argument {
+    using std::invalid_argument::invalid_argument;
+};
+
 struct Key {
     std::string section;
     std::string key;
@@ -200,12 +206,6 @@ Key dkey(const char *sec, const char *key, double *v)
     return {sec, key, [v](const std::string &s) { *v = parse_double(s); }, [v] { return fmt(*v); }};
 }
 
-Key fkey(const char *sec, const char *key, float *v)
-{
-    return {sec, key, [v](const std::string &s) { *v = static_cast<float>(parse_double(s)); },
-            [v] { return fmt_float(*v); }};
-}
-
 template <typename T> Key ikey(const char *sec, const char *key, T *v, long lo, long hi)
 {
     return {sec, key, [v, lo, hi](const std::string &s) { *v = static_cast<T>(parse_long(s, lo, hi)); },
@@ -217,34 +217,34 @@ Key bkey(const char *sec, const char *key, bool *v)
     return {sec, key, [v](const std::string &s) { *v = parse_bool(s); }, [v] { return std::string(*v ? "1" : "0"); }};
 }
 
+// [slam]: the one key table of slam_params_t (app/slam_params_ini.h), shared
+// with coslam-robot: same names, same parser, same domains.
+Key slam_key(slam_params_t *p, const slam_params_ini_key_t *k)
+{
+    return {"slam", k->name,
+            [p, k](const std::string &s) {
+                char msg[160];
+                const coslam_status_t st = slam_params_ini_set(p, k->name, s.c_str(), msg, sizeof msg);
+                if (st == COSLAM_E_ARG) {
+                    throw DomainError(std::string("invalid configuration: [slam] ") + k->name + ": " + msg);
+                }
+                if (st != COSLAM_OK) {
+                    throw std::invalid_argument(msg);
+                }
+            },
+            [p, k] {
+                const double v = slam_params_ini_get(p, k);
+                return k->type == SLAM_PARAMS_INI_FLOAT ? fmt_float(static_cast<float>(v)) : fmt(v);
+            }};
+}
+
 std::vector<Key> keys_of(ReplayConfig &c)
 {
-    slam_params_t &p = c.slam;
-    std::vector<Key> k = {
-        dkey("slam", "range_var_m2", &p.noise.range_var_m2),
-        dkey("slam", "bearing_var_rad2", &p.noise.bearing_var_rad2),
-        dkey("slam", "odo_xy_var_m2_per_m", &p.noise.odo_xy_var_m2_per_m),
-        dkey("slam", "odo_theta_var_rad2_per_m", &p.noise.odo_theta_var_rad2_per_m),
-        dkey("slam", "lm_process_var_m2_per_m", &p.noise.lm_process_var_m2_per_m),
-        dkey("slam", "init_xy_var_m2", &p.noise.init_xy_var_m2),
-        dkey("slam", "init_theta_var_rad2", &p.noise.init_theta_var_rad2),
-        dkey("slam", "lm_init_var_m2", &p.noise.lm_init_var_m2),
-        dkey("slam", "range_var_per_m2", &p.noise.range_var_per_m2),
-        dkey("slam", "base_radius_m", &p.base_radius_m),
-        dkey("slam", "sensor_min_range_m", &p.sensor_min_range_m),
-        dkey("slam", "sensor_max_range_m", &p.sensor_max_range_m),
-        dkey("slam", "sensor_fov_rad", &p.sensor_fov_rad),
-        dkey("slam", "visibility_margin", &p.visibility_margin),
-        dkey("slam", "gate_chi2", &p.gate_chi2),
-        dkey("slam", "new_landmark_chi2", &p.new_landmark_chi2),
-        dkey("slam", "new_landmark_log_lik", &p.new_landmark_log_lik),
-        fkey("slam", "exist_init", &p.exist_init),
-        fkey("slam", "exist_hit", &p.exist_hit),
-        fkey("slam", "exist_miss", &p.exist_miss),
-        fkey("slam", "exist_confirm", &p.exist_confirm),
-        fkey("slam", "exist_max", &p.exist_max),
-        fkey("slam", "exist_miss_confirmed", &p.exist_miss_confirmed),
-        dkey("slam", "exist_miss_bearing_sd_frac", &p.exist_miss_bearing_sd_frac),
+    std::vector<Key> k;
+    for (size_t i = 0; i < slam_params_ini_count(); ++i) {
+        k.push_back(slam_key(&c.slam, slam_params_ini_key(i)));
+    }
+    std::vector<Key> rest = {
         dkey("odometry", "scale_v", &c.odo.scale_v),
         dkey("odometry", "scale_w", &c.odo.scale_w),
         dkey("odometry", "delay_s", &c.odo.delay_s),
@@ -301,6 +301,7 @@ std::vector<Key> keys_of(ReplayConfig &c)
         dkey("eval", "map_period_s", &c.eval.map_period_s),
         dkey("eval", "pose_period_s", &c.eval.pose_period_s),
     };
+    k.insert(k.end(), rest.begin(), rest.end());
     return k;
 }
 
@@ -344,6 +345,8 @@ int on_ini(void *user, const char *section, const char *name, const char *value)
             }
         }
         st->error = "unknown key '" + key + "' in [" + sec + "]";
+    } catch (const DomainError &e) {
+        st->error = e.what();
     } catch (const std::exception &e) {
         st->error = "[" + sec + "] " + key + ": " + e.what();
     }

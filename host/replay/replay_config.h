@@ -7,7 +7,9 @@
 // the file and line):
 //   [slam]      every field of slam_params_t by its C name (noise weights
 //               w1..w8 as variances, range_var_per_m2, sensor footprint,
-//               gates, existence counters)
+//               gates, existence counters): the shared key table of
+//               app/slam_params_ini.h, the same one coslam-robot reads
+//               (same names, parser and per-key domains)
 //   [odometry]  scale_v, scale_w, delay_s (OdoModel)
 //   [filter]    type (fastslam1 | fastslam2 | ekf), particles, ess_fraction,
 //               export_min_weight, assoc (jcbb | nn), jcbb_max_nodes, fej,

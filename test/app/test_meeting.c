@@ -112,6 +112,10 @@ static void setup_robot0(meeting_config_t *cfg_out)
     assert_int_equal(slam_filter_init(&g_filter, &fc, kOrigin), COSLAM_OK);
     meeting_config_t c = meeting_config_default();
     if (cfg_out) c = *cfg_out;
+    /* the messages below carry near-exact sightings (1e-8 m^2, 1e-10 rad^2),
+     * below the default plausibility floors (test_implausible_refused) */
+    c.merge.min_var_m2 = 1e-9;
+    c.merge.min_bearing_var_rad2 = 1e-11;
     assert_int_equal(meeting_init(&g_m, &c, 0, 2), COSLAM_OK);
 }
 
@@ -164,7 +168,7 @@ static void mutual(pose2_t a, pose2_t b, double *r, double *b_in_a, double *a_in
 static int count_events(meeting_event_kind_t kind, coslam_status_t status, meeting_event_t *last)
 {
     int n = 0;
-    meeting_event_t ev;
+    meeting_event_t ev = {0};
     while (meeting_take_event(&g_m, &ev) == COSLAM_OK) {
         if (ev.kind == kind && ev.status == status) {
             n++;
@@ -300,7 +304,7 @@ static void test_merge_geometry_exact(void **state)
     inject(g_buf, len, 1, t + 3000 + g_m.cfg.link_latency_us);
     assert_int_equal(meeting_poll_link(&g_m, link), 1);
     assert_int_equal(meeting_poll(&g_m, &g_filter, t + 10000, kOrigin, 0.0), COSLAM_OK);
-    meeting_event_t ev;
+    meeting_event_t ev = {0};
     assert_int_equal(count_events(MEETING_EV_MERGED, COSLAM_OK, &ev), 1);
     assert_int_equal(ev.peer, 1);
     assert_int_equal(ev.own_sighting_us, t);
@@ -343,7 +347,7 @@ static void test_merge_compensates_own_motion(void **state)
     meeting_poll_link(&g_m, link);
     const pose2_t moved = {1.0, 0.2, 0.5 * COSLAM_PI};
     assert_int_equal(meeting_poll(&g_m, &g_filter, t + 150000, moved, 1.3), COSLAM_OK);
-    meeting_event_t ev;
+    meeting_event_t ev = {0};
     assert_int_equal(count_events(MEETING_EV_MERGED, COSLAM_OK, &ev), 1);
     const pose2_t want = pose2_compose(pose2_inverse(moved), b);
     assert_true(fabs(ev.other_in_self.x - want.x) < 1e-9);
@@ -367,7 +371,7 @@ static void test_pairs_nearest_own_sighting(void **state)
     inject(g_buf, len, 1, t + 190000 + 5000 + g_m.cfg.link_latency_us);
     meeting_poll_link(&g_m, link);
     assert_int_equal(meeting_poll(&g_m, &g_filter, t + 410000, kOrigin, 0.0), COSLAM_OK);
-    meeting_event_t ev;
+    meeting_event_t ev = {0};
     assert_int_equal(count_events(MEETING_EV_MERGED, COSLAM_OK, &ev), 1);
     assert_int_equal(ev.sender_sighting_us, t + 190000); /* only differences of the sender's clock are used */
     assert_int_equal(ev.own_sighting_us, t + 200000);
@@ -391,7 +395,7 @@ static void test_waits_then_stale(void **state)
     assert_int_equal(meeting_poll(&g_m, &g_filter, t + 400000, kOrigin, 0.0), COSLAM_E_MERGE_STALE);
     assert_false(g_m.have_pending);
     assert_int_equal(g_m.ctr.stale, 1);
-    meeting_event_t ev;
+    meeting_event_t ev = {0};
     assert_int_equal(count_events(MEETING_EV_REFUSED, COSLAM_E_MERGE_STALE, &ev), 1);
     assert_int_equal(ev.peer, 1);
     assert_false(meeting_merged_all(&g_m));
@@ -418,7 +422,7 @@ static void test_replay_refused(void **state)
     meeting_poll_link(&g_m, link);
     assert_int_equal(g_m.ctr.replays, 1);
     assert_int_equal(meeting_poll(&g_m, &g_filter, t + 5000, kOrigin, 0.0), COSLAM_OK);
-    meeting_event_t ev;
+    meeting_event_t ev = {0};
     assert_int_equal(count_events(MEETING_EV_REFUSED, COSLAM_E_MERGE_REPLAY, &ev), 1);
     assert_int_equal(ev.seq, 5);
     assert_int_equal(g_m.ctr.merged, 1);
@@ -436,6 +440,67 @@ static void test_replay_refused(void **state)
     assert_int_equal(slam_filter_export(&g_filter, &after), COSLAM_OK);
     assert_int_equal(after.n_landmarks, before.n_landmarks);
     assert_memory_equal(after.lm, before.lm, sizeof before.lm[0] * before.n_landmarks);
+}
+
+/* Finite but absurd numbers (a landmark 1e6 m away, a covariance of 1e-20
+ * m^2, a sighting variance of 1e-300) pass the codec and are refused before
+ * the merge: counted, the map unchanged. A message whose claimed sender is
+ * not the link's sender is refused before anything else. */
+static void test_implausible_refused(void **state)
+{
+    (void)state;
+    hal_link_t *link = fake_link_reset(0);
+    meeting_config_t c = meeting_config_default();
+    c.remerge_period_us = 0;
+    setup_robot0(&c);
+    g_m.cfg.merge.min_var_m2 = merge_config_default().min_var_m2; /* the defaults, not the fixture's */
+    g_m.cfg.merge.min_bearing_var_rad2 = merge_config_default().min_bearing_var_rad2;
+    static map_estimate_t before;
+    static map_estimate_t after;
+    assert_int_equal(slam_filter_export(&g_filter, &before), COSLAM_OK);
+    uint64_t t = 1000000;
+    for (int k = 0; k < 4; ++k, t += 1000000) {
+        meeting_on_sighting(&g_m, &g_filter, link, t, 1, 2.0, 0.0, t, kOrigin, 0.0);
+        make_msg_from1((uint32_t)(10 + k), t, t, 2.0, 0.0, (point2_t){1.0, 0.0}, 1U << 1, 0);
+        g_msg.sighting.range_var_m2 = 0.01;
+        g_msg.sighting.bearing_var_rad2 = 0.001;
+        if (k == 0) {
+            g_msg.map.lm[0].mean = (point2_t){1e6, -1e6};
+        } else if (k == 1) {
+            g_msg.map.lm[0].cov = cov2_make(1e-20, 0.0, 1e-20);
+        } else if (k == 2) {
+            g_msg.sighting.range_var_m2 = 1e-300;
+        } else {
+            g_msg.map.lm[0].cov_rel = cov2_make(1e9, 0.0, 1e9);
+        }
+        size_t len = 0;
+        assert_int_equal(map_msg_encode(&g_msg, g_buf, sizeof g_buf, &len), COSLAM_OK);
+        inject(g_buf, len, 1, t + 2000);
+        meeting_poll_link(&g_m, link);
+        assert_int_equal(meeting_poll(&g_m, &g_filter, t + 3000, kOrigin, 0.0), COSLAM_E_MERGE_IMPLAUSIBLE);
+        assert_int_equal(g_m.ctr.refused_implausible, (uint32_t)k + 1U);
+    }
+    assert_int_equal(g_m.ctr.merged, 0);
+    assert_int_equal(count_events(MEETING_EV_REFUSED, COSLAM_E_MERGE_IMPLAUSIBLE, NULL), 4);
+    /* a genuine message from robot 1 delivered with another link sender id */
+    meeting_on_sighting(&g_m, &g_filter, link, t, 1, 2.0, 0.0, t, kOrigin, 0.0);
+    make_msg_from1(20, t, t, 2.0, 0.0, (point2_t){1.0, 0.0}, 1U << 1, 0);
+    g_msg.sighting.range_var_m2 = 0.01;
+    g_msg.sighting.bearing_var_rad2 = 0.001;
+    size_t len = 0;
+    assert_int_equal(map_msg_encode(&g_msg, g_buf, sizeof g_buf, &len), COSLAM_OK);
+    inject(g_buf, len, 5, t + 2000);
+    meeting_poll_link(&g_m, link);
+    assert_int_equal(g_m.ctr.wrong_sender, 1);
+    assert_int_equal(meeting_poll(&g_m, &g_filter, t + 3000, kOrigin, 0.0), COSLAM_OK);
+    assert_int_equal(g_m.ctr.merged, 0);
+    assert_int_equal(slam_filter_export(&g_filter, &after), COSLAM_OK);
+    assert_int_equal(after.n_landmarks, before.n_landmarks);
+    /* and the same message from the right sender merges */
+    inject(g_buf, len, 1, t + 4000);
+    meeting_poll_link(&g_m, link);
+    assert_int_equal(meeting_poll(&g_m, &g_filter, t + 5000, kOrigin, 0.0), COSLAM_OK);
+    assert_int_equal(g_m.ctr.merged, 1);
 }
 
 /* A peer whose map was refused as disagreeing is not retried message by
@@ -490,7 +555,7 @@ static void test_screening(void **state)
     assert_int_equal(meeting_poll_link(&g_m, link), 3);
     assert_int_equal(g_m.ctr.rx_errors, 1);
     assert_int_equal(g_m.ctr.not_for_me, 2);
-    meeting_event_t ev;
+    meeting_event_t ev = {0};
     int truncated = 0, degenerate = 0;
     while (meeting_take_event(&g_m, &ev) == COSLAM_OK) {
         truncated += ev.kind == MEETING_EV_REFUSED && ev.status == COSLAM_E_MSG_TRUNCATED;
@@ -516,7 +581,7 @@ static void test_event_queue_overflow_counted(void **state)
     assert_int_equal(g_m.ctr.rx_errors, COSLAM_APP_EVENT_QUEUE + 3);
     assert_int_equal(g_m.ctr.events_dropped, 3);
     int n = 0;
-    meeting_event_t ev;
+    meeting_event_t ev = {0};
     while (meeting_take_event(&g_m, &ev) == COSLAM_OK) n++;
     assert_int_equal(n, COSLAM_APP_EVENT_QUEUE);
 }
@@ -532,6 +597,7 @@ int main(void)
         cmocka_unit_test(test_pairs_nearest_own_sighting),
         cmocka_unit_test(test_waits_then_stale),
         cmocka_unit_test(test_replay_refused),
+        cmocka_unit_test(test_implausible_refused),
         cmocka_unit_test(test_disagreeing_peer_not_retried),
         cmocka_unit_test(test_screening),
         cmocka_unit_test(test_event_queue_overflow_counted),

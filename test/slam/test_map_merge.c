@@ -298,6 +298,16 @@ static void test_session_replay(void **state)
     assert_int_equal(merge_session_accept(&s, 3, 2U), COSLAM_OK);
     assert_int_equal(s.rejected_replays, 2);
     assert_int_equal(merge_session_accept(&s, COSLAM_MAX_ROBOTS, 1U), COSLAM_E_ARG);
+    /* one number 2^31 - 16 ahead does not move the window: the genuine
+     * sender's next numbers still pass; a step of exactly the limit does */
+    assert_int_equal(merge_session_accept(&s, 1, 11U + 0x7FFFFFF0U), COSLAM_E_MERGE_REPLAY);
+    assert_int_equal(merge_session_accept(&s, 1, 11U + MERGE_SEQ_MAX_JUMP + 1U), COSLAM_E_MERGE_REPLAY);
+    assert_int_equal(s.rejected_jumps, 2);
+    assert_int_equal(s.rejected_replays, 2);
+    for (uint32_t k = 12U; k < 100U; ++k) {
+        assert_int_equal(merge_session_accept(&s, 1, k), COSLAM_OK);
+    }
+    assert_int_equal(merge_session_accept(&s, 1, 99U + MERGE_SEQ_MAX_JUMP), COSLAM_OK);
 }
 
 /* An incoming map with one landmark that the receiver knows and one it does

@@ -22,6 +22,16 @@ meeting_config_t meeting_config_default(void)
     return c;
 }
 
+void meeting_config_noise_from(meeting_config_t *c, const slam_params_t *p)
+{
+    if (c == NULL || p == NULL) {
+        return;
+    }
+    c->robot_range_var_m2 = p->noise.range_var_m2;
+    c->robot_range_var_per_m2 = p->noise.range_var_per_m2;
+    c->robot_bearing_var_rad2 = p->noise.bearing_var_rad2;
+}
+
 static int finite_nonneg(double v)
 {
     return isfinite(v) && v >= 0.0;
@@ -232,12 +242,24 @@ coslam_status_t meeting_on_sighting(meeting_t *m, slam_filter_t *filter, hal_lin
 
 /* Screen one decoded message (in m->tx, used as decode scratch: sending
  * only uses it inside send_map); an accepted one becomes the pending one. */
+static uint8_t peer_of(const hal_link_rx_info_t *info)
+{
+    return (uint8_t)(info->src_id < 0xFFU ? info->src_id : 0xFFU);
+}
+
 static void accept_message(meeting_t *m, const hal_link_rx_info_t *info)
 {
     const map_msg_t *msg = &m->tx;
     const uint8_t from = msg->sender_id;
     if ((msg->receiver_id != m->self_id && msg->receiver_id != MAP_MSG_BROADCAST) || from >= m->n_robots) {
         m->ctr.not_for_me++;
+        return;
+    }
+    if (info->src_id != (uint16_t)from) {
+        /* the link knows who sent it: a message claiming another sender is
+         * forged or misrouted, never merged */
+        m->ctr.wrong_sender++;
+        push_event(m, MEETING_EV_REFUSED, info->stamp_us, peer_of(info), msg->seq, COSLAM_E_MSG_FIELD);
         return;
     }
     if (!msg->sighting.valid) {
@@ -289,11 +311,6 @@ static void accept_message(meeting_t *m, const hal_link_rx_info_t *info)
     m->rx = *msg;
     m->have_pending = 1U;
     m->pending_sender_us = info->stamp_us > back_us ? info->stamp_us - back_us : 0U;
-}
-
-static uint8_t peer_of(const hal_link_rx_info_t *info)
-{
-    return (uint8_t)(info->src_id < 0xFFU ? info->src_id : 0xFFU);
 }
 
 int meeting_poll_link(meeting_t *m, hal_link_t *link)
@@ -389,6 +406,8 @@ coslam_status_t meeting_poll(meeting_t *m, slam_filter_t *filter, uint64_t now_u
     if (st != COSLAM_OK && st != COSLAM_E_CAPACITY) {
         if (st == COSLAM_E_MERGE_RANGE) {
             m->ctr.refused_range++;
+        } else if (st == COSLAM_E_MERGE_IMPLAUSIBLE) {
+            m->ctr.refused_implausible++;
         } else if (st == COSLAM_E_MERGE_DISAGREE) {
             m->ctr.refused_disagree++;
             m->peer[from].disagreed = 1U;

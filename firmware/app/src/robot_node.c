@@ -39,6 +39,11 @@ robot_node_config_t robot_node_config_default(uint8_t robot_id, uint8_t n_robots
     c.filter_period_us = 100000U;
     c.scan_max_age_us = 300000U;
     c.retry_period_us = 1000000U;
+    c.laser_optional = 0U;
+    c.laser_lost_us = 2000000U;
+    c.blind_max_turn_radps = 0.3;
+    c.gpio_optional = 0U;
+    c.motion_without_gpio = 0U;
     return c;
 }
 
@@ -50,7 +55,8 @@ coslam_status_t robot_node_init(robot_node_t *n, const robot_node_config_t *cfg,
     }
     if (cfg->n_robots < 2U || cfg->n_robots > COSLAM_MAX_ROBOTS || cfg->robot_id >= cfg->n_robots ||
         cfg->filter_period_us == 0U || !pose2_is_finite(cfg->laser_in_robot) || !isfinite(cfg->laser_fov_rad) ||
-        !(cfg->laser_fov_rad > 0.0) || !isfinite(cfg->grid_origin_m.x) || !isfinite(cfg->grid_origin_m.y)) {
+        !(cfg->laser_fov_rad > 0.0) || !isfinite(cfg->grid_origin_m.x) || !isfinite(cfg->grid_origin_m.y) ||
+        !(isfinite(cfg->blind_max_turn_radps) && cfg->blind_max_turn_radps >= 0.0)) {
         return COSLAM_E_ARG;
     }
     memset(n, 0, sizeof *n);
@@ -80,17 +86,86 @@ coslam_status_t robot_node_init(robot_node_t *n, const robot_node_config_t *cfg,
         return COSLAM_E_ARG;
     }
     if (cfg->gpio.n_bumpers > 0U || cfg->gpio.has_estop || cfg->gpio.n_leds > 0U) {
-        const hal_status_t hs = gpio_roles_init(&n->gpio, &n->cfg.gpio, io->gpio, io->clock);
-        if (hs == HAL_E_ARG) {
-            return COSLAM_E_ARG;
+        const coslam_status_t gs = robot_node_gpio_attach(n);
+        if (gs == COSLAM_E_ARG || (gs != COSLAM_OK && !cfg->gpio_optional)) {
+            return gs;
         }
-        if (hs != HAL_OK) {
-            return COSLAM_E_UNSUPPORTED;
-        }
-        n->gpio_ok = 1;
     }
-    n->state = ROBOT_NODE_LASER_UP;
+    /* without a laser to wait for, the drive comes up at once */
+    n->state = cfg->laser_optional ? ROBOT_NODE_DRIVE_UP : ROBOT_NODE_LASER_UP;
     return COSLAM_OK;
+}
+
+static int gpio_roles_configured(const robot_node_t *n)
+{
+    return n->cfg.gpio.n_bumpers > 0U || n->cfg.gpio.has_estop || n->cfg.gpio.n_leds > 0U;
+}
+
+coslam_status_t robot_node_gpio_attach(robot_node_t *n)
+{
+    if (n == NULL) {
+        return COSLAM_E_ARG;
+    }
+    if (n->gpio_ok || !gpio_roles_configured(n)) {
+        return COSLAM_OK;
+    }
+    const hal_status_t hs = gpio_roles_init(&n->gpio, &n->cfg.gpio, n->io.gpio, n->io.clock);
+    if (hs == HAL_E_ARG) {
+        return COSLAM_E_ARG;
+    }
+    if (hs != HAL_OK) {
+        n->ctr.gpio_attach_failures++;
+        return COSLAM_E_UNSUPPORTED;
+    }
+    n->gpio_ok = 1;
+    return COSLAM_OK;
+}
+
+void robot_node_gpio_detach(robot_node_t *n)
+{
+    if (n != NULL && n->gpio_ok) {
+        gpio_roles_deinit(&n->gpio);
+        n->gpio_ok = 0;
+    }
+}
+
+int robot_node_gpio_attached(const robot_node_t *n)
+{
+    return n->gpio_ok || !gpio_roles_configured(n);
+}
+
+void robot_node_hold(robot_node_t *n, int hold)
+{
+    if (n != NULL) {
+        n->hold = hold != 0;
+    }
+}
+
+int robot_node_laser_up(const robot_node_t *n)
+{
+    return n->laser_up;
+}
+
+uint32_t robot_node_msg_seq(const robot_node_t *n)
+{
+    return n->meeting.tx_seq;
+}
+
+coslam_status_t robot_node_restore(robot_node_t *n, const map_estimate_t *map, uint32_t msg_seq)
+{
+    if (n == NULL || map == NULL) {
+        return COSLAM_E_ARG;
+    }
+    const coslam_status_t st = slam_filter_seed(&n->filter, &n->cfg.filter, map);
+    if (st != COSLAM_OK && st != COSLAM_E_CAPACITY) {
+        if (!pose2_is_finite(map->pose)) {
+            const pose2_t origin = {0.0, 0.0, 0.0};
+            (void)slam_filter_init(&n->filter, &n->cfg.filter, origin);
+        }
+        return COSLAM_E_ARG;
+    }
+    n->meeting.tx_seq = msg_seq;
+    return st;
 }
 
 /* SCIP 2.0, parameters, then continuous scans over the configured field of view. */
@@ -109,6 +184,45 @@ static coslam_status_t laser_connect(robot_node_t *n)
     const uint32_t first = p->afrt > p->amin + half ? p->afrt - half : p->amin;
     const uint32_t last = p->afrt + half < p->amax ? p->afrt + half : p->amax;
     return urg_scip2_start_md(&n->urg, (uint16_t)first, (uint16_t)last, 1U, 0U, 0U);
+}
+
+/* laser_optional: connect in the background, notice a laser that went
+ * silent. A connect blocks up to three URG reply timeouts, so the base is
+ * told to stand still first. */
+static coslam_status_t laser_background(robot_node_t *n)
+{
+    if (n->laser_up) {
+        const uint64_t last = n->scan_us > n->laser_alive_us ? n->scan_us : n->laser_alive_us;
+        if (n->cfg.laser_lost_us == 0U || n->now_us - last <= n->cfg.laser_lost_us) {
+            return COSLAM_OK;
+        }
+        n->laser_up = 0;
+        n->ctr.laser_lost++;
+        n->laser_retry_at_us = n->now_us;
+        /* a fresh driver state (receive buffer, streaming flag); its
+         * counters go on */
+        const urg_scip2_stats_t keep = *urg_scip2_stats(&n->urg);
+        (void)urg_scip2_init(&n->urg, n->io.laser, &n->cfg.urg);
+        n->urg.stats = keep;
+    }
+    if (n->now_us < n->laser_retry_at_us) {
+        return COSLAM_OK;
+    }
+    if (n->drive_started) {
+        (void)cia402_omni_set_body_velocity(&n->drive, 0.0, 0.0, 0.0);
+        (void)cia402_omni_poll(&n->drive, n->now_us);
+    }
+    const coslam_status_t st = laser_connect(n);
+    uint64_t t = n->now_us;
+    (void)hal_clock_now_us(n->io.clock, &t);
+    if (st == COSLAM_OK) {
+        n->laser_up = 1;
+        n->laser_alive_us = t;
+        return COSLAM_OK;
+    }
+    n->ctr.laser_connect_failures++;
+    n->laser_retry_at_us = t + n->cfg.retry_period_us;
+    return st;
 }
 
 static void flush_prediction(robot_node_t *n)
@@ -318,6 +432,12 @@ coslam_status_t robot_node_step(robot_node_t *n)
         return COSLAM_E_ARG;
     }
     n->now_us = now;
+    if (n->state == ROBOT_NODE_SHUTDOWN) {
+        if (n->drive_started) {
+            (void)cia402_omni_poll(&n->drive, now); /* let the disable sequence finish */
+        }
+        return COSLAM_OK;
+    }
     n->ctr.steps++;
     coslam_status_t result = COSLAM_OK;
     int stop = 0;
@@ -327,10 +447,13 @@ coslam_status_t robot_node_step(robot_node_t *n)
         n->ctr.stop_steps++;
     }
 
-    if (n->state == ROBOT_NODE_LASER_UP && now >= n->retry_at_us) {
+    if (n->cfg.laser_optional) {
+        result = laser_background(n);
+    } else if (n->state == ROBOT_NODE_LASER_UP && now >= n->retry_at_us) {
         const coslam_status_t st = laser_connect(n);
         if (st == COSLAM_OK) {
             n->state = ROBOT_NODE_DRIVE_UP;
+            n->laser_up = 1;
         } else {
             n->ctr.laser_connect_failures++;
             n->retry_at_us = now + n->cfg.retry_period_us;
@@ -346,7 +469,9 @@ coslam_status_t robot_node_step(robot_node_t *n)
         if (now - n->last_predict_us >= n->cfg.filter_period_us) {
             flush_prediction(n);
         }
-        read_laser(n);
+        if (n->laser_up) {
+            read_laser(n);
+        }
     }
     read_sightings(n);
     if (meeting_poll_link(&n->meeting, n->io.link) > 0 || n->meeting.have_pending) {
@@ -379,7 +504,18 @@ coslam_status_t robot_node_step(robot_node_t *n)
         in.merged_all = meeting_merged_all(&n->meeting);
         in.acked_all = meeting_acked_all(&n->meeting);
         (void)behaviour_step(&n->behaviour, &in, &n->cmd);
-        if (stop) {
+        if (n->cfg.laser_optional && !in.scan_ok) {
+            /* no obstacle behaviour without a scan: turn on the spot only */
+            n->ctr.blind_steps++;
+            n->cmd.vx_mps = 0.0;
+            n->cmd.vy_mps = 0.0;
+            n->cmd.w_radps = fmax(-n->cfg.blind_max_turn_radps, fmin(n->cfg.blind_max_turn_radps, n->cmd.w_radps));
+        }
+        const int held = n->hold || (!robot_node_gpio_attached(n) && !n->cfg.motion_without_gpio);
+        if (held) {
+            n->ctr.hold_steps++;
+        }
+        if (stop || held) {
             n->cmd.vx_mps = 0.0;
             n->cmd.vy_mps = 0.0;
             n->cmd.w_radps = 0.0;
@@ -391,6 +527,37 @@ coslam_status_t robot_node_step(robot_node_t *n)
         }
     }
     set_led(n, stop);
+    return result;
+}
+
+coslam_status_t robot_node_shutdown(robot_node_t *n)
+{
+    if (n == NULL) {
+        return COSLAM_E_ARG;
+    }
+    uint64_t now = n->now_us;
+    (void)hal_clock_now_us(n->io.clock, &now);
+    n->now_us = now;
+    n->hold = 1;
+    n->cmd.vx_mps = 0.0;
+    n->cmd.vy_mps = 0.0;
+    n->cmd.w_radps = 0.0;
+    coslam_status_t result = COSLAM_OK;
+    if (n->drive_started) {
+        take_odometry(n);
+        (void)cia402_omni_set_body_velocity(&n->drive, 0.0, 0.0, 0.0);
+        (void)cia402_omni_enable(&n->drive, 0);
+        result = cia402_omni_poll(&n->drive, now);
+    }
+    if (n->state != ROBOT_NODE_SHUTDOWN) {
+        flush_prediction(n);
+        if (urg_scip2_is_streaming(&n->urg)) {
+            (void)urg_scip2_laser_off(&n->urg);
+        }
+        n->laser_up = 0;
+        robot_node_gpio_detach(n);
+        n->state = ROBOT_NODE_SHUTDOWN;
+    }
     return result;
 }
 

@@ -1,6 +1,8 @@
 #include "app/slam_filter.h"
 
+#include <math.h>
 #include <stddef.h>
+#include <string.h>
 
 slam_filter_config_t slam_filter_config_default(void)
 {
@@ -51,6 +53,122 @@ coslam_status_t slam_filter_init(slam_filter_t *f, const slam_filter_config_t *c
     }
     }
     return COSLAM_E_ARG;
+}
+
+static int seed_landmark_ok(const map_landmark_t *l)
+{
+    return isfinite(l->mean.x) && isfinite(l->mean.y) && cov2_is_finite(l->cov_rel) && cov2_is_pd(l->cov_rel) &&
+           l->id != 0U;
+}
+
+static coslam_status_t seed_ekf(ekfslam_t *ekf, const map_estimate_t *map)
+{
+    for (int r = 0; r < 3; ++r) {
+        for (int c = 0; c < 3; ++c) {
+            ekf->p[r * EKFSLAM_DIM + c] = map->pose_cov.m[r][c];
+        }
+    }
+    coslam_status_t result = COSLAM_OK;
+    uint32_t max_id = 0U;
+    for (uint16_t i = 0; i < map->n_landmarks; ++i) {
+        const map_landmark_t *l = &map->lm[i];
+        ekfslam_meta_t meta;
+        memset(&meta, 0, sizeof meta);
+        meta.id = l->id;
+        meta.exist = ekf->cfg.slam.exist_max;
+        meta.n_obs = l->n_obs;
+        meta.src_mask = l->src_mask;
+        meta.signature = l->signature;
+        const coslam_status_t st =
+            ekfslam_add_landmark_body(ekf, pose2_apply_inverse(map->pose, l->mean), l->cov_rel, &meta);
+        if (st == COSLAM_E_CAPACITY) {
+            result = st;
+            break;
+        }
+        if (st != COSLAM_OK) {
+            return COSLAM_E_ARG;
+        }
+        ekf->lm_confirmed_once[ekf->n_lm - 1U] = 1U;
+        max_id = l->id > max_id ? l->id : max_id;
+    }
+    if (max_id >= ekf->next_id) {
+        ekf->next_id = max_id + 1U;
+    }
+    return result;
+}
+
+static coslam_status_t seed_fastslam(fastslam_t *fs, const map_estimate_t *map)
+{
+    const double c = cos(map->pose.theta);
+    const double s = sin(map->pose.theta);
+    double r[2][2] = {{c, -s}, {s, c}}; /* body -> map */
+    /* the anchors hold floats: the pose marginal is rounded the same way, so
+     * that no drift since the anchor appears (marginal_relative_drift) */
+    landmark_t probe;
+    memset(&probe, 0, sizeof probe);
+    landmark_set_anchor(&probe, &map->pose_cov, (point2_t){map->pose.x, map->pose.y});
+    const cov3_t marg = landmark_anchor(&probe);
+    for (uint16_t k = 0; k < fs->cfg.n_particles; ++k) {
+        fastslam_particle_t *p = &fs->particles[k];
+        p->pose = map->pose;
+        p->pending_cov = cov3_zero();
+        p->pose_marg = marg;
+        p->log_w = 0.0;
+        p->n_lm = 0U;
+    }
+    coslam_status_t result = COSLAM_OK;
+    uint32_t max_id = 0U;
+    for (uint16_t i = 0; i < map->n_landmarks; ++i) {
+        const map_landmark_t *l = &map->lm[i];
+        landmark_t lm = probe;
+        lm.mean = l->mean;
+        lm.cov = cov2_congruence(r, l->cov_rel);
+        lm.id = l->id;
+        lm.exist = fs->cfg.slam.exist_max;
+        lm.n_obs = l->n_obs;
+        lm.src_mask = l->src_mask;
+        lm.signature = l->signature;
+        lm.confirmed_once = 1U;
+        int full = 0;
+        for (uint16_t k = 0; k < fs->cfg.n_particles; ++k) {
+            if (fastslam_particle_add(fs, k, &lm) != COSLAM_OK) {
+                full = 1;
+            }
+        }
+        if (full) {
+            result = COSLAM_E_CAPACITY;
+            break;
+        }
+        max_id = l->id > max_id ? l->id : max_id;
+    }
+    if (max_id >= fs->next_id) {
+        fs->next_id = max_id + 1U;
+    }
+    return result;
+}
+
+coslam_status_t slam_filter_seed(slam_filter_t *f, const slam_filter_config_t *cfg, const map_estimate_t *map)
+{
+    if (f == NULL || cfg == NULL || map == NULL || !pose2_is_finite(map->pose)) {
+        return COSLAM_E_ARG;
+    }
+    coslam_status_t st = slam_filter_init(f, cfg, map->pose);
+    if (st != COSLAM_OK) {
+        return st;
+    }
+    if (!cov3_is_finite(map->pose_cov) || map->n_landmarks > COSLAM_MAX_MSG_LANDMARKS) {
+        return COSLAM_E_ARG;
+    }
+    for (uint16_t i = 0; i < map->n_landmarks; ++i) {
+        if (!seed_landmark_ok(&map->lm[i])) {
+            return COSLAM_E_ARG;
+        }
+    }
+    st = f->kind == SLAM_FILTER_EKF ? seed_ekf(&f->u.ekf, map) : seed_fastslam(&f->u.fs, map);
+    if (st != COSLAM_OK && st != COSLAM_E_CAPACITY) {
+        (void)slam_filter_init(f, cfg, map->pose);
+    }
+    return st;
 }
 
 coslam_status_t slam_filter_predict(slam_filter_t *f, odo_increment_t u)

@@ -15,6 +15,10 @@ merge_config_t merge_config_default(void)
     c.peer_speed_mps = 0.3;
     c.peer_turn_radps = 0.5;
     c.range_check_chi2 = 9.0;
+    c.max_extent_m = 1000.0;
+    c.min_var_m2 = 1e-6;
+    c.max_var_m2 = 1e4;
+    c.min_bearing_var_rad2 = 1e-8;
     c.check = 1U;
     c.refine_iters = 3U;
     c.refine_eff_pairs = 2.0;
@@ -40,6 +44,10 @@ coslam_status_t merge_session_accept(merge_session_t *s, uint8_t sender, uint32_
         const uint32_t diff = seq - s->last_seq[sender];
         if (diff == 0U || diff >= 0x80000000U) {
             s->rejected_replays++;
+            return COSLAM_E_MERGE_REPLAY;
+        }
+        if (diff > MERGE_SEQ_MAX_JUMP) {
+            s->rejected_jumps++;
             return COSLAM_E_MERGE_REPLAY;
         }
     }
@@ -684,6 +692,36 @@ coslam_status_t merge_into_ekfslam(ekfslam_t *ekf, const merge_body_map_t *bm, c
 
 /* ---- one set-up for every caller ---------------------------------------- */
 
+/* Both axes of a 2x2 covariance inside [lo, hi]. */
+static int cov2_axes_within(cov2_t c, double lo, double hi)
+{
+    const double half_tr = 0.5 * (c.xx + c.yy);
+    const double d = sqrt(0.25 * (c.xx - c.yy) * (c.xx - c.yy) + c.xy * c.xy);
+    return half_tr - d >= lo && half_tr + d <= hi;
+}
+
+/* Step 0: values no robot of the team can produce. */
+static int message_plausible(const map_estimate_t *in, const merge_geometry_t *g, const merge_config_t *cfg)
+{
+    const double ext2 = cfg->max_extent_m * cfg->max_extent_m;
+    if (!(in->pose.x * in->pose.x + in->pose.y * in->pose.y <= ext2)) {
+        return 0;
+    }
+    if (!(g->other_sees_self.range_var_m2 >= cfg->min_var_m2) ||
+        !(g->other_sees_self.bearing_var_rad2 >= cfg->min_bearing_var_rad2)) {
+        return 0;
+    }
+    for (uint16_t i = 0; i < in->n_landmarks; ++i) {
+        const map_landmark_t *l = &in->lm[i];
+        if (!(l->mean.x * l->mean.x + l->mean.y * l->mean.y <= ext2) ||
+            !cov2_axes_within(l->cov, cfg->min_var_m2, cfg->max_var_m2) ||
+            !cov2_axes_within(l->cov_rel, cfg->min_var_m2, cfg->max_var_m2)) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
 coslam_status_t merge_prepare(const map_estimate_t *in, const merge_geometry_t *g, const slam_params_t *own_params,
                               const merge_config_t *cfg, merge_body_map_t *out, merge_stats_t *stats)
 {
@@ -695,8 +733,13 @@ coslam_status_t merge_prepare(const map_estimate_t *in, const merge_geometry_t *
         !isfinite(g->own_motion.dy) || !isfinite(g->own_motion.dtheta)) {
         return COSLAM_E_NUMERIC;
     }
-    if (!(cfg->peer_speed_mps >= 0.0) || !(cfg->peer_turn_radps >= 0.0) || !(cfg->range_check_chi2 >= 0.0)) {
+    if (!(cfg->peer_speed_mps >= 0.0) || !(cfg->peer_turn_radps >= 0.0) || !(cfg->range_check_chi2 >= 0.0) ||
+        !(cfg->max_extent_m > 0.0) || !(cfg->min_var_m2 > 0.0) || !(cfg->max_var_m2 > cfg->min_var_m2) ||
+        !(cfg->min_bearing_var_rad2 > 0.0)) {
         return COSLAM_E_ARG;
+    }
+    if (!message_plausible(in, g, cfg)) {
+        return COSLAM_E_MERGE_IMPLAUSIBLE;
     }
     const robot_sighting_t *a = &g->self_sees_other;
     const robot_sighting_t *b = &g->other_sees_self;

@@ -151,6 +151,7 @@ typedef struct {
     uint32_t received;          /**< datagrams taken from the link */
     uint32_t rx_errors;         /**< link errors and undecodable messages */
     uint32_t not_for_me;        /**< addressed to another robot, or without a sighting */
+    uint32_t wrong_sender;      /**< claimed sender != the link's sender id (refused) */
     uint32_t ignored_recent;    /**< from a peer merged within remerge_period_us */
     uint32_t replays;           /**< refused by the merge session (old sequence number) */
     uint32_t pending_replaced;  /**< a pending message replaced by a newer one */
@@ -158,6 +159,7 @@ typedef struct {
     uint32_t merged;            /**< maps merged */
     uint32_t merge_failures;    /**< relative pose / transform / merge failed */
     uint32_t refused_range;     /**< the mutual ranges disagree (COSLAM_E_MERGE_RANGE) */
+    uint32_t refused_implausible; /**< values no robot produces (COSLAM_E_MERGE_IMPLAUSIBLE) */
     uint32_t refused_disagree;  /**< the maps disagree (COSLAM_E_MERGE_DISAGREE) */
     uint32_t ignored_disagreed; /**< from a peer whose map disagreed within remerge_period_us */
     uint32_t weak_not_sent;     /**< landmarks left out of sent maps (below export_min_obs) */
@@ -188,6 +190,15 @@ typedef struct {
  *  300 ms, resend 1 s, 3 sends, gap 5 s, remerge 60 s, range 3 m,
  *  export_min_obs 5, merge_config_default(). */
 meeting_config_t meeting_config_default(void);
+
+/** Set the noise of the own robot sightings from the filter's camera model
+ *  (the one settings source): robot markers are seen by the same camera as
+ *  landmarks, so robot_range_var_m2 = w1 (range_var_m2),
+ *  robot_range_var_per_m2 = range_var_per_m2 and robot_bearing_var_rad2 =
+ *  w2 (bearing_var_rad2), as coslam-replay does. Without this call the
+ *  meeting keeps meeting_config_default()'s own copy of the default camera
+ *  noise, which no settings file changes. No-op for NULL. O(1). */
+void meeting_config_noise_from(meeting_config_t *c, const slam_params_t *p);
 
 /** Initialise for robot self_id in a team of n_robots (ids 0..n-1). No I/O.
  *  Returns COSLAM_OK; COSLAM_E_ARG (NULL, ids out of range, non-positive

@@ -29,6 +29,24 @@
  * A latched bumper is acknowledged automatically once it is released (the
  * robot stood still meanwhile); the behaviour then turns a quarter right.
  *
+ * Degraded modes (for a robot whose devices may be missing; the simulator
+ * uses none of them, the Linux port coslam-robot all):
+ *  - laser_optional: the drive, odometry, filter and meeting run without
+ *    the laser; the laser is connected in the background every
+ *    retry_period_us (the base is commanded to stand still first, since a
+ *    connect blocks up to three URG reply timeouts) and counted lost when
+ *    no scan came for laser_lost_us (then reconnected). Without a recent
+ *    scan there is no obstacle behaviour: the robot never translates and
+ *    turns on the spot at most at blind_max_turn_radps.
+ *  - gpio_optional: init succeeds when the GPIO lines cannot be claimed;
+ *    robot_node_gpio_attach() claims them later (robot_node_gpio_detach()
+ *    lets go of a controller that went away). While the configured bumper /
+ *    e-stop roles are not attached the robot does not move, unless
+ *    motion_without_gpio is set (the e-stop is a safety input).
+ *  - robot_node_hold(): an external stop (shutdown, a supervisor).
+ * With no CAN bus the drive bring-up keeps failing (counted in
+ * drive_errors): no odometry, no motion; sightings, filter and meeting run.
+ *
  * Start-up inside robot_node_step: the laser is connected first (SCIP2.0,
  * PP, MD over laser_fov_rad); these driver commands block up to the URG
  * driver's reply timeout on hardware (the emulator answers at once) and
@@ -95,6 +113,13 @@ typedef struct {
     uint32_t filter_period_us;      /**< prediction period [us], > 0 */
     uint32_t scan_max_age_us;       /**< older obstacle decision: no translation [us] */
     uint32_t retry_period_us;       /**< laser connect / drive fault retries [us] */
+    /* degraded modes (header comment); robot_node_config_default: all off,
+     * laser_lost_us 2 s, blind_max_turn_radps 0.3 rad/s */
+    uint8_t laser_optional;         /**< 1: run without the laser, connect it in the background */
+    uint32_t laser_lost_us;         /**< laser_optional: no scan this long -> lost, reconnect [us]; 0: never */
+    double blind_max_turn_radps;    /**< laser_optional: |w| limit without a recent scan [rad/s], >= 0 */
+    uint8_t gpio_optional;          /**< 1: init succeeds without the GPIO lines */
+    uint8_t motion_without_gpio;    /**< 1: move even while the GPIO roles are not attached */
 } robot_node_config_t;
 
 typedef enum {
@@ -102,6 +127,7 @@ typedef enum {
     ROBOT_NODE_DRIVE_UP = 2,  /**< drive bring-up and enable */
     ROBOT_NODE_RUN = 3,       /**< running */
     ROBOT_NODE_FAULT = 4,     /**< drive fault: stopped, reset after retry_period_us */
+    ROBOT_NODE_SHUTDOWN = 5,  /**< robot_node_shutdown() was called: stopped for good */
 } robot_node_state_t;
 
 typedef struct {
@@ -119,6 +145,10 @@ typedef struct {
     uint32_t drive_errors;        /**< other drive driver errors */
     uint32_t stop_steps;          /**< steps stopped by bumper / e-stop */
     uint32_t bumper_acks;         /**< bumper hits, acknowledged once released */
+    uint32_t laser_lost;          /**< laser_optional: connected laser silent for laser_lost_us */
+    uint32_t blind_steps;         /**< laser_optional: running steps without a recent scan */
+    uint32_t hold_steps;          /**< running steps stopped by robot_node_hold or missing GPIO roles */
+    uint32_t gpio_attach_failures;/**< robot_node_init (gpio_optional) / robot_node_gpio_attach failures */
 } robot_node_counters_t;
 
 typedef struct {
@@ -156,6 +186,11 @@ typedef struct {
     behaviour_t behaviour;
     behaviour_cmd_t cmd;
     robot_node_counters_t ctr;
+    /* degraded modes */
+    int laser_up;                 /**< the laser is connected and streaming */
+    uint64_t laser_retry_at_us;   /**< laser_optional: next connect attempt */
+    uint64_t laser_alive_us;      /**< laser_optional: connected at */
+    int hold;                     /**< robot_node_hold */
 } robot_node_t;
 
 /** Defaults for robot `robot_id` of `n_robots`: slam_filter_config_default,
@@ -183,6 +218,62 @@ coslam_status_t robot_node_init(robot_node_t *n, const robot_node_config_t *cfg,
  * (COSLAM_E_DRIVE_FAULT).
  */
 coslam_status_t robot_node_step(robot_node_t *n);
+
+/**
+ * Start the filter from a saved map (slam_filter_seed: the robot did not
+ * move while it was down, so it stands at map->pose) and continue the
+ * meeting's message sequence numbers after msg_seq, so that the peers'
+ * replay check (merge_session_accept) does not refuse the restarted robot.
+ * Call after robot_node_init and before the first step. Dead reckoning
+ * restarts at the identity (it is a control frame only).
+ * Returns COSLAM_OK, COSLAM_E_CAPACITY (map cut, see slam_filter_seed),
+ * COSLAM_E_ARG (NULL, or a map the filter refuses: the filter then starts
+ * empty at the map's pose if that is finite, else as after init).
+ * O(slam_filter_seed).
+ */
+coslam_status_t robot_node_restore(robot_node_t *n, const map_estimate_t *map, uint32_t msg_seq);
+
+/** Sequence number of the last map message sent (0: none yet). O(1). */
+uint32_t robot_node_msg_seq(const robot_node_t *n);
+
+/**
+ * Claim the configured GPIO lines now (gpio_roles_init): after an init
+ * without them (gpio_optional) or a robot_node_gpio_detach. The e-stop
+ * starts active, so the robot moves only once it has been seen released
+ * for estop_release_us. Returns COSLAM_OK (attached, or already, or no role
+ * configured); COSLAM_E_UNSUPPORTED (the lines could not be claimed;
+ * counted in gpio_attach_failures); COSLAM_E_ARG (NULL, or a GPIO
+ * configuration gpio_roles refuses). O(lines).
+ */
+coslam_status_t robot_node_gpio_attach(robot_node_t *n);
+
+/** Let go of the GPIO roles (LEDs off, lines released; gpio_roles_deinit),
+ *  e.g. before closing a controller that went away. No-op when not
+ *  attached. O(lines). */
+void robot_node_gpio_detach(robot_node_t *n);
+
+/** 1 while the GPIO roles are attached (or none is configured). O(1). */
+int robot_node_gpio_attached(const robot_node_t *n);
+
+/** Hold (1) or release (0) the robot: while held every step commands zero
+ *  velocity (counted in hold_steps); everything else runs. O(1). */
+void robot_node_hold(robot_node_t *n, int hold);
+
+/**
+ * Stop for good: the pending odometry goes into the filter (so that an
+ * export after this call has the final pose), zero velocity and the
+ * drives' disable goal are commanded and sent (one cia402_omni_poll), the
+ * laser's streaming is stopped (QT; blocks up to the URG reply timeout),
+ * the GPIO roles are released (LEDs off). State ROBOT_NODE_SHUTDOWN; a
+ * later robot_node_step only polls the drive (so that the disable
+ * sequence can finish) and returns COSLAM_OK. Calling it again polls the
+ * drive once more. Returns COSLAM_OK, COSLAM_E_ARG (NULL), or the drive's
+ * error (COSLAM_E_DRIVE_FAULT: the base is being stopped anyway).
+ */
+coslam_status_t robot_node_shutdown(robot_node_t *n);
+
+/** 1 while the laser is connected and streaming. O(1). */
+int robot_node_laser_up(const robot_node_t *n);
 
 /** Current state. */
 robot_node_state_t robot_node_state(const robot_node_t *n);

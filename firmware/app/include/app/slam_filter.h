@@ -69,6 +69,39 @@ slam_filter_config_t slam_filter_config_default(void);
  *  filter refused the configuration). O(N) / O(1). */
 coslam_status_t slam_filter_init(slam_filter_t *f, const slam_filter_config_t *cfg, pose2_t pose0);
 
+/**
+ * Start the filter from a saved map estimate: a snapshot written before a
+ * restart, during which the robot did not move. slam_filter_init at
+ * map->pose, the pose covariance set to map->pose_cov, then every landmark
+ * placed relative to that pose with its relative covariance cov_rel
+ * (map_estimate.h), on top of the core's own insertion paths:
+ *   EKF-SLAM: P_rr = pose_cov; each landmark through
+ *     ekfslam_add_landmark_body(R^T (m - p), cov_rel), i.e. with the
+ *     cross-covariances to the pose that a sighting gives;
+ *   Fast-SLAM: every particle at the pose with weight 1 and pose marginal
+ *     pose_cov (to float precision: the anchors store floats); each landmark
+ *     with EKF covariance R cov_rel R^T, anchored at that marginal
+ *     (marginal.h), through fastslam_particle_add.
+ * Identities, observation counts, provenance masks and classes are kept;
+ * the landmarks start confirmed (existence exist_max, like a merged one);
+ * new identities continue after the largest one. The merge coverage record
+ * starts empty.
+ * What slam_filter_export gives back right after: the pose, pose_cov, the
+ * means, cov_rel and the bookkeeping as saved (to rounding); the map-frame
+ * covariance `cov` as G pose_cov G^T + R cov_rel R^T (G the Jacobian of
+ * pose (+) rel with respect to the pose). The map estimate has dropped the
+ * pose-landmark correlation, so the saved `cov` cannot be rebuilt together
+ * with cov_rel; the relative one is kept because association and merging
+ * use it. Seeding from that export gives it again (a fixed point).
+ * Returns COSLAM_OK; COSLAM_E_ARG (NULL, a configuration slam_filter_init
+ * refuses, a non-finite pose or pose covariance, a landmark with a
+ * non-finite mean, a cov_rel that is not positive definite, or id 0):
+ * the filter is then initialised at the pose with no landmark;
+ * COSLAM_E_CAPACITY: more landmarks than the filter holds (counted by the
+ * core), the first ones kept. O(N M) Fast-SLAM, O(M D) EKF-SLAM.
+ */
+coslam_status_t slam_filter_seed(slam_filter_t *f, const slam_filter_config_t *cfg, const map_estimate_t *map);
+
 /** fastslam_predict / ekfslam_predict. */
 coslam_status_t slam_filter_predict(slam_filter_t *f, odo_increment_t u);
 

@@ -30,7 +30,17 @@
  *     (Julier and Uhlmann 1997), consistent for unknown correlation, so
  *     re-merging information already fused cannot shrink the covariance.
  *     Messages are accepted from a sender only with a sequence number
- *     newer than the last merged one (merge_session_t).
+ *     newer than the last merged one, by at most MERGE_SEQ_MAX_JUMP
+ *     (merge_session_t).
+ *  0. Before any of this, merge_prepare refuses a message whose numbers no
+ *     robot of this team can produce (COSLAM_E_MERGE_IMPLAUSIBLE): a pose or
+ *     landmark farther than max_extent_m from the sender's origin, a
+ *     landmark covariance (either one) with an axis outside
+ *     [min_var_m2, max_var_m2], a sighting of the receiver with a variance
+ *     below min_var_m2 (range) or min_bearing_var_rad2. The codec already
+ *     refused non-finite and non-positive-definite values; these bounds
+ *     stop finite but absurd ones (a landmark at 1e6 m, a covariance of
+ *     1e-20 m^2 that would override the receiver's map).
  *
  * Geometry of the mutual sightings (both robots' markers at their centres):
  *
@@ -115,6 +125,14 @@ typedef struct {
      *  this refuses the merge (COSLAM_E_MERGE_RANGE; a misread marker).
      *  0 disables the check. */
     double range_check_chi2;
+    /** Plausibility (step 0 above): largest distance of the sender's pose
+     *  and landmarks from its map origin [m]; the bounds on every axis of a
+     *  landmark covariance [m^2]; the smallest bearing variance of the
+     *  sender's sighting [rad^2]. 0 < min_var_m2 < max_var_m2. */
+    double max_extent_m;
+    double min_var_m2;
+    double max_var_m2;
+    double min_bearing_var_rad2;
 
     /* ---- check before trust (merge_check) ---- */
     /** 1: merge_check runs (agreement test, transform refinement, negative
@@ -150,7 +168,9 @@ typedef struct {
 /** Defaults: gate 9.21 (99 %), cell 1 m, full uncertainty, no reweighting,
  *  min_obs 1, Kalman fusion of disjoint provenance with the duplicates
  *  counting as 2 independent ones, peer bounds 0.3 m/s and
- *  0.5 rad/s, range check 9, check on with 3 refinements moving the map
+ *  0.5 rad/s, range check 9, plausibility: extent 1 km, landmark variances
+ *  in [1e-6, 1e4] m^2 (1 mm .. 100 m standard deviation), bearing variance
+ *  >= 1e-8 rad^2 (0.006 deg), check on with 3 refinements moving the map
  *  and counting as 2 independent pairs, agree_z 2.33 (99 %), veto_looks 5,
  *  contradict fraction 0.3, ambiguous_chi2 25. docs/map-merge.md says why
  *  and on what they were chosen. */
@@ -225,16 +245,24 @@ typedef struct {
     uint32_t last_seq[COSLAM_MAX_ROBOTS];
     uint8_t seen[COSLAM_MAX_ROBOTS];
     uint32_t merges;
-    uint32_t rejected_replays;
+    uint32_t rejected_replays;  /**< not newer than the last merged number */
+    uint32_t rejected_jumps;    /**< newer by more than MERGE_SEQ_MAX_JUMP */
 } merge_session_t;
+
+/** Largest forward step of a sender's sequence number between two merges.
+ *  A robot numbers every message it sends (to any peer, a few per meeting),
+ *  so 65536 covers hours of meetings; one forged or faulty number near
+ *  last + 2^31 would otherwise make every later genuine message a replay. */
+#define MERGE_SEQ_MAX_JUMP 65536U
 
 void merge_session_init(merge_session_t *s);
 
 /**
  * Accept a message from `sender` with sequence `seq` only if newer than the
- * last merged one (serial-number arithmetic, so the counter may wrap).
- * Returns COSLAM_OK (and records it), COSLAM_E_MERGE_REPLAY (counted) or
- * COSLAM_E_ARG. Call after the merge succeeded - or before, and accept that
+ * last merged one (serial-number arithmetic, so the counter may wrap) by at
+ * most MERGE_SEQ_MAX_JUMP. Returns COSLAM_OK (and records it),
+ * COSLAM_E_MERGE_REPLAY (counted in rejected_replays, or in rejected_jumps
+ * for a jump: the window does not move) or COSLAM_E_ARG. Call after the merge succeeded - or before, and accept that
  * a failed merge consumes the number.
  */
 coslam_status_t merge_session_accept(merge_session_t *s, uint8_t sender, uint32_t seq);
@@ -303,7 +331,8 @@ typedef struct {
 } merge_geometry_t;
 
 /**
- * Steps 1-2 in one call, the only set-up any caller uses: the range check
+ * Steps 0-2 in one call, the only set-up any caller uses: the plausibility
+ * bounds (COSLAM_E_MERGE_IMPLAUSIBLE, nothing written), the range check
  * (range_check_chi2), merge_relative_pose, merge_compensate with the own
  * odometry (covariance diag(w3 s, w3 s, w4 s) from own_params, s the
  * travel), the sender's possible motion during sighting_dt_s (peer bounds,

@@ -1,0 +1,807 @@
+/* coslam-robot settings: key table, INI reader (libinih), printer (robot_config.h). */
+#include "robot_config.h"
+
+#include <ini.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "app/slam_params_ini.h"
+
+/* snprintf that may truncate on purpose (messages, labels): always terminated. */
+__attribute__((format(printf, 3, 4))) static void put_text(char *dst, size_t cap, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    (void)vsnprintf(dst, cap, fmt, ap);
+    va_end(ap);
+}
+
+typedef enum {
+    K_BOOL = 1, /* uint8_t 0/1: 0 1 true false yes no on off */
+    K_U8,
+    K_U16,
+    K_U32,
+    K_U64,
+    K_F64,
+    K_US,       /* seconds in the file, uint32_t microseconds in the struct */
+    K_STR,      /* char[ROBOT_CONFIG_PATH_MAX + 1] */
+    K_CUSTOM,
+} key_type_t;
+
+typedef struct cfg_key cfg_key_t;
+
+/* A custom key: parse into cfg (COSLAM_OK or COSLAM_E_ARG with msg), print. */
+typedef coslam_status_t (*key_parse_fn)(robot_config_t *c, const char *value, char *msg, size_t cap);
+typedef void (*key_print_fn)(const robot_config_t *c, FILE *out);
+
+struct cfg_key {
+    const char *section;
+    const char *name;
+    key_type_t type;
+    size_t offset;     /* into robot_config_t */
+    double min;        /* domain [min, max] (min excluded with min_open) */
+    double max;
+    int min_open;
+    key_parse_fn parse;
+    key_print_fn print;
+};
+
+#define OFF_(f) offsetof(robot_config_t, f)
+
+/* ---- custom keys --------------------------------------------------------- */
+
+static coslam_status_t parse_int(const char *v, long lo, long hi, long *out, char *msg, size_t cap)
+{
+    double d = 0.0;
+    if (slam_params_ini_parse_number(v, &d) != COSLAM_OK || d != floor(d) || d < (double)lo || d > (double)hi) {
+        put_text(msg, cap, "expected an integer in [%ld, %ld], got '%s'", lo, hi, v);
+        return COSLAM_E_ARG;
+    }
+    *out = (long)d;
+    return COSLAM_OK;
+}
+
+/* Comma-separated integers in [lo, hi], at most max_n (an empty value: none). */
+static coslam_status_t parse_list(const char *v, long lo, long hi, long *out, int max_n, int *n, char *msg,
+                                  size_t cap)
+{
+    *n = 0;
+    char buf[ROBOT_CONFIG_PATH_MAX + 1u];
+    if (strlen(v) > ROBOT_CONFIG_PATH_MAX) {
+        put_text(msg, cap, "list too long");
+        return COSLAM_E_ARG;
+    }
+    put_text(buf, sizeof buf, "%s", v);
+    char *p = buf;
+    while (*p != '\0') {
+        char *comma = strchr(p, ',');
+        if (comma != NULL) {
+            *comma = '\0';
+        }
+        while (*p == ' ' || *p == '\t') {
+            ++p;
+        }
+        size_t len = strlen(p);
+        while (len > 0U && (p[len - 1U] == ' ' || p[len - 1U] == '\t')) {
+            p[--len] = '\0';
+        }
+        if (*n >= max_n) {
+            put_text(msg, cap, "at most %d entries", max_n);
+            return COSLAM_E_ARG;
+        }
+        if (parse_int(p, lo, hi, &out[*n], msg, cap) != COSLAM_OK) {
+            return COSLAM_E_ARG;
+        }
+        (*n)++;
+        if (comma == NULL) {
+            break;
+        }
+        p = comma + 1;
+    }
+    return COSLAM_OK;
+}
+
+static coslam_status_t parse_profile(robot_config_t *c, const char *v, char *msg, size_t cap)
+{
+    (void)c;
+    if (strcmp(v, COSLAM_PROFILE_NAME) != 0) {
+        put_text(msg, cap, "this binary is built for the '%s' capacity profile, not '%s'",
+                       COSLAM_PROFILE_NAME, v);
+        return COSLAM_E_ARG;
+    }
+    return COSLAM_OK;
+}
+
+static void print_profile(const robot_config_t *c, FILE *out)
+{
+    (void)c;
+    fprintf(out, "%s", COSLAM_PROFILE_NAME);
+}
+
+static coslam_status_t parse_filter_type(robot_config_t *c, const char *v, char *msg, size_t cap)
+{
+    if (strcmp(v, "fastslam1") == 0 || strcmp(v, "fs1") == 0) {
+        c->node.filter.kind = SLAM_FILTER_FASTSLAM1;
+    } else if (strcmp(v, "fastslam2") == 0 || strcmp(v, "fs2") == 0) {
+        c->node.filter.kind = SLAM_FILTER_FASTSLAM2;
+    } else if (strcmp(v, "ekf") == 0 || strcmp(v, "ekfslam") == 0) {
+        c->node.filter.kind = SLAM_FILTER_EKF;
+    } else {
+        put_text(msg, cap, "unknown filter '%s' (expected fastslam1, fastslam2 or ekf)", v);
+        return COSLAM_E_ARG;
+    }
+    return COSLAM_OK;
+}
+
+static void print_filter_type(const robot_config_t *c, FILE *out)
+{
+    fprintf(out, "%s", slam_filter_kind_name(c->node.filter.kind));
+}
+
+static coslam_status_t parse_assoc(robot_config_t *c, const char *v, char *msg, size_t cap)
+{
+    if (strcmp(v, "jcbb") == 0) {
+        c->node.filter.assoc = EKFSLAM_ASSOC_JCBB;
+    } else if (strcmp(v, "nn") == 0) {
+        c->node.filter.assoc = EKFSLAM_ASSOC_NN;
+    } else {
+        put_text(msg, cap, "expected jcbb or nn, got '%s'", v);
+        return COSLAM_E_ARG;
+    }
+    return COSLAM_OK;
+}
+
+static void print_assoc(const robot_config_t *c, FILE *out)
+{
+    fprintf(out, "%s", c->node.filter.assoc == EKFSLAM_ASSOC_NN ? "nn" : "jcbb");
+}
+
+static coslam_status_t parse_node_ids(robot_config_t *c, const char *v, char *msg, size_t cap)
+{
+    long ids[OMNI_WHEELS];
+    int n = 0;
+    if (parse_list(v, 1, 127, ids, OMNI_WHEELS, &n, msg, cap) != COSLAM_OK) {
+        return COSLAM_E_ARG;
+    }
+    if (n != OMNI_WHEELS) {
+        put_text(msg, cap, "expected %d CANopen node ids (1..127), got %d", OMNI_WHEELS, n);
+        return COSLAM_E_ARG;
+    }
+    for (int k = 0; k < OMNI_WHEELS; ++k) {
+        for (int j = 0; j < k; ++j) {
+            if (ids[j] == ids[k]) {
+                put_text(msg, cap, "node id %ld appears twice", ids[k]);
+                return COSLAM_E_ARG;
+            }
+        }
+    }
+    for (int k = 0; k < OMNI_WHEELS; ++k) {
+        c->node.drive.node_id[k] = (uint8_t)ids[k];
+    }
+    return COSLAM_OK;
+}
+
+static void print_node_ids(const robot_config_t *c, FILE *out)
+{
+    for (int k = 0; k < OMNI_WHEELS; ++k) {
+        fprintf(out, "%s%u", k > 0 ? ", " : "", (unsigned)c->node.drive.node_id[k]);
+    }
+}
+
+static coslam_status_t parse_bumpers(robot_config_t *c, const char *v, char *msg, size_t cap)
+{
+    long lines[COSLAM_MAX_BUMPERS];
+    int n = 0;
+    if (parse_list(v, 0, 1023, lines, COSLAM_MAX_BUMPERS, &n, msg, cap) != COSLAM_OK) {
+        return COSLAM_E_ARG;
+    }
+    c->node.gpio.n_bumpers = (uint8_t)n;
+    for (int k = 0; k < n; ++k) {
+        c->node.gpio.bumpers[k].line = (uint32_t)lines[k];
+    }
+    return COSLAM_OK;
+}
+
+static void print_bumpers(const robot_config_t *c, FILE *out)
+{
+    for (unsigned k = 0; k < c->node.gpio.n_bumpers; ++k) {
+        fprintf(out, "%s%u", k > 0 ? ", " : "", (unsigned)c->node.gpio.bumpers[k].line);
+    }
+}
+
+static coslam_status_t parse_bumper_low(robot_config_t *c, const char *v, char *msg, size_t cap);
+static void print_bumper_low(const robot_config_t *c, FILE *out)
+{
+    fprintf(out, "%d", c->node.gpio.bumpers[0].active_low ? 1 : 0);
+}
+
+static coslam_status_t parse_leds(robot_config_t *c, const char *v, char *msg, size_t cap)
+{
+    long lines[COSLAM_MAX_STATUS_LEDS];
+    int n = 0;
+    if (parse_list(v, 0, 1023, lines, COSLAM_MAX_STATUS_LEDS, &n, msg, cap) != COSLAM_OK) {
+        return COSLAM_E_ARG;
+    }
+    c->node.gpio.n_leds = (uint8_t)n;
+    for (int k = 0; k < n; ++k) {
+        c->node.gpio.leds[k].line = (uint32_t)lines[k];
+        c->node.gpio.leds[k].active_low = false;
+    }
+    return COSLAM_OK;
+}
+
+static void print_leds(const robot_config_t *c, FILE *out)
+{
+    for (unsigned k = 0; k < c->node.gpio.n_leds; ++k) {
+        fprintf(out, "%s%u", k > 0 ? ", " : "", (unsigned)c->node.gpio.leds[k].line);
+    }
+}
+
+static coslam_status_t parse_estop(robot_config_t *c, const char *v, char *msg, size_t cap)
+{
+    long line = 0;
+    if (parse_int(v, -1, 1023, &line, msg, cap) != COSLAM_OK) {
+        return COSLAM_E_ARG;
+    }
+    c->node.gpio.has_estop = line >= 0;
+    c->node.gpio.estop.line = line >= 0 ? (uint32_t)line : 0U;
+    return COSLAM_OK;
+}
+
+static void print_estop(const robot_config_t *c, FILE *out)
+{
+    fprintf(out, "%ld", c->node.gpio.has_estop ? (long)c->node.gpio.estop.line : -1L);
+}
+
+static coslam_status_t parse_bool_text(const char *v, uint8_t *out, char *msg, size_t cap)
+{
+    if (strcmp(v, "1") == 0 || strcmp(v, "true") == 0 || strcmp(v, "yes") == 0 || strcmp(v, "on") == 0) {
+        *out = 1U;
+    } else if (strcmp(v, "0") == 0 || strcmp(v, "false") == 0 || strcmp(v, "no") == 0 || strcmp(v, "off") == 0) {
+        *out = 0U;
+    } else {
+        put_text(msg, cap, "expected a boolean (0/1, true/false, yes/no, on/off), got '%s'", v);
+        return COSLAM_E_ARG;
+    }
+    return COSLAM_OK;
+}
+
+static coslam_status_t parse_bumper_low(robot_config_t *c, const char *v, char *msg, size_t cap)
+{
+    uint8_t b = 0U;
+    if (parse_bool_text(v, &b, msg, cap) != COSLAM_OK) {
+        return COSLAM_E_ARG;
+    }
+    for (unsigned k = 0; k < COSLAM_MAX_BUMPERS; ++k) {
+        c->node.gpio.bumpers[k].active_low = b != 0U;
+    }
+    return COSLAM_OK;
+}
+
+static coslam_status_t parse_estop_low(robot_config_t *c, const char *v, char *msg, size_t cap)
+{
+    uint8_t b = 0U;
+    if (parse_bool_text(v, &b, msg, cap) != COSLAM_OK) {
+        return COSLAM_E_ARG;
+    }
+    c->node.gpio.estop.active_low = b != 0U;
+    return COSLAM_OK;
+}
+
+static void print_estop_low(const robot_config_t *c, FILE *out)
+{
+    fprintf(out, "%d", c->node.gpio.estop.active_low ? 1 : 0);
+}
+
+/* ---- the table ----------------------------------------------------------- */
+
+#define INF_ HUGE_VAL
+#define B_(sec, name, field) {sec, name, K_BOOL, OFF_(field), 0.0, 1.0, 0, NULL, NULL}
+#define N_(sec, name, type, field, lo, hi) {sec, name, type, OFF_(field), lo, hi, 0, NULL, NULL}
+#define NO_(sec, name, type, field, lo, hi) {sec, name, type, OFF_(field), lo, hi, 1, NULL, NULL}
+#define S_(sec, name, field) {sec, name, K_STR, OFF_(field), 0.0, 0.0, 0, NULL, NULL}
+#define C_(sec, name, parse, print) {sec, name, K_CUSTOM, 0U, 0.0, 0.0, 0, parse, print}
+
+static const cfg_key_t keys[] = {
+    N_("robot", "id", K_U8, robot_id, 0, COSLAM_MAX_ROBOTS - 1),
+    N_("robot", "fleet_size", K_U8, fleet_size, 2, COSLAM_MAX_ROBOTS),
+    C_("robot", "profile", parse_profile, print_profile),
+    N_("robot", "step_period_s", K_US, step_period_us, 0.001, 1.0),
+    N_("robot", "status_period_s", K_F64, status_period_s, 0.0, 86400.0),
+    N_("robot", "snapshot_period_s", K_F64, snapshot_period_s, 0.0, 86400.0),
+    N_("robot", "retry_period_s", K_F64, retry_period_s, 0.1, 3600.0),
+
+    S_("laser", "device", laser_device),
+    N_("laser", "baud", K_U32, laser_baud, 1200, 4000000),
+    N_("laser", "reply_timeout_s", K_US, node.urg.reply_timeout_us, 0.01, 10.0),
+    N_("laser", "lost_timeout_s", K_US, node.laser_lost_us, 0.0, 60.0),
+    N_("laser", "blind_max_turn_radps", K_F64, node.blind_max_turn_radps, 0.0, 3.0),
+    NO_("laser", "fov_rad", K_F64, node.laser_fov_rad, 0.0, 4.2),
+    N_("laser", "mount_x_m", K_F64, node.laser_in_robot.x, -2.0, 2.0),
+    N_("laser", "mount_y_m", K_F64, node.laser_in_robot.y, -2.0, 2.0),
+    N_("laser", "mount_theta_rad", K_F64, node.laser_in_robot.theta, -3.2, 3.2),
+
+    S_("can", "interface", can_interface),
+    C_("can", "node_ids", parse_node_ids, print_node_ids),
+
+    S_("gpio", "chip", gpio_chip),
+    B_("gpio", "required", gpio_required),
+    C_("gpio", "bumper_lines", parse_bumpers, print_bumpers),
+    C_("gpio", "bumper_active_low", parse_bumper_low, print_bumper_low),
+    C_("gpio", "estop_line", parse_estop, print_estop),
+    C_("gpio", "estop_active_low", parse_estop_low, print_estop_low),
+    C_("gpio", "led_lines", parse_leds, print_leds),
+
+    S_("camera", "device", camera_device),
+    S_("camera", "replay_log", camera_replay_log),
+    B_("camera", "replay_loop", camera_replay_loop),
+
+    N_("link", "domain", K_U32, link_domain, 0, 232),
+    S_("link", "peers", link_peers),
+
+    S_("storage", "dir", storage_dir),
+
+    S_("fleet", "key_file", fleet_key_file),
+
+    C_("filter", "type", parse_filter_type, print_filter_type),
+    N_("filter", "particles", K_U16, node.filter.n_particles, 1, COSLAM_MAX_PARTICLES),
+    N_("filter", "seed", K_U64, node.filter.seed, 0, 4294967295.0),
+    NO_("filter", "ess_fraction", K_F64, node.filter.resample_ess_fraction, 0.0, 1.0),
+    NO_("filter", "export_min_weight", K_F64, node.filter.export_min_weight, 0.0, 1.0),
+    C_("filter", "assoc", parse_assoc, print_assoc),
+    N_("filter", "jcbb_max_nodes", K_U32, node.filter.jcbb_max_nodes, 1, 100000000),
+    B_("filter", "fej", node.filter.fej),
+    N_("filter", "predict_period_s", K_US, node.filter_period_us, 0.001, 10.0),
+
+    NO_("merge", "window_s", K_US, node.meeting.pair_window_us, 0.0, 4000.0),
+    N_("merge", "interval_s", K_US, node.meeting.remerge_period_us, 0.0, 4000.0),
+    NO_("merge", "max_range_m", K_F64, node.meeting.max_range_m, 0.0, 1000.0),
+    N_("merge", "export_min_obs", K_U16, node.meeting.export_min_obs, 1, 65535),
+    N_("merge", "max_sends", K_U8, node.meeting.max_sends, 0, 255),
+    N_("merge", "resend_s", K_US, node.meeting.resend_period_us, 0.0, 4000.0),
+    N_("merge", "gap_s", K_US, node.meeting.meeting_gap_us, 0.0, 4000.0),
+    N_("merge", "link_latency_s", K_US, node.meeting.link_latency_us, 0.0, 10.0),
+    NO_("merge", "gate_chi2", K_F64, node.meeting.merge.gate_chi2, 0.0, INF_),
+    N_("merge", "min_obs", K_U16, node.meeting.merge.min_obs, 0, 65535),
+    N_("merge", "range_check_chi2", K_F64, node.meeting.merge.range_check_chi2, 0.0, INF_),
+    N_("merge", "sender_speed_mps", K_F64, node.meeting.merge.peer_speed_mps, 0.0, 10.0),
+    N_("merge", "sender_turn_radps", K_F64, node.meeting.merge.peer_turn_radps, 0.0, 10.0),
+    B_("merge", "check", node.meeting.merge.check),
+
+    NO_("behaviour", "cruise_mps", K_F64, node.behaviour.cruise_mps, 0.0, 2.0),
+    NO_("behaviour", "max_turn_radps", K_F64, node.behaviour.max_turn_radps, 0.0, 6.0),
+    N_("behaviour", "explore_s", K_F64, node.behaviour.explore_s, -1.0, 1e7),
+    N_("behaviour", "rendezvous_x_m", K_F64, node.behaviour.rendezvous_m.x, -1e4, 1e4),
+    N_("behaviour", "rendezvous_y_m", K_F64, node.behaviour.rendezvous_m.y, -1e4, 1e4),
+    N_("behaviour", "linger_s", K_F64, node.behaviour.linger_s, 0.0, 1e7),
+};
+
+#define N_KEYS (sizeof keys / sizeof keys[0])
+
+/* ---- defaults ------------------------------------------------------------ */
+
+static void set_str(char *dst, const char *src)
+{
+    put_text(dst, ROBOT_CONFIG_PATH_MAX + 1u, "%s", src);
+}
+
+void robot_config_default(robot_config_t *c)
+{
+    memset(c, 0, sizeof *c);
+    c->robot_id = 0U;
+    c->fleet_size = 2U;
+    c->step_period_us = 10000U;
+    c->status_period_s = 10.0;
+    c->snapshot_period_s = 30.0;
+    c->retry_period_s = 5.0;
+    set_str(c->laser_device, "/dev/ttyACM0");
+    c->laser_baud = 115200U;
+    set_str(c->can_interface, "can0");
+    set_str(c->gpio_chip, "gpiochip0");
+    c->gpio_required = 1U;
+    c->camera_replay_loop = 1U;
+    c->link_domain = 0U;
+    set_str(c->storage_dir, "/var/lib/coslam");
+    set_str(c->fleet_key_file, "/etc/coslam/fleet.key");
+    c->node = robot_node_config_default(0U, 2U);
+    c->node.urg.reply_timeout_us = 300000U;
+    c->node.laser_optional = 1U;
+    c->node.gpio_optional = 1U;
+}
+
+/* ---- loading ------------------------------------------------------------- */
+
+typedef struct {
+    robot_config_t *cfg;
+    const char *name;
+    int line;                 /* current line (our reader counts) */
+    int err_line;             /* first error's line, 0: none */
+    char msg[ROBOT_CONFIG_MSG_MAX + 1u];
+    int slam_line[32];        /* line each [slam] key was read from (0: default) */
+    int key_line[96];         /* line each other key was read from (0: default) */
+    const char *text;         /* load_string: the rest of the text */
+    FILE *file;
+} load_t;
+
+static void fail(load_t *st, const char *sec, const char *key, const char *reason)
+{
+    if (st->err_line != 0) {
+        return; /* the first error wins */
+    }
+    st->err_line = st->line > 0 ? st->line : 1;
+    if (key != NULL) {
+        put_text(st->msg, sizeof st->msg, "[%s] %s: %s", sec, key, reason);
+    } else {
+        put_text(st->msg, sizeof st->msg, "%s", reason);
+    }
+}
+
+static coslam_status_t set_number(robot_config_t *c, const cfg_key_t *k, const char *v, char *msg, size_t cap)
+{
+    double d = 0.0;
+    if (slam_params_ini_parse_number(v, &d) != COSLAM_OK) {
+        put_text(msg, cap, "not a finite number: '%s'", v);
+        return COSLAM_E_ARG;
+    }
+    const int below = k->min_open ? !(d > k->min) : !(d >= k->min);
+    if (below || !(d <= k->max)) {
+        put_text(msg, cap, "%s is outside its domain %s%g, %g%s", v, k->min_open ? "(" : "[", k->min, k->max,
+                       isinf(k->max) ? ")" : "]");
+        return COSLAM_E_ARG;
+    }
+    uint8_t *p = (uint8_t *)c + k->offset;
+    if (k->type != K_F64 && k->type != K_US && d != floor(d)) {
+        put_text(msg, cap, "expected an integer, got '%s'", v);
+        return COSLAM_E_ARG;
+    }
+    switch (k->type) {
+    case K_U8: {
+        const uint8_t x = (uint8_t)d;
+        memcpy(p, &x, sizeof x);
+        break;
+    }
+    case K_U16: {
+        const uint16_t x = (uint16_t)d;
+        memcpy(p, &x, sizeof x);
+        break;
+    }
+    case K_U32: {
+        const uint32_t x = (uint32_t)d;
+        memcpy(p, &x, sizeof x);
+        break;
+    }
+    case K_U64: {
+        const uint64_t x = (uint64_t)d;
+        memcpy(p, &x, sizeof x);
+        break;
+    }
+    case K_US: {
+        const uint32_t x = (uint32_t)llround(d * 1e6);
+        memcpy(p, &x, sizeof x);
+        break;
+    }
+    default:
+        memcpy(p, &d, sizeof d);
+        break;
+    }
+    return COSLAM_OK;
+}
+
+_Static_assert(sizeof(((load_t *)0)->key_line) / sizeof(int) >= N_KEYS, "key_line too small");
+
+static int on_ini(void *user, const char *section, const char *name, const char *value)
+{
+    load_t *st = (load_t *)user;
+    if (st->err_line != 0) {
+        return 1; /* keep only the first error */
+    }
+    char msg[ROBOT_CONFIG_MSG_MAX + 1u];
+    msg[0] = '\0';
+    if (strcmp(section, "slam") == 0) {
+        const coslam_status_t s = slam_params_ini_set(&st->cfg->node.filter.slam, name, value, msg, sizeof msg);
+        if (s != COSLAM_OK) {
+            /* an unknown key's message names it already */
+            fail(st, "slam", s == COSLAM_E_UNSUPPORTED ? NULL : name, msg);
+            return 0;
+        }
+        st->slam_line[slam_params_ini_index(slam_params_ini_find(name))] = st->line;
+        return 1;
+    }
+    int section_known = 0;
+    for (size_t i = 0; i < N_KEYS; ++i) {
+        const cfg_key_t *k = &keys[i];
+        if (strcmp(k->section, section) != 0) {
+            continue;
+        }
+        section_known = 1;
+        if (strcmp(k->name, name) != 0) {
+            continue;
+        }
+        coslam_status_t s = COSLAM_OK;
+        uint8_t *p = (uint8_t *)st->cfg + k->offset;
+        switch (k->type) {
+        case K_CUSTOM:
+            s = k->parse(st->cfg, value, msg, sizeof msg);
+            break;
+        case K_BOOL:
+            s = parse_bool_text(value, p, msg, sizeof msg);
+            break;
+        case K_STR:
+            if (strlen(value) > ROBOT_CONFIG_PATH_MAX) {
+                put_text(msg, sizeof msg, "longer than %u characters", ROBOT_CONFIG_PATH_MAX);
+                s = COSLAM_E_ARG;
+            } else {
+                set_str((char *)p, value);
+            }
+            break;
+        default:
+            s = set_number(st->cfg, k, value, msg, sizeof msg);
+            break;
+        }
+        if (s != COSLAM_OK) {
+            fail(st, section, name, msg);
+            return 0;
+        }
+        st->key_line[i] = st->line;
+        return 1;
+    }
+    if (section[0] == '\0') {
+        put_text(msg, sizeof msg, "key '%s' outside any [section]", name);
+        fail(st, section, NULL, msg);
+    } else if (!section_known) {
+        put_text(msg, sizeof msg, "unknown section [%s] (key '%s')", section, name);
+        fail(st, section, NULL, msg);
+    } else {
+        put_text(msg, sizeof msg, "unknown key '%s' in [%s]", name, section);
+        fail(st, section, NULL, msg);
+    }
+    return 0;
+}
+
+/* Readers that count lines, so the handler knows where it is. */
+static char *read_file_line(char *str, int num, void *stream)
+{
+    load_t *st = (load_t *)stream;
+    char *r = fgets(str, num, st->file);
+    if (r != NULL && strchr(r, '\n') != NULL) {
+        st->line++;
+    } else if (r != NULL && feof(st->file)) {
+        st->line++; /* last line without a newline */
+    }
+    return r;
+}
+
+static char *read_text_line(char *str, int num, void *stream)
+{
+    load_t *st = (load_t *)stream;
+    if (st->text == NULL || *st->text == '\0' || num < 2) {
+        return NULL;
+    }
+    const char *nl = strchr(st->text, '\n');
+    size_t len = nl != NULL ? (size_t)(nl - st->text) + 1U : strlen(st->text);
+    if (len > (size_t)num - 1U) {
+        len = (size_t)num - 1U;
+    }
+    memcpy(str, st->text, len);
+    str[len] = '\0';
+    st->text += len;
+    if (len > 0U && str[len - 1U] == '\n') {
+        st->line++;
+    } else if (*st->text == '\0') {
+        st->line++;
+    }
+    return str;
+}
+
+/* Derived settings and the rules between keys. */
+static void finish(load_t *st)
+{
+    robot_config_t *c = st->cfg;
+    if (st->err_line != 0) {
+        return;
+    }
+    const slam_params_ini_key_t *bad = NULL;
+    const slam_params_ini_key_t *other = NULL;
+    char msg[ROBOT_CONFIG_MSG_MAX + 1u];
+    if (slam_params_ini_cross_check(&c->node.filter.slam, &bad, &other, msg, sizeof msg) != COSLAM_OK) {
+        /* the later of the two keys in the file is the one that contradicts */
+        const int lb = bad != NULL ? st->slam_line[slam_params_ini_index(bad)] : 0;
+        const int lo = other != NULL ? st->slam_line[slam_params_ini_index(other)] : 0;
+        const slam_params_ini_key_t *named = lo > lb ? other : bad;
+        st->line = lo > lb ? lo : lb;
+        fail(st, "slam", named != NULL ? named->name : "?", msg);
+        return;
+    }
+    if (c->robot_id >= c->fleet_size) {
+        /* the later of the two keys is the one that contradicts */
+        const int a = st->key_line[0];
+        const int b = st->key_line[1];
+        st->line = a > b ? a : b;
+        put_text(msg, sizeof msg, "id %u must be below fleet_size %u", (unsigned)c->robot_id,
+                       (unsigned)c->fleet_size);
+        fail(st, "robot", a > b ? "id" : "fleet_size", msg);
+        return;
+    }
+    robot_node_config_t *n = &c->node;
+    n->robot_id = c->robot_id;
+    n->n_robots = c->fleet_size;
+    n->filter.robot_id = c->robot_id;
+    n->retry_period_us = (uint32_t)llround(c->retry_period_s * 1e6);
+    n->laser_optional = 1U;
+    n->gpio_optional = 1U;
+    n->motion_without_gpio = (uint8_t)(c->gpio_required ? 0U : 1U);
+    /* one settings source: the meeting's robot sightings take the camera
+     * noise of [slam] */
+    meeting_config_noise_from(&n->meeting, &n->filter.slam);
+}
+
+static coslam_status_t report(load_t *st, int rc, char *msg, size_t cap)
+{
+    if (rc == -1) {
+        put_text(msg, cap, "%s: cannot open the configuration file", st->name);
+        return COSLAM_E_ARG;
+    }
+    if (rc == -2) {
+        put_text(msg, cap, "%s: out of memory while reading", st->name);
+        return COSLAM_E_ARG;
+    }
+    if (rc > 0 && st->err_line == 0) {
+        st->err_line = rc;
+        put_text(st->msg, sizeof st->msg, "syntax error (expected [section], key = value or a comment)");
+    }
+    finish(st);
+    if (st->err_line == 0) {
+        if (msg != NULL && cap > 0U) {
+            msg[0] = '\0';
+        }
+        return COSLAM_OK;
+    }
+    if (st->err_line < 0) {
+        put_text(msg, cap, "%s: %s", st->name, st->msg);
+    } else {
+        put_text(msg, cap, "%s:%d: %s", st->name, st->err_line, st->msg);
+    }
+    return COSLAM_E_ARG;
+}
+
+coslam_status_t robot_config_load(robot_config_t *cfg, const char *path, char *msg, size_t msg_cap)
+{
+    if (cfg == NULL || path == NULL || msg == NULL) {
+        return COSLAM_E_ARG;
+    }
+    static load_t st; /* ~3 KB; one load at a time (robot_config.h) */
+    COSLAM_ASSERT(slam_params_ini_count() <= sizeof st.slam_line / sizeof st.slam_line[0]);
+    memset(&st, 0, sizeof st);
+    st.cfg = cfg;
+    st.name = path;
+    st.file = fopen(path, "r");
+    if (st.file == NULL) {
+        return report(&st, -1, msg, msg_cap);
+    }
+    const int rc = ini_parse_stream(read_file_line, &st, on_ini, &st);
+    (void)fclose(st.file);
+    return report(&st, rc, msg, msg_cap);
+}
+
+coslam_status_t robot_config_load_string(robot_config_t *cfg, const char *text, const char *name, char *msg,
+                                         size_t msg_cap)
+{
+    if (cfg == NULL || text == NULL || name == NULL || msg == NULL) {
+        return COSLAM_E_ARG;
+    }
+    static load_t st;
+    COSLAM_ASSERT(slam_params_ini_count() <= sizeof st.slam_line / sizeof st.slam_line[0]);
+    memset(&st, 0, sizeof st);
+    st.cfg = cfg;
+    st.name = name;
+    st.text = text;
+    const int rc = ini_parse_stream(read_text_line, &st, on_ini, &st);
+    return report(&st, rc, msg, msg_cap);
+}
+
+/* ---- printing ------------------------------------------------------------ */
+
+/* Shortest decimal text (up to `digits` significant digits) that reads back
+ * as exactly v: what a person wrote stays as written. */
+static void print_double(FILE *out, double v, int digits)
+{
+    char buf[40];
+    for (int prec = 6; prec <= digits; ++prec) {
+        put_text(buf, sizeof buf, "%.*g", prec, v);
+        double back = 0.0;
+        if (slam_params_ini_parse_number(buf, &back) == COSLAM_OK && back == v) {
+            break;
+        }
+    }
+    fputs(buf, out);
+}
+
+static void print_value(const robot_config_t *c, const cfg_key_t *k, FILE *out)
+{
+    const uint8_t *p = (const uint8_t *)c + k->offset;
+    switch (k->type) {
+    case K_CUSTOM:
+        k->print(c, out);
+        break;
+    case K_BOOL:
+    case K_U8: {
+        uint8_t x;
+        memcpy(&x, p, sizeof x);
+        fprintf(out, "%u", (unsigned)x);
+        break;
+    }
+    case K_U16: {
+        uint16_t x;
+        memcpy(&x, p, sizeof x);
+        fprintf(out, "%u", (unsigned)x);
+        break;
+    }
+    case K_U32: {
+        uint32_t x;
+        memcpy(&x, p, sizeof x);
+        fprintf(out, "%lu", (unsigned long)x);
+        break;
+    }
+    case K_U64: {
+        uint64_t x;
+        memcpy(&x, p, sizeof x);
+        fprintf(out, "%llu", (unsigned long long)x);
+        break;
+    }
+    case K_US: {
+        uint32_t x;
+        memcpy(&x, p, sizeof x);
+        fprintf(out, "%.6f", (double)x * 1e-6);
+        break;
+    }
+    case K_STR:
+        fprintf(out, "%s", (const char *)p);
+        break;
+    default: {
+        double x;
+        memcpy(&x, p, sizeof x);
+        print_double(out, x, 17);
+        break;
+    }
+    }
+}
+
+void robot_config_print(const robot_config_t *c, FILE *out)
+{
+    fprintf(out, "; coslam-robot configuration (effective values; firmware/port/linux/robot.ini documents them)\n");
+    const char *sec = "";
+    for (size_t i = 0; i < N_KEYS; ++i) {
+        const cfg_key_t *k = &keys[i];
+        if (strcmp(k->section, sec) != 0) {
+            sec = k->section;
+            fprintf(out, "\n[%s]\n", sec);
+        }
+        fprintf(out, "%s = ", k->name);
+        print_value(c, k, out);
+        fprintf(out, "\n");
+    }
+    fprintf(out, "\n[slam]\n");
+    for (size_t i = 0; i < slam_params_ini_count(); ++i) {
+        const slam_params_ini_key_t *k = slam_params_ini_key(i);
+        const double v = slam_params_ini_get(&c->node.filter.slam, k);
+        fprintf(out, "%s = ", k->name);
+        if (k->type == SLAM_PARAMS_INI_FLOAT) {
+            /* shortest text whose float conversion gives the float back */
+            char buf[40];
+            for (int prec = 6; prec <= 9; ++prec) {
+                put_text(buf, sizeof buf, "%.*g", prec, v);
+                double back = 0.0;
+                if (slam_params_ini_parse_number(buf, &back) == COSLAM_OK && (float)back == (float)v) {
+                    break;
+                }
+            }
+            fprintf(out, "%s\n", buf);
+        } else {
+            print_double(out, v, 17);
+            fprintf(out, "\n");
+        }
+    }
+}

@@ -1,0 +1,105 @@
+/*
+ * robot_config.h - the settings of coslam-robot: one INI file (libinih),
+ * default /etc/coslam/robot.ini, documented key by key in robot.ini beside
+ * this file and in docs/robot.md.
+ *
+ * Sections: [robot] identity, fleet, periods; [laser] [can] [gpio]
+ * [camera] [link] [storage] [fleet] the devices; [filter] [slam] [merge]
+ * [behaviour] the robot node (app/robot_node.h). Every key is optional
+ * (defaults: robot_config_default()). [slam] is the shared key table of
+ * app/slam_params_ini.h, the same one coslam-replay reads; the meeting's
+ * robot-sighting noise is taken from it (meeting_config_noise_from), so
+ * there is one settings source for the noise. [filter] and [merge] use
+ * coslam-replay's key names where the two tools share a setting.
+ *
+ * Errors: an unknown section or key, a value that is not a number (or not
+ * one of the words a key accepts), a value outside its domain, or two keys
+ * that contradict each other are reported as "FILE:LINE: [section] key:
+ * reason" (the line of the later key for a contradiction); the first error
+ * wins. The caller exits with status 2 (robot_main.c).
+ *
+ * No heap: robot_config_t is caller-owned (about 1 KB plus
+ * robot_node_config_t). Not thread-safe (one load at a time).
+ */
+#ifndef COSLAM_PORT_ROBOT_CONFIG_H
+#define COSLAM_PORT_ROBOT_CONFIG_H
+
+#include <stdint.h>
+#include <stdio.h>
+
+#include "app/robot_node.h"
+#include "coslam/status.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/** Default configuration file. */
+#define ROBOT_CONFIG_DEFAULT_PATH "/etc/coslam/robot.ini"
+/** Longest path or device name in the file [characters, without NUL]. */
+#define ROBOT_CONFIG_PATH_MAX 255u
+/** Longest message of a load error [characters, without NUL]. */
+#define ROBOT_CONFIG_MSG_MAX 511u
+
+typedef struct {
+    /* [robot] */
+    uint8_t robot_id;              /**< id, < fleet_size; also the link id */
+    uint8_t fleet_size;            /**< robots in the team, 2..COSLAM_MAX_ROBOTS */
+    uint32_t step_period_us;       /**< control period of the main loop [us] */
+    double status_period_s;        /**< status line on stderr every this [s]; 0: off */
+    double snapshot_period_s;      /**< map snapshot every this [s]; 0: only at shutdown */
+    double retry_period_s;         /**< failed devices reopened (and the laser reconnected) every this [s] */
+    /* [laser] */
+    char laser_device[ROBOT_CONFIG_PATH_MAX + 1u];  /**< serial device of the URG; "" = none */
+    uint32_t laser_baud;
+    /* [can] */
+    char can_interface[ROBOT_CONFIG_PATH_MAX + 1u]; /**< SocketCAN interface; "" = none */
+    /* [gpio] */
+    char gpio_chip[ROBOT_CONFIG_PATH_MAX + 1u];     /**< libgpiod chip; "" = none */
+    uint8_t gpio_required;         /**< 1: no motion while the bumper / e-stop roles are missing */
+    /* [camera] */
+    char camera_device[ROBOT_CONFIG_PATH_MAX + 1u]; /**< camera device; no Linux pipeline yet */
+    char camera_replay_log[ROBOT_CONFIG_PATH_MAX + 1u]; /**< test/bench source: landmark log; "" = none */
+    uint8_t camera_replay_loop;    /**< 1: start the log again at its end */
+    /* [link] (for the DDS link backend; the null link ignores them) */
+    uint32_t link_domain;          /**< DDS domain id */
+    char link_peers[ROBOT_CONFIG_PATH_MAX + 1u];    /**< comma-separated peer addresses */
+    /* [storage] */
+    char storage_dir[ROBOT_CONFIG_PATH_MAX + 1u];   /**< map snapshots go here */
+    /* [fleet] */
+    char fleet_key_file[ROBOT_CONFIG_PATH_MAX + 1u];/**< fleet key path (authentication; never logged) */
+    /* everything the robot node takes; robot_id, n_robots, filter.robot_id,
+     * filter_period_us, retry_period_us, the meeting's robot-sighting noise
+     * and the degraded-mode flags are derived at the end of the load */
+    robot_node_config_t node;
+} robot_config_t;
+
+/** The defaults (robot.ini beside this file writes each one out): robot 0
+ *  of 2, 10 ms step, status every 10 s, snapshot every 30 s, retry every
+ *  5 s, /dev/ttyACM0 at 115200 baud, can0, gpiochip0 (bumper line 0,
+ *  e-stop line 1 active low, LED line 2, required), no camera, DDS domain
+ *  0, /var/lib/coslam, /etc/coslam/fleet.key, and the node defaults of
+ *  robot_node_config_default() with the degraded modes on. */
+void robot_config_default(robot_config_t *cfg);
+
+/**
+ * Apply the INI file `path` on top of *cfg (start from robot_config_default).
+ * Returns COSLAM_OK; COSLAM_E_ARG (the file is wrong: msg holds
+ * "FILE:LINE: ..." or "FILE: cannot open ..."); COSLAM_E_ARG also for NULL
+ * arguments. On error *cfg holds the keys read before the error.
+ */
+coslam_status_t robot_config_load(robot_config_t *cfg, const char *path, char *msg, size_t msg_cap);
+
+/** Same from text; `name` stands for the file name in messages. */
+coslam_status_t robot_config_load_string(robot_config_t *cfg, const char *text, const char *name, char *msg,
+                                         size_t msg_cap);
+
+/** Write the whole configuration as an INI file that robot_config_load
+ *  reads back to the same struct (doubles with 17 digits, floats with 9). */
+void robot_config_print(const robot_config_t *cfg, FILE *out);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* COSLAM_PORT_ROBOT_CONFIG_H */

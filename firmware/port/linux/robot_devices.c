@@ -1,0 +1,495 @@
+/* Device slots, backends and proxies of coslam-robot (robot_devices.h). */
+#include "robot_devices.h"
+
+#include <stdarg.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "robot_link.h"
+
+/* snprintf that may truncate on purpose (messages, labels): always terminated. */
+__attribute__((format(printf, 3, 4))) static void put_text(char *dst, size_t cap, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    (void)vsnprintf(dst, cap, fmt, ap);
+    va_end(ap);
+}
+
+static const char *const dev_names[ROBOT_DEV_COUNT] = {"laser", "can", "gpio", "camera", "link", "storage"};
+
+const char *robot_dev_state_name(robot_dev_state_t s)
+{
+    switch (s) {
+    case ROBOT_DEV_UP: return "up";
+    case ROBOT_DEV_DOWN: return "down";
+    case ROBOT_DEV_ABSENT: return "absent";
+    }
+    return "?";
+}
+
+static const char *hal_reason(hal_status_t s)
+{
+    switch (s) {
+    case HAL_E_NOT_FOUND: return "no such device";
+    case HAL_E_BUSY: return "in use";
+    case HAL_E_IO: return "I/O error";
+    case HAL_E_UNSUPPORTED: return "not supported";
+    case HAL_E_CLOSED: return "went away or is down";
+    case HAL_E_CORRUPT: return "bad content";
+    case HAL_E_ARG: return "bad setting";
+    default: return "failed";
+    }
+}
+
+/* A backend answered `s` while the device was up: count it, and mark the
+ * device lost when it is gone (closed now, reported by the next service). */
+static hal_status_t watch(robot_devices_t *d, robot_dev_t id, hal_status_t s)
+{
+    robot_dev_status_t *st = &d->dev[id];
+    if (s == HAL_E_IO) {
+        st->io_in_row++;
+    } else if (s != HAL_E_CLOSED) {
+        st->io_in_row = 0U;
+    }
+    if (s == HAL_E_CLOSED || st->io_in_row >= ROBOT_DEVICES_IO_LIMIT) {
+        if (!st->lost) {
+            st->lost = 1;
+            st->last_error = s;
+        }
+        return HAL_E_CLOSED;
+    }
+    return s;
+}
+
+static int usable(const robot_devices_t *d, robot_dev_t id)
+{
+    return d->dev[id].state == ROBOT_DEV_UP && !d->dev[id].lost;
+}
+
+/* ---- laser proxy --------------------------------------------------------- */
+
+static robot_devices_t *of_serial(hal_serial_t *s)
+{
+    return (robot_devices_t *)s->backend;
+}
+
+static hal_status_t px_set_baud(hal_serial_t *s, uint32_t baud)
+{
+    robot_devices_t *d = of_serial(s);
+    return usable(d, ROBOT_DEV_LASER) ? watch(d, ROBOT_DEV_LASER, hal_serial_set_baud(&d->laser_dev, baud))
+                                      : HAL_E_CLOSED;
+}
+
+static hal_status_t px_write(hal_serial_t *s, const uint8_t *data, size_t len, uint32_t timeout_us)
+{
+    robot_devices_t *d = of_serial(s);
+    return usable(d, ROBOT_DEV_LASER)
+               ? watch(d, ROBOT_DEV_LASER, hal_serial_write(&d->laser_dev, data, len, timeout_us))
+               : HAL_E_CLOSED;
+}
+
+static hal_status_t px_read(hal_serial_t *s, uint8_t *buf, size_t cap, size_t *n_read, uint32_t timeout_us)
+{
+    robot_devices_t *d = of_serial(s);
+    return usable(d, ROBOT_DEV_LASER)
+               ? watch(d, ROBOT_DEV_LASER, hal_serial_read(&d->laser_dev, buf, cap, n_read, timeout_us))
+               : HAL_E_CLOSED;
+}
+
+static hal_status_t px_flush(hal_serial_t *s)
+{
+    robot_devices_t *d = of_serial(s);
+    return usable(d, ROBOT_DEV_LASER) ? watch(d, ROBOT_DEV_LASER, hal_serial_flush_input(&d->laser_dev))
+                                      : HAL_E_CLOSED;
+}
+
+static const hal_serial_ops_t laser_proxy_ops = {px_set_baud, px_write, px_read, px_flush, NULL};
+
+/* ---- CAN proxy ----------------------------------------------------------- */
+
+static robot_devices_t *of_can(hal_can_t *c)
+{
+    return (robot_devices_t *)c->backend;
+}
+
+static hal_status_t pc_send(hal_can_t *c, const hal_can_frame_t *f, uint32_t timeout_us)
+{
+    robot_devices_t *d = of_can(c);
+    return usable(d, ROBOT_DEV_CAN) ? watch(d, ROBOT_DEV_CAN, hal_can_send(&d->can_state.can, f, timeout_us))
+                                    : HAL_E_CLOSED;
+}
+
+static hal_status_t pc_receive(hal_can_t *c, hal_can_frame_t *f, uint32_t timeout_us)
+{
+    robot_devices_t *d = of_can(c);
+    return usable(d, ROBOT_DEV_CAN) ? watch(d, ROBOT_DEV_CAN, hal_can_receive(&d->can_state.can, f, timeout_us))
+                                    : HAL_E_CLOSED;
+}
+
+static hal_status_t pc_set_filters(hal_can_t *c, const hal_can_filter_t *filters, size_t count)
+{
+    robot_devices_t *d = of_can(c);
+    if (count > HAL_CAN_MAX_FILTERS) {
+        return HAL_E_ARG;
+    }
+    /* kept for the next open; the drive driver sets them once at start */
+    if (count > 0U) {
+        memcpy(d->can_filters, filters, count * sizeof filters[0]);
+    }
+    d->can_filter_count = count;
+    return usable(d, ROBOT_DEV_CAN)
+               ? watch(d, ROBOT_DEV_CAN, hal_can_set_filters(&d->can_state.can, filters, count))
+               : HAL_OK;
+}
+
+static hal_status_t pc_get_status(hal_can_t *c, hal_can_status_t *status)
+{
+    robot_devices_t *d = of_can(c);
+    return usable(d, ROBOT_DEV_CAN) ? watch(d, ROBOT_DEV_CAN, hal_can_get_status(&d->can_state.can, status))
+                                    : HAL_E_CLOSED;
+}
+
+static const hal_can_ops_t can_proxy_ops = {pc_send, pc_receive, pc_set_filters, pc_get_status, NULL};
+
+/* ---- GPIO proxy ---------------------------------------------------------- */
+
+static robot_devices_t *of_gpio(hal_gpio_t *g)
+{
+    return (robot_devices_t *)g->backend;
+}
+
+static hal_gpio_t *gpio_backend(robot_devices_t *d)
+{
+#if COSLAM_HAVE_GPIOD
+    return &d->gpio_state.dev;
+#else
+    (void)d;
+    return hal_gpio_null();
+#endif
+}
+
+static hal_status_t pg_line_count(hal_gpio_t *g, uint32_t *n)
+{
+    robot_devices_t *d = of_gpio(g);
+    return usable(d, ROBOT_DEV_GPIO) ? watch(d, ROBOT_DEV_GPIO, hal_gpio_line_count(gpio_backend(d), n))
+                                     : HAL_E_CLOSED;
+}
+
+static hal_status_t pg_configure(hal_gpio_t *g, uint32_t line, const hal_gpio_config_t *cfg)
+{
+    robot_devices_t *d = of_gpio(g);
+    return usable(d, ROBOT_DEV_GPIO) ? watch(d, ROBOT_DEV_GPIO, hal_gpio_configure(gpio_backend(d), line, cfg))
+                                     : HAL_E_CLOSED;
+}
+
+static hal_status_t pg_read(hal_gpio_t *g, uint32_t line, bool *active)
+{
+    robot_devices_t *d = of_gpio(g);
+    return usable(d, ROBOT_DEV_GPIO) ? watch(d, ROBOT_DEV_GPIO, hal_gpio_read(gpio_backend(d), line, active))
+                                     : HAL_E_CLOSED;
+}
+
+static hal_status_t pg_write(hal_gpio_t *g, uint32_t line, bool active)
+{
+    robot_devices_t *d = of_gpio(g);
+    return usable(d, ROBOT_DEV_GPIO) ? watch(d, ROBOT_DEV_GPIO, hal_gpio_write(gpio_backend(d), line, active))
+                                     : HAL_E_CLOSED;
+}
+
+static hal_status_t pg_wait_edge(hal_gpio_t *g, uint32_t line, hal_gpio_event_t *ev, uint32_t timeout_us)
+{
+    robot_devices_t *d = of_gpio(g);
+    return usable(d, ROBOT_DEV_GPIO)
+               ? watch(d, ROBOT_DEV_GPIO, hal_gpio_wait_edge(gpio_backend(d), line, ev, timeout_us))
+               : HAL_E_CLOSED;
+}
+
+static hal_status_t pg_release(hal_gpio_t *g, uint32_t line)
+{
+    robot_devices_t *d = of_gpio(g);
+    /* releasing a line of a closed chip is done: the chip gave it back */
+    return usable(d, ROBOT_DEV_GPIO) ? hal_gpio_release(gpio_backend(d), line) : HAL_OK;
+}
+
+static const hal_gpio_ops_t gpio_proxy_ops = {pg_line_count, pg_configure, pg_read, pg_write,
+                                              pg_wait_edge,  pg_release,   NULL};
+
+/* ---- camera proxy -------------------------------------------------------- */
+
+static hal_status_t ps_next_frame(sighting_source_t *s, sighting_frame_t *out, uint32_t timeout_us)
+{
+    robot_devices_t *d = (robot_devices_t *)s->backend;
+    if (!usable(d, ROBOT_DEV_CAMERA)) {
+        return HAL_E_TIMEOUT; /* no camera: no frame, which is not an error */
+    }
+    const hal_status_t st = sighting_source_next_frame(&d->replay.src, out, timeout_us);
+    return st == HAL_E_TIMEOUT || st == HAL_OK ? st : watch(d, ROBOT_DEV_CAMERA, st);
+}
+
+static const sighting_source_ops_t sightings_proxy_ops = {ps_next_frame};
+
+/* ---- slots --------------------------------------------------------------- */
+
+static void say(robot_devices_t *d, const char *name, const robot_dev_status_t *st, const char *text)
+{
+    if (d->log != NULL) {
+        if (st->what[0] != '\0') {
+            fprintf(d->log, "coslam-robot: %s (%s): %s\n", name, st->what, text);
+        } else {
+            fprintf(d->log, "coslam-robot: %s: %s\n", name, text);
+        }
+        fflush(d->log);
+    }
+}
+
+static void set_down(robot_devices_t *d, robot_dev_t id, hal_status_t why, const char *reason, uint64_t now_us)
+{
+    robot_dev_status_t *st = &d->dev[id];
+    st->state = ROBOT_DEV_DOWN;
+    st->last_error = why;
+    st->open_failures++;
+    st->next_try_us = now_us + d->retry_us;
+    put_text(st->reason, sizeof st->reason, "%s", reason);
+}
+
+/* Try to open device id; returns 1 if up. */
+static int try_open(robot_devices_t *d, robot_dev_t id, uint64_t now_us)
+{
+    const robot_config_t *c = d->cfg;
+    robot_dev_status_t *st = &d->dev[id];
+    hal_status_t s = HAL_E_UNSUPPORTED;
+    char reason[160];
+    reason[0] = '\0';
+    switch (id) {
+    case ROBOT_DEV_LASER:
+        s = hal_serial_linux_open(&d->laser_dev, &d->laser_state, c->laser_device, c->laser_baud);
+        break;
+    case ROBOT_DEV_CAN:
+        s = hal_can_socketcan_open(&d->can_state, c->can_interface);
+        if (s == HAL_OK && d->can_filter_count > 0U) {
+            const hal_status_t fs = hal_can_set_filters(&d->can_state.can, d->can_filters, d->can_filter_count);
+            if (fs != HAL_OK && fs != HAL_E_UNSUPPORTED) {
+                hal_can_close(&d->can_state.can);
+                s = fs;
+            }
+        }
+        break;
+    case ROBOT_DEV_GPIO:
+#if COSLAM_HAVE_GPIOD
+        s = hal_gpio_linux_open(&d->gpio_state, c->gpio_chip, "coslam-robot");
+#endif
+        break;
+    case ROBOT_DEV_CAMERA:
+        if (d->camera_kind == ROBOT_SIGHTINGS_REPLAY) {
+            robot_sightings_kind_t k = robot_open_sightings(&d->replay, c, d->clock, &s, reason, sizeof reason);
+            (void)k;
+        }
+        break;
+    case ROBOT_DEV_STORAGE:
+        s = hal_storage_linux_open(&d->storage_state, c->storage_dir);
+        break;
+    default:
+        break;
+    }
+    if (s == HAL_OK) {
+        st->state = ROBOT_DEV_UP;
+        st->lost = 0;
+        st->io_in_row = 0U;
+        st->opens++;
+        st->last_error = HAL_OK;
+        st->reason[0] = '\0';
+        return 1;
+    }
+    if (reason[0] == '\0') {
+        put_text(reason, sizeof reason, "%s (%s)", hal_reason(s), hal_status_str(s));
+    }
+    set_down(d, id, s, reason, now_us);
+    return 0;
+}
+
+static void close_dev(robot_devices_t *d, robot_dev_t id)
+{
+    switch (id) {
+    case ROBOT_DEV_LASER: hal_serial_close(&d->laser_dev); break;
+    case ROBOT_DEV_CAN: hal_can_close(&d->can_state.can); break;
+    case ROBOT_DEV_GPIO:
+#if COSLAM_HAVE_GPIOD
+        hal_gpio_close(&d->gpio_state.dev);
+#endif
+        break;
+    case ROBOT_DEV_CAMERA: robot_replay_close(&d->replay); break;
+    case ROBOT_DEV_STORAGE: hal_storage_close(&d->storage_state.dev); break;
+    case ROBOT_DEV_LINK: robot_close_link(d->link); break;
+    default: break;
+    }
+}
+
+void robot_devices_init(robot_devices_t *d, const robot_config_t *cfg, hal_clock_t *clock, FILE *log, int verbose)
+{
+    memset(d, 0, sizeof *d);
+    d->cfg = cfg;
+    d->clock = clock;
+    d->log = log;
+    d->verbose = verbose;
+    d->retry_us = (uint32_t)(cfg->retry_period_s * 1e6);
+    for (int i = 0; i < ROBOT_DEV_COUNT; ++i) {
+        d->dev[i].name = dev_names[i];
+        d->dev[i].state = ROBOT_DEV_ABSENT;
+    }
+    d->laser.ops = &laser_proxy_ops;
+    d->laser.backend = d;
+    d->can.ops = &can_proxy_ops;
+    d->can.backend = d;
+    d->gpio.ops = &gpio_proxy_ops;
+    d->gpio.backend = d;
+    d->sightings.ops = &sightings_proxy_ops;
+    d->sightings.backend = d;
+    d->link = hal_link_null();
+    robot_dev_status_t *st = d->dev;
+    put_text(st[ROBOT_DEV_LASER].what, sizeof st[0].what, "URG on %s at %lu baud", cfg->laser_device,
+                   (unsigned long)cfg->laser_baud);
+    put_text(st[ROBOT_DEV_CAN].what, sizeof st[0].what, "CiA 402 drives on SocketCAN %s", cfg->can_interface);
+    put_text(st[ROBOT_DEV_GPIO].what, sizeof st[0].what, "bumper / e-stop / LED on %s", cfg->gpio_chip);
+    put_text(st[ROBOT_DEV_STORAGE].what, sizeof st[0].what, "snapshots in %s", cfg->storage_dir);
+}
+
+void robot_devices_open_all(robot_devices_t *d, uint64_t now_us)
+{
+    const robot_config_t *c = d->cfg;
+    robot_dev_status_t *st = d->dev;
+    const char *names[ROBOT_DEV_COUNT] = {c->laser_device, c->can_interface, c->gpio_chip, "", "", c->storage_dir};
+    char text[320];
+    for (int i = 0; i < ROBOT_DEV_COUNT; ++i) {
+        const robot_dev_t id = (robot_dev_t)i;
+        if (id == ROBOT_DEV_CAMERA) {
+            hal_status_t s = HAL_E_UNSUPPORTED;
+            char msg[ROBOT_CONFIG_MSG_MAX + 1u];
+            d->camera_kind = robot_open_sightings(&d->replay, c, d->clock, &s, msg, sizeof msg);
+            if (d->camera_kind == ROBOT_SIGHTINGS_NONE) {
+                put_text(st[id].what, sizeof st[id].what, "none");
+                say(d, "camera", &st[id], "not configured: localisation on odometry only");
+            } else if (d->camera_kind == ROBOT_SIGHTINGS_NO_CAMERA) {
+                put_text(st[id].what, sizeof st[id].what, "%s", c->camera_device);
+                say(d, "camera", &st[id],
+                    "not available (no Linux camera pipeline in this build): localisation on odometry only");
+            } else {
+                put_text(st[id].what, sizeof st[id].what, "landmark-log replay %s (test/bench source, not a camera)",
+                               c->camera_replay_log);
+                if (s == HAL_OK) {
+                    st[id].state = ROBOT_DEV_UP;
+                    st[id].opens++;
+                    say(d, "camera", &st[id], "up");
+                } else {
+                    set_down(d, id, s, msg, now_us);
+                    put_text(text, sizeof text, "down: %s; retrying every %.0f s", msg, c->retry_period_s);
+                    say(d, "camera", &st[id], text);
+                }
+            }
+            continue;
+        }
+        if (id == ROBOT_DEV_LINK) {
+            const char *what = NULL;
+            d->link = robot_open_link(c, &what);
+            put_text(st[id].what, sizeof st[id].what, "%s", what != NULL ? what : "?");
+            st[id].state = d->link == hal_link_null() ? ROBOT_DEV_ABSENT : ROBOT_DEV_UP;
+            say(d, "link", &st[id], d->link == hal_link_null() ? "absent" : "up");
+            continue;
+        }
+#if !COSLAM_HAVE_GPIOD
+        if (id == ROBOT_DEV_GPIO) {
+            say(d, "gpio", &st[id], "not available (built without libgpiod): no bumper, no e-stop");
+            continue;
+        }
+#endif
+        if (names[i][0] == '\0') {
+            st[i].what[0] = '\0';
+            say(d, dev_names[i], &st[i], "not configured");
+            continue;
+        }
+        if (try_open(d, id, now_us)) {
+            say(d, dev_names[i], &st[i], "up");
+        } else {
+            put_text(text, sizeof text, "down: %s; retrying every %.0f s", st[i].reason, c->retry_period_s);
+            say(d, dev_names[i], &st[i], text);
+        }
+    }
+}
+
+void robot_devices_fail(robot_devices_t *d, robot_dev_t id, hal_status_t why, const char *reason, uint64_t now_us)
+{
+    robot_dev_status_t *st = &d->dev[id];
+    if (st->state != ROBOT_DEV_UP) {
+        return;
+    }
+    close_dev(d, id);
+    set_down(d, id, why, reason, now_us);
+    char text[320];
+    put_text(text, sizeof text, "down: %s; retrying every %.0f s", reason, d->cfg->retry_period_s);
+    say(d, st->name, st, text);
+}
+
+unsigned robot_devices_service(robot_devices_t *d, uint64_t now_us)
+{
+    unsigned changed = 0U;
+    char text[320];
+    for (int i = 0; i < ROBOT_DEV_COUNT; ++i) {
+        const robot_dev_t id = (robot_dev_t)i;
+        robot_dev_status_t *st = &d->dev[i];
+        if (st->state == ROBOT_DEV_UP && st->lost) {
+            close_dev(d, id);
+            st->losses++;
+            st->state = ROBOT_DEV_DOWN;
+            st->next_try_us = now_us + d->retry_us;
+            put_text(st->reason, sizeof st->reason, "lost: %s (%s)", hal_reason(st->last_error),
+                           hal_status_str(st->last_error));
+            put_text(text, sizeof text, "%s; retrying every %.0f s", st->reason, d->cfg->retry_period_s);
+            say(d, st->name, st, text);
+            changed |= 1U << i;
+            continue;
+        }
+        if (st->state != ROBOT_DEV_DOWN || now_us < st->next_try_us) {
+            continue;
+        }
+        const uint32_t failures = st->open_failures;
+        if (try_open(d, id, now_us)) {
+            put_text(text, sizeof text, "back up after %lu failed attempt%s", (unsigned long)failures,
+                           failures == 1U ? "" : "s");
+            say(d, st->name, st, text);
+            changed |= 1U << i;
+        } else if (d->verbose) {
+            put_text(text, sizeof text, "still down (%s)", st->reason);
+            say(d, st->name, st, text);
+        }
+    }
+    return changed;
+}
+
+void robot_devices_close_all(robot_devices_t *d)
+{
+    for (int i = 0; i < ROBOT_DEV_COUNT; ++i) {
+        if (d->dev[i].state == ROBOT_DEV_UP || i == ROBOT_DEV_LINK) {
+            close_dev(d, (robot_dev_t)i);
+        }
+        if (d->dev[i].state == ROBOT_DEV_UP) {
+            d->dev[i].state = ROBOT_DEV_DOWN;
+        }
+    }
+}
+
+robot_node_io_t robot_devices_io(robot_devices_t *d)
+{
+    robot_node_io_t io;
+    io.clock = d->clock;
+    io.laser = &d->laser;
+    io.can = &d->can;
+    io.gpio = &d->gpio;
+    io.link = d->link;
+    io.sightings = &d->sightings;
+    return io;
+}
+
+hal_storage_t *robot_devices_storage(robot_devices_t *d)
+{
+    return usable(d, ROBOT_DEV_STORAGE) ? &d->storage_state.dev : NULL;
+}

@@ -1,0 +1,154 @@
+/*
+ * robot_devices.h - the devices of coslam-robot: the only place (with
+ * robot_link.c and robot_sightings.c) where HAL backends are chosen, and
+ * the keeper of their up / down state.
+ *
+ *   laser    termios serial (hal_serial_linux_open), [laser] device, baud
+ *   can      SocketCAN (hal_can_socketcan_open), [can] interface
+ *   gpio     libgpiod v1 (hal_gpio_linux_open), [gpio] chip; absent from
+ *            builds without libgpiod
+ *   camera   robot_open_sightings (robot_sightings.h)
+ *   link     robot_open_link (robot_link.h)
+ *   storage  files in a directory (hal_storage_linux_open), [storage] dir
+ *   clock    CLOCK_MONOTONIC (hal_clock_linux)
+ *
+ * The robot node keeps the handles it was given for its whole life, so the
+ * laser, CAN, GPIO and camera handles it gets are PROXIES owned here: while
+ * the device is up each operation is passed to the backend; while it is
+ * down every operation answers HAL_E_CLOSED ("not open / went away"; the
+ * camera: HAL_E_TIMEOUT, no frame). A device that is missing or fails to
+ * open is reported on the log by name with the reason, and opened again
+ * every retry period; its return is logged. A device that goes away while
+ * up (its backend answers HAL_E_CLOSED, or HAL_E_IO ROBOT_DEVICES_IO_LIMIT
+ * times in a row) is marked lost at once (the proxy answers HAL_E_CLOSED
+ * from then on), and closed and reported by robot_devices_service().
+ * CAN acceptance filters set while the bus is down are kept and installed
+ * when it opens. Unconfigured devices (empty name) are reported once as
+ * "not configured" and never tried.
+ *
+ * No heap beyond what the backends hold (libgpiod's chip object). One
+ * thread.
+ */
+#ifndef COSLAM_PORT_ROBOT_DEVICES_H
+#define COSLAM_PORT_ROBOT_DEVICES_H
+
+#include <stdint.h>
+#include <stdio.h>
+
+#include "app/robot_node.h"
+#include "hal/hal_can.h"
+#include "hal/hal_can_socketcan.h"
+#include "hal/hal_clock.h"
+#include "hal/hal_gpio.h"
+#include "hal/hal_serial.h"
+#include "hal/hal_serial_linux.h"
+#include "hal/hal_storage.h"
+#include "hal/hal_storage_linux.h"
+#include "robot_config.h"
+#include "robot_sightings.h"
+
+#if COSLAM_HAVE_GPIOD
+#include "hal/hal_gpio_linux.h"
+#endif
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/** Consecutive HAL_E_IO answers after which a device counts as gone. */
+#define ROBOT_DEVICES_IO_LIMIT 50u
+
+typedef enum {
+    ROBOT_DEV_LASER = 0,
+    ROBOT_DEV_CAN = 1,
+    ROBOT_DEV_GPIO = 2,
+    ROBOT_DEV_CAMERA = 3,
+    ROBOT_DEV_LINK = 4,
+    ROBOT_DEV_STORAGE = 5,
+    ROBOT_DEV_COUNT = 6,
+} robot_dev_t;
+
+/** What a device slot is doing. */
+typedef enum {
+    ROBOT_DEV_UP = 0,       /**< open and working */
+    ROBOT_DEV_DOWN = 1,     /**< configured, not open: retried every retry period */
+    ROBOT_DEV_ABSENT = 2,   /**< not configured, or no backend for it: never tried */
+} robot_dev_state_t;
+
+typedef struct {
+    const char *name;            /**< "laser", "can", ... */
+    robot_dev_state_t state;
+    int lost;                    /**< an operation saw it go away: closed at the next service */
+    hal_status_t last_error;     /**< reason of the last failure (HAL_OK: none) */
+    char reason[320];            /**< and in words */
+    char what[320];              /**< what it is: path, interface, backend */
+    uint32_t io_in_row;          /**< consecutive HAL_E_IO answers */
+    uint32_t opens;              /**< successful opens */
+    uint32_t open_failures;
+    uint32_t losses;             /**< went away while up */
+    uint64_t next_try_us;        /**< next open attempt (DOWN) */
+} robot_dev_status_t;
+
+typedef struct {
+    const robot_config_t *cfg;
+    hal_clock_t *clock;
+    FILE *log;
+    int verbose;
+    uint32_t retry_us;
+    robot_dev_status_t dev[ROBOT_DEV_COUNT];
+    /* proxies handed to the robot node */
+    hal_serial_t laser;
+    hal_can_t can;
+    hal_gpio_t gpio;
+    sighting_source_t sightings;
+    /* backends */
+    hal_serial_t laser_dev;
+    hal_serial_linux_t laser_state;
+    hal_can_socketcan_t can_state;
+    hal_can_filter_t can_filters[HAL_CAN_MAX_FILTERS];
+    size_t can_filter_count;
+#if COSLAM_HAVE_GPIOD
+    hal_gpio_linux_t gpio_state;
+#endif
+    robot_sightings_kind_t camera_kind;
+    robot_replay_t replay;
+    hal_link_t *link;
+    hal_storage_linux_t storage_state;
+} robot_devices_t;
+
+/** Set up the slots and proxies (nothing is opened). `log` gets the device
+ *  reports (stderr in coslam-robot); verbose adds every failed retry. */
+void robot_devices_init(robot_devices_t *d, const robot_config_t *cfg, hal_clock_t *clock, FILE *log, int verbose);
+
+/** First attempt at every device; each one is reported by name (up, down
+ *  with the reason, not configured). */
+void robot_devices_open_all(robot_devices_t *d, uint64_t now_us);
+
+/**
+ * Close and report lost devices; retry the down ones whose time has come
+ * (a return is reported). Returns a bit mask (1 << robot_dev_t) of the
+ * devices whose state changed in this call.
+ */
+unsigned robot_devices_service(robot_devices_t *d, uint64_t now_us);
+
+/** Mark device `id` down with `why` (e.g. the GPIO lines could not be
+ *  claimed although the chip opened): closed, reported, retried later. */
+void robot_devices_fail(robot_devices_t *d, robot_dev_t id, hal_status_t why, const char *reason, uint64_t now_us);
+
+/** Close everything (the proxies answer HAL_E_CLOSED afterwards). */
+void robot_devices_close_all(robot_devices_t *d);
+
+/** The handles for robot_node_init (proxies, the link, the clock). */
+robot_node_io_t robot_devices_io(robot_devices_t *d);
+
+/** The storage for snapshots: the Linux directory while up, else NULL. */
+hal_storage_t *robot_devices_storage(robot_devices_t *d);
+
+/** "up", "down" or "absent". */
+const char *robot_dev_state_name(robot_dev_state_t s);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* COSLAM_PORT_ROBOT_DEVICES_H */

@@ -1,0 +1,421 @@
+/*
+ * coslam-robot - the robot firmware on Linux: the robot node
+ * (firmware/app) on the Linux backends (robot_devices.h), one INI file
+ * (robot_config.h), map snapshots (robot_snapshot.h), a status report
+ * (robot_status.h). docs/robot.md has the details and the decisions.
+ *
+ *   coslam-robot [-c FILE] [--dry-run] [--once N] [--status-file PATH]
+ *                [--print-config] [-v]
+ *
+ * Exit status: 0 after a clean stop (SIGTERM, SIGINT, --once, --dry-run);
+ * 2 for a bad command line or configuration; 1 when the node cannot start.
+ *
+ * Main loop: one robot_node_step per step_period on an absolute monotonic
+ * schedule (hal_clock_linux: clock_nanosleep(TIMER_ABSTIME) on
+ * CLOCK_MONOTONIC). A step that ends after the next deadline is an overrun:
+ * counted, and the schedule skips the missed deadlines (never a burst of
+ * catch-up steps). Between steps: device service (lost devices closed,
+ * missing ones retried), GPIO roles attached when the chip is there,
+ * snapshot and status when due.
+ */
+#include <errno.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/resource.h>
+#include <time.h>
+
+#include "app/robot_node.h"
+#include "hal/hal_clock_linux.h"
+#include "robot_config.h"
+#include "robot_devices.h"
+#include "robot_snapshot.h"
+#include "robot_status.h"
+
+static volatile sig_atomic_t stop_signal = 0;
+
+static void on_signal(int sig)
+{
+    stop_signal = sig;
+}
+
+typedef struct {
+    const char *config_path;
+    const char *status_file;
+    int dry_run;
+    int print_config;
+    long once;
+    int verbose;
+} options_t;
+
+static void usage(FILE *out)
+{
+    fprintf(out,
+            "usage: coslam-robot [-c FILE] [--dry-run] [--once N] [--status-file PATH] [--print-config] [-v]\n"
+            "  -c FILE             configuration (default " ROBOT_CONFIG_DEFAULT_PATH ")\n"
+            "  --dry-run           load the configuration, open the devices, print what is up, exit\n"
+            "  --once N            run N steps, then stop as on SIGTERM (tests)\n"
+            "  --status-file PATH  also write the status report there as JSON (atomically)\n"
+            "  --print-config      print the effective configuration as INI and exit\n"
+            "  -v                  verbose: every snapshot and every failed device retry\n");
+}
+
+static int parse_args(int argc, char **argv, options_t *o)
+{
+    memset(o, 0, sizeof *o);
+    o->config_path = ROBOT_CONFIG_DEFAULT_PATH;
+    o->once = -1;
+    for (int i = 1; i < argc; ++i) {
+        const char *a = argv[i];
+        if (strcmp(a, "-c") == 0 && i + 1 < argc) {
+            o->config_path = argv[++i];
+        } else if (strcmp(a, "--dry-run") == 0) {
+            o->dry_run = 1;
+        } else if (strcmp(a, "--print-config") == 0) {
+            o->print_config = 1;
+        } else if (strcmp(a, "--once") == 0 && i + 1 < argc) {
+            char *end = NULL;
+            errno = 0;
+            o->once = strtol(argv[++i], &end, 10);
+            if (errno != 0 || end == argv[i] || *end != '\0' || o->once < 0) {
+                fprintf(stderr, "coslam-robot: --once needs a step count >= 0, got '%s'\n", argv[i]);
+                return -1;
+            }
+        } else if (strcmp(a, "--status-file") == 0 && i + 1 < argc) {
+            o->status_file = argv[++i];
+        } else if (strcmp(a, "-v") == 0) {
+            o->verbose = 1;
+        } else if (strcmp(a, "-h") == 0 || strcmp(a, "--help") == 0) {
+            usage(stdout);
+            return 1;
+        } else {
+            fprintf(stderr, "coslam-robot: unknown or incomplete option '%s'\n", a);
+            usage(stderr);
+            return -1;
+        }
+    }
+    return 0;
+}
+
+static double cpu_seconds(void)
+{
+    struct rusage ru;
+    if (getrusage(RUSAGE_SELF, &ru) != 0) {
+        return 0.0;
+    }
+    return (double)ru.ru_utime.tv_sec + 1e-6 * (double)ru.ru_utime.tv_usec + (double)ru.ru_stime.tv_sec +
+           1e-6 * (double)ru.ru_stime.tv_usec;
+}
+
+/* The big state: static storage (robot_node_t is about 600 KB). */
+static robot_config_t cfg;
+static robot_devices_t dev;
+static robot_node_t node;
+static robot_snapshots_t snaps;
+static robot_snapshot_t snap;
+static robot_status_t status;
+
+static uint16_t count_landmarks(void)
+{
+    if (robot_node_export(&node, &snap.map) == COSLAM_E_ARG) {
+        return 0U;
+    }
+    return snap.map.n_landmarks;
+}
+
+/* Export and save the next generation; report per `verbose` (failures always). */
+static int save_snapshot(int verbose, const char *why, uint64_t now_us)
+{
+    hal_storage_t *st = robot_devices_storage(&dev);
+    robot_snapshots_set_storage(&snaps, st);
+    if (st == NULL) {
+        if (verbose) {
+            fprintf(stderr, "coslam-robot: snapshot: storage down, %s snapshot not written\n", why);
+        }
+        snaps.save_failures++;
+        return -1;
+    }
+    memset(&snap, 0, sizeof snap);
+    const coslam_status_t es = robot_node_export(&node, &snap.map);
+    if (es != COSLAM_OK && es != COSLAM_E_CAPACITY) {
+        fprintf(stderr, "coslam-robot: snapshot: export failed (%s)\n", coslam_status_str(es));
+        snaps.save_failures++;
+        return -1;
+    }
+    snap.robot_id = cfg.robot_id;
+    snap.filter_kind = (uint8_t)cfg.node.filter.kind;
+    snap.msg_seq = robot_node_msg_seq(&node);
+    snap.saved_unix_s = (uint64_t)time(NULL);
+    const char *name = NULL;
+    const coslam_status_t ss = robot_snapshots_save(&snaps, &snap, &name);
+    if (ss != COSLAM_OK) {
+        fprintf(stderr, "coslam-robot: snapshot: %s snapshot not written (%s, storage %s)\n", why,
+                coslam_status_str(ss), hal_status_str(snaps.last_write));
+        if (snaps.last_write == HAL_E_IO || snaps.last_write == HAL_E_CLOSED) {
+            robot_devices_fail(&dev, ROBOT_DEV_STORAGE, snaps.last_write, "write failed", now_us);
+        }
+        return -1;
+    }
+    if (verbose) {
+        fprintf(stderr, "coslam-robot: snapshot: saved %s seq=%llu landmarks=%u (%s)\n", name,
+                (unsigned long long)snap.seq, (unsigned)snap.map.n_landmarks, why);
+    }
+    return 0;
+}
+
+/* At start (or when the storage comes back): the newest generation. With
+ * `restore` the node starts from it; else it only sets the sequence
+ * numbers, so that this run's saves come after the ones on disk. */
+static void load_snapshot(int restore)
+{
+    hal_storage_t *st = robot_devices_storage(&dev);
+    robot_snapshots_set_storage(&snaps, st);
+    if (st == NULL) {
+        fprintf(stderr, "coslam-robot: snapshot: storage down: starting a new map\n");
+        return;
+    }
+    static robot_snapshot_t loaded;
+    const char *name = NULL;
+    const coslam_status_t ls = robot_snapshots_load(&snaps, &loaded, &name, stderr);
+    if (ls == COSLAM_E_EMPTY) {
+        fprintf(stderr, "coslam-robot: snapshot: none found: starting a new map\n");
+        return;
+    }
+    if (ls != COSLAM_OK) {
+        fprintf(stderr, "coslam-robot: snapshot: cannot read (%s): starting a new map\n", coslam_status_str(ls));
+        return;
+    }
+    if (!restore) {
+        fprintf(stderr, "coslam-robot: snapshot: storage back; newest on disk %s seq=%llu kept, this run's map "
+                        "is saved after it\n",
+                name, (unsigned long long)loaded.seq);
+        return;
+    }
+    if (loaded.robot_id != cfg.robot_id) {
+        fprintf(stderr, "coslam-robot: snapshot: %s seq=%llu was saved by robot %u, this is robot %u: not loaded, "
+                        "starting a new map\n",
+                name, (unsigned long long)loaded.seq, (unsigned)loaded.robot_id, (unsigned)cfg.robot_id);
+        return;
+    }
+    const coslam_status_t rs = robot_node_restore(&node, &loaded.map, loaded.msg_seq);
+    if (rs != COSLAM_OK && rs != COSLAM_E_CAPACITY) {
+        fprintf(stderr, "coslam-robot: snapshot: %s seq=%llu refused by the filter (%s): starting a new map\n", name,
+                (unsigned long long)loaded.seq, coslam_status_str(rs));
+        return;
+    }
+    fprintf(stderr,
+            "coslam-robot: snapshot: loaded %s seq=%llu landmarks=%u pose=(%.3f, %.3f, %.4f)%s\n", name,
+            (unsigned long long)loaded.seq, (unsigned)loaded.map.n_landmarks, loaded.map.pose.x, loaded.map.pose.y,
+            loaded.map.pose.theta, rs == COSLAM_E_CAPACITY ? " (cut to this build's capacity)" : "");
+}
+
+static void report_status(const options_t *o, int to_stderr, const robot_loop_stats_t *loop)
+{
+    robot_status_collect(&status, &node, &dev, &snaps, loop);
+    if (to_stderr) {
+        static char line[4096];
+        (void)robot_status_line(&status, line, sizeof line);
+        fprintf(stderr, "coslam-robot: status %s\n", line);
+        fflush(stderr);
+    }
+    if (o->status_file != NULL && robot_status_write_json(&status, o->status_file) != 0) {
+        fprintf(stderr, "coslam-robot: status file %s: %s\n", o->status_file, strerror(errno));
+    }
+}
+
+static void print_devices(FILE *out)
+{
+    for (int i = 0; i < ROBOT_DEV_COUNT; ++i) {
+        const robot_dev_status_t *s = &dev.dev[i];
+        fprintf(out, "%-8s %-6s %s%s%s\n", s->name, robot_dev_state_name(s->state), s->what,
+                s->reason[0] != '\0' ? " - " : "", s->reason);
+    }
+}
+
+int main(int argc, char **argv)
+{
+    options_t opt;
+    const int pa = parse_args(argc, argv, &opt);
+    if (pa != 0) {
+        return pa > 0 ? 0 : 2;
+    }
+    robot_config_default(&cfg);
+    char msg[ROBOT_CONFIG_MSG_MAX + 64u];
+    if (robot_config_load(&cfg, opt.config_path, msg, sizeof msg) != COSLAM_OK) {
+        fprintf(stderr, "coslam-robot: %s\n", msg);
+        return 2;
+    }
+    if (opt.print_config) {
+        robot_config_print(&cfg, stdout);
+        return 0;
+    }
+
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_signal;
+    (void)sigemptyset(&sa.sa_mask);
+    (void)sigaction(SIGTERM, &sa, NULL);
+    (void)sigaction(SIGINT, &sa, NULL);
+
+    hal_clock_t *clock = hal_clock_linux();
+    uint64_t now = 0;
+    if (hal_clock_now_us(clock, &now) != HAL_OK) {
+        fprintf(stderr, "coslam-robot: the monotonic clock failed\n");
+        return 1;
+    }
+    const uint64_t t_start = now;
+    fprintf(stderr, "coslam-robot: robot %u of %u, %s filter, profile %s, config %s\n", (unsigned)cfg.robot_id,
+            (unsigned)cfg.fleet_size, slam_filter_kind_name(cfg.node.filter.kind), COSLAM_PROFILE_NAME,
+            opt.config_path);
+    robot_devices_init(&dev, &cfg, clock, stderr, opt.verbose);
+    robot_devices_open_all(&dev, now);
+    robot_snapshots_init(&snaps, robot_devices_storage(&dev));
+
+    const robot_node_io_t io = robot_devices_io(&dev);
+    const coslam_status_t is = robot_node_init(&node, &cfg.node, &io);
+    if (is != COSLAM_OK) {
+        fprintf(stderr, "coslam-robot: the robot node refused the configuration (robot_node_init: %s)\n",
+                coslam_status_str(is));
+        robot_devices_close_all(&dev);
+        return is == COSLAM_E_ARG ? 2 : 1;
+    }
+    if (!robot_node_gpio_attached(&node) && dev.dev[ROBOT_DEV_GPIO].state == ROBOT_DEV_UP) {
+        robot_devices_fail(&dev, ROBOT_DEV_GPIO, HAL_E_BUSY, "the bumper / e-stop / LED lines could not be claimed",
+                           now);
+    }
+    if (!robot_node_gpio_attached(&node)) {
+        fprintf(stderr, "coslam-robot: gpio: no bumper, no e-stop: %s\n",
+                cfg.gpio_required ? "no motion until they are back (gpio.required = true)"
+                                  : "moving anyway (gpio.required = false)");
+    }
+    if (dev.dev[ROBOT_DEV_LASER].state != ROBOT_DEV_UP) {
+        fprintf(stderr, "coslam-robot: laser: no obstacle behaviour: the robot turns on the spot only "
+                        "(at most %.2f rad/s), no translation\n",
+                cfg.node.blind_max_turn_radps);
+    }
+    if (dev.dev[ROBOT_DEV_CAN].state != ROBOT_DEV_UP) {
+        fprintf(stderr, "coslam-robot: can: no drives: no motion, no odometry\n");
+    }
+    load_snapshot(!opt.dry_run);
+
+    if (opt.dry_run) {
+        printf("coslam-robot dry run: robot %u of %u, config %s\n", (unsigned)cfg.robot_id, (unsigned)cfg.fleet_size,
+               opt.config_path);
+        print_devices(stdout);
+        printf("snapshot newest seq %llu\n", (unsigned long long)snaps.newest_seq);
+        robot_devices_close_all(&dev);
+        return 0;
+    }
+
+    const uint64_t period = cfg.step_period_us;
+    const uint64_t status_us = (uint64_t)(cfg.status_period_s * 1e6);
+    const uint64_t file_us = status_us > 0U ? status_us : 10000000U;
+    const uint64_t snap_us = (uint64_t)(cfg.snapshot_period_s * 1e6);
+    robot_loop_stats_t loop;
+    memset(&loop, 0, sizeof loop);
+    uint64_t next = now + period;
+    uint64_t next_status = now + status_us;
+    uint64_t next_file = now + file_us;
+    uint64_t next_snap = now + snap_us;
+    uint64_t gpio_try = now;
+    double cpu_mark = cpu_seconds();
+    uint64_t cpu_mark_us = now;
+    int storage_was_up = robot_devices_storage(&dev) != NULL;
+    coslam_status_t last_step = COSLAM_OK;
+
+    while (!stop_signal && (opt.once < 0 || loop.steps < (uint64_t)opt.once)) {
+        /* devices: close the lost ones (GPIO roles let go first), retry the rest */
+        if (dev.dev[ROBOT_DEV_GPIO].lost) {
+            robot_node_gpio_detach(&node);
+        }
+        (void)hal_clock_now_us(clock, &now);
+        (void)robot_devices_service(&dev, now);
+        if (dev.dev[ROBOT_DEV_GPIO].state == ROBOT_DEV_UP && !robot_node_gpio_attached(&node) && now >= gpio_try) {
+            if (robot_node_gpio_attach(&node) == COSLAM_OK) {
+                fprintf(stderr, "coslam-robot: gpio: bumper / e-stop / LED roles attached\n");
+            } else {
+                robot_devices_fail(&dev, ROBOT_DEV_GPIO, HAL_E_BUSY,
+                                   "the bumper / e-stop / LED lines could not be claimed", now);
+            }
+            gpio_try = now + dev.retry_us;
+        }
+        const int storage_up = robot_devices_storage(&dev) != NULL;
+        if (storage_up && !storage_was_up) {
+            load_snapshot(0);
+        }
+        storage_was_up = storage_up;
+
+        const coslam_status_t st = robot_node_step(&node);
+        if (st != last_step && opt.verbose) {
+            fprintf(stderr, "coslam-robot: step: %s\n", coslam_status_str(st));
+        }
+        last_step = st;
+        loop.steps++;
+
+        (void)hal_clock_now_us(clock, &now);
+        if (snap_us > 0U && now >= next_snap) {
+            (void)save_snapshot(opt.verbose, "periodic", now);
+            (void)hal_clock_now_us(clock, &now);
+            next_snap = now + snap_us;
+        }
+        const int due_line = status_us > 0U && now >= next_status;
+        const int due_file = opt.status_file != NULL && now >= next_file;
+        if (due_line || due_file) {
+            const double cpu = cpu_seconds();
+            loop.cpu_pct = now > cpu_mark_us ? 100.0 * (cpu - cpu_mark) / ((double)(now - cpu_mark_us) * 1e-6) : 0.0;
+            cpu_mark = cpu;
+            cpu_mark_us = now;
+            loop.uptime_s = (double)(now - t_start) * 1e-6;
+            loop.landmarks = count_landmarks();
+            report_status(&opt, due_line, &loop);
+            if (due_line) {
+                next_status = now + status_us;
+            }
+            if (due_file) {
+                next_file = now + file_us;
+            }
+        }
+
+        /* the schedule: absolute deadlines; an overrun skips the missed ones */
+        (void)hal_clock_now_us(clock, &now);
+        if (now > next) {
+            const uint64_t late = now - next;
+            loop.overruns++;
+            if (late > loop.late_max_us) {
+                loop.late_max_us = late > UINT32_MAX ? UINT32_MAX : (uint32_t)late;
+            }
+            next += (late / period + 1U) * period;
+        }
+        if (hal_clock_sleep_until_us(clock, next) != HAL_OK) {
+            fprintf(stderr, "coslam-robot: the monotonic clock failed while sleeping\n");
+            break;
+        }
+        next += period;
+    }
+
+    /* clean stop: drives stopped, final snapshot, devices closed */
+    const int sig = (int)stop_signal;
+    if (sig != 0) {
+        fprintf(stderr, "coslam-robot: %s: stopping\n", sig == SIGTERM ? "SIGTERM" : "SIGINT");
+    }
+    (void)robot_node_shutdown(&node);
+    (void)hal_clock_now_us(clock, &now);
+    for (int i = 0; i < 10; ++i) {
+        /* let the drives' disable sequence go out (the node only polls the drive now) */
+        next = now + period;
+        (void)hal_clock_sleep_until_us(clock, next);
+        (void)robot_node_step(&node);
+        now = next;
+    }
+    (void)hal_clock_now_us(clock, &now);
+    const int saved = save_snapshot(1, "final", now);
+    loop.uptime_s = (double)(now - t_start) * 1e-6;
+    loop.landmarks = count_landmarks();
+    loop.cpu_pct = 100.0 * cpu_seconds() / (loop.uptime_s > 0.0 ? loop.uptime_s : 1.0);
+    report_status(&opt, 1, &loop);
+    robot_devices_close_all(&dev);
+    fprintf(stderr, "coslam-robot: stopped after %llu steps, %lu overruns%s\n", (unsigned long long)loop.steps,
+            (unsigned long)loop.overruns, saved == 0 ? "" : " (no final snapshot)");
+    return 0;
+}

@@ -1,0 +1,302 @@
+/* Sighting sources of coslam-robot: the choice and the landmark-log replay
+ * (robot_sightings.h). */
+#include "robot_sightings.h"
+
+#include <errno.h>
+#include <math.h>
+#include <string.h>
+
+#include "app/slam_params_ini.h"
+#include "coslam/pose2.h"
+
+/* ---- parsing ------------------------------------------------------------- */
+
+typedef enum { LINE_SKIP = 0, LINE_RECORD = 1, LINE_BAD = 2 } line_kind_t;
+
+/* Split a line into at most 6 blank-separated fields (in place). */
+static int split(char *s, char **field, int max)
+{
+    int n = 0;
+    char *p = s;
+    while (*p != '\0') {
+        while (*p == ' ' || *p == '\t' || *p == '\r' || *p == '\n') {
+            *p++ = '\0';
+        }
+        if (*p == '\0' || *p == '#') {
+            break;
+        }
+        if (n == max) {
+            return max + 1;
+        }
+        field[n++] = p;
+        while (*p != '\0' && *p != ' ' && *p != '\t' && *p != '\r' && *p != '\n') {
+            ++p;
+        }
+    }
+    return n;
+}
+
+static line_kind_t parse_line(char *text, robot_replay_record_t *rec, char *why, size_t cap)
+{
+    char *f[6];
+    const int n = split(text, f, 5);
+    if (n == 0) {
+        return LINE_SKIP;
+    }
+    const char tag = f[0][0];
+    if (f[0][1] != '\0' || (tag != 'Z' && tag != 'R' && tag != 'O' && tag != 'V')) {
+        (void)snprintf(why, cap, "unknown record type '%s' (expected Z, R, O or V)", f[0]);
+        return LINE_BAD;
+    }
+    const int want = tag == 'V' ? 4 : 5;
+    if (n != want) {
+        (void)snprintf(why, cap, "%s", tag == 'Z'   ? "expected Z t id range bearing"
+                                       : tag == 'R' ? "expected R t other_robot_id range bearing"
+                                       : tag == 'O' ? "expected O t dx dy dtheta"
+                                                    : "expected V t v w");
+        return LINE_BAD;
+    }
+    double v[4] = {0.0, 0.0, 0.0, 0.0};
+    for (int i = 1; i < n; ++i) {
+        if (slam_params_ini_parse_number(f[i], &v[i - 1]) != COSLAM_OK) {
+            (void)snprintf(why, cap, "field %d is not a finite number: '%s'", i + 1, f[i]);
+            return LINE_BAD;
+        }
+    }
+    if (!(v[0] >= 0.0 && v[0] < 1e9)) {
+        (void)snprintf(why, cap, "time %s outside [0, 1e9) s", f[1]);
+        return LINE_BAD;
+    }
+    rec->tag = tag;
+    rec->t_us = (uint64_t)llround(v[0] * 1e6);
+    if (tag == 'O' || tag == 'V') {
+        return LINE_RECORD;
+    }
+    if (v[1] != floor(v[1]) || v[1] < -1.0 || v[1] > 1e9 || (tag == 'R' && v[1] < 0.0)) {
+        (void)snprintf(why, cap, "%s must be an integer (%s), got '%s'", tag == 'Z' ? "id" : "other_robot_id",
+                       tag == 'Z' ? "-1 or >= 0" : ">= 0", f[2]);
+        return LINE_BAD;
+    }
+    if (!(v[2] > 0.0)) {
+        (void)snprintf(why, cap, "range must be > 0, got '%s'", f[3]);
+        return LINE_BAD;
+    }
+    rec->id = (int32_t)v[1];
+    rec->range_m = v[2];
+    rec->bearing_rad = angle_wrap(v[3]);
+    return LINE_RECORD;
+}
+
+/* Next Z or R record of the current pass: 1, 0 at the end of the file. */
+static int read_record(robot_replay_t *r, robot_replay_record_t *rec)
+{
+    char buf[512];
+    while (fgets(buf, sizeof buf, r->f) != NULL) {
+        r->line++;
+        char why[160];
+        const line_kind_t k = parse_line(buf, rec, why, sizeof why);
+        if (k != LINE_RECORD) {
+            continue; /* comments; the file was checked at open */
+        }
+        if (rec->tag == 'O' || rec->tag == 'V') {
+            r->ignored_records++;
+            continue;
+        }
+        return 1;
+    }
+    return 0;
+}
+
+/* ---- the source ---------------------------------------------------------- */
+
+static void frame_clear(sighting_frame_t *fr)
+{
+    memset(fr, 0, sizeof *fr);
+}
+
+static void add_record(robot_replay_t *r, const robot_replay_record_t *rec)
+{
+    sighting_frame_t *fr = &r->building;
+    if (r->building_n == 0) {
+        frame_clear(fr);
+        r->building_t_us = rec->t_us;
+        fr->stamp_us = r->base_us + rec->t_us;
+    }
+    r->building_n++;
+    r->records++;
+    if (rec->tag == 'Z') {
+        if (fr->n_landmarks < COSLAM_MAX_SIGHTINGS) {
+            sighting_t *z = &fr->landmarks[fr->n_landmarks++];
+            z->range_m = rec->range_m;
+            z->bearing_rad = rec->bearing_rad;
+            z->signature = 0U; /* non-unique markers: the id is ground truth only */
+        } else {
+            fr->dropped++;
+        }
+    } else {
+        if (fr->n_robots < COSLAM_MAX_ROBOTS && rec->id < COSLAM_MAX_ROBOTS) {
+            robot_seen_t *s = &fr->robots[fr->n_robots++];
+            s->robot_id = (uint8_t)rec->id;
+            s->range_m = rec->range_m;
+            s->bearing_rad = rec->bearing_rad;
+        } else {
+            fr->dropped++;
+        }
+    }
+}
+
+static void complete_frame(robot_replay_t *r)
+{
+    if (r->building_n == 0) {
+        return;
+    }
+    if (r->ready) {
+        r->frames_skipped++;
+    }
+    r->building.sequence = ++r->sequence;
+    r->out = r->building;
+    r->ready = 1;
+    r->building_n = 0;
+}
+
+static hal_status_t replay_next_frame(sighting_source_t *src, sighting_frame_t *out, uint32_t timeout_us)
+{
+    robot_replay_t *r = (robot_replay_t *)src->backend;
+    (void)timeout_us; /* frames come at log times: waiting would only delay the caller */
+    if (r->f == NULL) {
+        return HAL_E_CLOSED;
+    }
+    uint64_t now = 0;
+    if (hal_clock_now_us(r->clock, &now) != HAL_OK) {
+        return HAL_E_IO;
+    }
+    for (int guard = 0; guard < 100000; ++guard) {
+        if (!r->have_next) {
+            if (read_record(r, &r->next)) {
+                r->have_next = 1;
+            } else {
+                complete_frame(r);
+                if (!r->loop || r->records == 0U) {
+                    break;
+                }
+                /* again from the start, after the gap */
+                if (fseek(r->f, 0L, SEEK_SET) != 0) {
+                    return HAL_E_IO;
+                }
+                r->line = 0U;
+                r->base_us += r->last_t_us + ROBOT_REPLAY_LOOP_GAP_US;
+                r->loops++;
+                continue;
+            }
+        }
+        if (r->base_us + r->next.t_us > now) {
+            complete_frame(r); /* the next record is later: the frame is whole */
+            break;
+        }
+        if (r->building_n > 0 && r->next.t_us != r->building_t_us) {
+            complete_frame(r);
+        }
+        add_record(r, &r->next);
+        r->have_next = 0;
+    }
+    if (!r->ready) {
+        return HAL_E_TIMEOUT;
+    }
+    *out = r->out;
+    r->ready = 0;
+    r->frames_given++;
+    return HAL_OK;
+}
+
+static const sighting_source_ops_t replay_ops = {replay_next_frame};
+
+hal_status_t robot_replay_open(robot_replay_t *r, const char *path, int loop, hal_clock_t *clock, char *msg,
+                               size_t msg_cap)
+{
+    if (msg != NULL && msg_cap > 0U) {
+        msg[0] = '\0';
+    }
+    if (r == NULL || path == NULL || clock == NULL || msg == NULL) {
+        return HAL_E_ARG;
+    }
+    memset(r, 0, sizeof *r);
+    r->src.ops = &replay_ops;
+    r->src.backend = r;
+    r->clock = clock;
+    r->loop = loop != 0;
+    (void)snprintf(r->path, sizeof r->path, "%s", path);
+    FILE *f = fopen(path, "r");
+    if (f == NULL) {
+        const int e = errno;
+        (void)snprintf(msg, msg_cap, "%s: %s", path, strerror(e));
+        return e == ENOENT ? HAL_E_NOT_FOUND : HAL_E_IO;
+    }
+    /* check the whole log now: a bad line is refused with its place */
+    char buf[512];
+    unsigned line = 0;
+    uint64_t last = 0;
+    while (fgets(buf, sizeof buf, f) != NULL) {
+        line++;
+        if (strchr(buf, '\n') == NULL && !feof(f)) {
+            (void)snprintf(msg, msg_cap, "%s:%u: line longer than %zu characters", path, line, sizeof buf - 2U);
+            (void)fclose(f);
+            return HAL_E_CORRUPT;
+        }
+        robot_replay_record_t rec;
+        char why[160];
+        const line_kind_t k = parse_line(buf, &rec, why, sizeof why);
+        if (k == LINE_BAD) {
+            (void)snprintf(msg, msg_cap, "%s:%u: %s", path, line, why);
+            (void)fclose(f);
+            return HAL_E_CORRUPT;
+        }
+        if (k == LINE_RECORD) {
+            if (rec.t_us < last) {
+                (void)snprintf(msg, msg_cap, "%s:%u: time goes backwards", path, line);
+                (void)fclose(f);
+                return HAL_E_CORRUPT;
+            }
+            last = rec.t_us;
+        }
+    }
+    if (ferror(f) || fseek(f, 0L, SEEK_SET) != 0) {
+        (void)snprintf(msg, msg_cap, "%s: read error", path);
+        (void)fclose(f);
+        return HAL_E_IO;
+    }
+    uint64_t now = 0;
+    if (hal_clock_now_us(clock, &now) != HAL_OK) {
+        (void)fclose(f);
+        (void)snprintf(msg, msg_cap, "%s: the clock failed", path);
+        return HAL_E_IO;
+    }
+    r->f = f;
+    r->last_t_us = last;
+    r->base_us = now;
+    return HAL_OK;
+}
+
+void robot_replay_close(robot_replay_t *r)
+{
+    if (r != NULL && r->f != NULL) {
+        (void)fclose(r->f);
+        r->f = NULL;
+    }
+}
+
+robot_sightings_kind_t robot_open_sightings(robot_replay_t *r, const robot_config_t *cfg, hal_clock_t *clock,
+                                            hal_status_t *st, char *msg, size_t msg_cap)
+{
+    /* ---- SIGHTING SOURCE CHOICE ---------------------------------------------
+     * The Linux camera pipeline (V4L2 + firmware/vision) plugs in here for
+     * cfg->camera_device. */
+    *st = HAL_E_UNSUPPORTED;
+    if (msg != NULL && msg_cap > 0U) {
+        msg[0] = '\0';
+    }
+    if (cfg->camera_replay_log[0] != '\0') {
+        *st = robot_replay_open(r, cfg->camera_replay_log, cfg->camera_replay_loop, clock, msg, msg_cap);
+        return ROBOT_SIGHTINGS_REPLAY;
+    }
+    return cfg->camera_device[0] != '\0' ? ROBOT_SIGHTINGS_NO_CAMERA : ROBOT_SIGHTINGS_NONE;
+}

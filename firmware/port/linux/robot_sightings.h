@@ -1,0 +1,113 @@
+/*
+ * robot_sightings.h - where coslam-robot gets its marker sightings
+ * (app/sighting_source.h).
+ *
+ * robot_open_sightings() is the one place that chooses the source:
+ *  - [camera] replay_log set: the landmark-log replay below, a TEST AND
+ *    BENCH SOURCE, NOT A CAMERA;
+ *  - [camera] device set: no Linux camera pipeline exists yet (V4L2 and the
+ *    vision pipeline come with a later issue), so the camera is reported
+ *    "not available" once and the robot localises on odometry only;
+ *  - neither: no camera configured.
+ * The vision pipeline plugs in here behind the same interface.
+ *
+ * The replay source plays a landmark log in the format of DESIGN.md
+ * ("Landmark log format"), one record per line, '#' comments:
+ *   Z t id range bearing            a landmark sighting (id: -1 unknown, else
+ *                                   the true id; used for nothing here: the
+ *                                   robot sees non-unique markers, signature 0)
+ *   R t other_robot_id range bearing  a sighting of another robot
+ *   O t dx dy dth / V t v w         odometry: ignored (the drives give it)
+ * t [s] counts from the moment the source was opened; records with the same
+ * t form one frame, handed out when the clock reaches it (stamp = open time
+ * + t); frames whose time passed while the caller was away are skipped
+ * (their sequence numbers show the gap). t must not decrease. With loop
+ * set the log starts again 0.2 s after its last record. The whole file is
+ * checked when it is opened, so a bad log is refused at once with
+ * FILE:LINE.
+ *
+ * Memory: caller-owned state, no heap (stdio's FILE buffer aside).
+ */
+#ifndef COSLAM_PORT_ROBOT_SIGHTINGS_H
+#define COSLAM_PORT_ROBOT_SIGHTINGS_H
+
+#include <stdint.h>
+#include <stdio.h>
+
+#include "app/sighting_source.h"
+#include "hal/hal_clock.h"
+#include "robot_config.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/** Gap between the end of a looped log and its start again [us]. */
+#define ROBOT_REPLAY_LOOP_GAP_US 200000u
+
+/** One parsed record of the log. */
+typedef struct {
+    char tag;             /**< 'Z' or 'R' */
+    uint64_t t_us;        /**< log time [us] */
+    int32_t id;           /**< landmark id or robot id */
+    double range_m;
+    double bearing_rad;
+} robot_replay_record_t;
+
+typedef struct {
+    sighting_source_t src;        /**< the handle (src.backend = this) */
+    FILE *f;
+    char path[ROBOT_CONFIG_PATH_MAX + 1u];
+    int loop;
+    hal_clock_t *clock;
+    uint64_t base_us;             /**< clock time of log t = 0 in the current pass */
+    uint64_t last_t_us;           /**< largest t of the log */
+    unsigned line;                /**< lines read in the current pass */
+    int have_next;
+    robot_replay_record_t next;   /**< one record of lookahead */
+    int building_n;               /**< records in `building` */
+    uint64_t building_t_us;
+    sighting_frame_t building;    /**< the frame being collected */
+    int ready;
+    sighting_frame_t out;         /**< the newest complete frame not handed out */
+    uint32_t sequence;            /**< frames completed */
+    /* counters */
+    uint32_t frames_given;
+    uint32_t frames_skipped;      /**< completed but replaced by a newer one before a call */
+    uint32_t records;             /**< Z and R records played */
+    uint32_t ignored_records;     /**< O and V records */
+    uint32_t loops;
+} robot_replay_t;
+
+/**
+ * Open and check the log at `path`; t = 0 is now (clock). Returns HAL_OK;
+ * HAL_E_NOT_FOUND (no such file); HAL_E_IO (unreadable); HAL_E_CORRUPT (a
+ * bad line: msg "PATH:LINE: reason"); HAL_E_ARG (NULL). msg receives the
+ * reason of any failure.
+ */
+hal_status_t robot_replay_open(robot_replay_t *r, const char *path, int loop, hal_clock_t *clock, char *msg,
+                               size_t msg_cap);
+
+/** Close the file (the handle then answers HAL_E_CLOSED). */
+void robot_replay_close(robot_replay_t *r);
+
+/** What robot_open_sightings chose. */
+typedef enum {
+    ROBOT_SIGHTINGS_NONE = 0,    /**< no camera configured */
+    ROBOT_SIGHTINGS_NO_CAMERA,   /**< a camera is configured, but no Linux pipeline exists */
+    ROBOT_SIGHTINGS_REPLAY,      /**< the landmark-log replay (test / bench) */
+} robot_sightings_kind_t;
+
+/**
+ * Choose and open the sighting source for cfg (header comment). Returns
+ * the kind; for ROBOT_SIGHTINGS_REPLAY *st is the open status of the
+ * replay (HAL_OK or its error, with msg), else HAL_E_UNSUPPORTED.
+ */
+robot_sightings_kind_t robot_open_sightings(robot_replay_t *r, const robot_config_t *cfg, hal_clock_t *clock,
+                                            hal_status_t *st, char *msg, size_t msg_cap);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* COSLAM_PORT_ROBOT_SIGHTINGS_H */

@@ -1,0 +1,152 @@
+/*
+ * robot_snapshot.h - map snapshots of coslam-robot: the exported map
+ * estimate and the pose, kept in two generations through hal_storage, so
+ * that a restarted robot goes on with its map.
+ *
+ * Format (version 1). Little-endian, written byte by byte, no padding; f64
+ * is the IEEE-754 binary64 bit pattern:
+ *
+ *   off  size  field
+ *     0     4  magic "CSNP"
+ *     4     2  u16 version = ROBOT_SNAPSHOT_VERSION (1)
+ *     6     2  u16 header length = 40
+ *     8     4  u32 payload length P = 170 + 73 n
+ *    12     8  u64 sequence number (grows by one per save, over both files)
+ *    20     1  u8  robot id that saved it
+ *    21     1  u8  filter kind (slam_filter_kind_t; informative: a map
+ *                  estimate is the filters' common format)
+ *    22     2  u16 reserved, 0
+ *    24     4  u32 last map-message sequence number sent (meeting)
+ *    28     8  u64 save time, seconds since 1970 (for people; never used)
+ *    36     4  u32 CRC-32 (coslam/crc32.h) of bytes [0, 36)
+ *    40     P  payload:
+ *                +0   3 f64  pose x [m], y [m], theta [rad] (map frame)
+ *               +24   9 f64  pose covariance, row-major (all nine entries)
+ *               +96   2 u16  n = landmarks, <= COSLAM_MAX_MSG_LANDMARKS
+ *               +98  73 n    landmarks in the map message's record layout
+ *                            (coslam/map_msg.h): mean x, y; cov xx, xy, yy;
+ *                            cov_rel xx, xy, yy (f64); id u32; n_obs u16;
+ *                            src_mask u16; signature u8
+ *            +98+73n  72     reserved (zero) for later fields
+ *  40+P     4  u32 CRC-32 of the payload
+ *
+ * So P = 170 + 73 n (the 72 reserved bytes keep room for a grid reference or
+ * counters without a new version). Decoding checks, in order: length,
+ * magic, version, header length, header CRC, payload length against the
+ * buffer, payload CRC, n against this build's capacity and against P, then
+ * the fields (every f64 finite, landmark covariances positive definite,
+ * landmark id non-zero). The storage backend (hal/linux) adds its own
+ * header and CRC and replaces the file atomically (temporary file, fsync,
+ * rename, fsync of the directory); this format makes a snapshot checkable
+ * on its own (copied off the robot, read by a test) and carries the
+ * sequence number.
+ *
+ * Two generations: snapshots alternate between the blobs "snapshot.a" and
+ * "snapshot.b"; a save overwrites the older one. Loading reads both, keeps
+ * the valid one with the larger sequence number and reports every
+ * unreadable or corrupt one by name: a damaged newest one falls back to
+ * the older generation.
+ *
+ * No heap: robot_snapshots_t holds the encode buffer
+ * (ROBOT_SNAPSHOT_MAX_BYTES). One thread.
+ */
+#ifndef COSLAM_PORT_ROBOT_SNAPSHOT_H
+#define COSLAM_PORT_ROBOT_SNAPSHOT_H
+
+#include <stdint.h>
+#include <stdio.h>
+
+#include "coslam/map_estimate.h"
+#include "coslam/status.h"
+#include "hal/hal_storage.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define ROBOT_SNAPSHOT_VERSION 1u
+#define ROBOT_SNAPSHOT_HEADER_BYTES 40u
+#define ROBOT_SNAPSHOT_LANDMARK_BYTES 73u
+#define ROBOT_SNAPSHOT_RESERVED_BYTES 72u
+/** Payload of n landmarks [bytes]. */
+#define ROBOT_SNAPSHOT_PAYLOAD_BYTES(n) \
+    (98u + ROBOT_SNAPSHOT_LANDMARK_BYTES * (size_t)(n) + ROBOT_SNAPSHOT_RESERVED_BYTES)
+/** Whole snapshot of n landmarks [bytes]. */
+#define ROBOT_SNAPSHOT_BYTES(n) (ROBOT_SNAPSHOT_HEADER_BYTES + ROBOT_SNAPSHOT_PAYLOAD_BYTES(n) + 4u)
+/** Largest snapshot of this build [bytes]. */
+#define ROBOT_SNAPSHOT_MAX_BYTES ROBOT_SNAPSHOT_BYTES(COSLAM_MAX_MSG_LANDMARKS)
+
+/** The two generations. */
+#define ROBOT_SNAPSHOT_NAME_A "snapshot.a"
+#define ROBOT_SNAPSHOT_NAME_B "snapshot.b"
+
+typedef struct {
+    uint64_t seq;            /**< sequence number (set by robot_snapshots_save) */
+    uint8_t robot_id;
+    uint8_t filter_kind;
+    uint32_t msg_seq;        /**< last map-message sequence number sent */
+    uint64_t saved_unix_s;   /**< save time (informative) */
+    map_estimate_t map;      /**< exported map with the pose */
+} robot_snapshot_t;
+
+/** Encode into buf (cap bytes). COSLAM_OK (*len set); COSLAM_E_CAPACITY
+ *  (cap too small); COSLAM_E_ARG (NULL, more landmarks than
+ *  COSLAM_MAX_MSG_LANDMARKS). Never fails on content. O(n). */
+coslam_status_t robot_snapshot_encode(const robot_snapshot_t *s, uint8_t *buf, size_t cap, size_t *len);
+
+/**
+ * Decode and check (header comment). COSLAM_OK; COSLAM_E_MSG_TRUNCATED
+ * (shorter than its lengths say), COSLAM_E_MSG_MAGIC, COSLAM_E_MSG_VERSION,
+ * COSLAM_E_MSG_LENGTH (lengths inconsistent, trailing bytes), COSLAM_E_MSG_CRC
+ * (header or payload CRC), COSLAM_E_MSG_COUNT (more landmarks than this
+ * build holds), COSLAM_E_MSG_NONFINITE, COSLAM_E_MSG_COVARIANCE,
+ * COSLAM_E_MSG_FIELD (landmark id 0); COSLAM_E_ARG (NULL). *out is only
+ * written on COSLAM_OK. O(n).
+ */
+coslam_status_t robot_snapshot_decode(const uint8_t *buf, size_t len, robot_snapshot_t *out);
+
+/** The two generations in one store. */
+typedef struct {
+    hal_storage_t *storage;   /**< NULL: no storage (saves fail with COSLAM_E_UNSUPPORTED) */
+    int newest;               /**< slot of the newest valid snapshot: 0 (a), 1 (b), -1 none */
+    uint64_t newest_seq;      /**< its sequence number */
+    uint32_t saves;
+    uint32_t save_failures;
+    uint32_t corrupt_found;   /**< corrupt or unreadable generations found by loads */
+    hal_status_t last_write;  /**< status of the last storage write */
+    uint8_t buf[ROBOT_SNAPSHOT_MAX_BYTES];
+} robot_snapshots_t;
+
+/** Bind to a store (may be NULL for now: robot_snapshots_set_storage). */
+void robot_snapshots_init(robot_snapshots_t *s, hal_storage_t *storage);
+
+/** Use another store (storage came up or went away); the generation
+ *  bookkeeping is kept. */
+void robot_snapshots_set_storage(robot_snapshots_t *s, hal_storage_t *storage);
+
+/**
+ * Read both generations; the valid one with the larger sequence number
+ * goes to *out. Each generation that exists but cannot be read or fails
+ * its checks is reported on `log` (may be NULL) by name with the reason,
+ * and counted. Returns COSLAM_OK (*out holds the newest; *name, if not
+ * NULL, its blob name); COSLAM_E_EMPTY (no valid snapshot); COSLAM_E_ARG
+ * (NULL); COSLAM_E_UNSUPPORTED (no storage). O(2 reads).
+ */
+coslam_status_t robot_snapshots_load(robot_snapshots_t *s, robot_snapshot_t *out, const char **name, FILE *log);
+
+/**
+ * Save *snap as the next generation: snap->seq = newest_seq + 1, written
+ * over the older blob (atomic replace by the storage backend). Returns
+ * COSLAM_OK (*name, if not NULL, the blob written); COSLAM_E_ARG (NULL, or
+ * too many landmarks to encode); COSLAM_E_CAPACITY (the medium is full:
+ * HAL_E_OVERFLOW); COSLAM_E_UNSUPPORTED (no storage, or any other refused
+ * write). last_write holds the HAL status of the write. Failures are
+ * counted in save_failures; the previous generations stay as they were.
+ */
+coslam_status_t robot_snapshots_save(robot_snapshots_t *s, robot_snapshot_t *snap, const char **name);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* COSLAM_PORT_ROBOT_SNAPSHOT_H */

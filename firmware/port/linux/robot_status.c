@@ -1,0 +1,177 @@
+/* Status report of coslam-robot (robot_status.h). */
+#include "robot_status.h"
+
+#include <errno.h>
+#include <stdio.h>
+#include <string.h>
+
+static robot_status_kv_t *slot(robot_status_t *s, const char *key, int is_text)
+{
+    if (s->n >= ROBOT_STATUS_MAX_KV) {
+        s->dropped++;
+        return NULL;
+    }
+    robot_status_kv_t *kv = &s->kv[s->n++];
+    kv->key = key;
+    kv->is_text = is_text;
+    kv->value[0] = '\0';
+    return kv;
+}
+
+static void text(robot_status_t *s, const char *key, const char *v)
+{
+    robot_status_kv_t *kv = slot(s, key, 1);
+    if (kv != NULL) {
+        (void)snprintf(kv->value, sizeof kv->value, "%s", v);
+    }
+}
+
+static void u64(robot_status_t *s, const char *key, uint64_t v)
+{
+    robot_status_kv_t *kv = slot(s, key, 0);
+    if (kv != NULL) {
+        (void)snprintf(kv->value, sizeof kv->value, "%llu", (unsigned long long)v);
+    }
+}
+
+static void f64(robot_status_t *s, const char *key, double v, int decimals)
+{
+    robot_status_kv_t *kv = slot(s, key, 0);
+    if (kv != NULL) {
+        (void)snprintf(kv->value, sizeof kv->value, "%.*f", decimals, v);
+    }
+}
+
+static const char *state_name(robot_node_state_t st)
+{
+    switch (st) {
+    case ROBOT_NODE_LASER_UP: return "laser_up";
+    case ROBOT_NODE_DRIVE_UP: return "drive_up";
+    case ROBOT_NODE_RUN: return "run";
+    case ROBOT_NODE_FAULT: return "fault";
+    case ROBOT_NODE_SHUTDOWN: return "shutdown";
+    }
+    return "?";
+}
+
+void robot_status_collect(robot_status_t *s, robot_node_t *node, const robot_devices_t *dev,
+                          const robot_snapshots_t *snaps, const robot_loop_stats_t *loop)
+{
+    memset(s, 0, sizeof *s);
+    f64(s, "t", loop->uptime_s, 1);
+    u64(s, "id", node->cfg.robot_id);
+    text(s, "state", state_name(robot_node_state(node)));
+    text(s, "mode", behaviour_mode_name(robot_node_mode(node)));
+    for (int i = 0; i < ROBOT_DEV_COUNT; ++i) {
+        text(s, dev->dev[i].name, robot_dev_state_name(dev->dev[i].state));
+    }
+    u64(s, "steps", loop->steps);
+    u64(s, "overruns", loop->overruns);
+    u64(s, "late_max_us", loop->late_max_us);
+    f64(s, "cpu_pct", loop->cpu_pct, 2);
+
+    const robot_node_counters_t *c = robot_node_counters(node);
+    u64(s, "node_steps", c->steps);
+    u64(s, "scans", c->scans);
+    u64(s, "scan_errors", c->scan_errors);
+    u64(s, "laser_streaming", (uint64_t)robot_node_laser_up(node));
+    u64(s, "laser_connect_failures", c->laser_connect_failures);
+    u64(s, "laser_lost", c->laser_lost);
+    u64(s, "grid_out_of_grid", c->grid_out_of_grid);
+    u64(s, "frames", c->frames);
+    u64(s, "frame_errors", c->frame_errors);
+    u64(s, "sightings_dropped", c->sightings_dropped);
+    u64(s, "filter_errors", c->filter_errors);
+    u64(s, "odometry_errors", c->odometry_errors);
+    u64(s, "drive_faults", c->drive_faults);
+    u64(s, "drive_errors", c->drive_errors);
+    u64(s, "stop_steps", c->stop_steps);
+    u64(s, "hold_steps", c->hold_steps);
+    u64(s, "blind_steps", c->blind_steps);
+    u64(s, "bumper_acks", c->bumper_acks);
+    u64(s, "gpio_attach_failures", c->gpio_attach_failures);
+
+    const meeting_counters_t *m = robot_node_meeting_counters(node);
+    u64(s, "mt_sent", m->sent);
+    u64(s, "mt_send_failures", m->send_failures);
+    u64(s, "mt_received", m->received);
+    u64(s, "mt_rx_errors", m->rx_errors);
+    u64(s, "mt_not_for_me", m->not_for_me);
+    u64(s, "mt_replays", m->replays);
+    u64(s, "mt_stale", m->stale);
+    u64(s, "mt_merged", m->merged);
+    u64(s, "mt_merge_failures", m->merge_failures);
+    u64(s, "mt_refused_range", m->refused_range);
+    u64(s, "mt_refused_disagree", m->refused_disagree);
+    u64(s, "mt_events_dropped", m->events_dropped);
+
+    const urg_scip2_stats_t *u = robot_node_laser_stats(node);
+    u64(s, "urg_scans_ok", u->scans_ok);
+    u64(s, "urg_err_timeout", u->err_timeout);
+    u64(s, "urg_err_io", u->err_io);
+    u64(s, "urg_err_checksum", u->err_checksum);
+    u64(s, "urg_err_line", u->err_line);
+    u64(s, "urg_err_garbage", u->err_garbage);
+    u64(s, "urg_resyncs", u->resyncs);
+
+    pose2_t pose;
+    cov3_t cov;
+    robot_node_pose(node, &pose, &cov);
+    u64(s, "landmarks", loop->landmarks);
+    f64(s, "x", pose.x, 3);
+    f64(s, "y", pose.y, 3);
+    f64(s, "theta", pose.theta, 4);
+    u64(s, "snap_seq", snaps->newest_seq);
+    u64(s, "snap_saves", snaps->saves);
+    u64(s, "snap_failures", snaps->save_failures);
+}
+
+size_t robot_status_line(const robot_status_t *s, char *buf, size_t cap)
+{
+    size_t n = 0;
+    if (cap == 0U) {
+        return 0U;
+    }
+    buf[0] = '\0';
+    for (int i = 0; i < s->n && n + 1U < cap; ++i) {
+        const int w = snprintf(buf + n, cap - n, "%s%s=%s", i > 0 ? " " : "", s->kv[i].key, s->kv[i].value);
+        if (w < 0) {
+            break;
+        }
+        n += (size_t)w < cap - n ? (size_t)w : cap - n - 1U;
+    }
+    return n;
+}
+
+int robot_status_write_json(const robot_status_t *s, const char *path)
+{
+    char tmp[4096];
+    if (snprintf(tmp, sizeof tmp, "%s.tmp", path) >= (int)sizeof tmp) {
+        errno = ENAMETOOLONG;
+        return -1;
+    }
+    FILE *f = fopen(tmp, "w");
+    if (f == NULL) {
+        return -1;
+    }
+    fprintf(f, "{");
+    for (int i = 0; i < s->n; ++i) {
+        /* keys and text values are plain identifiers and words: no escaping needed */
+        fprintf(f, "%s\"%s\": %s%s%s", i > 0 ? ", " : "", s->kv[i].key, s->kv[i].is_text ? "\"" : "",
+                s->kv[i].value, s->kv[i].is_text ? "\"" : "");
+    }
+    fprintf(f, "}\n");
+    if (fclose(f) != 0) {
+        const int e = errno;
+        (void)remove(tmp);
+        errno = e;
+        return -1;
+    }
+    if (rename(tmp, path) != 0) {
+        const int e = errno;
+        (void)remove(tmp);
+        errno = e;
+        return -1;
+    }
+    return 0;
+}

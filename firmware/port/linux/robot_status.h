@@ -1,0 +1,78 @@
+/*
+ * robot_status.h - the status report of coslam-robot: one list of
+ * key = value pairs, written as one grep-able line on stderr
+ * ("coslam-robot: status t=12.0 state=run ... ") and, for monitoring, as a
+ * JSON object to a file replaced atomically (temporary file in the same
+ * directory, then rename(2)).
+ *
+ * Keys (all counters only grow; see docs/robot.md for each):
+ *   t uptime [s]; id; state (node state); mode (behaviour);
+ *   laser can gpio camera link storage: up | down | absent;
+ *   steps overruns late_max_us cpu_pct: the main loop (CPU over the last
+ *     report period, user + system, percent of one core);
+ *   laser_streaming (1 while the node has the laser connected);
+ *   the robot node's counters (robot_node_counters_t, same names);
+ *   mt_* the meeting's counters (meeting_counters_t);
+ *   urg_* the laser driver's (scans_ok and the err_ counters);
+ *   landmarks x y theta (SLAM pose, map frame [m, m, rad]);
+ *   snap_seq snap_saves snap_failures.
+ */
+#ifndef COSLAM_PORT_ROBOT_STATUS_H
+#define COSLAM_PORT_ROBOT_STATUS_H
+
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+
+#include "app/robot_node.h"
+#include "robot_devices.h"
+#include "robot_snapshot.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/** Longest list of pairs. */
+#define ROBOT_STATUS_MAX_KV 96
+/** Longest value text [characters, without NUL]. */
+#define ROBOT_STATUS_VALUE_MAX 31u
+
+typedef struct {
+    const char *key;                       /**< static string */
+    char value[ROBOT_STATUS_VALUE_MAX + 1u];
+    int is_text;                           /**< JSON string (else a number) */
+} robot_status_kv_t;
+
+typedef struct {
+    robot_status_kv_t kv[ROBOT_STATUS_MAX_KV];
+    int n;
+    uint32_t dropped;                      /**< pairs beyond ROBOT_STATUS_MAX_KV (never expected) */
+} robot_status_t;
+
+/** What the main loop knows beside the node. */
+typedef struct {
+    double uptime_s;
+    uint64_t steps;                        /**< loop iterations */
+    uint32_t overruns;                     /**< steps that ended after the next deadline */
+    uint32_t late_max_us;                  /**< largest lateness */
+    double cpu_pct;                        /**< over the last report period */
+    uint16_t landmarks;                    /**< exported landmarks */
+} robot_loop_stats_t;
+
+/** Gather the report (the node's counters read as they are now). O(pairs). */
+void robot_status_collect(robot_status_t *s, robot_node_t *node, const robot_devices_t *dev,
+                          const robot_snapshots_t *snaps, const robot_loop_stats_t *loop);
+
+/** "key=value key=value ..." into buf (truncated to cap, terminated).
+ *  Returns the length written. */
+size_t robot_status_line(const robot_status_t *s, char *buf, size_t cap);
+
+/** Write the JSON object to `path` atomically ("<path>.tmp", rename).
+ *  Returns 0, or -1 with errno set. */
+int robot_status_write_json(const robot_status_t *s, const char *path);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* COSLAM_PORT_ROBOT_STATUS_H */

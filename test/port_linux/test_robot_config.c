@@ -1,0 +1,201 @@
+/*
+ * coslam-robot configuration: the default robot.ini loads and holds the
+ * documented defaults; every kind of bad file is refused with FILE:LINE and
+ * the binary exits with status 2; the meeting's robot-sighting noise comes
+ * from [slam] (one settings source).
+ */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cmocka.h>
+
+#include "app/slam_params_ini.h"
+#include "robot_config.h"
+
+static robot_config_t cfg;
+
+static char *print_to_string(const robot_config_t *c)
+{
+    char *buf = NULL;
+    size_t len = 0;
+    FILE *f = open_memstream(&buf, &len);
+    assert_non_null(f);
+    robot_config_print(c, f);
+    fclose(f);
+    return buf;
+}
+
+static void default_file_loads_and_is_the_default(void **state)
+{
+    (void)state;
+    char msg[600];
+    robot_config_default(&cfg);
+    assert_int_equal(robot_config_load(&cfg, COSLAM_ROBOT_INI, msg, sizeof msg), COSLAM_OK);
+    /* the documented file writes out exactly the built-in defaults */
+    static robot_config_t def;
+    robot_config_default(&def);
+    char msg2[600];
+    assert_int_equal(robot_config_load_string(&def, "", "empty.ini", msg2, sizeof msg2), COSLAM_OK);
+    char *a = print_to_string(&cfg);
+    char *b = print_to_string(&def);
+    if (strcmp(a, b) != 0) {
+        fprintf(stderr, "robot.ini:\n%s\ndefaults:\n%s\n", a, b);
+    }
+    assert_string_equal(a, b);
+    free(a);
+    free(b);
+    assert_int_equal(cfg.step_period_us, 10000);
+    assert_int_equal(cfg.node.n_robots, 2);
+    assert_true(cfg.node.laser_optional);
+    assert_true(cfg.node.gpio_optional);
+    assert_false(cfg.node.motion_without_gpio); /* gpio.required = true */
+}
+
+static void print_reads_back(void **state)
+{
+    (void)state;
+    char msg[600];
+    robot_config_default(&cfg);
+    const char *text = "[robot]\nid = 3\nfleet_size = 5\n[filter]\ntype = ekf\n[slam]\nbearing_var_rad2 = 0.3333\n"
+                       "exist_miss = 0.1\n[gpio]\nbumper_lines = 4, 5, 6\nestop_line = -1\nrequired = no\n";
+    assert_int_equal(robot_config_load_string(&cfg, text, "t.ini", msg, sizeof msg), COSLAM_OK);
+    char *a = print_to_string(&cfg);
+    static robot_config_t back;
+    robot_config_default(&back);
+    assert_int_equal(robot_config_load_string(&back, a, "printed.ini", msg, sizeof msg), COSLAM_OK);
+    char *b = print_to_string(&back);
+    assert_string_equal(a, b);
+    assert_int_equal(back.robot_id, 3);
+    assert_int_equal(back.node.filter.robot_id, 3);
+    assert_int_equal(back.node.filter.kind, SLAM_FILTER_EKF);
+    assert_int_equal(back.node.gpio.n_bumpers, 3);
+    assert_false(back.node.gpio.has_estop);
+    assert_true(back.node.motion_without_gpio);
+    assert_true(back.node.filter.slam.exist_miss == 0.1f);
+    free(a);
+    free(b);
+}
+
+static void meeting_noise_comes_from_slam(void **state)
+{
+    (void)state;
+    char msg[600];
+    robot_config_default(&cfg);
+    const char *text = "[slam]\nrange_var_m2 = 0.0025\nbearing_var_rad2 = 0.0009\nrange_var_per_m2 = 0.01\n";
+    assert_int_equal(robot_config_load_string(&cfg, text, "n.ini", msg, sizeof msg), COSLAM_OK);
+    assert_true(cfg.node.meeting.robot_range_var_m2 == 0.0025);
+    assert_true(cfg.node.meeting.robot_bearing_var_rad2 == 0.0009);
+    assert_true(cfg.node.meeting.robot_range_var_per_m2 == 0.01);
+}
+
+/* The message of a refused text, which must contain `want`. */
+static void refused(const char *text, const char *want)
+{
+    char msg[600];
+    robot_config_default(&cfg);
+    const coslam_status_t st = robot_config_load_string(&cfg, text, "bad.ini", msg, sizeof msg);
+    if (st == COSLAM_OK || strstr(msg, want) == NULL) {
+        fprintf(stderr, "text:\n%s\nmessage: %s\nwanted: %s\n", text, msg, want);
+    }
+    assert_int_equal(st, COSLAM_E_ARG);
+    assert_non_null(strstr(msg, want));
+}
+
+static void bad_files_name_file_and_line(void **state)
+{
+    (void)state;
+    refused("[robot]\nid = 0\n\n[nosuch]\nkey = 1\n", "bad.ini:5: unknown section [nosuch]");
+    refused("[laser]\ndevice = /dev/x\nspeed = 3\n", "bad.ini:3: unknown key 'speed' in [laser]");
+    refused("[slam]\n\nrange_var_m3 = 1\n", "bad.ini:3: unknown key 'range_var_m3' in [slam]");
+    refused("[slam]\ngate_chi2 = abc\n", "bad.ini:2: [slam] gate_chi2: not a finite number: 'abc'");
+    refused("[robot]\nstep_period_s = 10ms\n", "bad.ini:2: [robot] step_period_s: not a finite number");
+    refused("[robot]\nstep_period_s = 5\n", "bad.ini:2: [robot] step_period_s: 5 is outside its domain [0.001, 1]");
+    refused("[slam]\nbearing_var_rad2 = 0\n", "bad.ini:2: [slam] bearing_var_rad2: 0 is outside its domain (0, inf)");
+    refused("[slam]\nvisibility_margin = 1.5\n", "bad.ini:2: [slam] visibility_margin:");
+    refused("[filter]\nparticles = 2.5\n", "bad.ini:2: [filter] particles: expected an integer");
+    refused("[filter]\nparticles = 100000\n", "bad.ini:2: [filter] particles: 100000 is outside");
+    refused("[filter]\ntype = kalman\n", "bad.ini:2: [filter] type: unknown filter 'kalman'");
+    refused("[gpio]\nrequired = maybe\n", "bad.ini:2: [gpio] required: expected a boolean");
+    refused("[gpio]\nbumper_lines = 1, x\n", "bad.ini:2: [gpio] bumper_lines: expected an integer");
+    refused("[can]\nnode_ids = 1, 2\n", "bad.ini:2: [can] node_ids: expected 3 CANopen node ids");
+    refused("[robot]\nprofile = large\n", "bad.ini:2: [robot] profile: this binary is built for");
+    refused("this is not ini\n", "bad.ini:1: syntax error");
+    refused("key = 1\n", "bad.ini:1: key 'key' outside any [section]");
+    /* two keys that contradict each other: the line of the later one */
+    refused("[slam]\nsensor_min_range_m = 2\n\n# comment\nsensor_max_range_m = 1\n",
+            "bad.ini:5: [slam] sensor_max_range_m: sensor_max_range_m must be greater than sensor_min_range_m");
+    refused("[slam]\ngate_chi2 = 30\n", "bad.ini:2: [slam] gate_chi2: new_landmark_chi2 must be at least gate_chi2");
+    refused("[robot]\nfleet_size = 3\nid = 3\n", "bad.ini:3: [robot] id: id 3 must be below fleet_size 3");
+    /* the first error wins */
+    refused("[robot]\nid = x\n[laser]\nfoo = 1\n", "bad.ini:2:");
+    char msg[600];
+    robot_config_default(&cfg);
+    assert_int_equal(robot_config_load(&cfg, "/nonexistent/robot.ini", msg, sizeof msg), COSLAM_E_ARG);
+    assert_non_null(strstr(msg, "/nonexistent/robot.ini: cannot open"));
+}
+
+/* Run the binary on a file; returns the exit status, stderr into err. */
+static int run_robot(const char *text, const char *extra, char *err, size_t cap)
+{
+    char dir[] = "/tmp/coslam-robot-cfg-XXXXXX";
+    assert_non_null(mkdtemp(dir));
+    char path[256];
+    snprintf(path, sizeof path, "%s/robot.ini", dir);
+    FILE *f = fopen(path, "w");
+    assert_non_null(f);
+    fputs(text, f);
+    fclose(f);
+    char cmd[1024];
+    snprintf(cmd, sizeof cmd, "%s -c %s %s 2>&1 >/dev/null", COSLAM_ROBOT_BIN, path, extra);
+    FILE *p = popen(cmd, "r");
+    assert_non_null(p);
+    size_t n = fread(err, 1, cap - 1, p);
+    err[n] = '\0';
+    const int st = pclose(p);
+    unlink(path);
+    rmdir(dir);
+    return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+}
+
+static void binary_exits_2_with_file_and_line(void **state)
+{
+    (void)state;
+    char err[4096];
+    assert_int_equal(run_robot("[robot]\nid = 0\n[laser]\nbaud = fast\n", "--dry-run", err, sizeof err), 2);
+    assert_non_null(strstr(err, "robot.ini:4: [laser] baud: not a finite number"));
+    assert_int_equal(run_robot("[slam]\nsensor_fov_rad = 7\n", "--dry-run", err, sizeof err), 2);
+    assert_non_null(strstr(err, "robot.ini:2: [slam] sensor_fov_rad"));
+    assert_int_equal(run_robot("[camera]\nlens = wide\n", "", err, sizeof err), 2);
+    assert_non_null(strstr(err, "robot.ini:2: unknown key 'lens' in [camera]"));
+    assert_int_equal(run_robot("", "--no-such-option", err, sizeof err), 2);
+    /* a missing file */
+    char cmd[512];
+    snprintf(cmd, sizeof cmd, "%s -c /nonexistent/robot.ini >/dev/null 2>&1", COSLAM_ROBOT_BIN);
+    const int st = system(cmd);
+    assert_true(WIFEXITED(st));
+    assert_int_equal(WEXITSTATUS(st), 2);
+    /* --print-config of a good file: exit 0 */
+    assert_int_equal(run_robot("[robot]\nid = 1\n", "--print-config", err, sizeof err), 0);
+}
+
+int main(int argc, char **argv)
+{
+    if (argc > 1) {
+        cmocka_set_test_filter(argv[1]);
+    }
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(default_file_loads_and_is_the_default),
+        cmocka_unit_test(print_reads_back),
+        cmocka_unit_test(meeting_noise_comes_from_slam),
+        cmocka_unit_test(bad_files_name_file_and_line),
+        cmocka_unit_test(binary_exits_2_with_file_and_line),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}

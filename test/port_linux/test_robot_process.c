@@ -1,0 +1,531 @@
+/*
+ * coslam-robot as a separate process, on real OS interfaces (files, a
+ * missing serial device, a missing CAN interface, a missing GPIO chip):
+ *   degraded      no device at all: every one is reported by name, the node
+ *                 runs, status lines come, SIGTERM stops it with status 0;
+ *   sigterm       with the landmark-log replay source: SIGTERM stops it
+ *                 within a bound, status 0, the final snapshot is on disk,
+ *                 complete, and the next start loads exactly it;
+ *   kill_restart  SIGKILL at seeded random moments (20 times in CI, 120 with
+ *                 COSLAM_TEST_LEVEL=full), snapshots every 20 ms so that
+ *                 many kills land in a write: after every kill both
+ *                 generations on disk are complete (storage CRC and
+ *                 snapshot CRC), every start loads the newest one (its
+ *                 sequence number never goes back), no start reports a
+ *                 damaged snapshot, and the map goes on growing.
+ * Usage: test_robot_process <case> (one CTest entry per case).
+ */
+#include <dirent.h>
+#include <errno.h>
+#include <fcntl.h>
+#include <math.h>
+#include <setjmp.h>
+#include <signal.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <cmocka.h>
+
+#include "coslam/pose2.h"
+#include "coslam/rng.h"
+#include "hal/hal_storage_linux.h"
+#include "robot_snapshot.h"
+
+/* ---- helpers ---------------------------------------------------------------- */
+
+static uint64_t now_ms(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (uint64_t)ts.tv_sec * 1000u + (uint64_t)ts.tv_nsec / 1000000u;
+}
+
+static void sleep_ms(uint64_t ms)
+{
+    struct timespec ts = {(time_t)(ms / 1000u), (long)(ms % 1000u) * 1000000L};
+    while (nanosleep(&ts, &ts) != 0 && errno == EINTR) {
+    }
+}
+
+static void make_dir(char *dir, size_t cap)
+{
+    snprintf(dir, cap, "/tmp/coslam-robot-test-XXXXXX");
+    assert_non_null(mkdtemp(dir));
+}
+
+static void remove_dir(const char *dir)
+{
+    char cmd[300];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
+    assert_int_equal(system(cmd), 0);
+}
+
+/* A landmark log: the robot stands at the origin and sees six landmarks at
+ * 5 Hz for 20 s (seeded noise: 2 cm, 1 deg). */
+static void write_log(const char *path)
+{
+    FILE *f = fopen(path, "w");
+    assert_non_null(f);
+    fprintf(f, "# coslam-robot test: six landmarks seen from the origin, 5 Hz\n");
+    const point2_t lm[6] = {{2.0, 0.5}, {2.5, -0.8}, {3.0, 1.2}, {1.5, -0.3}, {3.5, 0.2}, {2.2, 1.6}};
+    rng_t rng;
+    rng_seed(&rng, 99);
+    for (int k = 0; k < 100; ++k) {
+        const double t = 0.2 * k;
+        for (int i = 0; i < 6; ++i) {
+            const double r = hypot(lm[i].x, lm[i].y) + rng_normal(&rng, 0.0, 0.02);
+            const double b = atan2(lm[i].y, lm[i].x) + rng_normal(&rng, 0.0, 0.0175);
+            if (fabs(b) < 0.43) {
+                fprintf(f, "Z %.3f %d %.4f %.5f\n", t, i, r, b);
+            }
+        }
+        fprintf(f, "O %.3f 0 0 0\n", t + 0.1); /* odometry records are ignored */
+    }
+    fclose(f);
+}
+
+static void write_config(const char *dir, const char *body)
+{
+    char path[300];
+    snprintf(path, sizeof path, "%s/robot.ini", dir);
+    FILE *f = fopen(path, "w");
+    assert_non_null(f);
+    fputs(body, f);
+    fclose(f);
+}
+
+/* Start coslam-robot -c dir/robot.ini [args]; stderr into `err_path`. */
+static pid_t spawn_robot(const char *dir, const char *err_path, const char *a1, const char *a2)
+{
+    char cfg[300];
+    snprintf(cfg, sizeof cfg, "%s/robot.ini", dir);
+    const pid_t pid = fork();
+    assert_true(pid >= 0);
+    if (pid == 0) {
+        const int fd = open(err_path, O_WRONLY | O_CREAT | O_TRUNC, 0644);
+        const int nul = open("/dev/null", O_WRONLY);
+        if (fd < 0 || nul < 0) {
+            _exit(127);
+        }
+        dup2(fd, 2);
+        dup2(nul, 1);
+        char *argv[8];
+        int n = 0;
+        argv[n++] = (char *)COSLAM_ROBOT_BIN;
+        argv[n++] = (char *)"-c";
+        argv[n++] = cfg;
+        argv[n++] = (char *)"-v";
+        if (a1 != NULL) argv[n++] = (char *)a1;
+        if (a2 != NULL) argv[n++] = (char *)a2;
+        argv[n] = NULL;
+        execv(COSLAM_ROBOT_BIN, argv);
+        _exit(127);
+    }
+    return pid;
+}
+
+/* Wait at most timeout_ms; returns the wait status, or -1 (then killed). */
+static int wait_exit(pid_t pid, uint64_t timeout_ms)
+{
+    const uint64_t end = now_ms() + timeout_ms;
+    int st = 0;
+    for (;;) {
+        const pid_t r = waitpid(pid, &st, WNOHANG);
+        if (r == pid) {
+            return st;
+        }
+        if (now_ms() > end) {
+            kill(pid, SIGKILL);
+            waitpid(pid, &st, 0);
+            return -1;
+        }
+        sleep_ms(5);
+    }
+}
+
+static char *slurp(const char *path)
+{
+    FILE *f = fopen(path, "r");
+    assert_non_null(f);
+    static char buf[1 << 20];
+    const size_t n = fread(buf, 1, sizeof buf - 1, f);
+    buf[n] = '\0';
+    fclose(f);
+    return buf;
+}
+
+/* What is on disk. */
+typedef struct {
+    int present;        /* generations present */
+    int invalid;        /* present but failing a check (storage CRC or snapshot CRC / fields) */
+    uint64_t newest;    /* newest valid sequence number (0: none) */
+    int landmarks;      /* of the newest */
+    uint32_t obs;       /* sum of n_obs of the newest */
+    int temporaries;    /* ".snapshot.?.tmp" left by a kill during a write */
+} disk_t;
+
+static robot_snapshot_t snap;
+
+static disk_t scan_disk(const char *dir)
+{
+    disk_t d;
+    memset(&d, 0, sizeof d);
+    char store_dir[300];
+    snprintf(store_dir, sizeof store_dir, "%s/store", dir);
+    struct stat sb;
+    if (stat(store_dir, &sb) != 0) {
+        return d;
+    }
+    hal_storage_linux_t st;
+    assert_int_equal(hal_storage_linux_open(&st, store_dir), HAL_OK);
+    static uint8_t buf[ROBOT_SNAPSHOT_MAX_BYTES];
+    const char *names[2] = {ROBOT_SNAPSHOT_NAME_A, ROBOT_SNAPSHOT_NAME_B};
+    for (int k = 0; k < 2; ++k) {
+        size_t len = 0;
+        const hal_status_t hs = hal_storage_read(&st.dev, names[k], buf, sizeof buf, &len);
+        if (hs == HAL_E_NOT_FOUND) {
+            continue;
+        }
+        d.present++;
+        if (hs != HAL_OK || robot_snapshot_decode(buf, len, &snap) != COSLAM_OK) {
+            d.invalid++;
+            continue;
+        }
+        if (snap.seq > d.newest) {
+            d.newest = snap.seq;
+            d.landmarks = snap.map.n_landmarks;
+            d.obs = 0;
+            for (int i = 0; i < snap.map.n_landmarks; ++i) {
+                d.obs += snap.map.lm[i].n_obs;
+            }
+        }
+    }
+    hal_storage_close(&st.dev);
+    DIR *dd = opendir(store_dir);
+    assert_non_null(dd);
+    struct dirent *e;
+    while ((e = readdir(dd)) != NULL) {
+        if (strstr(e->d_name, ".tmp") != NULL) {
+            d.temporaries++;
+        }
+    }
+    closedir(dd);
+    return d;
+}
+
+/* "snapshot: loaded snapshot.x seq=N" in a log: N, or 0. */
+static uint64_t loaded_seq(const char *log)
+{
+    const char *p = strstr(log, "snapshot: loaded ");
+    if (p == NULL) {
+        return 0;
+    }
+    const char *q = strstr(p, "seq=");
+    return q != NULL ? strtoull(q + 4, NULL, 10) : 0;
+}
+
+static const char *base_config =
+    "[robot]\nstatus_period_s = %s\nsnapshot_period_s = %s\nretry_period_s = 0.3\n"
+    "[laser]\ndevice = %s/%s\nreply_timeout_s = 0.1\n"
+    "[can]\ninterface = nosuchcan0\n"
+    "[gpio]\nchip = %s/no-gpiochip\n"
+    "[camera]\n%s\n"
+    "[storage]\ndir = %s\n"
+    "[filter]\ntype = %s\nparticles = 30\n";
+
+static void config(const char *dir, const char *laser, const char *status_s, const char *snap_s, const char *camera,
+                   const char *store, const char *filter)
+{
+    char body[4096];
+    snprintf(body, sizeof body, base_config, status_s, snap_s, dir, laser, dir, camera, store, filter);
+    write_config(dir, body);
+}
+
+/* The URG emulator on a pty at dir/urg (urg_pty_bridge). */
+static pid_t spawn_bridge(const char *dir)
+{
+    char link[300];
+    snprintf(link, sizeof link, "%s/urg", dir);
+    const pid_t pid = fork();
+    assert_true(pid >= 0);
+    if (pid == 0) {
+        execl(COSLAM_URG_BRIDGE, COSLAM_URG_BRIDGE, link, (char *)NULL);
+        _exit(127);
+    }
+    struct stat sb;
+    for (int i = 0; i < 400 && lstat(link, &sb) != 0; ++i) {
+        sleep_ms(5);
+    }
+    assert_int_equal(lstat(link, &sb), 0);
+    return pid;
+}
+
+static void stop_bridge(pid_t pid)
+{
+    kill(pid, SIGTERM);
+    const int st = wait_exit(pid, 3000);
+    assert_true(WIFEXITED(st) && WEXITSTATUS(st) == 0);
+}
+
+/* The last value of `key=` in the log, or -1. */
+static long last_value(const char *log, const char *key)
+{
+    long v = -1;
+    char pat[64];
+    snprintf(pat, sizeof pat, " %s=", key);
+    for (const char *p = strstr(log, pat); p != NULL; p = strstr(p + 1, pat)) {
+        v = strtol(p + strlen(pat), NULL, 10);
+    }
+    return v;
+}
+
+/* ---- degraded: no device at all -------------------------------------------- */
+
+static void degraded(void **state)
+{
+    (void)state;
+    char dir[64];
+    make_dir(dir, sizeof dir);
+    /* no storage either: its parent directory does not exist */
+    config(dir, "no-laser", "0.4", "0.5", "device = /dev/no-such-video9", "/nonexistent-coslam/parent/store",
+           "fastslam2");
+    char err[300];
+    snprintf(err, sizeof err, "%s/err", dir);
+    const pid_t pid = spawn_robot(dir, err, NULL, NULL);
+    sleep_ms(1500);
+    assert_int_equal(waitpid(pid, NULL, WNOHANG), 0); /* still running */
+    kill(pid, SIGTERM);
+    const int st = wait_exit(pid, 5000);
+    const char *log = slurp(err);
+    if (!(WIFEXITED(st) && WEXITSTATUS(st) == 0)) {
+        fprintf(stderr, "%s\n", log);
+    }
+    assert_true(WIFEXITED(st));
+    assert_int_equal(WEXITSTATUS(st), 0);
+    /* each missing device by name, with what it is and why */
+    assert_non_null(strstr(log, "coslam-robot: laser (URG on "));
+    assert_non_null(strstr(log, "no-laser at 115200 baud): down: "));
+    assert_non_null(strstr(log, "coslam-robot: can (CiA 402 drives on SocketCAN nosuchcan0): down: "));
+    assert_non_null(strstr(log, "coslam-robot: gpio (bumper / e-stop / LED on "));
+    assert_non_null(strstr(log, "coslam-robot: camera (/dev/no-such-video9): not available"));
+    assert_non_null(strstr(log, "localisation on odometry only"));
+    assert_non_null(strstr(log, "coslam-robot: link (null"));
+    assert_non_null(strstr(log, "coslam-robot: storage (snapshots in /nonexistent-coslam/parent/store): down: "));
+    assert_non_null(strstr(log, "no motion until they are back (gpio.required = true)"));
+    assert_non_null(strstr(log, "no obstacle behaviour"));
+    /* retried (verbose), kept running, reported */
+    assert_non_null(strstr(log, "still down"));
+    assert_non_null(strstr(log, "coslam-robot: status t="));
+    assert_non_null(strstr(log, "laser=down can=down gpio=down camera=absent link=absent storage=down"));
+    assert_non_null(strstr(log, "SIGTERM: stopping"));
+    assert_non_null(strstr(log, "(no final snapshot)"));
+    assert_null(strstr(log, "runtime error"));
+    assert_null(strstr(log, "AddressSanitizer"));
+    remove_dir(dir);
+}
+
+/* ---- SIGTERM: bounded stop, final snapshot -------------------------------- */
+
+static void sigterm(void **state)
+{
+    (void)state;
+    char dir[64];
+    make_dir(dir, sizeof dir);
+    char camera[300];
+    snprintf(camera, sizeof camera, "replay_log = %s/lm.log\nreplay_loop = true", dir);
+    char store[300];
+    snprintf(store, sizeof store, "%s/store", dir);
+    char logp[300];
+    snprintf(logp, sizeof logp, "%s/lm.log", dir);
+    write_log(logp);
+    config(dir, "no-laser", "0.5", "30", camera, store, "fastslam2");
+    char err[300];
+    snprintf(err, sizeof err, "%s/err", dir);
+    char status_path[300];
+    snprintf(status_path, sizeof status_path, "%s/status.json", dir);
+    const pid_t pid2 = spawn_robot(dir, err, "--status-file", status_path);
+    sleep_ms(2000);
+    const uint64_t t0 = now_ms();
+    kill(pid2, SIGTERM);
+    const int st = wait_exit(pid2, 5000);
+    const uint64_t dt = now_ms() - t0;
+    const char *log = slurp(err);
+    fprintf(stderr, "sigterm: exit after %llu ms\n", (unsigned long long)dt);
+    if (!(WIFEXITED(st) && WEXITSTATUS(st) == 0)) {
+        fprintf(stderr, "%s\n", log);
+    }
+    assert_true(WIFEXITED(st));
+    assert_int_equal(WEXITSTATUS(st), 0);
+    assert_true(dt < 2000); /* the bound: well under a second in practice */
+    const char *fin = strstr(log, "(final)");
+    assert_non_null(fin);
+    const char *sv = strstr(log, "snapshot: saved ");
+    assert_non_null(sv);
+    const disk_t d = scan_disk(dir);
+    assert_int_equal(d.invalid, 0);
+    assert_true(d.newest >= 1);
+    assert_true(d.landmarks >= 4); /* the six landmarks, those in view */
+    /* the final one is the newest on disk, and the next start loads it */
+    char want[64];
+    snprintf(want, sizeof want, "seq=%llu landmarks=%d (final)", (unsigned long long)d.newest, d.landmarks);
+    assert_non_null(strstr(log, want));
+    const char *json = slurp(status_path);
+    assert_non_null(strstr(json, "\"state\": \""));
+    assert_non_null(strstr(json, "\"camera\": \"up\""));
+    const pid_t pid3 = spawn_robot(dir, err, "--once", "1");
+    const int st3 = wait_exit(pid3, 5000);
+    assert_true(WIFEXITED(st3) && WEXITSTATUS(st3) == 0);
+    log = slurp(err);
+    assert_true(loaded_seq(log) == d.newest);
+    remove_dir(dir);
+}
+
+/* ---- kill and restart ------------------------------------------------------ */
+
+static void kill_restart(void **state)
+{
+    (void)state;
+    char dir[64];
+    make_dir(dir, sizeof dir);
+    char camera[300];
+    snprintf(camera, sizeof camera, "replay_log = %s/lm.log\nreplay_loop = true", dir);
+    char store[300];
+    snprintf(store, sizeof store, "%s/store", dir);
+    char logp[300];
+    snprintf(logp, sizeof logp, "%s/lm.log", dir);
+    write_log(logp);
+    /* a snapshot every 20 ms: many kills land inside a write; the laser is
+     * the URG emulator on a pty, streaming across the restarts */
+    config(dir, "urg", "0", "0.02", camera, store, "ekf");
+    const pid_t bridge = spawn_bridge(dir);
+    char err[300];
+    snprintf(err, sizeof err, "%s/err", dir);
+    const int kills = COSLAM_TEST_FULL ? 120 : 20;
+    rng_t rng;
+    rng_seed(&rng, 2024);
+    int loads = 0;
+    int before_load = 0;
+    int during_write = 0;
+    int torn = 0;
+    uint64_t first_seq = 0;
+    uint32_t first_obs = 0;
+    uint64_t prev = 0;
+    for (int k = 0; k < kills; ++k) {
+        const disk_t before = scan_disk(dir);
+        assert_int_equal(before.invalid, 0);
+        assert_true(before.newest >= prev); /* never backwards */
+        prev = before.newest;
+        const pid_t pid = spawn_robot(dir, err, NULL, NULL);
+        /* mostly short lives, some long enough for a few frames */
+        const uint64_t life = k % 5 == 4 ? 600u + rng_below(&rng, 900u) : 20u + rng_below(&rng, 300u);
+        sleep_ms(life);
+        kill(pid, SIGKILL);
+        int st = 0;
+        waitpid(pid, &st, 0);
+        assert_true(WIFSIGNALED(st) && WTERMSIG(st) == SIGKILL);
+        const char *log = slurp(err);
+        if (strstr(log, "corrupt") != NULL || strstr(log, "unreadable") != NULL) {
+            torn++;
+            fprintf(stderr, "kill %d: a start saw a damaged snapshot:\n%s\n", k, log);
+        }
+        const uint64_t got = loaded_seq(log);
+        if (before.newest > 0) {
+            if (got > 0) {
+                loads++;
+                if (got != before.newest) {
+                    fprintf(stderr, "kill %d: loaded seq %llu, newest on disk was %llu\n%s\n", k,
+                            (unsigned long long)got, (unsigned long long)before.newest, log);
+                }
+                assert_true(got == before.newest);
+                if (first_seq == 0) {
+                    first_seq = got;
+                    first_obs = before.obs;
+                }
+            } else {
+                /* killed before it got that far (no "snapshot:" line yet) */
+                assert_null(strstr(log, "snapshot: none found"));
+                before_load++;
+            }
+        }
+        const disk_t after = scan_disk(dir);
+        assert_int_equal(after.invalid, 0);
+        assert_true(after.newest >= before.newest);
+        during_write += after.temporaries > 0;
+    }
+    /* a last, clean run: the map went on */
+    const pid_t pid = spawn_robot(dir, err, "--once", "100");
+    const int st = wait_exit(pid, 10000);
+    assert_true(WIFEXITED(st) && WEXITSTATUS(st) == 0);
+    const disk_t end = scan_disk(dir);
+    assert_int_equal(end.invalid, 0);
+    const char *last_log = slurp(err);
+    const long scans = last_value(last_log, "scans");
+    stop_bridge(bridge);
+    fprintf(stderr,
+            "kill-restart: %d SIGKILLs, %d starts loaded the newest snapshot, %d were killed before loading, "
+            "%d kills left a half-written temporary file (killed inside a snapshot write), %d torn loads; "
+            "snapshot seq %llu -> %llu; landmarks %d; sightings fused %u -> %u; laser scans in the last run %ld\n",
+            kills, loads, before_load, during_write, torn, (unsigned long long)first_seq,
+            (unsigned long long)end.newest, end.landmarks, first_obs, end.obs, scans);
+    assert_int_equal(torn, 0);
+    assert_true(loads >= kills / 2);
+    assert_true(end.landmarks >= 4);
+    assert_true(end.obs > first_obs); /* mapping goes on across restarts */
+    remove_dir(dir);
+}
+
+/* ---- the laser on a pty: the URG emulator byte for byte ------------------- */
+
+static void laser_pty(void **state)
+{
+    (void)state;
+    char dir[64];
+    make_dir(dir, sizeof dir);
+    char store[300];
+    snprintf(store, sizeof store, "%s/store", dir);
+    config(dir, "urg", "0.5", "30", "", store, "ekf");
+    const pid_t bridge = spawn_bridge(dir);
+    char err[300];
+    snprintf(err, sizeof err, "%s/err", dir);
+    const pid_t pid = spawn_robot(dir, err, NULL, NULL);
+    sleep_ms(2500);
+    kill(pid, SIGTERM);
+    const int st = wait_exit(pid, 5000);
+    stop_bridge(bridge);
+    const char *log = slurp(err);
+    if (!(WIFEXITED(st) && WEXITSTATUS(st) == 0) || last_value(log, "scans") < 10) {
+        fprintf(stderr, "%s\n", log);
+    }
+    assert_true(WIFEXITED(st) && WEXITSTATUS(st) == 0);
+    assert_non_null(strstr(log, "/urg at 115200 baud): up"));
+    assert_int_equal(last_value(log, "laser_streaming"), 0); /* after the shutdown */
+    /* 10 scans per second for about 2.5 s, every one decoded */
+    assert_true(last_value(log, "scans") >= 10);
+    assert_true(last_value(log, "urg_scans_ok") >= 10);
+    assert_int_equal(last_value(log, "scan_errors"), 0);
+    assert_int_equal(last_value(log, "laser_lost"), 0);
+    fprintf(stderr, "laser_pty: %ld scans in 2.5 s\n", last_value(log, "scans"));
+    remove_dir(dir);
+}
+
+int main(int argc, char **argv)
+{
+    if (argc > 1) {
+        cmocka_set_test_filter(argv[1]);
+    }
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(degraded),
+        cmocka_unit_test(sigterm),
+        cmocka_unit_test(kill_restart),
+        cmocka_unit_test(laser_pty),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
