@@ -39,6 +39,10 @@ awk 'BEGIN { srand(7); n = split("2.0 0.5 2.5 -0.8 3.0 1.2 1.5 -0.3 3.5 0.2 2.2 
       r = sqrt(x * x + y * y) + 0.02 * (rand() - 0.5); b = atan2(y, x) + 0.02 * (rand() - 0.5);
       if (b < 0.43 && b > -0.43) printf "Z %.3f %d %.4f %.5f\n", t, (i - 1) / 2, r, b } } }' > "$DIR/lm.log"
 
+# the fleet key: the robot runs its DDS link (authenticated) as on a robot
+head -c 32 /dev/urandom | od -An -tx1 | tr -d ' \n' > "$DIR/fleet.key"
+chmod 600 "$DIR/fleet.key"
+
 cat > "$DIR/robot.ini" <<EOF
 [robot]
 step_period_s = 0.01
@@ -56,6 +60,10 @@ replay_log = $DIR/lm.log
 dir = $DIR/store
 [filter]
 type = $FILTER
+[link]
+domain = 199
+[fleet]
+key_file = $DIR/fleet.key
 EOF
 
 "$BRIDGE" "$DIR/urg" &

@@ -2,7 +2,8 @@
  * coslam-robot configuration: the default robot.ini loads and holds the
  * documented defaults; every kind of bad file is refused with FILE:LINE and
  * the binary exits with status 2; the meeting's robot-sighting noise comes
- * from [slam] (one settings source).
+ * from [slam] (one settings source); the [link] / [fleet] keys, and the
+ * fleet key file policy (missing, too open, not a key: exit 2).
  */
 #include <setjmp.h>
 #include <stdarg.h>
@@ -11,6 +12,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -83,6 +85,47 @@ static void print_reads_back(void **state)
     free(b);
 }
 
+static void link_keys_defaults_and_round_trip(void **state)
+{
+    (void)state;
+    char msg[600];
+    robot_config_default(&cfg);
+    assert_int_equal(cfg.link_domain, 0);
+    assert_string_equal(cfg.link_peers, "");
+    assert_string_equal(cfg.link_partition, "");
+    assert_string_equal(cfg.link_topic, "rt/coslam/map");
+    assert_int_equal(cfg.link_history_depth, 32);
+    assert_string_equal(cfg.link_config, "");
+    assert_false(cfg.link_insecure);
+    assert_string_equal(cfg.fleet_key_file, "/etc/coslam/fleet.key");
+    assert_int_equal(cfg.fleet_key_id, 1);
+    assert_true(cfg.fleet_window_s == 30.0);
+    const char *text = "[link]\ndomain = 232\npeers = 192.168.1.12 ,robot2.local,[fe80::1]\npartition = lab-b\n"
+                       "topic = rt/lab_b/coslam_map\nhistory_depth = 64\nconfig = file:///etc/coslam/cyclonedds.xml\n"
+                       "insecure = yes\n[fleet]\nkey_file =\nkey_id = 255\nwindow_s = 2.5\n";
+    assert_int_equal(robot_config_load_string(&cfg, text, "l.ini", msg, sizeof msg), COSLAM_OK);
+    assert_int_equal(cfg.link_domain, 232);
+    assert_string_equal(cfg.link_peers, "192.168.1.12, robot2.local, [fe80::1]"); /* normalised */
+    assert_string_equal(cfg.link_partition, "lab-b");
+    assert_string_equal(cfg.link_topic, "rt/lab_b/coslam_map");
+    assert_int_equal(cfg.link_history_depth, 64);
+    assert_string_equal(cfg.link_config, "file:///etc/coslam/cyclonedds.xml");
+    assert_true(cfg.link_insecure);
+    assert_string_equal(cfg.fleet_key_file, "");
+    assert_int_equal(cfg.fleet_key_id, 255);
+    assert_true(cfg.fleet_window_s == 2.5);
+    char *a = print_to_string(&cfg);
+    static robot_config_t back;
+    robot_config_default(&back);
+    assert_int_equal(robot_config_load_string(&back, a, "printed.ini", msg, sizeof msg), COSLAM_OK);
+    char *b = print_to_string(&back);
+    assert_string_equal(a, b);
+    assert_string_equal(back.link_peers, cfg.link_peers);
+    assert_string_equal(back.fleet_key_file, "");
+    free(a);
+    free(b);
+}
+
 static void meeting_noise_comes_from_slam(void **state)
 {
     (void)state;
@@ -133,6 +176,21 @@ static void bad_files_name_file_and_line(void **state)
             "bad.ini:5: [slam] sensor_max_range_m: sensor_max_range_m must be greater than sensor_min_range_m");
     refused("[slam]\ngate_chi2 = 30\n", "bad.ini:2: [slam] gate_chi2: new_landmark_chi2 must be at least gate_chi2");
     refused("[robot]\nfleet_size = 3\nid = 3\n", "bad.ini:3: [robot] id: id 3 must be below fleet_size 3");
+    /* [link] and [fleet] */
+    refused("[link]\ndomain = 233\n", "bad.ini:2: [link] domain: 233 is outside its domain [0, 232]");
+    refused("[link]\ndomain = -1\n", "bad.ini:2: [link] domain: -1 is outside its domain");
+    refused("[link]\n\npeers = 10.0.0.2, <robot3/>\n",
+            "bad.ini:3: [link] peers: peer address '<robot3/>' has a character other than");
+    refused("[link]\npeers = 10.0.0.2,,10.0.0.3\n", "bad.ini:2: [link] peers: empty peer address");
+    refused("[link]\npeers = 10.0.0.2,\n", "bad.ini:2: [link] peers: empty peer address after the last comma");
+    refused("[link]\npeers = a,b,c,d,e,f,g,h,i,j,k,l,m,n,o,p,q\n", "bad.ini:2: [link] peers: at most 16 peers");
+    refused("[link]\ntopic = rt/coslam map\n", "bad.ini:2: [link] topic: topic 'rt/coslam map' has a character");
+    refused("[link]\ntopic =\n", "bad.ini:2: [link] topic: empty topic");
+    refused("[link]\nhistory_depth = 0\n", "bad.ini:2: [link] history_depth: 0 is outside its domain [1, 10000]");
+    refused("[link]\ninsecure = perhaps\n", "bad.ini:2: [link] insecure: expected a boolean");
+    refused("[fleet]\nkey_id = 256\n", "bad.ini:2: [fleet] key_id: 256 is outside its domain [0, 255]");
+    refused("[fleet]\nwindow_s = 0\n", "bad.ini:2: [fleet] window_s: 0 is outside its domain (0, 86400]");
+    refused("[fleet]\nkey = 00112233\n", "bad.ini:2: unknown key 'key' in [fleet]");
     /* the first error wins */
     refused("[robot]\nid = x\n[laser]\nfoo = 1\n", "bad.ini:2:");
     char msg[600];
@@ -183,19 +241,115 @@ static void binary_exits_2_with_file_and_line(void **state)
     assert_int_equal(WEXITSTATUS(st), 2);
     /* --print-config of a good file: exit 0 */
     assert_int_equal(run_robot("[robot]\nid = 1\n", "--print-config", err, sizeof err), 0);
+    /* a bad DDS domain */
+    assert_int_equal(run_robot("[link]\ndomain = 300\n", "--dry-run", err, sizeof err), 2);
+    assert_non_null(strstr(err, "robot.ini:2: [link] domain: 300 is outside its domain [0, 232]"));
+}
+
+/* The fleet key file: configured but missing, too open or not a key -> the
+ * robot does not start (exit 2, the file and the reason named, the key
+ * never printed); 0600 and 0640 are good. */
+static void binary_refuses_a_bad_fleet_key(void **state)
+{
+    (void)state;
+#if !(COSLAM_HAVE_DDS && COSLAM_HAVE_LINK_AUTH)
+    skip(); /* no link in this build: the key is never read */
+#endif
+    char dir[] = "/tmp/coslam-robot-key-XXXXXX";
+    assert_non_null(mkdtemp(dir));
+    char key[300];
+    snprintf(key, sizeof key, "%s/fleet.key", dir);
+    char xml[300];
+    snprintf(xml, sizeof xml, "%s/cyclone.xml", dir);
+    FILE *x = fopen(xml, "w");
+    assert_non_null(x);
+    /* loopback only, no multicast: the good-key dry run opens DDS */
+    fputs("<CycloneDDS><Domain id=\"any\"><General><Interfaces><NetworkInterface address=\"127.0.0.1\"/>"
+          "</Interfaces><AllowMulticast>false</AllowMulticast></General>"
+          "<Tracing><Verbosity>severe</Verbosity></Tracing></Domain></CycloneDDS>\n",
+          x);
+    fclose(x);
+    char text[1200];
+    snprintf(text, sizeof text,
+             "[laser]\ndevice =\n[can]\ninterface =\n[gpio]\nchip =\n[storage]\ndir = %s/store\n"
+             "[link]\ndomain = 179\npartition = coslam-test-key-%ld\nconfig = file://%s\n[fleet]\nkey_file = %s\n",
+             dir, (long)getpid(), xml, key);
+    char err[4096];
+    const char *hex = "00112233445566778899aabbccddeeff00112233445566778899aabbccddeeff";
+
+    /* missing */
+    assert_int_equal(run_robot(text, "--dry-run", err, sizeof err), 2);
+    assert_non_null(strstr(err, "[fleet] key_file "));
+    assert_non_null(strstr(err, "fleet.key: no such file; the robot does not start without its fleet key"));
+
+    FILE *f = fopen(key, "w");
+    assert_non_null(f);
+    fprintf(f, "%s\n", hex);
+    fclose(f);
+    /* world-readable */
+    assert_int_equal(chmod(key, 0644), 0);
+    assert_int_equal(run_robot(text, "--dry-run", err, sizeof err), 2);
+    assert_non_null(strstr(err, "fleet.key: accessible to others (mode 0644)"));
+    assert_null(strstr(err, hex));
+    /* world-accessible in any way, or group-writable */
+    assert_int_equal(chmod(key, 0604), 0);
+    assert_int_equal(run_robot(text, "", err, sizeof err), 2);
+    assert_non_null(strstr(err, "accessible to others (mode 0604)"));
+    assert_int_equal(chmod(key, 0620), 0);
+    assert_int_equal(run_robot(text, "", err, sizeof err), 2);
+    assert_non_null(strstr(err, "writable by its group (mode 0620)"));
+    /* good: 0600, and 0640 (root:coslam as the package installs it) */
+    assert_int_equal(chmod(key, 0600), 0);
+    assert_int_equal(run_robot(text, "--dry-run", err, sizeof err), 0);
+    assert_non_null(strstr(err, "authenticated with key id 1): up"));
+    assert_null(strstr(err, hex));
+    assert_null(strstr(err, "00112233"));
+    assert_int_equal(chmod(key, 0640), 0);
+    assert_int_equal(run_robot(text, "--dry-run", err, sizeof err), 0);
+    /* not a key */
+    f = fopen(key, "w");
+    assert_non_null(f);
+    fprintf(f, "%.63s\n", hex); /* one digit short */
+    fclose(f);
+    assert_int_equal(run_robot(text, "--dry-run", err, sizeof err), 2);
+    assert_non_null(strstr(err, "fleet.key: not a fleet key (expected 64 hexadecimal digits"));
+    assert_null(strstr(err, "0011223344"));
+    /* a directory */
+    assert_int_equal(unlink(key), 0);
+    assert_int_equal(mkdir(key, 0700), 0);
+    assert_int_equal(run_robot(text, "--dry-run", err, sizeof err), 2);
+    assert_non_null(strstr(err, "fleet.key: not a regular file"));
+    assert_int_equal(rmdir(key), 0);
+
+    /* no key file configured: runs, with the loud warning, no link */
+    char none[1200];
+    snprintf(none, sizeof none, "[laser]\ndevice =\n[can]\ninterface =\n[gpio]\nchip =\n[storage]\ndir = %s/store\n"
+             "[robot]\nstatus_period_s = 0\n[fleet]\nkey_file =\n", dir);
+    static char big[65536]; /* the final status line alone is over 2 KB */
+    assert_int_equal(run_robot(none, "--once 5", big, sizeof big), 0);
+    assert_non_null(strstr(big, "WARNING link: off (no fleet key)"));
+    assert_non_null(strstr(big, "link_mode=off(no_fleet_key)"));
+    assert_non_null(strstr(big, "WARNING: link: off (no fleet key)\n")); /* on the status line */
+
+    char cmd[400];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
+    assert_int_equal(system(cmd), 0);
 }
 
 int main(int argc, char **argv)
 {
+    unsetenv("CYCLONEDDS_URI"); /* the DDS configuration is the test's own */
     if (argc > 1) {
         cmocka_set_test_filter(argv[1]);
     }
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(default_file_loads_and_is_the_default),
         cmocka_unit_test(print_reads_back),
+        cmocka_unit_test(link_keys_defaults_and_round_trip),
         cmocka_unit_test(meeting_noise_comes_from_slam),
         cmocka_unit_test(bad_files_name_file_and_line),
         cmocka_unit_test(binary_exits_2_with_file_and_line),
+        cmocka_unit_test(binary_refuses_a_bad_fleet_key),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

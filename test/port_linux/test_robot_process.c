@@ -239,6 +239,7 @@ static const char *base_config =
     "[gpio]\nchip = %s/no-gpiochip\n"
     "[camera]\n%s\n"
     "[storage]\ndir = %s\n"
+    "[fleet]\nkey_file =\n" /* no fleet key: no link (these tests are about one robot) */
     "[filter]\ntype = %s\nparticles = 30\n";
 
 static void config(const char *dir, const char *laser, const char *status_s, const char *snap_s, const char *camera,
@@ -318,6 +319,13 @@ static void degraded(void **state)
     assert_non_null(strstr(log, "coslam-robot: camera (/dev/no-such-video9): not available"));
     assert_non_null(strstr(log, "localisation on odometry only"));
     assert_non_null(strstr(log, "coslam-robot: link (null"));
+#if COSLAM_HAVE_DDS && COSLAM_HAVE_LINK_AUTH
+    assert_non_null(strstr(log, "WARNING link: off (no fleet key)"));
+    assert_non_null(strstr(log, "WARNING: link: off (no fleet key)\n")); /* every status line */
+#else
+    assert_non_null(strstr(log, "WARNING link: off (built without"));
+    assert_non_null(strstr(log, "WARNING: link: off (built without"));
+#endif
     assert_non_null(strstr(log, "coslam-robot: storage (snapshots in /nonexistent-coslam/parent/store): down: "));
     assert_non_null(strstr(log, "no motion until they are back (gpio.required = true)"));
     assert_non_null(strstr(log, "no obstacle behaviour"));

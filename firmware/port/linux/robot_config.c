@@ -296,6 +296,106 @@ static void print_estop_low(const robot_config_t *c, FILE *out)
     fprintf(out, "%d", c->node.gpio.estop.active_low ? 1 : 0);
 }
 
+/* [link] peers: comma-separated addresses that go into Cyclone's XML, so
+ * only host names, IPv4 and [IPv6] characters (as hal_link_dds_open checks
+ * again). Stored normalised ("a, b") so that printing reads back the same. */
+static int peer_char_ok(char ch)
+{
+    return (ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z') || (ch >= '0' && ch <= '9') || ch == '.' ||
+           ch == ':' || ch == '-' || ch == '_' || ch == '[' || ch == ']';
+}
+
+static coslam_status_t parse_peers(robot_config_t *c, const char *v, char *msg, size_t cap)
+{
+    char out[ROBOT_CONFIG_PATH_MAX + 1u];
+    out[0] = '\0';
+    size_t len = 0;
+    unsigned n = 0;
+    const char *p = v;
+    while (*p != '\0') {
+        while (*p == ' ' || *p == '\t') {
+            ++p;
+        }
+        const char *start = p;
+        while (*p != '\0' && *p != ',') {
+            ++p;
+        }
+        const char *end = p;
+        while (end > start && (end[-1] == ' ' || end[-1] == '\t')) {
+            --end;
+        }
+        if (end == start) {
+            put_text(msg, cap, "empty peer address in '%s'", v);
+            return COSLAM_E_ARG;
+        }
+        for (const char *q = start; q < end; ++q) {
+            if (!peer_char_ok(*q)) {
+                put_text(msg, cap, "peer address '%.*s' has a character other than [A-Za-z0-9.:_-] and [ ]",
+                         (int)(end - start), start);
+                return COSLAM_E_ARG;
+            }
+        }
+        if (++n > ROBOT_CONFIG_MAX_PEERS) {
+            put_text(msg, cap, "at most %u peers", ROBOT_CONFIG_MAX_PEERS);
+            return COSLAM_E_ARG;
+        }
+        const size_t add = (size_t)(end - start) + (n > 1U ? 2U : 0U);
+        if (len + add > ROBOT_CONFIG_PATH_MAX) {
+            put_text(msg, cap, "list too long");
+            return COSLAM_E_ARG;
+        }
+        if (n > 1U) {
+            memcpy(out + len, ", ", 2U);
+            len += 2U;
+        }
+        memcpy(out + len, start, (size_t)(end - start));
+        len += (size_t)(end - start);
+        out[len] = '\0';
+        if (*p == ',') {
+            ++p;
+            if (*p == '\0') {
+                put_text(msg, cap, "empty peer address after the last comma");
+                return COSLAM_E_ARG;
+            }
+        }
+    }
+    put_text(c->link_peers, sizeof c->link_peers, "%s", out);
+    return COSLAM_OK;
+}
+
+static void print_peers(const robot_config_t *c, FILE *out)
+{
+    fprintf(out, "%s", c->link_peers);
+}
+
+/* [link] topic: a DDS topic name (ROS 2 style: letters, digits, _ and /). */
+static coslam_status_t parse_topic(robot_config_t *c, const char *v, char *msg, size_t cap)
+{
+    if (*v == '\0') {
+        put_text(msg, cap, "empty topic (the default is %s)", ROBOT_CONFIG_DEFAULT_TOPIC);
+        return COSLAM_E_ARG;
+    }
+    for (const char *q = v; *q != '\0'; ++q) {
+        const char ch = *q;
+        if (!((ch >= 'a' && ch <= 'z') || (ch >= 'A' && ch <= 'Z') || (ch >= '0' && ch <= '9') || ch == '_' ||
+              ch == '/')) {
+            put_text(msg, cap, "topic '%s' has a character other than [A-Za-z0-9_/]", v);
+            return COSLAM_E_ARG;
+        }
+    }
+    if (strlen(v) > ROBOT_CONFIG_PATH_MAX) {
+        put_text(msg, cap, "longer than %u characters", ROBOT_CONFIG_PATH_MAX);
+        return COSLAM_E_ARG;
+    }
+    put_text(c->link_topic, sizeof c->link_topic, "%s", v);
+    return COSLAM_OK;
+}
+
+static void print_topic(const robot_config_t *c, FILE *out)
+{
+    fprintf(out, "%s", c->link_topic);
+}
+
 /* ---- the table ----------------------------------------------------------- */
 
 #define INF_ HUGE_VAL
@@ -340,11 +440,18 @@ static const cfg_key_t keys[] = {
     B_("camera", "replay_loop", camera_replay_loop),
 
     N_("link", "domain", K_U32, link_domain, 0, 232),
-    S_("link", "peers", link_peers),
+    C_("link", "peers", parse_peers, print_peers),
+    S_("link", "partition", link_partition),
+    C_("link", "topic", parse_topic, print_topic),
+    N_("link", "history_depth", K_U32, link_history_depth, 1, 10000),
+    S_("link", "config", link_config),
+    B_("link", "insecure", link_insecure),
 
     S_("storage", "dir", storage_dir),
 
     S_("fleet", "key_file", fleet_key_file),
+    N_("fleet", "key_id", K_U8, fleet_key_id, 0, 255),
+    NO_("fleet", "window_s", K_F64, fleet_window_s, 0.0, 86400.0),
 
     C_("filter", "type", parse_filter_type, print_filter_type),
     N_("filter", "particles", K_U16, node.filter.n_particles, 1, COSLAM_MAX_PARTICLES),
@@ -404,8 +511,13 @@ void robot_config_default(robot_config_t *c)
     c->gpio_required = 1U;
     c->camera_replay_loop = 1U;
     c->link_domain = 0U;
+    set_str(c->link_topic, ROBOT_CONFIG_DEFAULT_TOPIC);
+    c->link_history_depth = 32U;
+    c->link_insecure = 0U;
     set_str(c->storage_dir, "/var/lib/coslam");
     set_str(c->fleet_key_file, "/etc/coslam/fleet.key");
+    c->fleet_key_id = 1U;
+    c->fleet_window_s = 30.0;
     c->node = robot_node_config_default(0U, 2U);
     c->node.urg.reply_timeout_us = 300000U;
     c->node.laser_optional = 1U;

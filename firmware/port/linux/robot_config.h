@@ -18,7 +18,7 @@
  * reason" (the line of the later key for a contradiction); the first error
  * wins. The caller exits with status 2 (robot_main.c).
  *
- * No heap: robot_config_t is caller-owned (about 1 KB plus
+ * No heap: robot_config_t is caller-owned (about 3 KB plus
  * robot_node_config_t). Not thread-safe (one load at a time).
  */
 #ifndef COSLAM_PORT_ROBOT_CONFIG_H
@@ -40,6 +40,11 @@ extern "C" {
 #define ROBOT_CONFIG_PATH_MAX 255u
 /** Longest message of a load error [characters, without NUL]. */
 #define ROBOT_CONFIG_MSG_MAX 511u
+/** Most [link] peers. */
+#define ROBOT_CONFIG_MAX_PEERS 16u
+/** [link] topic default: HAL_LINK_DDS_DEFAULT_TOPIC, ROS 2 topic /coslam/map
+ *  (robot_link.c checks the two agree in DDS builds). */
+#define ROBOT_CONFIG_DEFAULT_TOPIC "rt/coslam/map"
 
 typedef struct {
     /* [robot] */
@@ -61,13 +66,24 @@ typedef struct {
     char camera_device[ROBOT_CONFIG_PATH_MAX + 1u]; /**< camera device; no Linux pipeline yet */
     char camera_replay_log[ROBOT_CONFIG_PATH_MAX + 1u]; /**< test/bench source: landmark log; "" = none */
     uint8_t camera_replay_loop;    /**< 1: start the log again at its end */
-    /* [link] (for the DDS link backend; the null link ignores them) */
-    uint32_t link_domain;          /**< DDS domain id */
-    char link_peers[ROBOT_CONFIG_PATH_MAX + 1u];    /**< comma-separated peer addresses */
+    /* [link]: the Cyclone DDS link (robot_link.h has the policy) */
+    uint32_t link_domain;          /**< DDS domain id, 0..232 (ROS_DOMAIN_ID) */
+    char link_peers[ROBOT_CONFIG_PATH_MAX + 1u];    /**< comma-separated unicast peer addresses
+                                                         (checked: at most ROBOT_CONFIG_MAX_PEERS,
+                                                         [A-Za-z0-9.:_-] and [ ]); "" = multicast */
+    char link_partition[ROBOT_CONFIG_PATH_MAX + 1u];/**< DDS partition; "" = the default one (ROS 2's) */
+    char link_topic[ROBOT_CONFIG_PATH_MAX + 1u];    /**< DDS topic (ROBOT_CONFIG_DEFAULT_TOPIC) */
+    char link_config[ROBOT_CONFIG_PATH_MAX + 1u];   /**< extra Cyclone configuration (XML or
+                                                         file:// URI); "" = none */
+    uint32_t link_history_depth;   /**< DDS KEEP_LAST depth [samples] */
+    uint8_t link_insecure;         /**< 1: DDS without authentication (explicit opt-in) */
     /* [storage] */
     char storage_dir[ROBOT_CONFIG_PATH_MAX + 1u];   /**< map snapshots go here */
     /* [fleet] */
-    char fleet_key_file[ROBOT_CONFIG_PATH_MAX + 1u];/**< fleet key path (authentication; never logged) */
+    char fleet_key_file[ROBOT_CONFIG_PATH_MAX + 1u];/**< fleet key path (authentication; never
+                                                         logged); "" = none: no link */
+    uint8_t fleet_key_id;          /**< version of that key, sent in the clear (0..255) */
+    double fleet_window_s;         /**< authentication time window [s] (fleet clocks within it) */
     /* everything the robot node takes; robot_id, n_robots, filter.robot_id,
      * filter_period_us, retry_period_us, the meeting's robot-sighting noise
      * and the degraded-mode flags are derived at the end of the load */
@@ -78,7 +94,9 @@ typedef struct {
  *  of 2, 10 ms step, status every 10 s, snapshot every 30 s, retry every
  *  5 s, /dev/ttyACM0 at 115200 baud, can0, gpiochip0 (bumper line 0,
  *  e-stop line 1 active low, LED line 2, required), no camera, DDS domain
- *  0, /var/lib/coslam, /etc/coslam/fleet.key, and the node defaults of
+ *  0 with multicast discovery, the default partition, topic
+ *  rt/coslam/map, depth 32, authenticated; /var/lib/coslam,
+ *  /etc/coslam/fleet.key with key id 1 and a 30 s window, and the node defaults of
  *  robot_node_config_default() with the degraded modes on. */
 void robot_config_default(robot_config_t *cfg);
 

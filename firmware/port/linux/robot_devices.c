@@ -229,6 +229,43 @@ static hal_status_t ps_next_frame(sighting_source_t *s, sighting_frame_t *out, u
 
 static const sighting_source_ops_t sightings_proxy_ops = {ps_next_frame};
 
+/* ---- link proxy (below the authentication decorator) ------------------- */
+
+static robot_devices_t *of_link(hal_link_t *l)
+{
+    return (robot_devices_t *)l->backend;
+}
+
+static hal_status_t pl_self_id(hal_link_t *l, uint16_t *id)
+{
+    /* fixed, and answered while DDS is down: the decorator reads it at open */
+    *id = of_link(l)->cfg->robot_id;
+    return HAL_OK;
+}
+
+static hal_status_t pl_send(hal_link_t *l, uint16_t dest_id, const uint8_t *data, size_t len, uint32_t timeout_us)
+{
+    robot_devices_t *d = of_link(l);
+    hal_link_t *b = robot_link_backend(&d->link);
+    return usable(d, ROBOT_DEV_LINK) && b != NULL
+               ? watch(d, ROBOT_DEV_LINK, hal_link_send(b, dest_id, data, len, timeout_us))
+               : HAL_E_CLOSED;
+}
+
+static hal_status_t pl_recv(hal_link_t *l, uint8_t *buf, size_t cap, hal_link_rx_info_t *info, uint32_t timeout_us)
+{
+    robot_devices_t *d = of_link(l);
+    hal_link_t *b = robot_link_backend(&d->link);
+    if (!usable(d, ROBOT_DEV_LINK) || b == NULL) {
+        return HAL_E_TIMEOUT; /* link down: nothing arrives, which is not an error */
+    }
+    const hal_status_t st = hal_link_recv(b, buf, cap, info, timeout_us);
+    return st == HAL_E_TIMEOUT || st == HAL_OK || st == HAL_E_OVERFLOW ? st : watch(d, ROBOT_DEV_LINK, st);
+}
+
+/* no close: the slot closes the backend, robot_close_link the rest */
+static const hal_link_ops_t link_proxy_ops = {pl_self_id, pl_send, pl_recv, NULL};
+
 /* ---- slots --------------------------------------------------------------- */
 
 static void say(robot_devices_t *d, const char *name, const robot_dev_status_t *st, const char *text)
@@ -289,6 +326,9 @@ static int try_open(robot_devices_t *d, robot_dev_t id, uint64_t now_us)
     case ROBOT_DEV_STORAGE:
         s = hal_storage_linux_open(&d->storage_state, c->storage_dir);
         break;
+    case ROBOT_DEV_LINK:
+        s = robot_link_backend_open(&d->link, reason, sizeof reason);
+        break;
     default:
         break;
     }
@@ -320,12 +360,13 @@ static void close_dev(robot_devices_t *d, robot_dev_t id)
         break;
     case ROBOT_DEV_CAMERA: robot_replay_close(&d->replay); break;
     case ROBOT_DEV_STORAGE: hal_storage_close(&d->storage_state.dev); break;
-    case ROBOT_DEV_LINK: robot_close_link(d->link); break;
+    case ROBOT_DEV_LINK: robot_link_backend_close(&d->link); break;
     default: break;
     }
 }
 
-void robot_devices_init(robot_devices_t *d, const robot_config_t *cfg, hal_clock_t *clock, FILE *log, int verbose)
+coslam_status_t robot_devices_init(robot_devices_t *d, const robot_config_t *cfg, hal_clock_t *clock, FILE *log,
+                                   int verbose, char *msg, size_t msg_cap)
 {
     memset(d, 0, sizeof *d);
     d->cfg = cfg;
@@ -345,13 +386,18 @@ void robot_devices_init(robot_devices_t *d, const robot_config_t *cfg, hal_clock
     d->gpio.backend = d;
     d->sightings.ops = &sightings_proxy_ops;
     d->sightings.backend = d;
-    d->link = hal_link_null();
+    d->link_slot.ops = &link_proxy_ops;
+    d->link_slot.backend = d;
     robot_dev_status_t *st = d->dev;
     put_text(st[ROBOT_DEV_LASER].what, sizeof st[0].what, "URG on %s at %lu baud", cfg->laser_device,
                    (unsigned long)cfg->laser_baud);
     put_text(st[ROBOT_DEV_CAN].what, sizeof st[0].what, "CiA 402 drives on SocketCAN %s", cfg->can_interface);
     put_text(st[ROBOT_DEV_GPIO].what, sizeof st[0].what, "bumper / e-stop / LED on %s", cfg->gpio_chip);
     put_text(st[ROBOT_DEV_STORAGE].what, sizeof st[0].what, "snapshots in %s", cfg->storage_dir);
+    /* the link policy and the fleet key: before anything opens */
+    const coslam_status_t ls = robot_open_link(&d->link, cfg, &d->link_slot, msg, msg_cap);
+    put_text(st[ROBOT_DEV_LINK].what, sizeof st[0].what, "%s", d->link.what);
+    return ls;
 }
 
 void robot_devices_open_all(robot_devices_t *d, uint64_t now_us)
@@ -389,11 +435,23 @@ void robot_devices_open_all(robot_devices_t *d, uint64_t now_us)
             continue;
         }
         if (id == ROBOT_DEV_LINK) {
-            const char *what = NULL;
-            d->link = robot_open_link(c, &what);
-            put_text(st[id].what, sizeof st[id].what, "%s", what != NULL ? what : "?");
-            st[id].state = d->link == hal_link_null() ? ROBOT_DEV_ABSENT : ROBOT_DEV_UP;
-            say(d, "link", &st[id], d->link == hal_link_null() ? "absent" : "up");
+            const char *warn = robot_link_warning(&d->link);
+            if (d->link.mode == ROBOT_LINK_OFF) {
+                st[id].state = ROBOT_DEV_ABSENT;
+                put_text(text, sizeof text, "absent; WARNING %s: this robot maps alone and merges no maps", warn);
+                say(d, "link", &st[id], text);
+                continue;
+            }
+            if (try_open(d, id, now_us)) {
+                say(d, "link", &st[id], "up");
+            } else {
+                put_text(text, sizeof text, "down: %s; retrying every %.0f s", st[id].reason, c->retry_period_s);
+                say(d, "link", &st[id], text);
+            }
+            if (warn != NULL) {
+                put_text(text, sizeof text, "WARNING %s: maps from anyone on the topic are merged", warn);
+                say(d, "link", &st[id], text);
+            }
             continue;
         }
 #if !COSLAM_HAVE_GPIOD
@@ -468,13 +526,12 @@ unsigned robot_devices_service(robot_devices_t *d, uint64_t now_us)
 void robot_devices_close_all(robot_devices_t *d)
 {
     for (int i = 0; i < ROBOT_DEV_COUNT; ++i) {
-        if (d->dev[i].state == ROBOT_DEV_UP || i == ROBOT_DEV_LINK) {
-            close_dev(d, (robot_dev_t)i);
-        }
         if (d->dev[i].state == ROBOT_DEV_UP) {
+            close_dev(d, (robot_dev_t)i);
             d->dev[i].state = ROBOT_DEV_DOWN;
         }
     }
+    robot_close_link(&d->link); /* the decorator too: wipes the key */
 }
 
 robot_node_io_t robot_devices_io(robot_devices_t *d)
@@ -484,7 +541,7 @@ robot_node_io_t robot_devices_io(robot_devices_t *d)
     io.laser = &d->laser;
     io.can = &d->can;
     io.gpio = &d->gpio;
-    io.link = d->link;
+    io.link = robot_link_handle(&d->link);
     io.sightings = &d->sightings;
     return io;
 }

@@ -8,15 +8,20 @@
  *   gpio     libgpiod v1 (hal_gpio_linux_open), [gpio] chip; absent from
  *            builds without libgpiod
  *   camera   robot_open_sightings (robot_sightings.h)
- *   link     robot_open_link (robot_link.h)
+ *   link     robot_open_link (robot_link.h): Cyclone DDS behind the
+ *            authentication decorator; absent when the link policy turns
+ *            it off (no fleet key, a build without DDS)
  *   storage  files in a directory (hal_storage_linux_open), [storage] dir
  *   clock    CLOCK_MONOTONIC (hal_clock_linux)
  *
  * The robot node keeps the handles it was given for its whole life, so the
- * laser, CAN, GPIO and camera handles it gets are PROXIES owned here: while
- * the device is up each operation is passed to the backend; while it is
- * down every operation answers HAL_E_CLOSED ("not open / went away"; the
- * camera: HAL_E_TIMEOUT, no frame). A device that is missing or fails to
+ * laser, CAN, GPIO, camera and link handles it gets are PROXIES owned here:
+ * while the device is up each operation is passed to the backend; while it
+ * is down every operation answers HAL_E_CLOSED ("not open / went away"; the
+ * camera: HAL_E_TIMEOUT, no frame; the link: send HAL_E_CLOSED, receive
+ * HAL_E_TIMEOUT, nothing arrives). The link proxy sits BELOW the
+ * authentication decorator (robot_link.h), which stays open while DDS
+ * comes and goes. A device that is missing or fails to
  * open is reported on the log by name with the reason, and opened again
  * every retry period; its return is logged. A device that goes away while
  * up (its backend answers HAL_E_CLOSED, or HAL_E_IO ROBOT_DEVICES_IO_LIMIT
@@ -45,6 +50,7 @@
 #include "hal/hal_storage.h"
 #include "hal/hal_storage_linux.h"
 #include "robot_config.h"
+#include "robot_link.h"
 #include "robot_sightings.h"
 
 #if COSLAM_HAVE_GPIOD
@@ -112,13 +118,18 @@ typedef struct {
 #endif
     robot_sightings_kind_t camera_kind;
     robot_replay_t replay;
-    hal_link_t *link;
+    hal_link_t link_slot;            /**< the link proxy (below the decorator) */
+    robot_link_t link;               /**< policy, DDS instance, decorator */
     hal_storage_linux_t storage_state;
 } robot_devices_t;
 
-/** Set up the slots and proxies (nothing is opened). `log` gets the device
- *  reports (stderr in coslam-robot); verbose adds every failed retry. */
-void robot_devices_init(robot_devices_t *d, const robot_config_t *cfg, hal_clock_t *clock, FILE *log, int verbose);
+/** Set up the slots and proxies and apply the link policy (robot_open_link:
+ *  the fleet key is read here; DDS is not opened yet). `log` gets the
+ *  device reports (stderr in coslam-robot); verbose adds every failed
+ *  retry. Returns COSLAM_OK; otherwise the robot must not start (exit 2
+ *  for COSLAM_E_ARG): robot_open_link's code, its reason in msg. */
+coslam_status_t robot_devices_init(robot_devices_t *d, const robot_config_t *cfg, hal_clock_t *clock, FILE *log,
+                                   int verbose, char *msg, size_t msg_cap);
 
 /** First attempt at every device; each one is reported by name (up, down
  *  with the reason, not configured). */

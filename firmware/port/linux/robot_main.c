@@ -2,13 +2,16 @@
  * coslam-robot - the robot firmware on Linux: the robot node
  * (firmware/app) on the Linux backends (robot_devices.h), one INI file
  * (robot_config.h), map snapshots (robot_snapshot.h), a status report
- * (robot_status.h). docs/robot.md has the details and the decisions.
+ * (robot_status.h), the link to the other robots (robot_link.h: Cyclone
+ * DDS behind the authentication decorator). docs/robot.md has the details and the decisions.
  *
  *   coslam-robot [-c FILE] [--dry-run] [--once N] [--status-file PATH]
  *                [--print-config] [-v]
  *
  * Exit status: 0 after a clean stop (SIGTERM, SIGINT, --once, --dry-run);
- * 2 for a bad command line or configuration; 1 when the node cannot start.
+ * 2 for a bad command line or configuration (including a configured fleet
+ * key file that is missing, unreadable, too open or invalid); 1 when the
+ * node cannot start.
  *
  * Main loop: one robot_node_step per step_period on an absolute monotonic
  * schedule (hal_clock_linux: clock_nanosleep(TIMER_ABSTIME) on
@@ -30,6 +33,7 @@
 #include "hal/hal_clock_linux.h"
 #include "robot_config.h"
 #include "robot_devices.h"
+#include "robot_link.h"
 #include "robot_snapshot.h"
 #include "robot_status.h"
 
@@ -210,13 +214,37 @@ static void load_snapshot(int restore)
             loaded.map.pose.theta, rs == COSLAM_E_CAPACITY ? " (cut to this build's capacity)" : "");
 }
 
+/* The meeting's events: merges and refusals always (they change or keep
+ * the map: worth a line each), sends with -v. Draining the queue also
+ * keeps mt_events_dropped at zero. */
+static void log_meeting_events(int verbose)
+{
+    meeting_event_t ev;
+    while (robot_node_take_event(&node, &ev) == COSLAM_OK) {
+        if (ev.kind == MEETING_EV_MERGED) {
+            fprintf(stderr, "coslam-robot: meeting: merged robot %u's map (seq %lu, %u landmarks%s)\n",
+                    (unsigned)ev.peer, (unsigned long)ev.seq, (unsigned)ev.n_landmarks,
+                    ev.status == COSLAM_OK ? "" : ", partly: capacity");
+        } else if (ev.kind == MEETING_EV_REFUSED) {
+            fprintf(stderr, "coslam-robot: meeting: refused a map from robot %u (seq %lu): %s\n", (unsigned)ev.peer,
+                    (unsigned long)ev.seq, coslam_status_str(ev.status));
+        } else if (verbose) {
+            fprintf(stderr, "coslam-robot: meeting: sent the map to robot %u (seq %lu, %u landmarks)\n",
+                    (unsigned)ev.peer, (unsigned long)ev.seq, (unsigned)ev.n_landmarks);
+        }
+    }
+}
+
 static void report_status(const options_t *o, int to_stderr, const robot_loop_stats_t *loop)
 {
     robot_status_collect(&status, &node, &dev, &snaps, loop);
     if (to_stderr) {
         static char line[4096];
         (void)robot_status_line(&status, line, sizeof line);
-        fprintf(stderr, "coslam-robot: status %s\n", line);
+        /* a link that is off or unauthenticated is said on every line */
+        const char *warn = robot_link_warning(&dev.link);
+        fprintf(stderr, "coslam-robot: status %s%s%s\n", line, warn != NULL ? " WARNING: " : "",
+                warn != NULL ? warn : "");
         fflush(stderr);
     }
     if (o->status_file != NULL && robot_status_write_json(&status, o->status_file) != 0) {
@@ -268,7 +296,14 @@ int main(int argc, char **argv)
     fprintf(stderr, "coslam-robot: robot %u of %u, %s filter, profile %s, config %s\n", (unsigned)cfg.robot_id,
             (unsigned)cfg.fleet_size, slam_filter_kind_name(cfg.node.filter.kind), COSLAM_PROFILE_NAME,
             opt.config_path);
-    robot_devices_init(&dev, &cfg, clock, stderr, opt.verbose);
+    const coslam_status_t ds = robot_devices_init(&dev, &cfg, clock, stderr, opt.verbose, msg, sizeof msg);
+    if (ds != COSLAM_OK) {
+        /* the link policy refused (a configured fleet key that cannot be
+         * used): running unauthenticated instead would be wrong */
+        fprintf(stderr, "coslam-robot: %s: %s\n", opt.config_path, msg);
+        robot_devices_close_all(&dev);
+        return ds == COSLAM_E_ARG ? 2 : 1;
+    }
     robot_devices_open_all(&dev, now);
     robot_snapshots_init(&snaps, robot_devices_storage(&dev));
 
@@ -352,6 +387,7 @@ int main(int argc, char **argv)
         }
         last_step = st;
         loop.steps++;
+        log_meeting_events(opt.verbose);
 
         (void)hal_clock_now_us(clock, &now);
         if (snap_us > 0U && now >= next_snap) {
@@ -413,6 +449,8 @@ int main(int argc, char **argv)
     loop.uptime_s = (double)(now - t_start) * 1e-6;
     loop.landmarks = count_landmarks();
     loop.cpu_pct = 100.0 * cpu_seconds() / (loop.uptime_s > 0.0 ? loop.uptime_s : 1.0);
+    /* the last map messages: acknowledged by the peers before DDS goes */
+    robot_link_flush(&dev.link, 200000U);
     report_status(&opt, 1, &loop);
     robot_devices_close_all(&dev);
     fprintf(stderr, "coslam-robot: stopped after %llu steps, %lu overruns%s\n", (unsigned long long)loop.steps,

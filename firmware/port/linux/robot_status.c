@@ -97,6 +97,8 @@ void robot_status_collect(robot_status_t *s, robot_node_t *node, const robot_dev
     u64(s, "mt_received", m->received);
     u64(s, "mt_rx_errors", m->rx_errors);
     u64(s, "mt_not_for_me", m->not_for_me);
+    u64(s, "mt_wrong_sender", m->wrong_sender);
+    u64(s, "mt_ignored_recent", m->ignored_recent);
     u64(s, "mt_replays", m->replays);
     u64(s, "mt_stale", m->stale);
     u64(s, "mt_merged", m->merged);
@@ -121,6 +123,48 @@ void robot_status_collect(robot_status_t *s, robot_node_t *node, const robot_dev
     f64(s, "x", pose.x, 3);
     f64(s, "y", pose.y, 3);
     f64(s, "theta", pose.theta, 4);
+    /* the link: its mode, the DDS counters and every authentication
+     * refusal by its reason (a refused message is visible here) */
+    const robot_link_t *l = &dev->link;
+    robot_link_counters_t lc;
+    robot_link_counters(l, &lc);
+    text(s, "link_mode", robot_link_mode_name(l));
+    u64(s, "dds_sent", lc.dds_sent);
+    u64(s, "dds_send_not_map", lc.dds_send_not_map);
+    u64(s, "dds_send_trailer_too_long", lc.dds_send_trailer_too_long);
+    u64(s, "dds_send_busy", lc.dds_send_busy);
+    u64(s, "dds_send_io", lc.dds_send_io);
+    u64(s, "dds_delivered", lc.dds_delivered);
+    u64(s, "dds_rx_overflow", lc.dds_rx_overflow);
+    u64(s, "dds_rx_other_dest", lc.dds_rx_other_dest);
+    u64(s, "dds_rx_own_id", lc.dds_rx_own_id);
+    u64(s, "dds_rx_invalid", lc.dds_rx_invalid);
+    u64(s, "dds_rx_not_data", lc.dds_rx_not_data);
+    u64(s, "dds_lost", lc.dds_lost);
+    u64(s, "dds_rejected", lc.dds_rejected);
+    u64(s, "dds_rx_io", lc.dds_rx_io);
+    u64(s, "link_opens", dev->dev[ROBOT_DEV_LINK].opens);
+    u64(s, "link_open_failures", dev->dev[ROBOT_DEV_LINK].open_failures);
+    u64(s, "link_losses", dev->dev[ROBOT_DEV_LINK].losses);
+    u64(s, "auth_sent", lc.auth_sent);
+    u64(s, "auth_send_not_map", lc.auth_send_not_map);
+    u64(s, "auth_send_wrong_sender", lc.auth_send_wrong_sender);
+    u64(s, "auth_send_too_long", lc.auth_send_too_long);
+    u64(s, "auth_send_inner_failed", lc.auth_send_inner_failed);
+    u64(s, "auth_delivered", lc.auth_delivered);
+    u64(s, "auth_rx_overflow", lc.auth_rx_overflow);
+    u64(s, "auth_refused", lc.auth_refused);
+    u64(s, "auth_rx_malformed", lc.auth_rx_malformed);
+    u64(s, "auth_rx_unauthenticated", lc.auth_rx_unauthenticated);
+    u64(s, "auth_rx_truncated", lc.auth_rx_truncated);
+    u64(s, "auth_rx_wrong_key", lc.auth_rx_wrong_key);
+    u64(s, "auth_rx_bad_mac", lc.auth_rx_bad_mac);
+    u64(s, "auth_rx_sender_mismatch", lc.auth_rx_sender_mismatch);
+    u64(s, "auth_rx_stale", lc.auth_rx_stale);
+    u64(s, "auth_rx_future", lc.auth_rx_future);
+    u64(s, "auth_rx_replay", lc.auth_rx_replay);
+    u64(s, "auth_rx_oversize", lc.auth_rx_oversize);
+
     u64(s, "snap_seq", snaps->newest_seq);
     u64(s, "snap_saves", snaps->saves);
     u64(s, "snap_failures", snaps->save_failures);

@@ -14,6 +14,13 @@
  *   the robot node's counters (robot_node_counters_t, same names);
  *   mt_* the meeting's counters (meeting_counters_t);
  *   urg_* the laser driver's (scans_ok and the err_ counters);
+ *   link_mode: auth | insecure | off(no_fleet_key) | off(no_dds_in_build)
+ *     | off(no_auth_in_build); on stderr a link that is not authenticated
+ *     also ends every line with "WARNING: link: ..." (robot_link_warning);
+ *   dds_* the DDS link's counters (hal_link_dds_counters_t names, summed
+ *     over reopened instances); link_opens link_open_failures link_losses;
+ *   auth_* the authentication decorator's (hal_link_auth_counters_t
+ *     names: every refusal by its reason; auth_refused their sum);
  *   landmarks x y theta (SLAM pose, map frame [m, m, rad]);
  *   snap_seq snap_saves snap_failures.
  */
@@ -33,7 +40,7 @@ extern "C" {
 #endif
 
 /** Longest list of pairs. */
-#define ROBOT_STATUS_MAX_KV 96
+#define ROBOT_STATUS_MAX_KV 128
 /** Longest value text [characters, without NUL]. */
 #define ROBOT_STATUS_VALUE_MAX 31u
 
