@@ -300,10 +300,8 @@ void Replay::setup()
         if (cfg_.merge.enabled && robots_.size() >= 2) {
             // the robot's meeting protocol, with the replay's settings
             meeting_config_t mc = meeting_config_default();
-            // the camera model of the config: range variance growing with range^2
-            mc.robot_range_var_m2 = cfg_.slam.noise.range_var_m2;
-            mc.robot_range_var_per_m2 = cfg_.slam.noise.range_var_per_m2;
-            mc.robot_bearing_var_rad2 = cfg_.slam.noise.bearing_var_rad2;
+            // the camera model of the config (the robot does the same)
+            meeting_config_noise_from(&mc, &cfg_.slam);
             mc.link_latency_us = 0U;
             mc.pair_window_us = static_cast<uint32_t>(std::llround(cfg_.merge.window_s * 1e6));
             mc.remerge_period_us = static_cast<uint32_t>(std::llround(cfg_.merge.interval_s * 1e6));
