@@ -6,15 +6,23 @@
 #   make replay   replay MRCLAM Dataset 6 (2 and 5 robots, both filters), out/replay/
 #   make bench-mrpt  install MRPT, then coslam vs MRPT EKF-SLAM on MRCLAM (out/bench/)
 #   make deps     install the Debian packages the build needs
-# Variables: BUILD (build dir), JOBS, PROFILE (default|large), TEST_LEVEL (ci|full)
+#   make robot    coslam-robot for the host ($(BUILD)) and for aarch64 ($(CROSS_BUILD))
+#   make cross    the aarch64 robot-side build and its tests under qemu-aarch64
+#   make package  Debian packages of coslam-robot (amd64, arm64) in out/package/
+# Variables: BUILD (build dir), JOBS, PROFILE (default|large), TEST_LEVEL (ci|full),
+#   CROSS_BUILD (aarch64 build dir), CROSS_CTEST_ARGS (ctest arguments of `make cross`)
 
 BUILD      ?= build
 JOBS       ?= $(shell nproc 2>/dev/null || echo 2)
 PROFILE    ?= default
 TEST_LEVEL ?= ci
 CMAKE_ARGS ?=
+CROSS_BUILD ?= build-aarch64
+# the cross tests run under qemu, ~10x slower: the long randomized ones
+# (label long) are left out unless CROSS_CTEST_ARGS= is given
+CROSS_CTEST_ARGS ?= -LE long
 
-.PHONY: all deps build configure test sim bench replay bench-mrpt clean distclean
+.PHONY: all deps build configure test sim bench replay bench-mrpt clean distclean robot cross package
 
 all: build
 
@@ -46,8 +54,28 @@ bench-mrpt:
 	@cmake --build $(BUILD) -j$(JOBS) --target coslam-bench-mrclam
 	@$(BUILD)/host/replay/coslam-bench-mrclam -c host/replay/mrclam6.ini --mrpt-grid --repeats 3 --out out/bench
 
+# The robot build and its Debian packages (docs/packaging.md).
+robot: configure
+	@cmake --build $(BUILD) -j$(JOBS) --target coslam-robot
+	@file $(BUILD)/firmware/port/linux/coslam-robot
+	@tools/deps.sh install cross
+	@JOBS=$(JOBS) PROFILE=$(PROFILE) TEST_LEVEL=$(TEST_LEVEL) tools/cross_aarch64.sh robot $(CROSS_BUILD)
+
+cross:
+	@tools/deps.sh install
+	@tools/deps.sh install cross
+	@JOBS=$(JOBS) PROFILE=$(PROFILE) TEST_LEVEL=$(TEST_LEVEL) CTEST_ARGS="$(CROSS_CTEST_ARGS)" \
+	  tools/cross_aarch64.sh test $(CROSS_BUILD)
+
+package: robot
+	@cpack --config $(BUILD)/CPackConfig.cmake -B $(BUILD)/package >/dev/null
+	@JOBS=$(JOBS) PROFILE=$(PROFILE) TEST_LEVEL=$(TEST_LEVEL) tools/cross_aarch64.sh package $(CROSS_BUILD) >/dev/null
+	@mkdir -p out/package && rm -f out/package/*.deb
+	@cp $(BUILD)/package/*.deb $(CROSS_BUILD)/package/*.deb out/package/
+	@ls -l out/package/*.deb
+
 clean:
 	@cmake --build $(BUILD) --target clean 2>/dev/null || true
 
 distclean:
-	rm -rf $(BUILD) out
+	rm -rf $(BUILD) $(CROSS_BUILD) out
