@@ -182,6 +182,11 @@ static hal_status_t read_one(hal_can_socketcan_t *sc, hal_can_frame_t *f, int *l
     }
     if (n == 0) return HAL_E_CLOSED; /* SOCK_SEQPACKET peer closed */
 
+    /* the real-time clock first: the age of the kernel's stamp is then
+     * measured up to a moment no later than now_mono, so the converted
+     * stamp is never earlier than the reception (an early stamp once broke
+     * "stamp >= sent" under emulation) */
+    const uint64_t now_real = clock_us(CLOCK_REALTIME);
     const uint64_t now_mono = clock_us(CLOCK_MONOTONIC);
     uint64_t stamp = now_mono;
     for (struct cmsghdr *c = CMSG_FIRSTHDR(&msg); c != NULL; c = CMSG_NXTHDR(&msg, c)) {
@@ -190,7 +195,6 @@ static hal_status_t read_one(hal_can_socketcan_t *sc, hal_can_frame_t *f, int *l
             struct timeval tv;
             memcpy(&tv, CMSG_DATA(c), sizeof tv);
             const uint64_t rx_real = (uint64_t)tv.tv_sec * 1000000u + (uint64_t)tv.tv_usec;
-            const uint64_t now_real = clock_us(CLOCK_REALTIME);
             const uint64_t age = now_real > rx_real ? now_real - rx_real : 0u;
             stamp = age < now_mono ? now_mono - age : 0u;
         } else if (c->cmsg_type == SO_RXQ_OVFL && c->cmsg_len >= CMSG_LEN(sizeof(uint32_t))) {
