@@ -39,6 +39,7 @@ libturbojpeg0-dev
 cyclonedds-dev
 cyclonedds-tools
 libsodium-dev
+libopencv-core-dev libopencv-imgproc-dev libopencv-imgcodecs-dev libopencv-videoio-dev
 "
 
 PACKAGES_MRPT="

@@ -2,7 +2,11 @@
 // simulated world and device emulators), write the run outputs and print a
 // one-screen summary. See docs/sim.md.
 //
-//   coslam-sim [--scenario FILE] [--out DIR] [--seed N] [--duration S] [--quiet]
+//   coslam-sim [--scenario FILE] [--out DIR] [--seed N] [--duration S] [--camera pixels|oracle] [--quiet]
+//
+// --camera: where the robots' sightings come from. pixels (the scenario
+// default): rendered camera frames through the real detector
+// (firmware/vision, docs/vision.md); oracle: the geometric stand-in.
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <iostream>
@@ -59,15 +63,20 @@ int main(int argc, char **argv)
     int64_t seed = -1;
     double duration = -1.0;
     bool quiet = false;
+    std::string camera;
     app.add_option("--scenario", scenario_path, "scenario file (TOML, docs/sim.md)")->capture_default_str();
     app.add_option("--out", out_dir, "output directory of the run")->capture_default_str();
     app.add_option("--seed", seed, "seed (default: the scenario's)")->check(CLI::NonNegativeNumber);
     app.add_option("--duration", duration, "simulated seconds (default: the scenario's)")->check(CLI::PositiveNumber);
     app.add_flag("--quiet", quiet, "no progress bar");
+    app.add_option("--camera", camera, "sightings from rendered pixels through the detector, or from the geometric stand-in "
+                                       "(default: the scenario's camera.source, pixels)")
+        ->check(CLI::IsMember({"pixels", "oracle"}));
     CLI11_PARSE(app, argc, argv);
 
     try {
-        const coslam::sim::Scenario sc = coslam::sim::load_scenario_file(scenario_path);
+        coslam::sim::Scenario sc = coslam::sim::load_scenario_file(scenario_path);
+        if (!camera.empty()) sc.camera.source = coslam::sim::parse_camera_source(camera);
         coslam::sim::SimulationOptions opt;
         if (seed >= 0) opt.seed = static_cast<uint64_t>(seed);
         if (duration > 0.0) opt.duration_s = duration;

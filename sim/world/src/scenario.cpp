@@ -221,6 +221,15 @@ void read_world(const toml::table &t, WorldSpec &w)
 void read_camera(const toml::table &t, CameraSpec &c)
 {
     Reader r(t, "camera");
+    std::string source;
+    r.str("source", source);
+    if (!source.empty()) {
+        try {
+            c.source = parse_camera_source(source);
+        } catch (const ScenarioError &) {
+            r.fail("source", "expected \"pixels\" or \"oracle\"");
+        }
+    }
     r.num("period_ms", c.period_ms, 1.0, 10000.0);
     r.num("fov_deg", c.fov_deg, 1.0, 360.0);
     r.num("min_range_m", c.min_range_m, 0.0, 1000.0);
@@ -388,6 +397,18 @@ Scenario parse(const toml::table &root, const std::string &source)
 }
 
 }  // namespace
+
+CameraSource parse_camera_source(const std::string &s)
+{
+    if (s == "pixels") return CameraSource::Pixels;
+    if (s == "oracle") return CameraSource::Oracle;
+    throw ScenarioError("camera source '" + s + "': expected pixels or oracle");
+}
+
+const char *camera_source_name(CameraSource s)
+{
+    return s == CameraSource::Pixels ? "pixels" : "oracle";
+}
 
 slam_filter_kind_t parse_filter_kind(const std::string &s)
 {

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <limits>
+#include <stdexcept>
 
 #include "coslam/motion.h"
 
@@ -31,8 +32,13 @@ UrgEmulatorConfig urg_config(const SimRobotConfig &c)
 SimRobot::SimRobot(SimClock &clock, World &world, SimLinkHub &hub, const SimRobotConfig &cfg)
     : clock_(clock), world_(world), hub_(hub), cfg_(cfg), pose_(cfg.start),
       rig_([&clock] { return clock.now_us(); }, rig_config(cfg)), gpio_(clock, kGpioLines),
-      oracle_(world, cfg.id, cfg.oracle), min_wall_clearance_m_(std::numeric_limits<double>::infinity())
+      min_wall_clearance_m_(std::numeric_limits<double>::infinity())
 {
+    if (cfg.camera == CameraSource::Oracle) {
+        oracle_ = std::make_unique<SightingOracle>(world, cfg.id, cfg.oracle);
+    } else {
+        pixels_ = std::make_unique<PixelCamera>(clock, world, cfg.id, cfg.pixels);
+    }
     truth_noise_ = slam_params_default();
     truth_noise_.noise.odo_xy_var_m2_per_m = cfg.odo_xy_var_m2_per_m;
     truth_noise_.noise.odo_theta_var_rad2_per_m = cfg.odo_theta_var_rad2_per_m;
@@ -51,8 +57,19 @@ robot_node_io_t SimRobot::io()
     io.can = rig_.robot_can();
     io.gpio = gpio_.handle();
     io.link = hub_.endpoint(static_cast<uint16_t>(cfg_.id));
-    io.sightings = oracle_.source();
+    io.sightings = oracle_ ? oracle_->source() : pixels_->source();
     return io;
+}
+
+SightingOracle &SimRobot::oracle()
+{
+    if (!oracle_) throw std::logic_error("SimRobot::oracle(): this robot's camera is the pixel camera");
+    return *oracle_;
+}
+
+const std::vector<int> &SimRobot::detections() const
+{
+    return oracle_ ? oracle_->detections() : pixels_->detections();
 }
 
 double SimRobot::laser_range(double angle_rad) const
@@ -67,6 +84,9 @@ void SimRobot::physics_step(uint64_t now_us, double dt_s)
     rig_.step(now_us);
     double vx = 0.0, vy = 0.0, w = 0.0;
     rig_.true_body_velocity(vx, vy, w);
+    vx_ = vx;
+    vy_ = vy;
+    w_ = w;
     odo_increment_t u = motion_from_body_velocity(vx, vy, w, dt_s);
     if (u.dx != 0.0 || u.dy != 0.0 || u.dtheta != 0.0) {
         u = motion_sample(&truth_noise_, u, &motion_rng_);
@@ -98,7 +118,11 @@ void SimRobot::physics_step(uint64_t now_us, double dt_s)
     world_.set_body(cfg_.id, pose_, cfg_.radius_m);
     gpio_.set_input_level(kBumperLine, contact_);
     urg_->set_time_us(now_us);
-    oracle_.set_time_us(now_us);
+    if (oracle_) {
+        oracle_->set_time_us(now_us);
+    } else {
+        pixels_->set_time_us(now_us, vx_, vy_, w_);
+    }
     hub_.set_position(static_cast<uint16_t>(cfg_.id), pose_.x, pose_.y);
 }
 

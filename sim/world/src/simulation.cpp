@@ -101,6 +101,7 @@ uint64_t derive_seed(uint64_t seed, int robot, int stream)
 
 Simulation::Simulation(const Scenario &sc, const SimulationOptions &opt)
     : sc_(sc), seed_(opt.seed.value_or(sc.seed)), duration_s_(opt.duration_s.value_or(sc.duration_s)),
+      camera_(sc.camera.source),
       export_buf_(std::make_unique<map_estimate_t>())
 {
     // world
@@ -151,6 +152,19 @@ Simulation::Simulation(const Scenario &sc, const SimulationOptions &opt)
         oc.robot_bearing_sd_rad = sc.camera.robot_bearing_sd_deg * kDeg;
         oc.seed = derive_seed(seed_, id, 1);
         rc.oracle = oc;
+        rc.camera = camera_;
+        if (camera_ == CameraSource::Pixels) {
+            // the rendered camera is vision/marker_spec.h's; the filters' field of view must be its
+            if (std::fabs(sc.camera.fov_deg - VISION_HFOV_DEG) > 0.5) {
+                throw ScenarioError("camera.fov_deg: the pixel camera sees " + std::to_string(VISION_HFOV_DEG) +
+                                    " deg (vision/marker_spec.h); use camera.source = \"oracle\" for another");
+            }
+            rc.pixels.period_us = oc.period_us;
+            rc.pixels.phase_us = oc.phase_us;
+            rc.pixels.render.seed = oc.seed;  // the camera's stream, as the stand-in's
+            rc.pixels.detector.min_range_m = sc.camera.min_range_m;
+            rc.pixels.detector.max_range_m = sc.camera.max_range_m;
+        }
         rc.seed_laser = derive_seed(seed_, id, 2);
         rc.seed_drive = derive_seed(seed_, id, 3);
         rc.seed_motion = derive_seed(seed_, id, 4);
@@ -327,7 +341,7 @@ void Simulation::advance_to(double t_end_s, const std::function<void(const Simul
             for (size_t k = 0; k < robots_.size(); ++k) truth_hist_[k].push_back(robots_[k]->pose());
             std::fill(result_.team_detections.begin(), result_.team_detections.end(), 0);
             for (auto &r : robots_) {
-                const auto &d = r->oracle().detections();
+                const auto &d = r->detections();
                 for (size_t j = 0; j < d.size() && j < result_.team_detections.size(); ++j) result_.team_detections[j] += d[j];
             }
             for (size_t k = 0; k < nodes_.size(); ++k) {

@@ -3,14 +3,14 @@
  * landmark sightings (range, bearing, signature) and sightings of other
  * robots (robot id, range, bearing), one frame at a time.
  *
- * This is the seam between the app and the vision pipeline. Today only the
- * simulator implements it, with a STAND-IN that is not a camera: the
- * simulator's SightingOracle (sim/world/sighting_oracle.hpp) computes the
- * sightings from the world's geometry (field of view, range limit,
- * occlusion by walls, seeded Gaussian noise, detection probability); no
- * image is rendered or segmented. The vision issue replaces the stand-in
- * with the real pipeline (camera frame -> colour segmentation -> blobs ->
- * markers) behind this same interface, so the app does not change.
+ * This is the seam between the app and the vision pipeline. Implementations:
+ * the vision source (firmware/vision/vision_source.h: a hal_camera_t plus
+ * the marker detector, camera frame -> colour table -> blobs -> markers),
+ * which the simulator runs on rendered pixels by default; the simulator's
+ * geometric STAND-IN (sim/world/sighting_oracle.hpp, `--camera oracle`:
+ * sightings from the world's geometry, no image); and coslam-robot's
+ * test-only sources (a landmark-log replay, a live stream from the
+ * end-to-end device server; firmware/port/linux/robot_sightings.h).
  *
  * Same shape as a HAL contract (hal/hal_common.h): a handle whose first
  * member points at a const ops table, an inline wrapper that returns

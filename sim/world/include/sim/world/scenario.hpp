@@ -50,7 +50,16 @@ struct WorldSpec {
     std::vector<LandmarkSpec> landmarks;
 };
 
-struct CameraSpec {               ///< the sighting stand-in (truth side)
+/// Where the robots' sightings come from: rendered pixels through the real
+/// detector (firmware/vision), or the geometric stand-in (SightingOracle).
+enum class CameraSource { Pixels, Oracle };
+
+/// "pixels" | "oracle"; throws ScenarioError otherwise.
+CameraSource parse_camera_source(const std::string &s);
+const char *camera_source_name(CameraSource s);
+
+struct CameraSpec {               ///< period, range limits, fov: both sources; the rest: the stand-in (truth side) and the filters' defaults
+    CameraSource source = CameraSource::Pixels;
     double period_ms = 200.0;
     double fov_deg = 50.0;
     double min_range_m = 0.3;

@@ -9,7 +9,10 @@
 //    line 1 e-stop (normally-closed loop: high = released, held high),
 //    line 2 status LED (driven by the firmware);
 //  - link: its endpoint on the team's SimLinkHub (positions fed each step);
-//  - sightings: SightingOracle, the camera stand-in (sighting_oracle.hpp).
+//  - camera and sightings, one of (SimRobotConfig.camera):
+//    pixels: PixelCamera (pixel_camera.hpp): frames rendered from the true
+//    pose into a SimCamera, the real detector (firmware/vision) on them;
+//    oracle: SightingOracle, the geometric stand-in (sighting_oracle.hpp).
 // Physics, per step dt: the true body velocity comes from the drives' true
 // (slipping) wheel speeds through the omni kinematics; the increment it
 // gives over dt is perturbed by Gaussian floor slip drawn with the core's
@@ -28,6 +31,8 @@
 #include "coslam/rng.h"
 #include "coslam/slam_params.h"
 #include "sim/can/omni_can_rig.hpp"
+#include "sim/world/pixel_camera.hpp"
+#include "sim/world/scenario.hpp"
 #include "sim/world/sighting_oracle.hpp"
 #include "sim/world/world.hpp"
 #include "sim_hal/sim_clock.hpp"
@@ -47,7 +52,9 @@ struct SimRobotConfig {
     pose2_t laser_mount{0.12, 0.0, 0.0};
     double laser_noise_sd_m = 0.01;
     double laser_noise_rel = 0.01;
-    SightingOracleConfig oracle;
+    CameraSource camera = CameraSource::Pixels;
+    SightingOracleConfig oracle;          ///< camera == Oracle
+    PixelCameraConfig pixels;             ///< camera == Pixels
     uint64_t seed_motion = 1, seed_laser = 2, seed_drive = 3;
 };
 
@@ -78,7 +85,13 @@ public:
     OmniCanRig &rig() { return rig_; }
     UrgEmulator &urg() { return *urg_; }
     SimGpio &gpio() { return gpio_; }
-    SightingOracle &oracle() { return oracle_; }
+    /// The camera stand-in; throws std::logic_error unless camera == Oracle.
+    SightingOracle &oracle();
+    /// The pixel camera, nullptr unless camera == Pixels.
+    PixelCamera *pixel_camera() { return pixels_.get(); }
+    const PixelCamera *pixel_camera() const { return pixels_.get(); }
+    /// Times true landmark j was detected (from either source).
+    const std::vector<int> &detections() const;
 
 private:
     double laser_range(double angle_rad) const;
@@ -93,7 +106,9 @@ private:
     OmniCanRig rig_;
     std::unique_ptr<UrgEmulator> urg_;
     SimGpio gpio_;
-    SightingOracle oracle_;
+    std::unique_ptr<SightingOracle> oracle_;
+    std::unique_ptr<PixelCamera> pixels_;
+    double vx_ = 0.0, vy_ = 0.0, w_ = 0.0;   ///< true body velocity (robot frame) of the last step
     static constexpr uint64_t kEpisodeGapUs = 500000;
     bool contact_ = false;
     uint64_t last_wall_contact_us_ = 0;

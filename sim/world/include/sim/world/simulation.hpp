@@ -4,7 +4,8 @@
 // time (SimClock, polling model: nothing in the firmware waits).
 //
 // Loop, per physics step (physics_dt_ms, default 1 ms):
-//   clock -> t; every robot: drives, body motion, laser, camera stand-in,
+//   clock -> t; every robot: drives, body motion, laser, camera (pixels
+//   rendered for the real detector, or the geometric stand-in),
 //   link position (SimRobot::physics_step); every control period: every
 //   robot's robot_node_step(), then its meeting events are collected; every
 //   path period: poses; every sample period: map exports and errors.
@@ -134,11 +135,13 @@ public:
     const SimulationResult &result() const { return result_; }
     const Scenario &scenario() const { return sc_; }
     uint64_t seed() const { return seed_; }
+    CameraSource camera_source() const { return camera_; }
     const World &world() const { return world_; }
     size_t n_robots() const { return robots_.size(); }
     robot_node_t &node(size_t k) { return *nodes_.at(k); }
     const robot_node_t &node(size_t k) const { return *nodes_.at(k); }
     SimRobot &robot(size_t k) { return *robots_.at(k); }
+    const SimRobot &robot(size_t k) const { return *robots_.at(k); }
     SimLinkHub &link() { return *hub_; }
     /// True landmark positions in robot k's map frame.
     std::vector<point2_t> truth_in_map(size_t k) const;
@@ -153,6 +156,7 @@ private:
     Scenario sc_;
     uint64_t seed_;
     double duration_s_;
+    CameraSource camera_;
     World world_;
     std::unique_ptr<SimClock> clock_;
     std::unique_ptr<SimLinkHub> hub_;

@@ -1,0 +1,39 @@
+/*
+ * vision/vision_config.h - capacities of the detector (vision/vision.h).
+ * Defaults here; a build or a test may define its own before including.
+ * Memory: the detector allocates its buffers once, at
+ * vision_detector_create, from these numbers and the image size (about
+ * 20 * VISION_MAX_RUNS + 4 * width * height bytes; 0.6 MB at 320x240).
+ */
+#ifndef COSLAM_VISION_CONFIG_H
+#define COSLAM_VISION_CONFIG_H
+
+/** Runs (maximal horizontal stretches of one colour class) per frame. A
+ *  rendered or real 320x240 frame has 300-3000; past the capacity the rows
+ *  left are not labelled and the frame reports VISION_E_CAPACITY. */
+#ifndef VISION_MAX_RUNS
+#define VISION_MAX_RUNS 16384
+#endif
+
+/** Blobs (connected components of one colour, at least
+ *  vision_config_t.min_blob_area_px pixels) considered for pairing. */
+#ifndef VISION_MAX_BLOBS
+#define VISION_MAX_BLOBS 512
+#endif
+
+/** Markers reported per frame (landmarks and robots together). */
+#ifndef VISION_MAX_MARKERS
+#define VISION_MAX_MARKERS 32
+#endif
+
+#if VISION_MAX_RUNS < 64 || VISION_MAX_RUNS > 1048576
+#error "VISION_MAX_RUNS must be in [64, 2^20]"
+#endif
+#if VISION_MAX_BLOBS < 8 || VISION_MAX_BLOBS > 65535
+#error "VISION_MAX_BLOBS must be in [8, 65535]"
+#endif
+#if VISION_MAX_MARKERS < 1 || VISION_MAX_MARKERS > 255
+#error "VISION_MAX_MARKERS must be in [1, 255]"
+#endif
+
+#endif /* COSLAM_VISION_CONFIG_H */
