@@ -498,6 +498,8 @@ static void set_str(char *dst, const char *src)
 void robot_config_default(robot_config_t *c)
 {
     memset(c, 0, sizeof *c);
+    c->can_fd = -1;
+    c->camera_live_fd = -1;
     c->robot_id = 0U;
     c->fleet_size = 2U;
     c->step_period_us = 10000U;

@@ -84,6 +84,12 @@ typedef struct {
                                                          logged); "" = none: no link */
     uint8_t fleet_key_id;          /**< version of that key, sent in the clear (0..255) */
     double fleet_window_s;         /**< authentication time window [s] (fleet clocks within it) */
+    /* end-to-end tests only (docs/e2e.md), set from the command line, no
+     * INI keys: inherited file descriptors from the device server */
+    int can_fd;                    /**< --can-fd: SOCK_SEQPACKET carrying struct can_frame
+                                        instead of a SocketCAN interface; -1 = none */
+    int camera_live_fd;            /**< --sightings-fd: the live sighting stream
+                                        (robot_live_open, a camera stand-in); -1 = none */
     /* everything the robot node takes; robot_id, n_robots, filter.robot_id,
      * filter_period_us, retry_period_us, the meeting's robot-sighting noise
      * and the degraded-mode flags are derived at the end of the load */

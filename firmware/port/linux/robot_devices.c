@@ -4,7 +4,9 @@
 #include <stdarg.h>
 #include <stdio.h>
 #include <string.h>
+#include <unistd.h>
 
+#include "hal_can_socketcan_internal.h" /* --can-fd: e2e tests only */
 #include "robot_link.h"
 
 /* snprintf that may truncate on purpose (messages, labels): always terminated. */
@@ -303,7 +305,15 @@ static int try_open(robot_devices_t *d, robot_dev_t id, uint64_t now_us)
         s = hal_serial_linux_open(&d->laser_dev, &d->laser_state, c->laser_device, c->laser_baud);
         break;
     case ROBOT_DEV_CAN:
-        s = hal_can_socketcan_open(&d->can_state, c->can_interface);
+        if (c->can_fd >= 0) {
+            /* e2e tests: a socketpair from the device server stands in for
+             * the SocketCAN socket (only the open differs); the inherited fd
+             * stays ours for a reopen, the backend owns the dup */
+            const int fd = dup(c->can_fd);
+            s = fd >= 0 ? hal_can_socketcan_open_fd(&d->can_state, fd) : HAL_E_IO;
+        } else {
+            s = hal_can_socketcan_open(&d->can_state, c->can_interface);
+        }
         if (s == HAL_OK && d->can_filter_count > 0U) {
             const hal_status_t fs = hal_can_set_filters(&d->can_state.can, d->can_filters, d->can_filter_count);
             if (fs != HAL_OK && fs != HAL_E_UNSUPPORTED) {
@@ -318,7 +328,7 @@ static int try_open(robot_devices_t *d, robot_dev_t id, uint64_t now_us)
 #endif
         break;
     case ROBOT_DEV_CAMERA:
-        if (d->camera_kind == ROBOT_SIGHTINGS_REPLAY) {
+        if (d->camera_kind == ROBOT_SIGHTINGS_REPLAY || d->camera_kind == ROBOT_SIGHTINGS_LIVE) {
             robot_sightings_kind_t k = robot_open_sightings(&d->replay, c, d->clock, &s, reason, sizeof reason);
             (void)k;
         }
@@ -391,7 +401,12 @@ coslam_status_t robot_devices_init(robot_devices_t *d, const robot_config_t *cfg
     robot_dev_status_t *st = d->dev;
     put_text(st[ROBOT_DEV_LASER].what, sizeof st[0].what, "URG on %s at %lu baud", cfg->laser_device,
                    (unsigned long)cfg->laser_baud);
-    put_text(st[ROBOT_DEV_CAN].what, sizeof st[0].what, "CiA 402 drives on SocketCAN %s", cfg->can_interface);
+    if (cfg->can_fd >= 0) {
+        put_text(st[ROBOT_DEV_CAN].what, sizeof st[0].what, "CiA 402 drives on inherited CAN fd %d (e2e test)",
+                 cfg->can_fd);
+    } else {
+        put_text(st[ROBOT_DEV_CAN].what, sizeof st[0].what, "CiA 402 drives on SocketCAN %s", cfg->can_interface);
+    }
     put_text(st[ROBOT_DEV_GPIO].what, sizeof st[0].what, "bumper / e-stop / LED on %s", cfg->gpio_chip);
     put_text(st[ROBOT_DEV_STORAGE].what, sizeof st[0].what, "snapshots in %s", cfg->storage_dir);
     /* the link policy and the fleet key: before anything opens */
@@ -404,7 +419,8 @@ void robot_devices_open_all(robot_devices_t *d, uint64_t now_us)
 {
     const robot_config_t *c = d->cfg;
     robot_dev_status_t *st = d->dev;
-    const char *names[ROBOT_DEV_COUNT] = {c->laser_device, c->can_interface, c->gpio_chip, "", "", c->storage_dir};
+    const char *names[ROBOT_DEV_COUNT] = {c->laser_device, c->can_fd >= 0 ? "fd" : c->can_interface, c->gpio_chip,
+                                          "", "", c->storage_dir};
     char text[320];
     for (int i = 0; i < ROBOT_DEV_COUNT; ++i) {
         const robot_dev_t id = (robot_dev_t)i;
@@ -420,8 +436,13 @@ void robot_devices_open_all(robot_devices_t *d, uint64_t now_us)
                 say(d, "camera", &st[id],
                     "not available (no Linux camera pipeline in this build): localisation on odometry only");
             } else {
-                put_text(st[id].what, sizeof st[id].what, "landmark-log replay %s (test/bench source, not a camera)",
-                               c->camera_replay_log);
+                if (d->camera_kind == ROBOT_SIGHTINGS_LIVE) {
+                    put_text(st[id].what, sizeof st[id].what,
+                             "live sightings on fd %d (e2e device server, a camera stand-in)", c->camera_live_fd);
+                } else {
+                    put_text(st[id].what, sizeof st[id].what,
+                             "landmark-log replay %s (test/bench source, not a camera)", c->camera_replay_log);
+                }
                 if (s == HAL_OK) {
                     st[id].state = ROBOT_DEV_UP;
                     st[id].opens++;

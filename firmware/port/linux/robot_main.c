@@ -6,7 +6,12 @@
  * DDS behind the authentication decorator). docs/robot.md has the details and the decisions.
  *
  *   coslam-robot [-c FILE] [--dry-run] [--once N] [--status-file PATH]
- *                [--print-config] [-v]
+ *                [--print-config] [-v] [--can-fd N] [--sightings-fd N]
+ *
+ * --can-fd and --sightings-fd are for end-to-end tests only (docs/e2e.md):
+ * file descriptors inherited from the device server coslam-sim-devices, a
+ * socketpair carrying struct can_frame in place of the SocketCAN socket and
+ * the live sighting stream standing in for the camera.
  *
  * Exit status: 0 after a clean stop (SIGTERM, SIGINT, --once, --dry-run);
  * 2 for a bad command line or configuration (including a configured fleet
@@ -51,6 +56,8 @@ typedef struct {
     int print_config;
     long once;
     int verbose;
+    int can_fd;        /* e2e tests: inherited CAN socket (docs/e2e.md); -1 none */
+    int sightings_fd;  /* e2e tests: inherited live sighting stream; -1 none */
 } options_t;
 
 static void usage(FILE *out)
@@ -62,7 +69,9 @@ static void usage(FILE *out)
             "  --once N            run N steps, then stop as on SIGTERM (tests)\n"
             "  --status-file PATH  also write the status report there as JSON (atomically)\n"
             "  --print-config      print the effective configuration as INI and exit\n"
-            "  -v                  verbose: every snapshot and every failed device retry\n");
+            "  -v                  verbose: every snapshot and every failed device retry\n"
+            "  --can-fd N          (e2e tests) CAN frames on inherited socket N instead of [can] interface\n"
+            "  --sightings-fd N    (e2e tests) live sightings on inherited socket N, a camera stand-in\n");
 }
 
 static int parse_args(int argc, char **argv, options_t *o)
@@ -70,6 +79,8 @@ static int parse_args(int argc, char **argv, options_t *o)
     memset(o, 0, sizeof *o);
     o->config_path = ROBOT_CONFIG_DEFAULT_PATH;
     o->once = -1;
+    o->can_fd = -1;
+    o->sightings_fd = -1;
     for (int i = 1; i < argc; ++i) {
         const char *a = argv[i];
         if (strcmp(a, "-c") == 0 && i + 1 < argc) {
@@ -85,6 +96,19 @@ static int parse_args(int argc, char **argv, options_t *o)
             if (errno != 0 || end == argv[i] || *end != '\0' || o->once < 0) {
                 fprintf(stderr, "coslam-robot: --once needs a step count >= 0, got '%s'\n", argv[i]);
                 return -1;
+            }
+        } else if ((strcmp(a, "--can-fd") == 0 || strcmp(a, "--sightings-fd") == 0) && i + 1 < argc) {
+            char *end = NULL;
+            errno = 0;
+            const long v = strtol(argv[++i], &end, 10);
+            if (errno != 0 || end == argv[i] || *end != '\0' || v < 0 || v > 65535) {
+                fprintf(stderr, "coslam-robot: %s needs a file descriptor, got '%s'\n", a, argv[i]);
+                return -1;
+            }
+            if (a[2] == 'c') {
+                o->can_fd = (int)v;
+            } else {
+                o->sightings_fd = (int)v;
             }
         } else if (strcmp(a, "--status-file") == 0 && i + 1 < argc) {
             o->status_file = argv[++i];
@@ -274,6 +298,8 @@ int main(int argc, char **argv)
         fprintf(stderr, "coslam-robot: %s\n", msg);
         return 2;
     }
+    cfg.can_fd = opt.can_fd;
+    cfg.camera_live_fd = opt.sightings_fd;
     if (opt.print_config) {
         robot_config_print(&cfg, stdout);
         return 0;

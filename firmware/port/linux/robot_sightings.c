@@ -4,7 +4,10 @@
 
 #include <errno.h>
 #include <math.h>
+#include <stdlib.h>
 #include <string.h>
+#include <sys/socket.h>
+#include <unistd.h>
 
 #include "app/slam_params_ini.h"
 #include "coslam/pose2.h"
@@ -159,10 +162,105 @@ static void complete_frame(robot_replay_t *r)
     r->building_n = 0;
 }
 
+/* One datagram of the live stream into r->building; 1 if it is a frame. */
+static int live_parse(robot_replay_t *r, char *text)
+{
+    int have_t = 0;
+    uint64_t stamp = 0;
+    r->building_n = 0;
+    frame_clear(&r->building);
+    for (char *line = text, *next = NULL; line != NULL && *line != '\0'; line = next) {
+        next = strchr(line, '\n');
+        if (next != NULL) {
+            *next++ = '\0';
+        }
+        if (line[0] == 'T' && line[1] == ' ') {
+            char *end = NULL;
+            errno = 0;
+            const unsigned long long v = strtoull(line + 2, &end, 10);
+            if (errno != 0 || end == line + 2) {
+                return 0;
+            }
+            stamp = (uint64_t)v;
+            have_t = 1;
+            continue;
+        }
+        if (line[0] == 'S' && line[1] == ' ') {
+            /* S t signature range bearing: a marker of that class (the
+             * camera's view: signature, no identity) */
+            line[0] = 'Z';
+            robot_replay_record_t rec;
+            char why[160];
+            if (parse_line(line, &rec, why, sizeof why) != LINE_RECORD || rec.id < 0 || rec.id > 255) {
+                return 0;
+            }
+            const uint16_t before = r->building_n > 0 ? r->building.n_landmarks : 0U;
+            add_record(r, &rec);
+            sighting_frame_t *fr = &r->building;
+            if (fr->n_landmarks > before) {
+                fr->landmarks[fr->n_landmarks - 1U].signature = (uint8_t)rec.id;
+            }
+            continue;
+        }
+        robot_replay_record_t rec;
+        char why[160];
+        const line_kind_t k = parse_line(line, &rec, why, sizeof why);
+        if (k == LINE_BAD) {
+            return 0;
+        }
+        if (k == LINE_RECORD && (rec.tag == 'Z' || rec.tag == 'R')) {
+            add_record(r, &rec);
+        }
+    }
+    if (!have_t) {
+        return 0;
+    }
+    r->building.stamp_us = stamp;
+    r->building_n = 1; /* an empty frame is a frame too: the camera saw nothing */
+    return 1;
+}
+
+static hal_status_t live_next_frame(robot_replay_t *r, sighting_frame_t *out)
+{
+    if (r->live_fd < 0) {
+        return HAL_E_CLOSED;
+    }
+    char buf[8192];
+    for (int guard = 0; guard < 1000; ++guard) {
+        const ssize_t n = recv(r->live_fd, buf, sizeof buf - 1u, MSG_DONTWAIT);
+        if (n < 0) {
+            if (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR) {
+                break;
+            }
+            return HAL_E_IO;
+        }
+        if (n == 0) {
+            return HAL_E_CLOSED;
+        }
+        buf[n] = '\0';
+        if (!live_parse(r, buf)) {
+            r->live_bad++;
+            r->building_n = 0;
+            continue;
+        }
+        complete_frame(r);
+    }
+    if (!r->ready) {
+        return HAL_E_TIMEOUT;
+    }
+    *out = r->out;
+    r->ready = 0;
+    r->frames_given++;
+    return HAL_OK;
+}
+
 static hal_status_t replay_next_frame(sighting_source_t *src, sighting_frame_t *out, uint32_t timeout_us)
 {
     robot_replay_t *r = (robot_replay_t *)src->backend;
     (void)timeout_us; /* frames come at log times: waiting would only delay the caller */
+    if (r->live) {
+        return live_next_frame(r, out);
+    }
     if (r->f == NULL) {
         return HAL_E_CLOSED;
     }
@@ -276,8 +374,34 @@ hal_status_t robot_replay_open(robot_replay_t *r, const char *path, int loop, ha
     return HAL_OK;
 }
 
+hal_status_t robot_live_open(robot_replay_t *r, int fd, hal_clock_t *clock, char *msg, size_t msg_cap)
+{
+    if (msg != NULL && msg_cap > 0U) {
+        msg[0] = '\0';
+    }
+    if (r == NULL || clock == NULL || msg == NULL || fd < 0) {
+        return HAL_E_ARG;
+    }
+    memset(r, 0, sizeof *r);
+    r->src.ops = &replay_ops;
+    r->src.backend = r;
+    r->clock = clock;
+    r->live = 1;
+    (void)snprintf(r->path, sizeof r->path, "fd %d", fd);
+    r->live_fd = dup(fd);
+    if (r->live_fd < 0) {
+        (void)snprintf(msg, msg_cap, "sightings fd %d: %s", fd, strerror(errno));
+        return HAL_E_IO;
+    }
+    return HAL_OK;
+}
+
 void robot_replay_close(robot_replay_t *r)
 {
+    if (r != NULL && r->live && r->live_fd >= 0) {
+        (void)close(r->live_fd);
+        r->live_fd = -1;
+    }
     if (r != NULL && r->f != NULL) {
         (void)fclose(r->f);
         r->f = NULL;
@@ -293,6 +417,10 @@ robot_sightings_kind_t robot_open_sightings(robot_replay_t *r, const robot_confi
     *st = HAL_E_UNSUPPORTED;
     if (msg != NULL && msg_cap > 0U) {
         msg[0] = '\0';
+    }
+    if (cfg->camera_live_fd >= 0) {
+        *st = robot_live_open(r, cfg->camera_live_fd, clock, msg, msg_cap);
+        return ROBOT_SIGHTINGS_LIVE;
     }
     if (cfg->camera_replay_log[0] != '\0') {
         *st = robot_replay_open(r, cfg->camera_replay_log, cfg->camera_replay_loop, clock, msg, msg_cap);

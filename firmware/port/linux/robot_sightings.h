@@ -3,6 +3,10 @@
  * (app/sighting_source.h).
  *
  * robot_open_sightings() is the one place that chooses the source:
+ *  - --sightings-fd N (cfg->camera_live_fd): the live stream of the e2e
+ *    device server (robot_live_open below), END-TO-END TESTS ONLY: a
+ *    stand-in for the camera until the vision pipeline is wired
+ *    (docs/e2e.md);
  *  - [camera] replay_log set: the landmark-log replay below, a TEST AND
  *    BENCH SOURCE, NOT A CAMERA;
  *  - [camera] device set: no Linux camera pipeline exists yet (V4L2 and the
@@ -77,6 +81,10 @@ typedef struct {
     uint32_t records;             /**< Z and R records played */
     uint32_t ignored_records;     /**< O and V records */
     uint32_t loops;
+    /* live mode (robot_live_open): frames come from a datagram socket */
+    int live;                     /**< 1: this is the live source, f is unused */
+    int live_fd;                  /**< our dup of the inherited socket */
+    uint32_t live_bad;            /**< datagrams refused (bad text, no T line) */
 } robot_replay_t;
 
 /**
@@ -88,6 +96,23 @@ typedef struct {
 hal_status_t robot_replay_open(robot_replay_t *r, const char *path, int loop, hal_clock_t *clock, char *msg,
                                size_t msg_cap);
 
+/**
+ * The live sighting stream (END-TO-END TESTS ONLY: a stand-in for the camera
+ * until the vision pipeline is wired; docs/e2e.md). `fd` is an inherited
+ * SOCK_SEQPACKET (or SOCK_DGRAM) socket; it is dup'ed, so the inherited one
+ * stays open for a reopen after a failure. One datagram is one frame, text:
+ *   T stamp_us                       capture time, CLOCK_MONOTONIC [us]
+ *   S t signature range bearing      a marker of class `signature` (0..255)
+ *   Z t id range bearing             the landmark-log records above (t is
+ *   R t other_robot_id range bearing the sender's simulated time, ignored)
+ * A datagram without its T line or with a bad line is refused and counted
+ * (live_bad). next_frame never waits: it drains what is queued and hands
+ * out the newest frame (older ones count in frames_skipped). The peer's
+ * close answers HAL_E_CLOSED. Returns HAL_OK; HAL_E_ARG (NULL, fd < 0);
+ * HAL_E_IO (dup failed: msg says why).
+ */
+hal_status_t robot_live_open(robot_replay_t *r, int fd, hal_clock_t *clock, char *msg, size_t msg_cap);
+
 /** Close the file (the handle then answers HAL_E_CLOSED). */
 void robot_replay_close(robot_replay_t *r);
 
@@ -96,11 +121,13 @@ typedef enum {
     ROBOT_SIGHTINGS_NONE = 0,    /**< no camera configured */
     ROBOT_SIGHTINGS_NO_CAMERA,   /**< a camera is configured, but no Linux pipeline exists */
     ROBOT_SIGHTINGS_REPLAY,      /**< the landmark-log replay (test / bench) */
+    ROBOT_SIGHTINGS_LIVE,        /**< the live stream of the e2e device server (--sightings-fd) */
 } robot_sightings_kind_t;
 
 /**
  * Choose and open the sighting source for cfg (header comment). Returns
- * the kind; for ROBOT_SIGHTINGS_REPLAY *st is the open status of the
+ * the kind (cfg->camera_live_fd >= 0 first: the live stream); for
+ * ROBOT_SIGHTINGS_REPLAY and ROBOT_SIGHTINGS_LIVE *st is the open status of the
  * replay (HAL_OK or its error, with msg), else HAL_E_UNSUPPORTED.
  */
 robot_sightings_kind_t robot_open_sightings(robot_replay_t *r, const robot_config_t *cfg, hal_clock_t *clock,

@@ -1,0 +1,97 @@
+#!/usr/bin/env python3
+"""Compare an end-to-end run (coslam-sim-devices + two coslam-robot
+processes) with the in-process simulator on the same scenario.
+
+    e2e_compare.py SWEEP_DIR E2E_DIR
+
+SWEEP_DIR holds coslam-sim runs of the scenario, one sub-directory per seed
+(metrics.json, robot<k>_errors.csv); E2E_DIR the device server's
+result.json. The e2e run is real time: the scheduling of three processes
+changes when each sighting, scan and CAN frame lands, so its trajectory is
+one more random realisation of the scenario, not a replay of one seed. The
+bounds are therefore the envelope of the in-process runs over the seeds,
+widened by a margin (docs/e2e.md, "Bounds"). Exit 0 when every check holds.
+"""
+import csv
+import json
+import os
+import sys
+
+# margins beyond the in-process envelope (docs/e2e.md justifies each)
+MERGE_MARGIN_S = 6.0        # first merge time
+POSE_FINAL_MARGIN_M = 0.15  # final position error, and never above POSE_FINAL_CAP_M
+POSE_FINAL_CAP_M = 0.5
+POSE_RMSE_FACTOR = 1.5      # pose RMSE over the run
+MAP_MATCHED_MARGIN = 2      # landmarks matched in the final map
+MAP_SPURIOUS_MARGIN = 2
+MAP_RMSE_FACTOR = 1.5
+
+
+def inproc(run):
+    m = json.load(open(os.path.join(run, "metrics.json")))
+    out = []
+    for r in m["robots"]:
+        rows = list(csv.reader(open(os.path.join(run, "robot%d_errors.csv" % r["id"]))))
+        f = r["map"]["final"]
+        out.append({"merge": r["first_merge_s"], "final_pos": float(rows[-1][1]),
+                    "rmse": r["pose_rmse_m"]["all"], "matched": f["n_matched"],
+                    "spurious": f["n_spurious"], "map_rmse": f["rmse_m"]})
+    return out
+
+
+def main():
+    sweep_dir, e2e_dir = sys.argv[1], sys.argv[2]
+    runs = [inproc(os.path.join(sweep_dir, d)) for d in sorted(os.listdir(sweep_dir))
+            if os.path.exists(os.path.join(sweep_dir, d, "metrics.json"))]
+    if not runs:
+        print("e2e_compare: no in-process runs in", sweep_dir)
+        return 1
+    res = json.load(open(os.path.join(e2e_dir, "result.json")))
+    ok = True
+
+    def check(cond, what):
+        nonlocal ok
+        print("  %-4s %s" % ("ok" if cond else "FAIL", what))
+        ok = ok and cond
+
+    t = res["timing"]
+    print("e2e: %.1f s simulated in %.1f s wall, latest physics wake-up %.1f ms; %d in-process runs"
+          % (t["sim_s"], t["wall_s"], t["late_max_ms"], len(runs)))
+    check(abs(t["wall_s"] - t["sim_s"]) < 2.0, "real time: wall %.1f s vs simulated %.1f s" % (t["wall_s"], t["sim_s"]))
+    for k, e in enumerate(res["robots"]):
+        col = lambda key: [r[k][key] for r in runs]
+        print("robot %d (%s): e2e vs in-process [min .. max over seeds]" % (k, e["filter"]))
+        w = e["wire"]
+        check(e["clean_exit"], "coslam-robot stopped cleanly on SIGTERM (status %s)" % e["exit_status"])
+        check(w["can_dropped"] == 0 and w["frames_dropped"] == 0,
+              "wires: %d CAN frames to the drives, %d back, %d dropped; %d sighting frames, %d dropped"
+              % (w["can_to_drives"], w["can_to_robot"], w["can_dropped"], w["frames_sent"], w["frames_dropped"]))
+        check(w["urg_scans_ok"] >= 8.0 * t["sim_s"],
+              "laser: %d SCIP scans parsed (10 Hz: %d expected)" % (w["urg_scans_ok"], 10 * t["sim_s"]))
+        m = col("merge")
+        check(e["first_merge_s"] > 0 and min(m) - MERGE_MARGIN_S <= e["first_merge_s"] <= max(m) + MERGE_MARGIN_S,
+              "first merge at %.1f s [%.1f .. %.1f] +- %.0f s" % (e["first_merge_s"], min(m), max(m), MERGE_MARGIN_S))
+        fp = col("final_pos")
+        lim = min(max(fp) + POSE_FINAL_MARGIN_M, POSE_FINAL_CAP_M)
+        check(e["final_pos_err_m"] <= lim, "final position error %.3f m [%.3f .. %.3f], bound %.3f m"
+              % (e["final_pos_err_m"], min(fp), max(fp), lim))
+        rm = col("rmse")
+        check(e["pose_rmse_m"] <= POSE_RMSE_FACTOR * max(rm), "pose RMSE %.3f m [%.3f .. %.3f], bound %.3f m"
+              % (e["pose_rmse_m"], min(rm), max(rm), POSE_RMSE_FACTOR * max(rm)))
+        fm = e.get("final_map")
+        if fm is None:
+            check(False, "final map: no snapshot")
+            continue
+        mt, sp, mr = col("matched"), col("spurious"), col("map_rmse")
+        check(fm["n_matched"] >= min(mt) - MAP_MATCHED_MARGIN, "map: %d landmarks matched [%d .. %d]"
+              % (fm["n_matched"], min(mt), max(mt)))
+        check(fm["n_spurious"] <= max(sp) + MAP_SPURIOUS_MARGIN, "map: %d spurious [%d .. %d]"
+              % (fm["n_spurious"], min(sp), max(sp)))
+        check(fm["rmse_m"] <= MAP_RMSE_FACTOR * max(mr), "map RMSE %.3f m [%.3f .. %.3f], bound %.3f m"
+              % (fm["rmse_m"], min(mr), max(mr), MAP_RMSE_FACTOR * max(mr)))
+    print("e2e_compare:", "PASS" if ok else "FAIL")
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,22 @@
+#!/bin/sh
+# The end-to-end run (docs/e2e.md): the in-process simulator on the
+# scenario for SEEDS seeds (the envelope), then the device server with two
+# real coslam-robot processes (pty URG, CAN socketpair, live sightings,
+# Cyclone DDS on loopback), then the comparison.
+#   run_e2e.sh COSLAM_SIM COSLAM_SIM_DEVICES COSLAM_ROBOT SCENARIO OUT [SEEDS] [DURATION_S]
+set -eu
+sim=$1 devices=$2 robot=$3 scenario=$4 out=$5 seeds=${6:-8} duration=${7:-}
+here=$(dirname "$0")
+rm -rf "$out"
+mkdir -p "$out/sweep"
+dur_opt=""
+[ -n "$duration" ] && dur_opt="--duration $duration"
+s=1
+while [ "$s" -le "$seeds" ]; do
+    # shellcheck disable=SC2086
+    "$sim" --scenario "$scenario" --camera oracle --seed "$s" $dur_opt --quiet --out "$out/sweep/seed$s" > /dev/null
+    s=$((s + 1))
+done
+# shellcheck disable=SC2086
+"$devices" --scenario "$scenario" --robot "$robot" --out "$out/e2e" $dur_opt --domain "${COSLAM_E2E_DOMAIN:-175}"
+exec python3 "$here/e2e_compare.py" "$out/sweep" "$out/e2e"
