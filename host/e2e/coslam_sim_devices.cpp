@@ -280,40 +280,9 @@ int main(int argc, char **argv)
     SimClock clock(0);
     SimLinkParams lp;  // unused: the link is DDS; the hub only takes positions
     SimLinkHub hub(clock, n, lp);
-    const uint64_t period_us = static_cast<uint64_t>(sc.camera.period_ms * 1000.0);
     std::vector<std::unique_ptr<SimRobot>> robots;
     for (size_t k = 0; k < n; ++k) {
-        const RobotSpec &rs = sc.robots[k];
-        const int id = static_cast<int>(k);
-        SimRobotConfig rc;
-        rc.id = id;
-        rc.start = rs.start;
-        rc.radius_m = rs.radius_m;
-        rc.odo_xy_var_m2_per_m = sq(rs.noise.odo_xy_sd_m);
-        rc.odo_theta_var_rad2_per_m = sq(rs.noise.odo_theta_sd_deg * kDeg);
-        rc.wheel_slip_sd = rs.noise.wheel_slip_sd;
-        rc.laser_mount = sc.laser.mount;
-        rc.laser_noise_sd_m = sc.laser.noise_sd_m;
-        rc.laser_noise_rel = sc.laser.noise_rel;
-        SightingOracleConfig oc;
-        oc.period_us = period_us;
-        oc.phase_us = (period_us * k / n) / 1000u * 1000u;
-        oc.fov_rad = sc.camera.fov_deg * kDeg;
-        oc.min_range_m = sc.camera.min_range_m;
-        oc.max_range_m = sc.camera.max_range_m;
-        oc.p_detect = sc.camera.p_detect;
-        oc.range_sd_m = sc.camera.range_sd_m;
-        oc.range_sd_rel = sc.camera.range_sd_rel;
-        oc.bearing_sd_rad = sc.camera.bearing_sd_deg * kDeg;
-        oc.robot_p_detect = sc.camera.robot_p_detect;
-        oc.robot_range_sd_m = sc.camera.robot_range_sd_m;
-        oc.robot_bearing_sd_rad = sc.camera.robot_bearing_sd_deg * kDeg;
-        oc.seed = derive_seed(seed, id, 1);
-        rc.oracle = oc;
-        rc.camera = CameraSource::Oracle;
-        rc.seed_laser = derive_seed(seed, id, 2);
-        rc.seed_drive = derive_seed(seed, id, 3);
-        rc.seed_motion = derive_seed(seed, id, 4);
+        const SimRobotConfig rc = robot_config_from_scenario(sc, k, seed);
         robots.push_back(std::make_unique<SimRobot>(clock, world, hub, rc));
     }
 

@@ -99,6 +99,45 @@ uint64_t derive_seed(uint64_t seed, int robot, int stream)
     return z ^ (z >> 31);
 }
 
+SimRobotConfig robot_config_from_scenario(const Scenario &sc, size_t k, uint64_t seed)
+{
+    const RobotSpec &rs = sc.robots[k];
+    const int id = static_cast<int>(k);
+    const size_t n = sc.robots.size();
+    const uint64_t period_us = static_cast<uint64_t>(sc.camera.period_ms * 1000.0);
+    SimRobotConfig rc;
+    rc.id = id;
+    rc.start = rs.start;
+    rc.radius_m = rs.radius_m;
+    rc.odo_xy_var_m2_per_m = sq(rs.noise.odo_xy_sd_m);
+    rc.odo_theta_var_rad2_per_m = sq(rs.noise.odo_theta_sd_deg * kDeg);
+    rc.wheel_slip_sd = rs.noise.wheel_slip_sd;
+    rc.laser_mount = sc.laser.mount;
+    rc.laser_noise_sd_m = sc.laser.noise_sd_m;
+    rc.laser_noise_rel = sc.laser.noise_rel;
+    SightingOracleConfig oc;
+    oc.period_us = period_us;
+    // robots' cameras are not synchronised: spread the frames over a period
+    oc.phase_us = (period_us * k / n) / 1000u * 1000u;
+    oc.fov_rad = sc.camera.fov_deg * kDeg;
+    oc.min_range_m = sc.camera.min_range_m;
+    oc.max_range_m = sc.camera.max_range_m;
+    oc.p_detect = sc.camera.p_detect;
+    oc.range_sd_m = sc.camera.range_sd_m;
+    oc.range_sd_rel = sc.camera.range_sd_rel;
+    oc.bearing_sd_rad = sc.camera.bearing_sd_deg * kDeg;
+    oc.robot_p_detect = sc.camera.robot_p_detect;
+    oc.robot_range_sd_m = sc.camera.robot_range_sd_m;
+    oc.robot_bearing_sd_rad = sc.camera.robot_bearing_sd_deg * kDeg;
+    oc.seed = derive_seed(seed, id, 1);
+    rc.oracle = oc;
+    rc.camera = CameraSource::Oracle;
+    rc.seed_laser = derive_seed(seed, id, 2);
+    rc.seed_drive = derive_seed(seed, id, 3);
+    rc.seed_motion = derive_seed(seed, id, 4);
+    return rc;
+}
+
 Simulation::Simulation(const Scenario &sc, const SimulationOptions &opt)
     : sc_(sc), seed_(opt.seed.value_or(sc.seed)), duration_s_(opt.duration_s.value_or(sc.duration_s)),
       camera_(sc.camera.source),
@@ -122,36 +161,8 @@ Simulation::Simulation(const Scenario &sc, const SimulationOptions &opt)
     lp.seed = derive_seed(seed_, -1, 6);
     hub_ = std::make_unique<SimLinkHub>(*clock_, n, lp);
 
-    const uint64_t period_us = static_cast<uint64_t>(sc.camera.period_ms * 1000.0);
     for (size_t k = 0; k < n; ++k) {
-        const RobotSpec &rs = sc.robots[k];
-        const int id = static_cast<int>(k);
-        SimRobotConfig rc;
-        rc.id = id;
-        rc.start = rs.start;
-        rc.radius_m = rs.radius_m;
-        rc.odo_xy_var_m2_per_m = sq(rs.noise.odo_xy_sd_m);
-        rc.odo_theta_var_rad2_per_m = sq(rs.noise.odo_theta_sd_deg * kDeg);
-        rc.wheel_slip_sd = rs.noise.wheel_slip_sd;
-        rc.laser_mount = sc.laser.mount;
-        rc.laser_noise_sd_m = sc.laser.noise_sd_m;
-        rc.laser_noise_rel = sc.laser.noise_rel;
-        SightingOracleConfig oc;
-        oc.period_us = period_us;
-        // robots' cameras are not synchronised: spread the frames over a period
-        oc.phase_us = (period_us * k / n) / 1000u * 1000u;
-        oc.fov_rad = sc.camera.fov_deg * kDeg;
-        oc.min_range_m = sc.camera.min_range_m;
-        oc.max_range_m = sc.camera.max_range_m;
-        oc.p_detect = sc.camera.p_detect;
-        oc.range_sd_m = sc.camera.range_sd_m;
-        oc.range_sd_rel = sc.camera.range_sd_rel;
-        oc.bearing_sd_rad = sc.camera.bearing_sd_deg * kDeg;
-        oc.robot_p_detect = sc.camera.robot_p_detect;
-        oc.robot_range_sd_m = sc.camera.robot_range_sd_m;
-        oc.robot_bearing_sd_rad = sc.camera.robot_bearing_sd_deg * kDeg;
-        oc.seed = derive_seed(seed_, id, 1);
-        rc.oracle = oc;
+        SimRobotConfig rc = robot_config_from_scenario(sc, k, seed_);
         rc.camera = camera_;
         if (camera_ == CameraSource::Pixels) {
             // the rendered camera is vision/marker_spec.h's; the filters' field of view must be its
@@ -159,15 +170,12 @@ Simulation::Simulation(const Scenario &sc, const SimulationOptions &opt)
                 throw ScenarioError("camera.fov_deg: the pixel camera sees " + std::to_string(VISION_HFOV_DEG) +
                                     " deg (vision/marker_spec.h); use camera.source = \"oracle\" for another");
             }
-            rc.pixels.period_us = oc.period_us;
-            rc.pixels.phase_us = oc.phase_us;
-            rc.pixels.render.seed = oc.seed;  // the camera's stream, as the stand-in's
+            rc.pixels.period_us = rc.oracle.period_us;
+            rc.pixels.phase_us = rc.oracle.phase_us;
+            rc.pixels.render.seed = rc.oracle.seed;  // the camera's stream, as the stand-in's
             rc.pixels.detector.min_range_m = sc.camera.min_range_m;
             rc.pixels.detector.max_range_m = sc.camera.max_range_m;
         }
-        rc.seed_laser = derive_seed(seed_, id, 2);
-        rc.seed_drive = derive_seed(seed_, id, 3);
-        rc.seed_motion = derive_seed(seed_, id, 4);
         robots_.push_back(std::make_unique<SimRobot>(*clock_, world_, *hub_, rc));
     }
     for (size_t k = 0; k < n; ++k) {

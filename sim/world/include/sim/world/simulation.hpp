@@ -182,6 +182,13 @@ void evaluate_map(const map_estimate_t &est, const std::vector<point2_t> &truth,
 /// Derive an independent seed for (scenario seed, robot, stream).
 uint64_t derive_seed(uint64_t seed, int robot, int stream);
 
+/// Robot k of scenario sc as the simulator builds it (body, odometry and
+/// laser noise, the geometric camera stand-in, seeds from `seed` by
+/// derive_seed), camera = Oracle; Simulation switches it to Pixels. Also
+/// used by the end-to-end device server (host/e2e), so both run the same
+/// robots.
+SimRobotConfig robot_config_from_scenario(const Scenario &sc, size_t k, uint64_t seed);
+
 }  // namespace coslam::sim
 
 #endif
