@@ -17,6 +17,19 @@ while [ "$s" -le "$seeds" ]; do
     "$sim" --scenario "$scenario" --camera oracle --seed "$s" $dur_opt --quiet --out "$out/sweep/seed$s" > /dev/null
     s=$((s + 1))
 done
-# shellcheck disable=SC2086
-"$devices" --scenario "$scenario" --robot "$robot" --out "$out/e2e" $dur_opt --domain "${COSLAM_E2E_DOMAIN:-175}"
-exec python3 "$here/e2e_compare.py" "$out/sweep" "$out/e2e"
+# Real time makes each e2e run one more random run (scheduling moves when
+# sightings land), and in-process runs too sometimes merge one way only
+# (a stale pairing): a run outside the envelope is run once more, and the
+# test fails only if both are outside (docs/e2e.md). Both verdicts are printed.
+attempt=1
+while :; do
+    # shellcheck disable=SC2086
+    "$devices" --scenario "$scenario" --robot "$robot" --out "$out/e2e" $dur_opt --domain "${COSLAM_E2E_DOMAIN:-175}"
+    if python3 "$here/e2e_compare.py" "$out/sweep" "$out/e2e"; then
+        exit 0
+    fi
+    [ "$attempt" -ge 2 ] && exit 1
+    echo "run_e2e: attempt $attempt outside the envelope, running once more"
+    attempt=$((attempt + 1))
+    rm -rf "$out/e2e"
+done
