@@ -64,8 +64,8 @@ public:
     }
     void step(const StreamStep &s) override
     {
-        for (const auto &u : s.chunks) {
-            f_.predict(u);
+        for (size_t i = 0; i < s.chunks.size(); ++i) {
+            f_.predict(s.chunks[i], s.chunk_dt_s[i]);
         }
         f_.update(s.z.data(), static_cast<int>(s.z.size()));
     }
@@ -145,6 +145,7 @@ Stream build_stream(const Dataset &ds, const RobotLog &log, const ReplayConfig &
             const double tb = std::min(t, ta + cfg.filter.predict_period_s);
             const odo_increment_t c = odo.increment(ta, tb);
             st.chunks.push_back(c);
+            st.chunk_dt_s.push_back(tb - ta);
             double ja[3][3];
             double jb[3][3];
             pose2_compose_jacobians({st.u.dx, st.u.dy, st.u.dtheta}, {c.dx, c.dy, c.dtheta}, ja, jb);

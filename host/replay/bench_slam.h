@@ -26,6 +26,7 @@ namespace coslam::replay {
 struct StreamStep {
     double t_s = 0.0;
     std::vector<odo_increment_t> chunks; ///< control-rate increments since the last step
+    std::vector<double> chunk_dt_s;      ///< the time each chunk covers [s]
     odo_increment_t u{};                 ///< their composition
     cov3_t u_cov{};                      ///< its covariance: the chunks' motion_noise_cov compounded
     std::vector<sighting_t> z;           ///< unknown identities (signature 0)

@@ -5,6 +5,7 @@
 #include <array>
 #include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -45,9 +46,38 @@ const LandmarkTruth *Dataset::landmark(int id) const
     return nullptr;
 }
 
+std::string fmt_value(double v)
+{
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%.6g", v);
+    return buf;
+}
+
+std::string printable(const std::string &s)
+{
+    std::string out;
+    for (size_t i = 0; i < s.size(); ++i) {
+        if (out.size() >= 40) {
+            out += "...";
+            break;
+        }
+        const unsigned char c = static_cast<unsigned char>(s[i]);
+        if (c >= 0x20 && c < 0x7f) {
+            out += static_cast<char>(c);
+        } else {
+            char buf[8];
+            std::snprintf(buf, sizeof buf, "\\x%02x", c);
+            out += buf;
+        }
+    }
+    return out;
+}
+
 namespace {
 
 // One data line split into fields: comments ('#' to the end) and CR removed.
+// A line longer than kMaxLineBytes is an error at that line (read in bounded
+// pieces: a file without newlines is not read whole into memory).
 struct LineReader {
     LineReader(std::istream &in_, std::string name_) : in(in_), name(std::move(name_)) {}
     std::istream &in;
@@ -58,8 +88,20 @@ struct LineReader {
     bool next()
     {
         std::string line;
-        while (std::getline(in, line)) {
+        char buf[kMaxLineBytes + 2];
+        while (true) {
+            in.getline(buf, sizeof buf);
+            if (in.bad() || (in.eof() && in.gcount() == 0)) {
+                return false;
+            }
             ++line_no;
+            if (in.fail()) {
+                if (in.gcount() >= static_cast<std::streamsize>(sizeof buf - 1)) {
+                    fail("line longer than " + std::to_string(kMaxLineBytes) + " bytes (not a text data file?)");
+                }
+                return false;
+            }
+            line.assign(buf);
             const auto hash = line.find('#');
             if (hash != std::string::npos) {
                 line.erase(hash);
@@ -85,12 +127,15 @@ struct LineReader {
         errno = 0;
         char *end = nullptr;
         const double v = std::strtod(s.c_str(), &end);
-        if (end == s.c_str() || *end != '\0' || errno == ERANGE) {
-            fail(std::string("field ") + std::to_string(i + 1) + " (" + what + ") is not a number: '" + s + "'");
+        if (end == s.c_str() || *end != '\0') {
+            fail(std::string("field ") + std::to_string(i + 1) + " (" + what + ") is not a number: '" + printable(s) +
+                 "'");
         }
-        if (!std::isfinite(v)) {
-            fail(std::string("field ") + std::to_string(i + 1) + " (" + what + ") is not finite: '" + s + "'");
+        if (!std::isfinite(v) || (errno == ERANGE && std::fabs(v) > 1.0)) {
+            fail(std::string("field ") + std::to_string(i + 1) + " (" + what + ") is not finite: '" + printable(s) +
+                 "'");
         }
+        // ERANGE with |v| <= 1: an underflow (subnormal or 0), still a number
         return v;
     }
 
@@ -99,7 +144,7 @@ struct LineReader {
         const double v = num(i, what);
         if (v != std::floor(v) || std::fabs(v) > 1e9) {
             fail(std::string("field ") + std::to_string(i + 1) + " (" + what + ") is not an integer: '" +
-                 fields.at(i) + "'");
+                 printable(fields.at(i)) + "'");
         }
         return static_cast<int>(v);
     }
@@ -114,8 +159,12 @@ struct LineReader {
     }
 };
 
-// Checks that time stamps never decrease within one file.
+// Checks that time stamps never decrease within one file and, for files
+// with relative stamps (landmark logs; MRCLAM's absolute stamps are checked
+// once t0 is known), that they lie in [0, kMaxSpanS].
 struct MonotonicTime {
+    explicit MonotonicTime(bool relative_ = false) : relative(relative_) {}
+    bool relative;
     double last = -std::numeric_limits<double>::infinity();
     void check(const LineReader &r, double t)
     {
@@ -124,6 +173,10 @@ struct MonotonicTime {
             os << std::setprecision(15) << "time goes backwards: " << t << " after " << last;
             r.fail(os.str());
         }
+        if (relative && !(t >= 0.0 && t <= kMaxSpanS)) {
+            r.fail("time stamp " + fmt_value(t) + " s outside [0, " + fmt_value(kMaxSpanS) +
+                   "] (stamps are relative to t0.txt; docs/replay.md, Limits)");
+        }
         last = t;
     }
 };
@@ -131,12 +184,64 @@ struct MonotonicTime {
 void check_range(const LineReader &r, double range_m)
 {
     if (!(range_m > 0.0)) {
-        r.fail("range must be positive, got " + std::to_string(range_m));
+        r.fail("range must be positive, got " + fmt_value(range_m));
+    }
+}
+
+// A bearing in [-2 pi, 2 pi], wrapped to (-pi, pi]; beyond that it is a fault.
+double check_bearing(const LineReader &r, double b)
+{
+    if (!(std::fabs(b) <= 2.0 * M_PI)) {
+        r.fail("bearing " + fmt_value(b) + " rad outside [-2 pi, 2 pi]");
+    }
+    return angle_wrap(b);
+}
+
+// A robot id from a file name ("robot17.log"): 1..kMaxRobotId.
+int robot_id_from_name(const fs::path &dir, const std::string &digits, const std::string &file)
+{
+    if (digits.size() > 6 || std::stol(digits) < 1 || std::stol(digits) > kMaxRobotId) {
+        throw ReplayError((dir / file).string(), 0,
+                          "robot id " + printable(digits) + " outside 1.." + std::to_string(kMaxRobotId) +
+                              " (the core's COSLAM_MAX_ROBOTS)");
+    }
+    return static_cast<int>(std::stol(digits));
+}
+
+// What every reader ends with: a robot without odometry is an error (it
+// cannot be replayed; an empty file is usually a failed recording), R
+// records naming a robot the dataset does not have are counted and dropped.
+void finish_dataset(Dataset &ds)
+{
+    std::set<int> have;
+    for (const auto &r : ds.robots) {
+        have.insert(r.id);
+    }
+    for (auto &r : ds.robots) {
+        if (r.odo.empty()) {
+            throw ReplayError(r.source, 0, "no odometry records (empty or truncated log?)");
+        }
+        const auto n0 = r.rz.size();
+        r.rz.erase(std::remove_if(r.rz.begin(), r.rz.end(),
+                                  [&have](const RobotSighting &s) { return have.count(s.other_robot) == 0; }),
+                   r.rz.end());
+        ds.report.unknown_robot_sightings += static_cast<long>(n0 - r.rz.size());
+    }
+    if (ds.report.unknown_robot_sightings > 0) {
+        ds.report.notes.push_back(std::to_string(ds.report.unknown_robot_sightings) +
+                                  " sightings of robots that are not in the dataset skipped");
     }
 }
 
 std::ifstream open_or_throw(const fs::path &p)
 {
+    std::error_code ec;
+    const auto size = fs::file_size(p, ec);
+    if (!ec && size > kMaxInputFileBytes) {
+        throw ReplayError(p.string(), 0,
+                          "file of " + std::to_string(size) + " bytes, more than the " +
+                              std::to_string(kMaxInputFileBytes >> 20) + " MiB limit (docs/replay.md, Limits)");
+    }
     std::ifstream f(p);
     if (!f) {
         throw ReplayError(p.string(), 0, "missing file (or not readable)");
@@ -159,7 +264,7 @@ struct RawRobot {
 void parse_landmark_log(std::istream &in, const std::string &name, RobotLog &out, ParseReport &report)
 {
     LineReader r{in, name};
-    MonotonicTime mono;
+    MonotonicTime mono(true);
     while (r.next()) {
         report.lines_read++;
         const std::string &tag = r.fields[0];
@@ -192,7 +297,7 @@ void parse_landmark_log(std::istream &in, const std::string &name, RobotLog &out
                 r.fail("landmark id must be -1 (unknown) or >= 0, got " + std::to_string(z.landmark_id));
             }
             z.range_m = r.num(3, "range");
-            z.bearing_rad = r.num(4, "bearing");
+            z.bearing_rad = check_bearing(r, r.num(4, "bearing"));
             check_range(r, z.range_m);
             out.z.push_back(z);
         } else if (tag == "R") {
@@ -202,7 +307,7 @@ void parse_landmark_log(std::istream &in, const std::string &name, RobotLog &out
             mono.check(r, s.t_s);
             s.other_robot = r.integer(2, "other_robot_id");
             s.range_m = r.num(3, "range");
-            s.bearing_rad = r.num(4, "bearing");
+            s.bearing_rad = check_bearing(r, r.num(4, "bearing"));
             check_range(r, s.range_m);
             if (s.other_robot == out.id) {
                 report.self_sightings++;
@@ -218,7 +323,7 @@ void parse_landmark_log(std::istream &in, const std::string &name, RobotLog &out
 std::vector<TruthPose> parse_truth_path(std::istream &in, const std::string &name)
 {
     LineReader r{in, name};
-    MonotonicTime mono;
+    MonotonicTime mono(true);
     std::vector<TruthPose> out;
     while (r.next()) {
         r.expect_fields(4, 4, "t x y theta");
@@ -291,7 +396,7 @@ Dataset load_mrclam(const std::string &dir)
         std::smatch m;
         const std::string fn = e.path().filename().string();
         if (std::regex_match(fn, m, odo_re)) {
-            ids.push_back(std::stoi(m[1].str()));
+            ids.push_back(robot_id_from_name(d, m[1].str(), fn));
         }
     }
     std::sort(ids.begin(), ids.end());
@@ -331,7 +436,7 @@ Dataset load_mrclam(const std::string &dir)
                 mono.check(r, t);
                 const int barcode = r.integer(1, "barcode");
                 const double range = r.num(2, "range");
-                const double bearing = r.num(3, "bearing");
+                const double bearing = check_bearing(r, r.num(3, "bearing"));
                 check_range(r, range);
                 const auto it = barcode_to_subject.find(barcode);
                 if (it == barcode_to_subject.end()) {
@@ -383,6 +488,17 @@ Dataset load_mrclam(const std::string &dir)
     }
     ds.t0_s = t0;
     for (const auto &rr : raw) {
+        double last = -std::numeric_limits<double>::infinity();
+        for (const auto &o : rr.odo) last = std::max(last, o[0]);
+        for (const auto &m : rr.meas) last = std::max(last, m[0]);
+        for (const auto &g : rr.truth) last = std::max(last, g[0]);
+        if (last - t0 > kMaxSpanS) {
+            throw ReplayError(rr.source, 0,
+                              "records span " + fmt_value(last - t0) + " s from the dataset's first stamp, more than "
+                              "the " + fmt_value(kMaxSpanS) + " s limit (docs/replay.md, Limits)");
+        }
+    }
+    for (const auto &rr : raw) {
         RobotLog rl;
         rl.id = rr.id;
         rl.source = rr.source;
@@ -408,6 +524,7 @@ Dataset load_mrclam(const std::string &dir)
         }
         ds.robots.push_back(std::move(rl));
     }
+    finish_dataset(ds);
     return ds;
 }
 
@@ -426,7 +543,7 @@ Dataset load_landmark_log(const std::string &dir)
         std::smatch m;
         const std::string fn = e.path().filename().string();
         if (std::regex_match(fn, m, log_re)) {
-            ids.push_back(std::stoi(m[1].str()));
+            ids.push_back(robot_id_from_name(d, m[1].str(), fn));
         }
     }
     std::sort(ids.begin(), ids.end());
@@ -466,6 +583,7 @@ Dataset load_landmark_log(const std::string &dir)
             ds.t0_s = r.num(0, "t0");
         }
     }
+    finish_dataset(ds);
     return ds;
 }
 

@@ -31,9 +31,30 @@
 #include <string>
 #include <vector>
 
+#include "coslam/config.h"
 #include "coslam/pose2.h"
 
 namespace coslam::replay {
+
+/// Input limits (docs/replay.md, "Limits"), checked before anything is
+/// allocated for the input they bound: a file larger than kMaxInputFileBytes
+/// is refused before it is read (MRCLAM's largest file is about 10 MB), a
+/// line longer than kMaxLineBytes at that line; time stamps, relative to the
+/// dataset's t0, must lie in [0, kMaxSpanS] (11.6 days: the replay keeps
+/// per-period series, so the span bounds its memory); robot ids are
+/// 1..kMaxRobotId (each replayed robot takes one of the core's
+/// COSLAM_MAX_ROBOTS slots); bearings must lie in [-2 pi, 2 pi] (wrapped
+/// to (-pi, pi] on reading).
+inline constexpr unsigned long long kMaxInputFileBytes = 256ULL << 20;
+inline constexpr std::size_t kMaxLineBytes = 4096;
+inline constexpr double kMaxSpanS = 1e6;
+inline constexpr int kMaxRobotId = COSLAM_MAX_ROBOTS;
+
+/// A value for a message: %.6g, so 1e308 is not 309 digits.
+std::string fmt_value(double v);
+/// Text from a file for a message: non-printable bytes as \xNN, at most 40
+/// characters (then "...").
+std::string printable(const std::string &s);
 
 /// Error of a reader or of the configuration; what() is "file:line: reason"
 /// when a line is at fault, else "file: reason".
@@ -103,6 +124,7 @@ struct ParseReport {
     std::map<int, long> unknown_barcodes;   ///< barcode -> rows
     long self_sightings = 0;                ///< a robot "sighting" itself (skipped)
     long lines_read = 0;
+    long unknown_robot_sightings = 0;       ///< R records naming a robot the dataset does not have
     std::vector<std::string> notes;         ///< human-readable remarks (missing truth, ...)
 };
 

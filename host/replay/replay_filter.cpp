@@ -29,9 +29,9 @@ RobotFilter::RobotFilter(FilterKind kind, const ReplayConfig &cfg, uint8_t core_
 
 RobotFilter::~RobotFilter() = default;
 
-coslam_status_t RobotFilter::predict(odo_increment_t u)
+coslam_status_t RobotFilter::predict(odo_increment_t u, double dt_s)
 {
-    return slam_filter_predict(f_.get(), u);
+    return slam_filter_predict(f_.get(), u, dt_s);
 }
 
 coslam_status_t RobotFilter::update(const sighting_t *z, int n)

@@ -34,7 +34,7 @@ public:
     RobotFilter &operator=(const RobotFilter &) = delete;
 
     FilterKind kind() const { return kind_; }
-    coslam_status_t predict(odo_increment_t u);
+    coslam_status_t predict(odo_increment_t u, double dt_s);
     coslam_status_t update(const sighting_t *z, int n);
     void pose(pose2_t *mean, cov3_t *cov) const;
     /// Exports the map estimate (non-const: the core uses scratch in the state).

@@ -16,9 +16,11 @@
 #include <iomanip>
 #include <fstream>
 #include <iostream>
+#include <limits>
 #include <sstream>
 #include <unistd.h>
 
+#include "cli_checks.hpp"
 #include "replay_config.h"
 #include "replay_data.h"
 #include "replay_noise.h"
@@ -27,6 +29,8 @@
 #include "replay_run.h"
 
 using namespace coslam::replay;
+using coslam::cli::finite_in;
+using coslam::cli::int_in;
 
 namespace {
 
@@ -174,29 +178,37 @@ int main(int argc, char **argv)
     std::string out_dir = "out/replay";
     bool no_plots = false;
     bool quiet = false;
+    bool allow_capacity = false;
     run->add_option("dataset", dataset, "MRCLAM folder or landmark-log folder")->required();
     run->add_option("--format", format, "auto | mrclam | log");
     run->add_option("-c,--config", config_files, "INI file(s) with parameters, applied in order (print-config shows them all)");
-    run->add_option("-r,--robots", robots, "robot ids to replay, e.g. 1,2 (default: all)")->delimiter(',');
+    run->add_option("-r,--robots", robots, "robot ids to replay, e.g. 1,2 (default: all)")
+        ->delimiter(',')
+        ->check(int_in(1, kMaxRobotId));
     run->add_option("-f,--filter", filter, "filter of every robot: fastslam1 | fastslam2 | ekf");
     run->add_option("--robot-filter", robot_filters, "per robot, e.g. 2=ekf (repeatable)");
-    run->add_option("-p,--particles", particles, "Fast-SLAM particles");
+    run->add_option("-p,--particles", particles, "Fast-SLAM particles")->check(int_in(1, COSLAM_MAX_PARTICLES));
     run->add_flag("--known-ids", known_ids, "use the true landmark identities (comparison mode)");
     run->add_flag("--start-at-truth", start_at_truth, "start each filter at its true pose (map frame = world)");
-    run->add_option("-d,--duration", duration, "replay only the first DURATION seconds");
+    run->add_option("-d,--duration", duration, "replay only the first DURATION seconds")
+        ->check(finite_in(0.0, kMaxSpanS, true));
     run->add_flag("--no-merge", no_merge, "no map merging at meetings");
-    run->add_option("--merge-window", merge_window, "max time between the two mutual sightings [s]");
-    run->add_option("--merge-interval", merge_interval, "min time between two merges of a pair [s]");
-    run->add_option("--seed", seed, "filter seed");
+    run->add_option("--merge-window", merge_window, "max time between the two mutual sightings [s]")
+        ->check(finite_in(0.0, 4000.0, true));
+    run->add_option("--merge-interval", merge_interval, "min time between two merges of a pair [s]")
+        ->check(finite_in(0.0, 4000.0));
+    run->add_option("--seed", seed, "filter seed")->check(int_in(0, std::numeric_limits<long long>::max()));
     run->add_option("-o,--out", out_dir, "output folder");
     run->add_flag("--no-plots", no_plots, "do not draw the figures");
     run->add_flag("-q,--quiet", quiet, "no progress bar");
+    run->add_flag("--allow-capacity-limits", allow_capacity,
+                  "exit 0 even when a capacity of the core was hit (otherwise exit 3)");
 
     auto *fit = app.add_subcommand("fit-odometry", "fit the odometry scale and delay against ground truth");
     double window = 1.0;
     fit->add_option("dataset", dataset, "dataset folder")->required();
     fit->add_option("--format", format, "auto | mrclam | log");
-    fit->add_option("--window", window, "fit window [s]");
+    fit->add_option("--window", window, "fit window [s]")->check(finite_in(0.0, 1e4, true));
 
     auto *fitn = app.add_subcommand("fit-noise", "measure the sighting noise (range, bearing) against ground truth");
     std::string noise_out;
@@ -206,12 +218,14 @@ int main(int argc, char **argv)
     fitn->add_option("--format", format, "auto | mrclam | log");
     fitn->add_option("-c,--config", config_files, "INI file(s): [input] range limits, and the values compared with");
     fitn->add_option("-o,--out", noise_out, "write the fitted [slam] noise keys to this INI file");
-    fitn->add_option("--bin", nopt.bin_m, "range bin width of the range fit [m]");
-    fitn->add_option("--reject-sd", nopt.reject_sd, "reject residuals beyond this many robust sd");
+    fitn->add_option("--bin", nopt.bin_m, "range bin width of the range fit [m]")->check(finite_in(0.0, 1e3, true));
+    fitn->add_option("--reject-sd", nopt.reject_sd, "reject residuals beyond this many robust sd")
+        ->check(finite_in(0.0, 1e6, true));
     fitn->add_flag("--inflate", noise_inflate,
                    "write the variances inflated for a per-track offset ((1 - rho_1) + n rho_1) to -o");
-    fitn->add_option("--track-gap", nopt.track_gap_s, "sightings further apart start a new track [s]");
-    fitn->add_option("--max-lag", nopt.max_lag, "autocorrelation lags 1..N [sightings]");
+    fitn->add_option("--track-gap", nopt.track_gap_s, "sightings further apart start a new track [s]")
+        ->check(finite_in(0.0, 1e6, true));
+    fitn->add_option("--max-lag", nopt.max_lag, "autocorrelation lags 1..N [sightings]")->check(int_in(1, 1000));
 
     auto *conv = app.add_subcommand("convert", "write a dataset in the generic landmark-log format");
     std::string conv_out;
@@ -311,7 +325,12 @@ int main(int argc, char **argv)
             if (eq == std::string::npos) {
                 throw ReplayError("--robot-filter expects ID=FILTER, got '" + rf + "'");
             }
-            RobotOverride &o = cfg.robot[std::stoi(rf.substr(0, eq))];
+            std::string id_text = rf.substr(0, eq);
+            if (!int_in(1, kMaxRobotId)(id_text).empty()) {
+                throw ReplayError("--robot-filter: robot id '" + printable(rf.substr(0, eq)) + "' is not in 1.." +
+                                  std::to_string(kMaxRobotId));
+            }
+            RobotOverride &o = cfg.robot[std::stoi(id_text)];
             o.filter = filter_kind_from_string(rf.substr(eq + 1));
             o.has_filter = true;
         }
@@ -333,6 +352,7 @@ int main(int argc, char **argv)
         if (cfg.filter.particles > COSLAM_MAX_PARTICLES) {
             throw ReplayError("at most " + std::to_string(COSLAM_MAX_PARTICLES) + " particles");
         }
+        replay_config_validate(cfg);
         ReplayOptions opt;
         opt.robots = robots;
         opt.known_ids = known_ids;
@@ -348,6 +368,7 @@ int main(int argc, char **argv)
         info.load_s = load_s;
         write_run_outputs(out_dir, ds, cfg, opt, res, info);
         print_summary(std::cout, res, opt);
+        const bool capacity_hit = report_limits(std::cerr, ds, res);
         std::cout << "outputs in " << out_dir << " (dataset read in " << std::fixed << std::setprecision(2) << load_s
                   << " s)\n";
         if (!no_plots) {
@@ -355,6 +376,12 @@ int main(int argc, char **argv)
             if (std::system(cmd.c_str()) != 0) {
                 std::cerr << "warning: plotting failed (" << cmd << ")\n";
             }
+        }
+        if (capacity_hit && !allow_capacity) {
+            std::cerr << "coslam-replay: a capacity of the core was hit (LIMIT lines above); the results are not "
+                         "those of an unlimited filter. Exit "
+                      << kExitCapacity << " (--allow-capacity-limits to accept)\n";
+            return kExitCapacity;
         }
         return 0;
     } catch (const ReplayError &e) {

@@ -193,6 +193,7 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
     }
     rep["unknown_barcodes"] = ub;
     rep["self_sightings"] = ds.report.self_sightings;
+    rep["unknown_robot_sightings"] = ds.report.unknown_robot_sightings;
     rep["notes"] = ds.report.notes;
     j["dataset"] = {{"source", ds.source},
                     {"format", ds.format},
@@ -354,6 +355,55 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
     j["notes"] = res.notes;
     auto f = open_out(d / "metrics.json");
     f << std::setw(2) << j << '\n';
+}
+
+bool report_limits(std::ostream &err, const Dataset &ds, const ReplayResult &res)
+{
+    struct Limit {
+        const char *counter;
+        const char *what;
+        const char *raise; // the capacity macro; nullptr: a refusal, not a capacity
+    };
+    static const Limit limits[] = {
+        {"lm_capacity_drops", "sightings not mapped: the map is full", "COSLAM_MAX_LANDMARKS"},
+        {"sighting_capacity_drops", "sightings dropped: more in one frame than fit", "COSLAM_MAX_SIGHTINGS"},
+        {"export_capacity_drops", "landmarks left out of the exported map", "COSLAM_MAX_EXPORT_IDS"},
+        {"rejected_controls", "odometry increments refused (non-finite, or faster than max_speed_mps / "
+                              "max_turn_radps allow)", nullptr},
+        {"rejected_sightings", "sightings refused (non-finite, range beyond sighting_max_range_m, |bearing| > pi)",
+         nullptr},
+        {"numeric_faults", "numeric faults (degenerate geometry skipped, weight collapse)", nullptr},
+    };
+    const long caps[] = {COSLAM_MAX_LANDMARKS, COSLAM_MAX_SIGHTINGS, COSLAM_MAX_EXPORT_IDS};
+    bool capacity = false;
+    for (const auto &r : res.robots) {
+        for (size_t i = 0; i < sizeof limits / sizeof limits[0]; ++i) {
+            const auto it = r.counters.find(limits[i].counter);
+            if (it == r.counters.end() || it->second == 0) {
+                continue;
+            }
+            if (limits[i].raise != nullptr) {
+                capacity = true;
+                err << "LIMIT robot " << r.id << ": " << it->second << " " << limits[i].what << " ("
+                    << limits[i].counter << "; " << limits[i].raise << " = " << caps[i] << " in this build, profile "
+                    << COSLAM_PROFILE_NAME << "; raise it with -D" << limits[i].raise << "=N at build time)\n";
+            } else {
+                err << "warning: robot " << r.id << ": " << it->second << " " << limits[i].what << " ("
+                    << limits[i].counter << ")\n";
+            }
+        }
+    }
+    for (const auto &r : res.robots) {
+        if (r.sightings_range_dropped > 0) {
+            err << "note: robot " << r.id << ": " << r.sightings_range_dropped
+                << " sightings outside the [input] range limits dropped (sightings_range_dropped)\n";
+        }
+    }
+    if (ds.report.unknown_robot_sightings > 0) {
+        err << "warning: " << ds.report.unknown_robot_sightings
+            << " sightings of robots not in the dataset skipped (unknown_robot_sightings)\n";
+    }
+    return capacity;
 }
 
 void print_summary(std::ostream &out, const ReplayResult &res, const ReplayOptions &opt)

@@ -36,6 +36,17 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
 /// Human-readable summary (one line per robot, one per merge, the means).
 void print_summary(std::ostream &out, const ReplayResult &res, const ReplayOptions &opt);
 
+/// Limits are loud: one line per robot and counter for every input the core
+/// refused (rejected_sightings, rejected_controls, numeric_faults) and every
+/// capacity hit (lm_/sighting_/export_capacity_drops, with the capacity to
+/// raise), and the dataset's skipped records. Returns true when a capacity
+/// was hit (coslam-replay then exits with kExitCapacity unless
+/// --allow-capacity-limits).
+bool report_limits(std::ostream &err, const Dataset &ds, const ReplayResult &res);
+
+/// Exit code of a run that hit a capacity of the core.
+inline constexpr int kExitCapacity = 3;
+
 } // namespace coslam::replay
 
 #endif

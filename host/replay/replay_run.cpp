@@ -43,6 +43,8 @@ struct Robot {
     double t_filter = 0.0;
     double next_tick = 0.0;
     double next_pose_t = 0.0;
+    long pose_tick = 0;   ///< pose samples so far
+    long path_stride = 1; ///< every path_stride-th sample is recorded
     double next_map_t = 0.0;
     double pending_us = 0.0;
     double step_us_sum = 0.0;
@@ -367,8 +369,21 @@ void Replay::sample(Robot &r)
                 r.nees_n++;
             }
         }
-        if (opt_.record_history) {
-            r.res.path.push_back({r.t_filter, est, cov, tr.has_value(), tr.value_or(pose2_t{0.0, 0.0, 0.0})});
+        // the recorded path (not the statistics above) is thinned to every
+        // other point, its stride doubled, when it reaches kMaxPathPoints:
+        // memory bounded whatever the span
+        if (opt_.record_history && r.pose_tick++ % r.path_stride == 0) {
+            if (r.res.path.size() >= kMaxPathPoints) {
+                size_t w = 0;
+                for (size_t i = 0; i < r.res.path.size(); i += 2) {
+                    r.res.path[w++] = r.res.path[i];
+                }
+                r.res.path.resize(w);
+                r.path_stride *= 2;
+            }
+            if ((r.pose_tick - 1) % r.path_stride == 0) {
+                r.res.path.push_back({r.t_filter, est, cov, tr.has_value(), tr.value_or(pose2_t{0.0, 0.0, 0.0})});
+            }
         }
         r.next_pose_t += cfg_.eval.pose_period_s;
     }
@@ -386,11 +401,15 @@ void Replay::advance(Robot &r, double t)
     while (r.t_filter < t - eps) {
         const double t_next = std::min(t, r.next_tick);
         const odo_increment_t u = r.odo->increment(r.t_filter, t_next);
-        r.odo_pose = motion_apply(r.odo_pose, u);
-        r.travel_m += motion_travel_m(u, cfg_.slam.base_radius_m);
         const auto t0 = Clock::now();
-        r.filter->predict(u);
+        const coslam_status_t st = r.filter->predict(u, t_next - r.t_filter);
         r.pending_us += us_since(t0);
+        if (st != COSLAM_E_ARG && st != COSLAM_E_NUMERIC) {
+            // dead reckoning (the meeting's compensation) takes only what
+            // the filter took: a refused increment moves neither
+            r.odo_pose = motion_apply(r.odo_pose, u);
+            r.travel_m += motion_travel_m(u, cfg_.slam.base_radius_m);
+        }
         r.res.predictions++;
         r.t_filter = t_next;
         if (t_next >= r.next_tick - eps) {

@@ -36,6 +36,11 @@
 
 namespace coslam::replay {
 
+/// Most points of a robot's recorded path (RobotResult::path, the TUM file):
+/// beyond it the path is thinned to every other point (memory bounded by
+/// this, not by the dataset's span; the error statistics use every sample).
+inline constexpr size_t kMaxPathPoints = 131072;
+
 struct ReplayOptions {
     std::vector<int> robots;   ///< robot ids to replay; empty: all
     bool known_ids = false;

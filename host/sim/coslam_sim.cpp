@@ -12,6 +12,7 @@
 #include <iostream>
 #include <unistd.h>
 
+#include "cli_checks.hpp"
 #include "run_output.hpp"
 #include "sim/world/scenario.hpp"
 #include "sim/world/simulation.hpp"
@@ -66,8 +67,10 @@ int main(int argc, char **argv)
     std::string camera;
     app.add_option("--scenario", scenario_path, "scenario file (TOML, docs/sim.md)")->capture_default_str();
     app.add_option("--out", out_dir, "output directory of the run")->capture_default_str();
-    app.add_option("--seed", seed, "seed (default: the scenario's)")->check(CLI::NonNegativeNumber);
-    app.add_option("--duration", duration, "simulated seconds (default: the scenario's)")->check(CLI::PositiveNumber);
+    app.add_option("--seed", seed, "seed (default: the scenario's)")
+        ->check(coslam::cli::int_in(0, INT64_MAX));
+    app.add_option("--duration", duration, "simulated seconds (default: the scenario's)")
+        ->check(coslam::cli::finite_in(0.0, coslam::sim::kMaxDurationS, true));
     app.add_flag("--quiet", quiet, "no progress bar");
     app.add_option("--camera", camera, "sightings from rendered pixels through the detector, or from the geometric stand-in "
                                        "(default: the scenario's camera.source, pixels)")

@@ -39,9 +39,9 @@ static int filter_init(slam_filter_t **f, run_filter_t kind, const merge_run_opt
     return slam_filter_init(*f, &c, origin) == COSLAM_OK ? 0 : -1;
 }
 
-static void filter_step(slam_filter_t *f, const synth2_robot_step_t *r, int is_frame)
+static void filter_step(slam_filter_t *f, const synth2_robot_step_t *r, int is_frame, double dt_s)
 {
-    slam_filter_predict(f, r->u);
+    slam_filter_predict(f, r->u, dt_s);
     if (is_frame) {
         slam_filter_update(f, r->z, r->n_z);
     }
@@ -88,7 +88,7 @@ int merge_run(const synth2_config_t *scfg, const merge_run_opts_t *o, merge_run_
     while (synth2_next(w, st) && !done) {
         n_steps++;
         for (int k = 0; k < 2; ++k) {
-            filter_step(f[k], &st->r[k], st->is_frame);
+            filter_step(f[k], &st->r[k], st->is_frame, scfg->dt_s);
             pose2_t e;
             cov3_t c;
             slam_filter_pose(f[k], &e, &c);

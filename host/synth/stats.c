@@ -132,6 +132,276 @@ void hungarian(const double *cost, int n, int m, int *row_to_col)
     free(used);
 }
 
+/* ---- assign_gated (stats.h) ---- */
+
+typedef struct {
+    int64_t key;
+    int j;
+} cell_item_t;
+
+static int cell_item_cmp(const void *a, const void *b)
+{
+    const cell_item_t *x = (const cell_item_t *)a;
+    const cell_item_t *y = (const cell_item_t *)b;
+    return x->key < y->key ? -1 : x->key > y->key ? 1 : (x->j > y->j) - (x->j < y->j);
+}
+
+typedef struct {
+    int i, j;
+    double d2;
+} gated_pair_t;
+
+static int gated_pair_cmp(const void *a, const void *b)
+{
+    const gated_pair_t *x = (const gated_pair_t *)a;
+    const gated_pair_t *y = (const gated_pair_t *)b;
+    if (x->d2 != y->d2) {
+        return x->d2 < y->d2 ? -1 : 1;
+    }
+    return x->i != y->i ? (x->i > y->i) - (x->i < y->i) : (x->j > y->j) - (x->j < y->j);
+}
+
+static int64_t cell_key(double x, double y, double cell)
+{
+    /* clamped: a landmark a million cells away shares an edge cell, which
+     * only costs distance checks */
+    double cx = floor(x / cell);
+    double cy = floor(y / cell);
+    cx = cx < -1e6 ? -1e6 : cx > 1e6 ? 1e6 : cx;
+    cy = cy < -1e6 ? -1e6 : cy > 1e6 ? 1e6 : cy;
+    return (int64_t)(cx + 2e6) * 8000000 + (int64_t)(cy + 2e6);
+}
+
+static int uf_find(int *uf, int x)
+{
+    while (uf[x] != x) {
+        uf[x] = uf[uf[x]];
+        x = uf[x];
+    }
+    return x;
+}
+
+int assign_gated(const point2_t *est, const uint8_t *est_sig, int n, const point2_t *truth,
+                 const uint8_t *truth_sig, int n_truth, double gate_m, int *match)
+{
+    for (int i = 0; i < n; ++i) {
+        match[i] = -1;
+    }
+    if (n <= 0 || n_truth <= 0 || !(gate_m > 0.0)) {
+        return 0;
+    }
+    const double gate2 = gate_m * gate_m;
+    int greedy = 0;
+    size_t cap = (size_t)n * 4 + 16;
+    size_t np = 0;
+    cell_item_t *cells = (cell_item_t *)malloc(sizeof *cells * (size_t)n_truth);
+    gated_pair_t *pairs = (gated_pair_t *)malloc(sizeof *pairs * cap);
+    int *uf = (int *)malloc(sizeof(int) * (size_t)(n + n_truth));
+    int *taken = (int *)calloc((size_t)n_truth, sizeof(int));
+    if (cells == NULL || pairs == NULL || uf == NULL || taken == NULL) {
+        greedy = -1;
+        goto out;
+    }
+    for (int j = 0; j < n_truth; ++j) {
+        cells[j].key = cell_key(truth[j].x, truth[j].y, gate_m);
+        cells[j].j = j;
+    }
+    qsort(cells, (size_t)n_truth, sizeof *cells, cell_item_cmp);
+    /* candidates: the 3 x 3 cells around each estimate */
+    for (int i = 0; i < n; ++i) {
+        if (!(isfinite(est[i].x) && isfinite(est[i].y))) {
+            continue;
+        }
+        for (int dx = -1; dx <= 1; ++dx) {
+            for (int dy = -1; dy <= 1; ++dy) {
+                const int64_t key = cell_key(est[i].x + dx * gate_m, est[i].y + dy * gate_m, gate_m);
+                int lo = 0, hi = n_truth;
+                while (lo < hi) {
+                    const int mid = lo + (hi - lo) / 2;
+                    if (cells[mid].key < key) {
+                        lo = mid + 1;
+                    } else {
+                        hi = mid;
+                    }
+                }
+                for (int k = lo; k < n_truth && cells[k].key == key; ++k) {
+                    const int j = cells[k].j;
+                    if (est_sig != NULL && truth_sig != NULL && est_sig[i] != truth_sig[j]) {
+                        continue;
+                    }
+                    const double ex = est[i].x - truth[j].x;
+                    const double ey = est[i].y - truth[j].y;
+                    const double d2 = ex * ex + ey * ey;
+                    if (!(d2 < gate2)) {
+                        continue;
+                    }
+                    int dup = 0; /* a clamped edge cell can be visited twice */
+                    for (size_t q = np; q > 0 && pairs[q - 1].i == i; --q) {
+                        dup |= pairs[q - 1].j == j;
+                    }
+                    if (dup) {
+                        continue;
+                    }
+                    if (np == cap) {
+                        cap *= 2;
+                        gated_pair_t *p2 = (gated_pair_t *)realloc(pairs, sizeof *pairs * cap);
+                        if (p2 == NULL) {
+                            greedy = -1;
+                            goto out;
+                        }
+                        pairs = p2;
+                    }
+                    pairs[np].i = i;
+                    pairs[np].j = j;
+                    pairs[np].d2 = d2;
+                    np++;
+                }
+            }
+        }
+    }
+    /* components: estimates 0..n-1, true landmarks n..n+n_truth-1 */
+    for (int k = 0; k < n + n_truth; ++k) {
+        uf[k] = k;
+    }
+    for (size_t q = 0; q < np; ++q) {
+        const int a = uf_find(uf, pairs[q].i);
+        const int b = uf_find(uf, n + pairs[q].j);
+        if (a != b) {
+            uf[a] = b;
+        }
+    }
+    /* pairs sorted by component root, then by distance (greedy order) */
+    {
+        int *root = (int *)malloc(sizeof(int) * (np > 0 ? np : 1));
+        if (root == NULL) {
+            free(root);
+            greedy = -1;
+            goto out;
+        }
+        qsort(pairs, np, sizeof *pairs, gated_pair_cmp);
+        for (size_t q = 0; q < np; ++q) {
+            root[q] = uf_find(uf, pairs[q].i);
+        }
+        /* stable counting by root: a bucket per root, pairs in distance order */
+        int *count = (int *)calloc((size_t)(n + n_truth) + 1, sizeof(int));
+        size_t *by_root = (size_t *)malloc(sizeof(size_t) * (np > 0 ? np : 1));
+        int *loc = (int *)malloc(sizeof(int) * (size_t)(n + n_truth));
+        if (count == NULL || by_root == NULL || loc == NULL) {
+            free(root);
+            free(count);
+            free(by_root);
+            free(loc);
+            greedy = -1;
+            goto out;
+        }
+        for (size_t q = 0; q < np; ++q) {
+            count[root[q] + 1]++;
+        }
+        for (int k = 0; k < n + n_truth; ++k) {
+            count[k + 1] += count[k];
+        }
+        for (size_t q = 0; q < np; ++q) {
+            by_root[count[root[q]]++] = q;
+        }
+        /* count[r] is now the end of root r's bucket; its start is the end of r - 1 */
+        for (int k = 0; k < n + n_truth; ++k) {
+            loc[k] = -1;
+        }
+        size_t start = 0;
+        for (int r = 0; r < n + n_truth; ++r) {
+            const size_t end = (size_t)count[r];
+            if (end == start) {
+                continue;
+            }
+            /* rows and columns of this component */
+            int nr = 0, nc = 0;
+            for (size_t q = start; q < end; ++q) {
+                const gated_pair_t *p = &pairs[by_root[q]];
+                if (loc[p->i] < 0) {
+                    loc[p->i] = nr++;
+                }
+                if (loc[n + p->j] < 0) {
+                    loc[n + p->j] = nc++;
+                }
+            }
+            if (nr + nc > ASSIGN_GATED_OPT_MAX) {
+                greedy++;
+                for (size_t q = start; q < end; ++q) {
+                    const gated_pair_t *p = &pairs[by_root[q]];
+                    if (match[p->i] < 0 && !taken[p->j]) {
+                        match[p->i] = p->j;
+                        taken[p->j] = 1;
+                    }
+                }
+            } else {
+                /* square problem (nr + nc): estimates + dummies x truths + dummies;
+                 * staying unmatched costs u, a non-candidate pair "big". u is
+                 * large enough that one more pair always beats any saving in
+                 * distance (most pairs first, then the least sum of d2: what
+                 * the single square problem with "big" non-pairs gave) */
+                const int sz = nr + nc;
+                const double u = gate2 * (double)(sz + 1);
+                const double big = 4.0 * u * (double)(sz + 1);
+                double *cost = (double *)malloc(sizeof(double) * (size_t)sz * (size_t)sz);
+                int *r2c = (int *)malloc(sizeof(int) * (size_t)sz);
+                int *row_est = (int *)malloc(sizeof(int) * (size_t)nr);
+                int *col_truth = (int *)malloc(sizeof(int) * (size_t)nc);
+                if (cost == NULL || r2c == NULL || row_est == NULL || col_truth == NULL) {
+                    free(cost);
+                    free(r2c);
+                    free(row_est);
+                    free(col_truth);
+                    free(root);
+                    free(count);
+                    free(by_root);
+                    free(loc);
+                    greedy = -1;
+                    goto out;
+                }
+                for (int a = 0; a < sz; ++a) {
+                    for (int b = 0; b < sz; ++b) {
+                        cost[(size_t)a * (size_t)sz + (size_t)b] = (a < nr && b < nc) ? big : (a >= nr && b >= nc) ? 0.0 : u;
+                    }
+                }
+                for (size_t q = start; q < end; ++q) {
+                    const gated_pair_t *p = &pairs[by_root[q]];
+                    row_est[loc[p->i]] = p->i;
+                    col_truth[loc[n + p->j]] = p->j;
+                    cost[(size_t)loc[p->i] * (size_t)sz + (size_t)loc[n + p->j]] = p->d2;
+                }
+                hungarian(cost, sz, sz, r2c);
+                for (int a = 0; a < nr; ++a) {
+                    const int b = r2c[a];
+                    if (b < nc && cost[(size_t)a * (size_t)sz + (size_t)b] < gate2) {
+                        match[row_est[a]] = col_truth[b];
+                        taken[col_truth[b]] = 1;
+                    }
+                }
+                free(cost);
+                free(r2c);
+                free(row_est);
+                free(col_truth);
+            }
+            start = end;
+        }
+        free(root);
+        free(count);
+        free(by_root);
+        free(loc);
+    }
+out:
+    if (greedy < 0) {
+        for (int i = 0; i < n; ++i) {
+            match[i] = -1;
+        }
+    }
+    free(cells);
+    free(pairs);
+    free(uf);
+    free(taken);
+    return greedy;
+}
+
 void eval_map(const map_estimate_t *est, const point2_t *truth, const int *n_seen, int n_truth, int min_seen,
               double gate_m, map_eval_t *out)
 {
@@ -141,34 +411,22 @@ void eval_map(const map_estimate_t *est, const point2_t *truth, const int *n_see
     for (int i = 0; i < n; ++i) {
         out->match[i] = -1;
     }
-    /* square problem: rows = estimates + dummies, cols = truths + dummies */
-    const int sz = (n > n_truth ? n : n_truth);
-    if (sz == 0) {
+    if (n == 0 && n_truth == 0) {
         return;
     }
-    const double big = 1e6;
-    const double gate2 = gate_m * gate_m;
-    double *cost = (double *)malloc(sizeof(double) * (size_t)sz * (size_t)sz);
-    int *r2c = (int *)malloc(sizeof(int) * (size_t)sz);
-    for (int i = 0; i < sz; ++i) {
-        for (int j = 0; j < sz; ++j) {
-            double c = gate2; /* unmatched costs as much as a pair at the gate */
-            if (i < n && j < n_truth) {
-                const double dx = est->lm[i].mean.x - truth[j].x;
-                const double dy = est->lm[i].mean.y - truth[j].y;
-                const double d2 = dx * dx + dy * dy;
-                c = d2 < gate2 ? d2 : big;
-            }
-            cost[(long)i * sz + j] = c;
-        }
+    /* gated, per component (assign_gated): most pairs, then least sum of d2 */
+    point2_t *mean = (point2_t *)calloc((size_t)(n > 0 ? n : 1), sizeof(point2_t));
+    int *r2c = (int *)calloc((size_t)(n > 0 ? n : 1), sizeof(int));
+    for (int i = 0; i < n; ++i) {
+        mean[i] = est->lm[i].mean;
     }
-    hungarian(cost, sz, sz, r2c);
+    (void)assign_gated(mean, NULL, n, truth, NULL, n_truth, gate_m, r2c);
     int *truth_matched = (int *)calloc((size_t)(n_truth > 0 ? n_truth : 1), sizeof(int));
     double se = 0.0;
     double nees = 0.0;
     for (int i = 0; i < n; ++i) {
         const int j = r2c[i];
-        if (j < n_truth && cost[(long)i * sz + j] < gate2) {
+        if (j >= 0) {
             out->match[i] = j;
             truth_matched[j] = 1;
             const double dx = est->lm[i].mean.x - truth[j].x;
@@ -193,7 +451,7 @@ void eval_map(const map_estimate_t *est, const point2_t *truth, const int *n_see
     out->nees_mean = out->n_matched > 0 ? nees / out->n_matched : 0.0;
     free(truth_matched);
     free(r2c);
-    free(cost);
+    free(mean);
 }
 
 /* ---- eval_map_rigid (stats.h: method and cost) ---- */

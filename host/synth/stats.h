@@ -161,6 +161,27 @@ coslam_status_t eval_map_rigid(const map_estimate_t *est, const point2_t *truth,
  */
 void hungarian(const double *cost, int n, int m, int *row_to_col);
 
+/** Components of the candidate graph larger than this (estimates + true
+ *  landmarks) are assigned greedily (nearest pairs first) instead of by
+ *  the O(k^3) optimal assignment; counted by assign_gated's return. */
+#define ASSIGN_GATED_OPT_MAX 256
+
+/**
+ * The evaluation's matching: one-to-one pairs (estimate i, true landmark j)
+ * with equal signatures (est_sig/truth_sig may be NULL: all equal) and
+ * squared distance d2 < gate_m^2: the most pairs, and among those the least
+ * sum of d2 (what one square assignment problem with prohibitive costs for
+ * non-candidates gives). Solved per connected
+ * component of the candidate graph (candidates found through a grid of
+ * gate_m cells), so a map of thousands of separated landmarks costs
+ * O((n + n_truth) log n_truth) instead of the O((n + n_truth)^3) of one
+ * square problem. match[i] = j or -1. Returns the number of components
+ * that were too large for the optimal assignment (ASSIGN_GATED_OPT_MAX)
+ * and were matched greedily, or -1 when out of memory (match all -1).
+ */
+int assign_gated(const point2_t *est, const uint8_t *est_sig, int n, const point2_t *truth,
+                 const uint8_t *truth_sig, int n_truth, double gate_m, int *match);
+
 #ifdef __cplusplus
 }
 #endif

@@ -104,6 +104,11 @@ std::string value_text(std::mt19937_64 &rng, double lo, double hi)
     case 1: std::snprintf(buf, sizeof buf, "%.*e", p, v); break;
     default: std::snprintf(buf, sizeof buf, "%.*f", p, v); break;
     }
+    // a short notation can round out of the domain ("%.1f" of 0.03 is 0.0)
+    const double back = std::strtod(buf, nullptr);
+    if (!(back >= lo && back <= hi)) {
+        std::snprintf(buf, sizeof buf, "%.17g", v);
+    }
     return buf;
 }
 
@@ -117,7 +122,8 @@ std::string random_section(std::mt19937_64 &rng)
         double lo = std::isfinite(k->min) ? k->min : -50.0;
         double hi = std::isfinite(k->max) && k->max < 1e6 ? k->max : lo + 20.0;
         // the rules between keys: min < max range, gate <= new-landmark gate,
-        // exist_init <= exist_confirm <= exist_max
+        // exist_init <= exist_confirm <= exist_max, sensor_min_range_m <
+        // sighting_max_range_m
         if (n == "sensor_min_range_m") { lo = 0.0; hi = 1.0; }
         if (n == "sensor_max_range_m") { lo = 2.0; hi = 9.0; }
         if (n == "gate_chi2") { lo = 1.0; hi = 10.0; }
@@ -127,6 +133,7 @@ std::string random_section(std::mt19937_64 &rng)
         if (n == "exist_max") { lo = 7.0; hi = 12.0; }
         if (n == "sensor_fov_rad") { lo = 0.1; hi = 6.2; }
         if (n == "visibility_margin") { lo = 0.05; hi = 1.0; }
+        if (n == "sighting_max_range_m") { lo = 1.5; hi = 30.0; }
         if (k->min_open && lo <= k->min) lo = k->min + 1e-3;
         if (n.find("var") != std::string::npos) { hi = lo + 0.5; }
         s << n << " = " << value_text(rng, lo, hi) << "\n";

@@ -60,7 +60,7 @@ static void build_map(slam_filter_t *f, slam_filter_kind_t kind, map_estimate_t 
         truth = motion_apply(truth, u);
         const odo_increment_t noisy = {u.dx + rng_normal(&rng, 0.0, 0.005), u.dy + rng_normal(&rng, 0.0, 0.005),
                                        u.dtheta + rng_normal(&rng, 0.0, 0.005)};
-        assert_int_equal(slam_filter_predict(f, noisy), COSLAM_OK);
+        assert_int_equal(slam_filter_predict(f, noisy, 0.2), COSLAM_OK);
         sighting_t z[N_LM];
         int nz = 0;
         for (int i = 0; i < N_LM; ++i) {
@@ -363,7 +363,7 @@ static void seed_and_compare(slam_filter_kind_t kind, double rel)
     check_fixed_point(&map_b, &map_c);
     /* the seeded filter goes on: a prediction and an empty frame keep every
      * landmark, and new identities do not collide with the saved ones */
-    assert_int_equal(slam_filter_predict(&filter_b, (odo_increment_t){0.01, 0.0, 0.0}), COSLAM_OK);
+    assert_int_equal(slam_filter_predict(&filter_b, (odo_increment_t){0.01, 0.0, 0.0}, 0.1), COSLAM_OK);
     const coslam_status_t st = slam_filter_update(&filter_b, NULL, 0);
     assert_true(st == COSLAM_OK);
     assert_int_equal(slam_filter_export(&filter_b, &map_c), COSLAM_OK);

@@ -126,7 +126,16 @@ TEST(LandmarkLog, EveryMalformedLineNamesFileAndLine)
     EXPECT_TRUE(has(log_error("V 1 0.1x 0\n"), "is not a number: '0.1x'"));
     EXPECT_TRUE(has(log_error("V 1 nan 0\n"), "r1.log:1: field 3 (v) is not finite"));
     EXPECT_TRUE(has(log_error("Z 1 3 inf 0\n"), "r1.log:1: field 4 (range) is not finite"));
-    EXPECT_TRUE(has(log_error("V 1e999 0 0\n"), "r1.log:1: field 2 (t) is not a number"));
+    // an overflow is not finite; an underflow (subnormal) is a number
+    EXPECT_TRUE(has(log_error("V 1e999 0 0\n"), "r1.log:1: field 2 (t) is not finite: '1e999'"));
+    EXPECT_EQ(log_error("Z 1 3 1e-310 0\n"), "");
+    // bounded stamps, bearings; short numbers and no raw bytes in messages
+    EXPECT_TRUE(has(log_error("V -0.5 0 0\n"), "r1.log:1: time stamp -0.5 s outside [0, 1e+06]"));
+    EXPECT_TRUE(has(log_error("V 1e7 0 0\n"), "r1.log:1: time stamp 1e+07 s outside [0, 1e+06]"));
+    EXPECT_TRUE(has(log_error("Z 1 3 1 7\n"), "r1.log:1: bearing 7 rad outside [-2 pi, 2 pi]"));
+    EXPECT_TRUE(has(log_error("Z 1 3 -1.7976931348623157e308 0\n"), "range must be positive, got -1.79769e+308"));
+    EXPECT_TRUE(has(log_error("V 1 \x01\x7f 0\n"), "is not a number: '\\x01\\x7f'"));
+    EXPECT_TRUE(has(log_error("V 1 0 0\n" + std::string(5000, 'x') + "\n"), "r1.log:2: line longer than 4096 bytes"));
     // ranges and ids
     EXPECT_TRUE(has(log_error("Z 1 3 0 0.1\n"), "r1.log:1: range must be positive"));
     EXPECT_TRUE(has(log_error("R 1 2 -1 0.1\n"), "r1.log:1: range must be positive"));

@@ -229,7 +229,7 @@ static void flush_prediction(robot_node_t *n)
 {
     const odo_increment_t u = n->odo_pending;
     if (u.dx != 0.0 || u.dy != 0.0 || u.dtheta != 0.0) {
-        if (slam_filter_predict(&n->filter, u) != COSLAM_OK) {
+        if (slam_filter_predict(&n->filter, u, 1e-6 * (double)(n->now_us - n->last_predict_us)) != COSLAM_OK) {
             n->ctr.filter_errors++;
         }
     }

@@ -171,8 +171,18 @@ coslam_status_t slam_filter_seed(slam_filter_t *f, const slam_filter_config_t *c
     return st;
 }
 
-coslam_status_t slam_filter_predict(slam_filter_t *f, odo_increment_t u)
+coslam_status_t slam_filter_predict(slam_filter_t *f, odo_increment_t u, double dt_s)
 {
+    if (motion_is_finite(u) && !motion_is_plausible(slam_filter_params(f), u, dt_s)) {
+        /* finite but beyond what the base can do in dt_s: refused and
+         * counted with the non-finite ones, the state is not touched */
+        if (f->kind == SLAM_FILTER_EKF) {
+            f->u.ekf.ctr.rejected_controls++;
+        } else {
+            f->u.fs.ctr.rejected_controls++;
+        }
+        return COSLAM_E_ARG;
+    }
     return f->kind == SLAM_FILTER_EKF ? ekfslam_predict(&f->u.ekf, u) : fastslam_predict(&f->u.fs, u);
 }
 

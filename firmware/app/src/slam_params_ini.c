@@ -38,6 +38,9 @@ static const slam_params_ini_key_t keys[] = {
     {"exist_max", offsetof(slam_params_t, exist_max), F_, 0.0, FLT_MAX, 0U},
     {"exist_miss_confirmed", offsetof(slam_params_t, exist_miss_confirmed), F_, 0.0, FLT_MAX, 0U},
     {"exist_miss_bearing_sd_frac", offsetof(slam_params_t, exist_miss_bearing_sd_frac), D_, 0.0, HUGE_VAL, 1U},
+    {"max_speed_mps", offsetof(slam_params_t, max_speed_mps), D_, 0.0, HUGE_VAL, 1U},
+    {"max_turn_radps", offsetof(slam_params_t, max_turn_radps), D_, 0.0, HUGE_VAL, 1U},
+    {"sighting_max_range_m", offsetof(slam_params_t, sighting_max_range_m), D_, 0.0, HUGE_VAL, 1U},
 };
 
 #define N_KEYS (sizeof keys / sizeof keys[0])
@@ -161,6 +164,10 @@ coslam_status_t slam_params_ini_cross_check(const slam_params_t *p, const slam_p
         bad = "exist_max";
         with = "exist_confirm";
         rule = "exist_max must be at least exist_confirm";
+    } else if (!(p->sighting_max_range_m > p->sensor_min_range_m)) {
+        bad = "sighting_max_range_m";
+        with = "sensor_min_range_m";
+        rule = "sighting_max_range_m must be greater than sensor_min_range_m";
     }
     if (key != NULL) {
         *key = bad != NULL ? slam_params_ini_find(bad) : NULL;

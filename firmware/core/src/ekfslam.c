@@ -775,7 +775,7 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
     int ns = 0;
     double max_range_m = sp->sensor_max_range_m;
     for (int i = 0; i < n_in; ++i) {
-        if (!sighting_is_valid(&z_in[i])) {
+        if (!sighting_is_plausible(&z_in[i], sp)) {
             ekf->ctr.rejected_sightings++;
             if (result == COSLAM_OK) {
                 result = COSLAM_E_NUMERIC;

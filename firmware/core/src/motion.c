@@ -63,3 +63,12 @@ int motion_is_finite(odo_increment_t u)
 {
     return isfinite(u.dx) && isfinite(u.dy) && isfinite(u.dtheta);
 }
+
+int motion_is_plausible(const slam_params_t *p, odo_increment_t u, double dt_s)
+{
+    if (!motion_is_finite(u) || !isfinite(dt_s) || dt_s < 0.0) {
+        return 0;
+    }
+    const double t = dt_s + MOTION_PLAUSIBLE_SLACK_S;
+    return hypot(u.dx, u.dy) <= p->max_speed_mps * t && fabs(u.dtheta) <= p->max_turn_radps * t;
+}

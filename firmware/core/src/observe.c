@@ -78,3 +78,8 @@ int sighting_is_valid(const sighting_t *z)
 {
     return isfinite(z->range_m) && isfinite(z->bearing_rad) && z->range_m > OBSERVE_MIN_RANGE_M;
 }
+
+int sighting_is_plausible(const sighting_t *z, const slam_params_t *p)
+{
+    return sighting_is_valid(z) && z->range_m <= p->sighting_max_range_m && fabs(z->bearing_rad) <= COSLAM_PI + 1e-9;
+}

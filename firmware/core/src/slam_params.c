@@ -55,6 +55,9 @@ slam_params_t slam_params_default(void)
      * (8 s at 5 Hz), is removed at the 81st (slam_params.h) */
     p.exist_miss_confirmed = 0.125f;
     p.exist_miss_bearing_sd_frac = 0.25;
+    p.max_speed_mps = 3.0;
+    p.max_turn_radps = 2.0 * 3.14159265358979323846;
+    p.sighting_max_range_m = 20.0;
     return p;
 }
 
@@ -97,6 +100,11 @@ coslam_status_t slam_params_validate(const slam_params_t *p)
     }
     if (!(isfinite(p->exist_miss_confirmed) && p->exist_miss_confirmed >= 0.0f) ||
         !(isfinite(p->exist_miss_bearing_sd_frac) && p->exist_miss_bearing_sd_frac > 0.0)) {
+        return COSLAM_E_ARG;
+    }
+    if (!(isfinite(p->max_speed_mps) && p->max_speed_mps > 0.0) ||
+        !(isfinite(p->max_turn_radps) && p->max_turn_radps > 0.0) ||
+        !(isfinite(p->sighting_max_range_m) && p->sighting_max_range_m > p->sensor_min_range_m)) {
         return COSLAM_E_ARG;
     }
     return COSLAM_OK;

@@ -1,6 +1,8 @@
 #include "sim/world/scenario.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <set>
 #include <sstream>
@@ -12,6 +14,77 @@ namespace {
 
 constexpr double kDeg = COSLAM_PI / 180.0;
 
+std::string fmt_xy(const Eigen::Vector2d &p)
+{
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "(%.3g, %.3g)", p.x(), p.y());
+    return buf;
+}
+
+double point_segment_distance(const Eigen::Vector2d &p, const Eigen::Vector2d &a, const Eigen::Vector2d &b)
+{
+    const Eigen::Vector2d ab = b - a;
+    const double len2 = ab.squaredNorm();
+    const double t = len2 > 0.0 ? std::clamp((p - a).dot(ab) / len2, 0.0, 1.0) : 0.0;
+    return (a + t * ab - p).norm();
+}
+
+bool inside_polygon(const Eigen::Vector2d &p, const std::vector<Eigen::Vector2d> &poly)
+{
+    bool in = false;
+    for (size_t i = 0, j = poly.size() - 1; i < poly.size(); j = i++) {
+        if ((poly[i].y() > p.y()) != (poly[j].y() > p.y()) &&
+            p.x() < (poly[j].x() - poly[i].x()) * (p.y() - poly[i].y()) / (poly[j].y() - poly[i].y()) + poly[i].x()) {
+            in = !in;
+        }
+    }
+    return in;
+}
+
+// A robot must start inside the arena, clear of walls, boxes, pillars and
+// the other robots (its body radius around its start position).
+void check_start_poses(const Scenario &sc)
+{
+    const WorldSpec &w = sc.world;
+    for (size_t i = 0; i < sc.robots.size(); ++i) {
+        const RobotSpec &r = sc.robots[i];
+        const Eigen::Vector2d p(r.start.x, r.start.y);
+        const std::string who = "robot[" + std::to_string(i) + "].start " + fmt_xy(p);
+        if (w.arena.size() >= 3) {
+            if (!inside_polygon(p, w.arena)) {
+                throw ScenarioError(who + ": outside the arena");
+            }
+            for (size_t k = 0, j = w.arena.size() - 1; k < w.arena.size(); j = k++) {
+                if (point_segment_distance(p, w.arena[j], w.arena[k]) < r.radius_m) {
+                    throw ScenarioError(who + ": the body (radius " + std::to_string(r.radius_m) +
+                                        " m) overlaps the arena wall");
+                }
+            }
+        }
+        for (size_t b = 0; b < w.boxes.size(); ++b) {
+            const BoxSpec &bx = w.boxes[b];
+            const double a = -bx.angle_deg * kDeg;
+            const Eigen::Vector2d d = p - bx.center;
+            const Eigen::Vector2d q(std::cos(a) * d.x() - std::sin(a) * d.y(), std::sin(a) * d.x() + std::cos(a) * d.y());
+            if (std::fabs(q.x()) < 0.5 * bx.size.x() + r.radius_m && std::fabs(q.y()) < 0.5 * bx.size.y() + r.radius_m) {
+                throw ScenarioError(who + ": the body overlaps box " + std::to_string(b) + " at " + fmt_xy(bx.center));
+            }
+        }
+        for (size_t k = 0; k < w.pillars.size(); ++k) {
+            if ((p - w.pillars[k].center).norm() < w.pillars[k].radius_m + r.radius_m) {
+                throw ScenarioError(who + ": the body overlaps pillar " + std::to_string(k) + " at " +
+                                    fmt_xy(w.pillars[k].center));
+            }
+        }
+        for (size_t j = 0; j < i; ++j) {
+            const RobotSpec &o = sc.robots[j];
+            if ((p - Eigen::Vector2d(o.start.x, o.start.y)).norm() < r.radius_m + o.radius_m) {
+                throw ScenarioError(who + ": the body overlaps robot[" + std::to_string(j) + "]");
+            }
+        }
+    }
+}
+
 // Reads the keys of one table and rejects the ones nobody asked for.
 class Reader {
 public:
@@ -19,7 +92,11 @@ public:
 
     [[noreturn]] void fail(const std::string &key, const std::string &what) const
     {
-        throw ScenarioError(where(key) + ": " + what);
+        // the line of the offending key when the file has it
+        const toml::node *n = t_.get(key);
+        const auto line = n != nullptr ? n->source().begin.line : t_.source().begin.line;
+        throw ScenarioError((line > 0 ? "line " + std::to_string(line) + ": " : std::string()) + where(key) + ": " +
+                            what);
     }
 
     std::string where(const std::string &key) const { return path_.empty() ? key : path_ + "." + key; }
@@ -351,7 +428,7 @@ Scenario parse(const toml::table &root, const std::string &source)
     Reader r(root, "");
     r.str("name", sc.name);
     r.str("description", sc.description);
-    r.num("duration_s", sc.duration_s, 0.001, 1e7);
+    r.num("duration_s", sc.duration_s, 0.001, kMaxDurationS);
     r.u64("seed", sc.seed);
     if (const toml::table *t = r.table("timing")) {
         Reader tr(*t, "timing");
@@ -387,6 +464,7 @@ Scenario parse(const toml::table &root, const std::string &source)
         sc.robots.push_back(rs);
     }
     r.done();
+    check_start_poses(sc);
     if (std::fmod(sc.control_period_ms + 1e-9, sc.physics_dt_ms) > 1e-6) {
         throw ScenarioError("timing.control_period_ms: must be a multiple of physics_dt_ms");
     }

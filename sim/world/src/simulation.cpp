@@ -47,29 +47,23 @@ void evaluate_map(const map_estimate_t &est, const std::vector<point2_t> &truth,
     const int nt = static_cast<int>(truth.size());
     out->n_estimated = n;
     for (int i = 0; i < n; ++i) out->match[i] = -1;
-    const int sz = std::max(n, nt);
-    if (sz == 0) return;
-    // square problem: estimates + dummies x truths + dummies; a pair of
-    // different marker classes or beyond the gate costs "big", staying
+    if (n == 0 && nt == 0) return;
+    // pairs of the same marker class within the gate, assigned per
+    // component (assign_gated: bounded cost on large maps); staying
     // unmatched costs as much as a pair at the gate
-    const double big = 1e6, gate2 = gate_m * gate_m;
-    std::vector<double> cost(static_cast<size_t>(sz) * static_cast<size_t>(sz), gate2);
+    std::vector<point2_t> mean(static_cast<size_t>(n));
+    std::vector<uint8_t> sig(static_cast<size_t>(n));
     for (int i = 0; i < n; ++i) {
-        for (int j = 0; j < nt; ++j) {
-            const double d2 = sq(est.lm[i].mean.x - truth[static_cast<size_t>(j)].x) +
-                              sq(est.lm[i].mean.y - truth[static_cast<size_t>(j)].y);
-            const bool same = est.lm[i].signature == truth_sig[static_cast<size_t>(j)];
-            cost[static_cast<size_t>(i) * static_cast<size_t>(sz) + static_cast<size_t>(j)] =
-                same && d2 < gate2 ? d2 : big;
-        }
+        mean[static_cast<size_t>(i)] = est.lm[i].mean;
+        sig[static_cast<size_t>(i)] = est.lm[i].signature;
     }
-    std::vector<int> r2c(static_cast<size_t>(sz));
-    hungarian(cost.data(), sz, sz, r2c.data());
+    std::vector<int> r2c(static_cast<size_t>(std::max(n, 1)));
+    (void)assign_gated(mean.data(), sig.data(), n, truth.data(), truth_sig.data(), nt, gate_m, r2c.data());
     std::vector<char> matched(static_cast<size_t>(nt), 0);
     double se = 0.0, nees = 0.0;
     for (int i = 0; i < n; ++i) {
         const int j = r2c[static_cast<size_t>(i)];
-        if (j < nt && cost[static_cast<size_t>(i) * static_cast<size_t>(sz) + static_cast<size_t>(j)] < gate2) {
+        if (j >= 0) {
             out->match[i] = j;
             matched[static_cast<size_t>(j)] = 1;
             const double e2 = sq(est.lm[i].mean.x - truth[static_cast<size_t>(j)].x) +
@@ -98,6 +92,16 @@ uint64_t derive_seed(uint64_t seed, int robot, int stream)
     z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
     return z ^ (z >> 31);
 }
+
+namespace {
+// every other element, the first kept: a series at half its rate
+template <typename T> void thin_half(std::vector<T> &v)
+{
+    size_t w = 0;
+    for (size_t i = 0; i < v.size(); i += 2) v[w++] = v[i];
+    v.resize(w);
+}
+}  // namespace
 
 SimRobotConfig robot_config_from_scenario(const Scenario &sc, size_t k, uint64_t seed)
 {
@@ -140,6 +144,7 @@ SimRobotConfig robot_config_from_scenario(const Scenario &sc, size_t k, uint64_t
 
 Simulation::Simulation(const Scenario &sc, const SimulationOptions &opt)
     : sc_(sc), seed_(opt.seed.value_or(sc.seed)), duration_s_(opt.duration_s.value_or(sc.duration_s)),
+      max_series_(std::max<size_t>(opt.max_series, 16)), truth_hist_keep_(std::max<size_t>(opt.truth_hist_keep, 1024)),
       camera_(sc.camera.source),
       export_buf_(std::make_unique<map_estimate_t>())
 {
@@ -264,7 +269,9 @@ void Simulation::collect_events(size_t k, double t_s)
     const uint64_t ctrl_us = static_cast<uint64_t>(sc_.control_period_ms * 1000.0);
     auto truth_at = [&](size_t who, uint64_t t_us) {
         const auto &h = truth_hist_[who];
-        size_t i = static_cast<size_t>((t_us + ctrl_us / 2) / ctrl_us);
+        uint64_t step = (t_us + ctrl_us / 2) / ctrl_us;
+        step = step < truth_hist_base_ ? truth_hist_base_ : step;  // older than kept: the oldest kept
+        size_t i = static_cast<size_t>(step - truth_hist_base_);
         if (i >= h.size()) i = h.size() - 1;
         return h[i];
     };
@@ -347,6 +354,10 @@ void Simulation::advance_to(double t_end_s, const std::function<void(const Simul
         if (t >= next_ctrl_us_) {
             next_ctrl_us_ += ctrl_us;
             for (size_t k = 0; k < robots_.size(); ++k) truth_hist_[k].push_back(robots_[k]->pose());
+            if (truth_hist_[0].size() >= 2 * truth_hist_keep_) {
+                for (auto &h : truth_hist_) h.erase(h.begin(), h.begin() + static_cast<std::ptrdiff_t>(truth_hist_keep_));
+                truth_hist_base_ += truth_hist_keep_;
+            }
             std::fill(result_.team_detections.begin(), result_.team_detections.end(), 0);
             for (auto &r : robots_) {
                 const auto &d = r->detections();
@@ -358,7 +369,14 @@ void Simulation::advance_to(double t_end_s, const std::function<void(const Simul
             }
         }
         if (t >= next_path_us_) {
-            next_path_us_ += path_us;
+            if (!result_.robots.empty() && result_.robots[0].est_path.size() >= max_series_) {
+                for (auto &rr : result_.robots) {
+                    thin_half(rr.est_path);
+                    thin_half(rr.truth_path);
+                }
+                path_stride_ *= 2;
+            }
+            next_path_us_ += path_us * path_stride_;
             for (size_t k = 0; k < robots_.size(); ++k) {
                 pose2_t est;
                 cov3_t cov;
@@ -368,7 +386,11 @@ void Simulation::advance_to(double t_end_s, const std::function<void(const Simul
             }
         }
         if (t >= next_sample_us_) {
-            next_sample_us_ += sample_us;
+            if (!result_.robots.empty() && result_.robots[0].errors.size() >= max_series_) {
+                for (auto &rr : result_.robots) thin_half(rr.errors);
+                sample_stride_ *= 2;
+            }
+            next_sample_us_ += sample_us * sample_stride_;
             sample(t_s);
         }
         if (progress && t >= next_prog_us_) {

@@ -102,8 +102,15 @@ coslam_status_t slam_filter_init(slam_filter_t *f, const slam_filter_config_t *c
  */
 coslam_status_t slam_filter_seed(slam_filter_t *f, const slam_filter_config_t *cfg, const map_estimate_t *map);
 
-/** fastslam_predict / ekfslam_predict. */
-coslam_status_t slam_filter_predict(slam_filter_t *f, odo_increment_t u);
+/**
+ * fastslam_predict / ekfslam_predict of the odometry increment u covering
+ * dt_s seconds. An increment the base cannot do in dt_s
+ * (motion_is_plausible: slam_params_t max_speed_mps, max_turn_radps) is
+ * refused with COSLAM_E_ARG and counted in the filter's rejected_controls;
+ * the state is not touched. A non-finite one is refused by the core
+ * (COSLAM_E_NUMERIC, same counter).
+ */
+coslam_status_t slam_filter_predict(slam_filter_t *f, odo_increment_t u, double dt_s);
 
 /** fastslam_update / ekfslam_update with one frame's landmark sightings. */
 coslam_status_t slam_filter_update(slam_filter_t *f, const sighting_t *z, int n);

@@ -59,6 +59,19 @@ void motion_jacobians(pose2_t pose, odo_increment_t u, double g[3][3], double v[
 /** 1 if all fields are finite. */
 int motion_is_finite(odo_increment_t u);
 
+/** Time-stamp slack of motion_is_plausible [s]: an increment may cover up
+ *  to this much more time than the stamps say (jitter of the odometry and
+ *  control clocks). */
+#define MOTION_PLAUSIBLE_SLACK_S 0.1
+
+/**
+ * 1 if the increment u is something the base can do in dt_s seconds:
+ * finite, |(dx, dy)| <= max_speed_mps * (dt_s + slack) and |dtheta| <=
+ * max_turn_radps * (dt_s + slack) (slam_params_t). dt_s must be finite and
+ * >= 0; a negative or non-finite dt_s makes every increment implausible.
+ */
+int motion_is_plausible(const slam_params_t *p, odo_increment_t u, double dt_s);
+
 #ifdef __cplusplus
 }
 #endif

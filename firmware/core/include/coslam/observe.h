@@ -59,6 +59,11 @@ void observe_innovation(sighting_t z, sighting_t zhat, double nu[2]);
 /** 1 if range and bearing are finite and the range is positive. */
 int sighting_is_valid(const sighting_t *z);
 
+/** sighting_is_valid, and what the camera can report: range at most
+ *  sighting_max_range_m, |bearing| <= pi (a bearing is not wrapped from
+ *  outside (-pi, pi]: 1e308 rad is a fault, not an angle). */
+int sighting_is_plausible(const sighting_t *z, const slam_params_t *p);
+
 #ifdef __cplusplus
 }
 #endif

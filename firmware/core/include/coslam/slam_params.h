@@ -117,6 +117,20 @@ typedef struct {
      *  0.25: two sigma cover half the half field of view (+-6.25 deg of the
      *  50 deg camera, whose own bearing noise is 2 deg). > 0. */
     double exist_miss_bearing_sd_frac;
+
+    /* Plausibility of the inputs (motion.h motion_is_plausible, observe.h
+     * sighting_is_plausible): what the robot and its camera can physically
+     * do. An odometry increment or a sighting beyond these is refused and
+     * counted (rejected_controls / rejected_sightings), never filtered. */
+    /** Fastest the base can move [m/s] (Robotino: about 2.8 m/s at full
+     *  wheel speed; default 3). */
+    double max_speed_mps;
+    /** Fastest the base can turn [rad/s] (default 2 pi: one turn a second). */
+    double max_turn_radps;
+    /** Farthest a landmark or robot can be sighted [m] (default 20 m: a
+     *  marker is a few pixels tall there). Not the negative-evidence
+     *  footprint sensor_max_range_m, which may be set tighter. */
+    double sighting_max_range_m;
 } slam_params_t;
 
 /** The noise weights as an array w[0..7] = (w1..w8), for calibration. */

@@ -21,6 +21,10 @@
 
 namespace coslam::sim {
 
+/// Longest simulation a scenario or --duration may ask for [s] (11.6 days;
+/// the simulator's memory is flat in simulated time, this bounds the wall time).
+inline constexpr double kMaxDurationS = 1e6;
+
 struct ScenarioError : std::runtime_error {
     using std::runtime_error::runtime_error;
 };

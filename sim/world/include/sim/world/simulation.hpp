@@ -108,6 +108,12 @@ struct SimulationResult {
 struct SimulationOptions {
     std::optional<uint64_t> seed;         ///< overrides the scenario's seed
     std::optional<double> duration_s;     ///< overrides the scenario's duration
+    /// Memory is flat in simulated time: the recorded series (paths, error
+    /// samples) are thinned to every other point, their period doubled,
+    /// when they reach max_series points; the truth history keeps the last
+    /// truth_hist_keep control steps (merges look back seconds, not hours).
+    size_t max_series = 131072;
+    size_t truth_hist_keep = 65536;
 };
 
 struct SimulationProgress {
@@ -156,13 +162,16 @@ private:
     Scenario sc_;
     uint64_t seed_;
     double duration_s_;
+    size_t max_series_, truth_hist_keep_;             ///< SimulationOptions
     CameraSource camera_;
     World world_;
     std::unique_ptr<SimClock> clock_;
     std::unique_ptr<SimLinkHub> hub_;
     std::vector<std::unique_ptr<SimRobot>> robots_;
     std::vector<std::unique_ptr<robot_node_t>> nodes_;
-    std::vector<std::vector<pose2_t>> truth_hist_;   ///< per control step
+    std::vector<std::vector<pose2_t>> truth_hist_;   ///< per control step, from truth_hist_base_
+    uint64_t truth_hist_base_ = 0;                   ///< control step of truth_hist_[k][0]
+    uint64_t path_stride_ = 1, sample_stride_ = 1;   ///< multiples of the path / sample periods
     std::vector<MapSnapshot> last_sample_;
     std::unique_ptr<map_estimate_t> export_buf_;
     std::vector<uint8_t> truth_sig_;

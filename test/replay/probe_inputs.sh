@@ -1,0 +1,195 @@
+#!/bin/sh
+# test/replay/probe_inputs.sh - hostile and absurd inputs to coslam-replay and
+# coslam-sim (issue 12): each probe must end with the expected exit code and
+# say why (a message matching a pattern), print no raw binary, and the runs
+# that are accepted must leave no NaN in the map they write.
+#
+#   probe_inputs.sh REPLAY_BIN SIM_BIN SCENARIO WORK_DIR [TABLE_OUT]
+#
+# TABLE_OUT (optional) receives a markdown table of every probe (the closing
+# note of issue 12 and docs/robustness.md use it).
+set -u
+REPLAY=$1
+SIM=$2
+SCENARIO=$3
+WORK=$4
+TABLE=${5:-}
+rm -rf "$WORK"
+mkdir -p "$WORK"
+fails=0
+rows=""
+
+# A small, valid two-robot landmark log: 20 s of driving at 10 Hz, a
+# landmark field around the path, the robots sighting each other.
+mk_base() {
+    d=$1
+    mkdir -p "$d"
+    for k in 1 2; do
+        awk -v k="$k" 'BEGIN {
+            print "# probe base log, robot " k
+            for (i = 0; i <= 200; i++) {
+                t = i * 0.1
+                printf "V %.1f 0.2 0.05\n", t
+                if (i % 5 == 0) {
+                    printf "Z %.1f -1 %.3f %.3f\n", t, 2.0 + 0.3 * sin(i), 0.2 * cos(i)
+                    printf "Z %.1f -1 %.3f %.3f\n", t, 3.0 + 0.2 * cos(i), -0.3 * sin(i)
+                }
+                if (i == 100) printf "R %.1f %d 1.5 0.1\n", t, 3 - k
+            }
+        }' > "$d/robot$k.log"
+    done
+}
+
+# probe NAME EXPECTED_RC PATTERN CMD...: run, check rc and stderr+stdout
+probe() {
+    name=$1
+    want=$2
+    pat=$3
+    shift 3
+    out="$WORK/out.txt"
+    timeout 120 "$@" > "$out" 2>&1
+    rc=$?
+    msg=$(grep -E -m1 -i -- "$pat" "$out" | cut -c1-160)
+    ok=1
+    if [ "$want" = "nz" ]; then
+        [ "$rc" -ne 0 ] || ok=0
+    else
+        [ "$rc" -eq "$want" ] || ok=0
+    fi
+    [ -n "$msg" ] || ok=0
+    # no raw binary in what the tool printed
+    if LC_ALL=C grep -q -P '[^\x09\x0a\x0d\x20-\x7e]' "$out"; then
+        ok=0
+        msg="$msg [raw binary in the output]"
+    fi
+    status=PASS
+    if [ $ok -ne 1 ]; then
+        status=FAIL
+        fails=$((fails + 1))
+        echo "FAIL $name: rc $rc (want $want), pattern '$pat'"
+        sed -n 1,12p "$out"
+    else
+        echo "ok   $name: rc $rc: $msg"
+    fi
+    rows="$rows| $name | $rc | $(printf '%s' "$msg" | sed 's/|/\\|/g') | $status |
+"
+}
+
+# the maps and paths an accepted run wrote have no NaN/inf
+no_nan_map() {
+    name=$1
+    dir=$2
+    # (other CSVs write nan for "no ground truth": not checked)
+    if grep -l -i -E '(^|[ ,])(-?nan|-?inf)' "$dir"/robot*_map*.csv "$dir"/robot*_path.tum 2>/dev/null | head -1 | grep -q .; then
+        echo "FAIL $name: NaN/inf in the map or path of $dir"
+        grep -l -i -E '(^|[ ,])(-?nan|-?inf)' "$dir"/robot*_map*.csv "$dir"/robot*_path.tum | head -3
+        fails=$((fails + 1))
+    fi
+}
+
+R="$REPLAY run --no-plots -q"
+B="$WORK/base"
+mk_base "$B"
+probe "valid log" 0 "outputs in" $R "$B" -o "$WORK/r0"
+
+# command-line values
+probe "-p 0" nz "outside|particles" $R "$B" -f fastslam2 -p 0 -o "$WORK/r"
+probe "-p -5" nz "outside" $R "$B" -p -5 -o "$WORK/r"
+probe "-p 100000" nz "outside" $R "$B" -p 100000 -o "$WORK/r"
+probe "-d -5" nz "outside" $R "$B" -d -5 -o "$WORK/r"
+probe "-d nan" nz "not a finite number" $R "$B" -d nan -o "$WORK/r"
+probe "--merge-window nan" nz "not a finite number" $R "$B" --merge-window nan -o "$WORK/r"
+probe "--merge-interval -1" nz "outside" $R "$B" --merge-interval -1 -o "$WORK/r"
+probe "--seed -3" nz "outside" $R "$B" --seed -3 -o "$WORK/r"
+probe "-r 0" nz "outside" $R "$B" -r 0 -o "$WORK/r"
+probe "--robot-filter 20-digit id" 2 "robot id" $R "$B" --robot-filter 99999999999999999999=ekf -o "$WORK/r"
+
+# files
+probe "missing dataset folder" 2 "no such folder|not a folder" $R "$WORK/nope" -o "$WORK/r"
+for id in 0 17 99999999999999999999; do
+    d="$WORK/id$id"
+    mk_base "$d"
+    mv "$d/robot2.log" "$d/robot$id.log"
+    probe "robot id $id from a file name" 2 "robot id .* outside 1\.\.16" $R "$d" -o "$WORK/r"
+done
+d="$WORK/empty"
+mk_base "$d"
+echo "# nothing recorded" > "$d/robot2.log"
+probe "empty robot log" 2 "no odometry records" $R "$d" -o "$WORK/r"
+d="$WORK/unknownR"
+mk_base "$d"
+echo "R 20.0 7 1.0 0.0" >> "$d/robot1.log"
+probe "R record naming robot 7 (not in the data)" 0 "robots not in the dataset" $R "$d" -o "$WORK/r"
+d="$WORK/negt"
+mk_base "$d"
+sed -i '2i V -5.0 0.2 0.05' "$d/robot1.log"
+probe "negative first time stamp" 2 "outside \[0, 1e\+06\]" $R "$d" -o "$WORK/r"
+d="$WORK/t1e15"
+mk_base "$d"
+echo "V 1e15 0 0" >> "$d/robot1.log"
+probe "final record at t = 1e15 s" 2 "outside \[0, 1e\+06\]" $R "$d" -o "$WORK/r"
+d="$WORK/bearing"
+mk_base "$d"
+echo "Z 20.0 -1 2.0 1e308" >> "$d/robot1.log"
+probe "bearing 1e308" 2 "bearing 1e\+308 rad outside" $R "$d" -o "$WORK/r"
+d="$WORK/range"
+mk_base "$d"
+sed -i 's/^Z 10.0 -1 [0-9.]* /Z 10.0 -1 1e308 /' "$d/robot1.log"
+probe "range 1e308 (beyond the [input] range limit, counted)" 0 "sightings_range_dropped" $R "$d" -o "$WORK/rr"
+no_nan_map "range 1e308" "$WORK/rr"
+d="$WORK/subnormal"
+mk_base "$d"
+sed -i 's/^Z 10.0 -1 [0-9.]* /Z 10.0 -1 1e-310 /' "$d/robot1.log"
+probe "subnormal range 1e-310 (refused by the core, counted)" 0 "rejected_sightings" $R "$d" -o "$WORK/rs"
+d="$WORK/vhuge"
+mk_base "$d"
+sed -i 's/^V 10.0 .*/V 10.0 1e308 1e308/' "$d/robot1.log"
+probe "V t 1e308 1e308" 0 "rejected_controls" $R "$d" -o "$WORK/rv"
+no_nan_map "V 1e308" "$WORK/rv"
+d="$WORK/ohuge"
+mk_base "$d"
+sed -i 's/^V 10.0 .*/O 10.0 1e308 1e308 1e308/' "$d/robot1.log"
+probe "O t 1e308 1e308 1e308" 0 "rejected_controls" $R "$d" -o "$WORK/ro"
+no_nan_map "O 1e308" "$WORK/ro"
+d="$WORK/huge"
+mk_base "$d"
+truncate -s 2G "$d/robot2.log"
+probe "2 GB file (sparse zeros)" 2 "more than the 256 MiB limit" $R "$d" -o "$WORK/r"
+rm -f "$d/robot2.log"
+d="$WORK/longline"
+mk_base "$d"
+head -c 300000 /dev/zero | tr '\0' 'x' >> "$d/robot2.log"
+probe "300 kB line without newline" 2 "line longer than 4096 bytes" $R "$d" -o "$WORK/r"
+d="$WORK/binary"
+mk_base "$d"
+printf 'V 20.5 0.2 \001\377\033[31m\n' >> "$d/robot2.log"
+probe "binary bytes in a field" 2 "not a number: 'x01xffx1b|not a number: '\\\\x01" $R "$d" -o "$WORK/r"
+d="$WORK/dblmax"
+mk_base "$d"
+echo "Z 20.5 -1 -1.7976931348623157e308 0.0" >> "$d/robot2.log"
+probe "range -DBL_MAX (short message)" 2 "range must be positive, got -1.79769e\+308" $R "$d" -o "$WORK/r"
+
+# the simulator
+probe "coslam-sim --duration 1e7" nz "outside" "$SIM" --scenario "$SCENARIO" --duration 1e7 --quiet --out "$WORK/s"
+probe "coslam-sim --duration nan" nz "not a finite number" "$SIM" --scenario "$SCENARIO" --duration nan --quiet --out "$WORK/s"
+sed 's/^start = \[1.0, 0.0, 0.0\].*/start = [2.0, 1.3, 0.0]/' "$SCENARIO" > "$WORK/in_box.toml"
+probe "scenario: robot started inside a box" 1 "overlaps box" "$SIM" --scenario "$WORK/in_box.toml" --quiet --out "$WORK/s"
+sed 's/^start = \[1.0, 0.0, 0.0\].*/start = [9.0, 0.0, 0.0]/' "$SCENARIO" > "$WORK/outside.toml"
+probe "scenario: robot started outside the arena" 1 "outside the arena" "$SIM" --scenario "$WORK/outside.toml" --quiet --out "$WORK/s"
+sed 's/^start = \[1.0, 0.0, 0.0\].*/start = [-1.1, 0.0, 0.0]/' "$SCENARIO" > "$WORK/overlap.toml"
+probe "scenario: robots on top of each other" 1 "overlaps robot" "$SIM" --scenario "$WORK/overlap.toml" --quiet --out "$WORK/s"
+sed 's/^\[timing\]/[timing]\nbogus_key = 3/' "$SCENARIO" > "$WORK/badkey.toml"
+probe "scenario: unknown key (line number)" 1 "line [0-9]+: timing.bogus_key: unknown key" "$SIM" --scenario "$WORK/badkey.toml" --quiet --out "$WORK/s"
+
+if [ -n "$TABLE" ]; then
+    {
+        echo "| probe | exit | message (first line matching) | |"
+        echo "|---|---|---|---|"
+        printf '%s' "$rows"
+    } > "$TABLE"
+fi
+if [ $fails -ne 0 ]; then
+    echo "$fails probe(s) failed"
+    exit 1
+fi
+echo "all probes behave"
