@@ -194,6 +194,10 @@ int assign_gated(const point2_t *est, const uint8_t *est_sig, int n, const point
     int greedy = 0;
     size_t cap = (size_t)n * 4 + 16;
     size_t np = 0;
+    /* everything on the heap is freed at out: (host code) */
+    int *root = NULL, *count = NULL, *loc = NULL, *r2c = NULL, *row_est = NULL, *col_truth = NULL;
+    size_t *by_root = NULL;
+    double *cost = NULL;
     cell_item_t *cells = (cell_item_t *)malloc(sizeof *cells * (size_t)n_truth);
     gated_pair_t *pairs = (gated_pair_t *)malloc(sizeof *pairs * cap);
     int *uf = (int *)malloc(sizeof(int) * (size_t)(n + n_truth));
@@ -272,9 +276,8 @@ int assign_gated(const point2_t *est, const uint8_t *est_sig, int n, const point
     }
     /* pairs sorted by component root, then by distance (greedy order) */
     {
-        int *root = (int *)malloc(sizeof(int) * (np > 0 ? np : 1));
+        root = (int *)malloc(sizeof(int) * (np > 0 ? np : 1));
         if (root == NULL) {
-            free(root);
             greedy = -1;
             goto out;
         }
@@ -283,14 +286,10 @@ int assign_gated(const point2_t *est, const uint8_t *est_sig, int n, const point
             root[q] = uf_find(uf, pairs[q].i);
         }
         /* stable counting by root: a bucket per root, pairs in distance order */
-        int *count = (int *)calloc((size_t)(n + n_truth) + 1, sizeof(int));
-        size_t *by_root = (size_t *)malloc(sizeof(size_t) * (np > 0 ? np : 1));
-        int *loc = (int *)malloc(sizeof(int) * (size_t)(n + n_truth));
+        count = (int *)calloc((size_t)(n + n_truth) + 1, sizeof(int));
+        by_root = (size_t *)malloc(sizeof(size_t) * (np > 0 ? np : 1));
+        loc = (int *)malloc(sizeof(int) * (size_t)(n + n_truth));
         if (count == NULL || by_root == NULL || loc == NULL) {
-            free(root);
-            free(count);
-            free(by_root);
-            free(loc);
             greedy = -1;
             goto out;
         }
@@ -342,19 +341,11 @@ int assign_gated(const point2_t *est, const uint8_t *est_sig, int n, const point
                 const int sz = nr + nc;
                 const double u = gate2 * (double)(sz + 1);
                 const double big = 4.0 * u * (double)(sz + 1);
-                double *cost = (double *)malloc(sizeof(double) * (size_t)sz * (size_t)sz);
-                int *r2c = (int *)malloc(sizeof(int) * (size_t)sz);
-                int *row_est = (int *)malloc(sizeof(int) * (size_t)nr);
-                int *col_truth = (int *)malloc(sizeof(int) * (size_t)nc);
+                cost = (double *)malloc(sizeof(double) * (size_t)sz * (size_t)sz);
+                r2c = (int *)malloc(sizeof(int) * (size_t)sz);
+                row_est = (int *)malloc(sizeof(int) * (size_t)nr);
+                col_truth = (int *)malloc(sizeof(int) * (size_t)nc);
                 if (cost == NULL || r2c == NULL || row_est == NULL || col_truth == NULL) {
-                    free(cost);
-                    free(r2c);
-                    free(row_est);
-                    free(col_truth);
-                    free(root);
-                    free(count);
-                    free(by_root);
-                    free(loc);
                     greedy = -1;
                     goto out;
                 }
@@ -381,13 +372,11 @@ int assign_gated(const point2_t *est, const uint8_t *est_sig, int n, const point
                 free(r2c);
                 free(row_est);
                 free(col_truth);
+                cost = NULL;
+                r2c = row_est = col_truth = NULL;
             }
             start = end;
         }
-        free(root);
-        free(count);
-        free(by_root);
-        free(loc);
     }
 out:
     if (greedy < 0) {
@@ -399,6 +388,14 @@ out:
     free(pairs);
     free(uf);
     free(taken);
+    free(root);
+    free(count);
+    free(by_root);
+    free(loc);
+    free(cost);
+    free(r2c);
+    free(row_est);
+    free(col_truth);
     return greedy;
 }
 

@@ -87,6 +87,14 @@ no_nan_map() {
     fi
 }
 
+# variant NAME ROBOT SED: $d = a fresh copy of the base log, robot ROBOT's
+# log edited by the sed expression SED ('$a LINE' appends LINE)
+variant() {
+    d="$WORK/$1"
+    mk_base "$d"
+    sed -i "$3" "$d/robot$2.log"
+}
+
 R="$REPLAY run --no-plots -q"
 B="$WORK/base"
 mk_base "$B"
@@ -116,39 +124,23 @@ d="$WORK/empty"
 mk_base "$d"
 echo "# nothing recorded" > "$d/robot2.log"
 probe "empty robot log" 2 "no odometry records" $R "$d" -o "$WORK/r"
-d="$WORK/unknownR"
-mk_base "$d"
-echo "R 20.0 7 1.0 0.0" >> "$d/robot1.log"
+variant unknownR 1 '$a R 20.0 7 1.0 0.0'
 probe "R record naming robot 7 (not in the data)" 0 "robots not in the dataset" $R "$d" -o "$WORK/r"
-d="$WORK/negt"
-mk_base "$d"
-sed -i '2i V -5.0 0.2 0.05' "$d/robot1.log"
+variant negt 1 '2i V -5.0 0.2 0.05'
 probe "negative first time stamp" 2 "outside \[0, 1e\+06\]" $R "$d" -o "$WORK/r"
-d="$WORK/t1e15"
-mk_base "$d"
-echo "V 1e15 0 0" >> "$d/robot1.log"
+variant t1e15 1 '$a V 1e15 0 0'
 probe "final record at t = 1e15 s" 2 "outside \[0, 1e\+06\]" $R "$d" -o "$WORK/r"
-d="$WORK/bearing"
-mk_base "$d"
-echo "Z 20.0 -1 2.0 1e308" >> "$d/robot1.log"
+variant bearing 1 '$a Z 20.0 -1 2.0 1e308'
 probe "bearing 1e308" 2 "bearing 1e\+308 rad outside" $R "$d" -o "$WORK/r"
-d="$WORK/range"
-mk_base "$d"
-sed -i 's/^Z 10.0 -1 [0-9.]* /Z 10.0 -1 1e308 /' "$d/robot1.log"
+variant range 1 's/^Z 10.0 -1 [0-9.]* /Z 10.0 -1 1e308 /'
 probe "range 1e308 (beyond the [input] range limit, counted)" 0 "sightings_range_dropped" $R "$d" -o "$WORK/rr"
 no_nan_map "range 1e308" "$WORK/rr"
-d="$WORK/subnormal"
-mk_base "$d"
-sed -i 's/^Z 10.0 -1 [0-9.]* /Z 10.0 -1 1e-310 /' "$d/robot1.log"
+variant subnormal 1 's/^Z 10.0 -1 [0-9.]* /Z 10.0 -1 1e-310 /'
 probe "subnormal range 1e-310 (refused by the core, counted)" 0 "rejected_sightings" $R "$d" -o "$WORK/rs"
-d="$WORK/vhuge"
-mk_base "$d"
-sed -i 's/^V 10.0 .*/V 10.0 1e308 1e308/' "$d/robot1.log"
+variant vhuge 1 's/^V 10.0 .*/V 10.0 1e308 1e308/'
 probe "V t 1e308 1e308" 0 "rejected_controls" $R "$d" -o "$WORK/rv"
 no_nan_map "V 1e308" "$WORK/rv"
-d="$WORK/ohuge"
-mk_base "$d"
-sed -i 's/^V 10.0 .*/O 10.0 1e308 1e308 1e308/' "$d/robot1.log"
+variant ohuge 1 's/^V 10.0 .*/O 10.0 1e308 1e308 1e308/'
 probe "O t 1e308 1e308 1e308" 0 "rejected_controls" $R "$d" -o "$WORK/ro"
 no_nan_map "O 1e308" "$WORK/ro"
 d="$WORK/huge"
@@ -164,9 +156,7 @@ d="$WORK/binary"
 mk_base "$d"
 printf 'V 20.5 0.2 \001\377\033[31m\n' >> "$d/robot2.log"
 probe "binary bytes in a field" 2 "not a number: 'x01xffx1b|not a number: '\\\\x01" $R "$d" -o "$WORK/r"
-d="$WORK/dblmax"
-mk_base "$d"
-echo "Z 20.5 -1 -1.7976931348623157e308 0.0" >> "$d/robot2.log"
+variant dblmax 2 '$a Z 20.5 -1 -1.7976931348623157e308 0.0'
 probe "range -DBL_MAX (short message)" 2 "range must be positive, got -1.79769e\+308" $R "$d" -o "$WORK/r"
 
 # the simulator
