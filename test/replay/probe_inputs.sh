@@ -159,6 +159,58 @@ probe "binary bytes in a field" 2 "not a number: 'x01xffx1b|not a number: '\\\\x
 variant dblmax 2 '$a Z 20.5 -1 -1.7976931348623157e308 0.0'
 probe "range -DBL_MAX (short message)" 2 "range must be positive, got -1.79769e\+308" $R "$d" -o "$WORK/r"
 
+# capacities. The map: a 300 m corridor with a marker about every metre on
+# both sides (600 landmarks, irregular so that the corridor is not periodic,
+# up to 7 in view), exact odometry; the core's map (256 in the large
+# profile) fills at about 128 m.
+d="$WORK/capacity"
+mkdir -p "$d"
+printf '[odometry]\nscale_v = 1\nscale_w = 1\ndelay_s = 0\n' > "$WORK/exact_odometry.ini"
+for k in 1 2; do
+    awk -v k="$k" 'function fr(v) { return v - int(v) }
+    BEGIN {
+        for (j = 0; j < 300; j++) {
+            for (s = 0; s < 2; s++) {
+                X[j, s] = j + 0.6 * fr(sin(j * 12.9898 + s * 78.233) * 43758.5453)
+                Y[j, s] = (2 * s - 1) * (1.0 + 0.8 * fr(sin(j * 39.346 + s * 11.135) * 24634.634))
+            }
+        }
+        for (i = 0; i <= 6000; i++) {
+            t = i * 0.1
+            printf "V %.1f %.1f 0\n", t, (k == 1 ? 0.5 : 0.0)
+            if (k != 1 || i % 5 != 0) continue
+            for (j = 0; j < 300; j++) {
+                for (s = 0; s < 2; s++) {
+                    lx = X[j, s] - 0.5 * t
+                    r = sqrt(lx * lx + Y[j, s] * Y[j, s])
+                    b = atan2(Y[j, s], lx)
+                    if (lx > 0.5 && r < 3.5 && b < 0.8 && b > -0.8) printf "Z %.1f -1 %.4f %.4f\n", t, r, b
+                }
+            }
+        }
+    }' > "$d/robot$k.log"
+    awk -v k="$k" 'BEGIN { for (i = 0; i <= 6000; i++) printf "%.1f %.3f 0 0\n", i * 0.1, (k == 1 ? 0.05 * i : 0.0) }' \
+        > "$d/robot${k}_truth.txt"
+done
+probe "capacity: map full (600 landmarks)" 3 "LIMIT robot 1: .* COSLAM_MAX_LANDMARKS = " \
+    $R "$d" -c "$WORK/exact_odometry.ini" -f ekf -o "$WORK/rc"
+# the full map still localises the robot: sightings of unmapped markers are
+# not forced onto mapped ones (pose RMSE, the column after the filter)
+rmse=$(awk '$1 == "1" && $2 == "ekf" { print $3 }' "$WORK/out.txt")
+if ! awk -v e="$rmse" 'BEGIN { exit !(e != "" && e + 0 < 0.2) }'; then
+    echo "FAIL capacity: robot 1 pose RMSE '$rmse' m with a full map (want < 0.2)"
+    fails=$((fails + 1))
+else
+    echo "ok   capacity: robot 1 pose RMSE $rmse m with a full map"
+fi
+no_nan_map "capacity" "$WORK/rc"
+probe "capacity: map full, --allow-capacity-limits" 0 "LIMIT robot 1: .* COSLAM_MAX_LANDMARKS = " \
+    $R "$d" -c "$WORK/exact_odometry.ini" -f ekf --allow-capacity-limits -o "$WORK/rc"
+# the sighting buffer: one frame of 24 sightings (16 per frame in every profile)
+variant frame 1 '$a Z 20.5 -1 1.0 0.0'
+for i in $(seq 1 23); do echo "Z 20.5 -1 $((i / 6 + 1)).$((i % 6 + 1)) 0.0$i" >> "$d/robot1.log"; done
+probe "capacity: 24 sightings in one frame" 3 "LIMIT robot 1: .* COSLAM_MAX_SIGHTINGS = 16" $R "$d" -f ekf -o "$WORK/r"
+
 # the simulator
 probe "coslam-sim --duration 1e7" nz "outside" "$SIM" --scenario "$SCENARIO" --duration 1e7 --quiet --out "$WORK/s"
 probe "coslam-sim --duration nan" nz "not a finite number" "$SIM" --scenario "$SCENARIO" --duration nan --quiet --out "$WORK/s"
