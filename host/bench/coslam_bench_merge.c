@@ -122,13 +122,15 @@ static double naive_pairs_us(int n_particles, int m)
     volatile double sink = 0.0;
     for (int k = 0; k < n_particles; ++k) {
         const fastslam_particle_t *p = &g_fs.particles[k];
+        const landmark_t *const *lms = fastslam_particle_landmarks(&g_fs, (uint16_t)k);
         for (uint16_t i = 0; i < g_bm.n; ++i) {
             double best = INFINITY;
             for (uint16_t j = 0; j < p->n_lm; ++j) {
                 double d2;
                 const point2_t w = pose2_apply(p->pose, g_bm.mean[i]);
-                if (cov2_mahalanobis2(cov2_add(p->lm[j].cov, g_bm.cov[i]), w.x - p->lm[j].mean.x,
-                                      w.y - p->lm[j].mean.y, &d2) == COSLAM_OK &&
+                const landmark_t *lm = lms[j];
+                if (cov2_mahalanobis2(cov2_add(lm->cov, g_bm.cov[i]), w.x - lm->mean.x,
+                                      w.y - lm->mean.y, &d2) == COSLAM_OK &&
                     d2 < best) {
                     best = d2;
                 }

@@ -63,11 +63,13 @@ std::optional<point2_t> RobotFilter::landmark_of_signature(uint8_t sig) const
         return best;
     }
     const fastslam_t *fs = fastslam();
-    const fastslam_particle_t &p = fs->particles[fastslam_best_particle(fs)];
+    const uint16_t k = fastslam_best_particle(fs);
+    const fastslam_particle_t &p = fs->particles[k];
     for (uint16_t j = 0; j < p.n_lm; ++j) {
-        if (p.lm[j].signature == sig && p.lm[j].n_obs > best_obs) {
-            best_obs = p.lm[j].n_obs;
-            best = p.lm[j].mean;
+        const landmark_t &lm = *fastslam_particle_lm(fs, k, j);
+        if (lm.signature == sig && lm.n_obs > best_obs) {
+            best_obs = lm.n_obs;
+            best = lm.mean;
         }
     }
     return best;

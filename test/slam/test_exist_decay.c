@@ -143,7 +143,7 @@ static int present(const world_t *w, uint32_t id)
     for (uint16_t k = 0; k < g_fs.cfg.n_particles; ++k) {
         const fastslam_particle_t *p = &g_fs.particles[k];
         for (uint16_t j = 0; j < p->n_lm; ++j) {
-            if (p->lm[j].id == id) {
+            if (fastslam_particle_lm(&g_fs, k, j)->id == id) {
                 return 1;
             }
         }
@@ -371,7 +371,8 @@ static void old_rule(int ekf)
     if (ekf) {
         ASSERT_NEAR(g_ekf.meta[g_ekf.n_lm - 1].exist, sp.exist_confirm, 0.0);
     } else {
-        ASSERT_NEAR(g_fs.particles[0].lm[g_fs.particles[0].n_lm - 1].exist, sp.exist_confirm, 0.0);
+        ASSERT_NEAR(fastslam_particle_lm(&g_fs, 0, (uint16_t)(g_fs.particles[0].n_lm - 1))->exist, sp.exist_confirm,
+                    0.0);
     }
 }
 

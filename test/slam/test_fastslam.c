@@ -48,8 +48,9 @@ static void test_resampling_counts(void **state)
             fastslam_particle_t *p = &g_fs.particles[k];
             p->pose.x = k;
             p->log_w = w[k] > 0.0 ? log(w[k]) : -INFINITY;
-            p->n_lm = 1;
-            p->lm[0] = make_lm(k, 0.0, cov2_make(1, 0, 1), 100U + k, 3.0f);
+            const landmark_t lm = make_lm(k, 0.0, cov2_make(1, 0, 1), 100U + k, 3.0f);
+            fastslam_particle_clear(&g_fs, k);
+            assert_int_equal(fastslam_particle_add(&g_fs, k, &lm), COSLAM_OK);
         }
         fastslam_resample(&g_fs);
         int copies[10] = {0};
@@ -59,7 +60,7 @@ static void test_resampling_counts(void **state)
             assert_true(src >= 0 && src < 10);
             /* the map travelled with the pose */
             assert_int_equal(p->n_lm, 1);
-            assert_int_equal(p->lm[0].id, 100U + (uint32_t)src);
+            assert_int_equal(fastslam_particle_lm(&g_fs, k, 0)->id, 100U + (uint32_t)src);
             ASSERT_NEAR(p->log_w, 0.0, 0.0);
             copies[src]++;
         }
@@ -95,17 +96,21 @@ static void test_export_moment_match(void **state)
         p->pose.x = 1.0 + 0.1 * k;
         p->pose.y = -0.5 * k;
         p->pose.theta = theta[k];
-        p->n_lm = 0;
+        fastslam_particle_clear(&g_fs, (uint16_t)k);
+        landmark_t lm;
         /* id 5 in particles 0, 1, 2 (weight 0.9) */
         if (k < 3) {
-            p->lm[p->n_lm++] = make_lm(2.0 + 0.1 * k, 1.0 - 0.2 * k, (k % 2) ? ca : cb, 5U, c.slam.exist_confirm);
+            lm = make_lm(2.0 + 0.1 * k, 1.0 - 0.2 * k, (k % 2) ? ca : cb, 5U, c.slam.exist_confirm);
+            assert_int_equal(fastslam_particle_add(&g_fs, (uint16_t)k, &lm), COSLAM_OK);
         }
         /* id 6 only in particle 3 (weight 0.1 < 0.5): not exported */
         if (k == 3) {
-            p->lm[p->n_lm++] = make_lm(9.0, 9.0, ca, 6U, c.slam.exist_max);
+            lm = make_lm(9.0, 9.0, ca, 6U, c.slam.exist_max);
+            assert_int_equal(fastslam_particle_add(&g_fs, (uint16_t)k, &lm), COSLAM_OK);
         }
         /* id 7 everywhere but tentative: not exported */
-        p->lm[p->n_lm++] = make_lm(-3.0, 0.0, ca, 7U, c.slam.exist_confirm - 1.0f);
+        lm = make_lm(-3.0, 0.0, ca, 7U, c.slam.exist_confirm - 1.0f);
+        assert_int_equal(fastslam_particle_add(&g_fs, (uint16_t)k, &lm), COSLAM_OK);
     }
     static map_estimate_t est;
     assert_int_equal(fastslam_export(&g_fs, &est), COSLAM_OK);
@@ -162,10 +167,10 @@ static void test_new_landmark_identity_shared(void **state)
     assert_int_equal(fastslam_update(&g_fs, z, 2), COSLAM_OK);
     for (uint16_t k = 0; k < 50; ++k) {
         assert_int_equal(g_fs.particles[k].n_lm, 2);
-        assert_int_equal(g_fs.particles[k].lm[0].id, g_fs.particles[0].lm[0].id);
-        assert_int_equal(g_fs.particles[k].lm[1].id, g_fs.particles[0].lm[1].id);
+        assert_int_equal(fastslam_particle_lm(&g_fs, k, 0)->id, fastslam_particle_lm(&g_fs, 0, 0)->id);
+        assert_int_equal(fastslam_particle_lm(&g_fs, k, 1)->id, fastslam_particle_lm(&g_fs, 0, 1)->id);
     }
-    assert_true(g_fs.particles[0].lm[0].id != g_fs.particles[0].lm[1].id);
+    assert_true(fastslam_particle_lm(&g_fs, 0, 0)->id != fastslam_particle_lm(&g_fs, 0, 1)->id);
     assert_int_equal(g_fs.ctr.landmarks_added, 2);
 }
 
@@ -183,14 +188,14 @@ static void test_mutual_exclusion(void **state)
     assert_int_equal(fastslam_update(&g_fs, two, 2), COSLAM_OK);
     for (uint16_t k = 0; k < 20; ++k) {
         assert_int_equal(g_fs.particles[k].n_lm, 2);
-        assert_int_equal(g_fs.particles[k].lm[0].n_obs, 2);
-        assert_int_equal(g_fs.particles[k].lm[1].n_obs, 1);
+        assert_int_equal(fastslam_particle_lm(&g_fs, k, 0)->n_obs, 2);
+        assert_int_equal(fastslam_particle_lm(&g_fs, k, 1)->n_obs, 1);
     }
     /* signatures separate: a sighting of another class never matches */
     const sighting_t other = {2.0, 0.0, 1};
     assert_int_equal(fastslam_update(&g_fs, &other, 1), COSLAM_OK);
     assert_int_equal(g_fs.particles[0].n_lm, 3);
-    assert_int_equal(g_fs.particles[0].lm[2].signature, 1);
+    assert_int_equal(fastslam_particle_lm(&g_fs, 0, 2)->signature, 1);
 }
 
 static void test_negative_evidence(void **state)
@@ -260,14 +265,17 @@ static void test_capacity_and_bad_input(void **state)
         added = g_fs.particles[0].n_lm;
         assert_true(i < 4 * COSLAM_MAX_LANDMARKS);
     }
-    const fastslam_particle_t before = g_fs.particles[0];
+    static uint32_t before_id[COSLAM_MAX_LANDMARKS];
+    for (uint16_t j = 0; j < COSLAM_MAX_LANDMARKS; ++j) {
+        before_id[j] = fastslam_particle_lm(&g_fs, 0, j)->id;
+    }
     const uint32_t drops = g_fs.ctr.lm_capacity_drops;
     const sighting_t far = {0.35, 0.0, 5};
     assert_int_equal(fastslam_update(&g_fs, &far, 1), COSLAM_E_CAPACITY);
     assert_int_equal(g_fs.ctr.lm_capacity_drops, drops + 5U);
     assert_int_equal(g_fs.particles[0].n_lm, COSLAM_MAX_LANDMARKS);
     for (int j = 0; j < COSLAM_MAX_LANDMARKS; ++j) {
-        assert_int_equal(g_fs.particles[0].lm[j].id, before.lm[j].id);
+        assert_int_equal(fastslam_particle_lm(&g_fs, 0, (uint16_t)j)->id, before_id[j]);
     }
     /* too many sightings in one update: processed up to capacity, rest counted */
     assert_int_equal(fastslam_init(&g_fs, &c, p0, 8U), COSLAM_OK);

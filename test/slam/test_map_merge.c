@@ -371,24 +371,26 @@ static void test_merge_into_fastslam(void **state)
     for (uint16_t k = 0; k < 20; ++k) {
         const fastslam_particle_t *p = &g_fs.particles[k];
         assert_int_equal(p->n_lm, 2);
-        ASSERT_NEAR(p->lm[0].mean.x, want.x, 1e-9);
-        ASSERT_NEAR(p->lm[0].cov.xx, want_c.xx, 1e-12); /* eqs. 4-5 */
-        assert_int_equal(p->lm[0].src_mask, 0x3);
-        assert_int_equal(p->lm[0].n_obs, 15);
-        ASSERT_NEAR(p->lm[1].mean.x, fresh.x, 1e-9);
-        assert_int_equal(p->lm[1].id, g_fs.particles[0].lm[1].id); /* one identity across particles */
+        const landmark_t *l0 = fastslam_particle_lm(&g_fs, k, 0);
+        const landmark_t *l1 = fastslam_particle_lm(&g_fs, k, 1);
+        ASSERT_NEAR(l0->mean.x, want.x, 1e-9);
+        ASSERT_NEAR(l0->cov.xx, want_c.xx, 1e-12); /* eqs. 4-5 */
+        assert_int_equal(l0->src_mask, 0x3);
+        assert_int_equal(l0->n_obs, 15);
+        ASSERT_NEAR(l1->mean.x, fresh.x, 1e-9);
+        assert_int_equal(l1->id, fastslam_particle_lm(&g_fs, 0, 1)->id); /* one identity across particles */
     }
     /* the same map again (a second meeting, nothing new): provenance overlaps,
      * covariance intersection, and the covariances do not shrink */
-    const double before = g_fs.particles[0].lm[0].cov.xx;
-    const double before_new = g_fs.particles[0].lm[1].cov.xx;
+    const double before = fastslam_particle_lm(&g_fs, 0, 0)->cov.xx;
+    const double before_new = fastslam_particle_lm(&g_fs, 0, 1)->cov.xx;
     memset(&st, 0, sizeof st);
     assert_int_equal(merge_into_fastslam(&g_fs, &g_bm, &mc, &g_sc, &st), COSLAM_OK);
     assert_int_equal(st.fused, 40);
     assert_int_equal(st.fused_ci, 40);
     assert_int_equal(st.added, 0);
-    ASSERT_NEAR(g_fs.particles[0].lm[0].cov.xx, before, 1e-9);
-    ASSERT_NEAR(g_fs.particles[0].lm[1].cov.xx, before_new, 1e-9);
+    ASSERT_NEAR(fastslam_particle_lm(&g_fs, 0, 0)->cov.xx, before, 1e-9);
+    ASSERT_NEAR(fastslam_particle_lm(&g_fs, 0, 1)->cov.xx, before_new, 1e-9);
     assert_int_equal(g_fs.particles[0].n_lm, 2);
     /* capacity: a full map reports and keeps what it has */
     for (uint16_t k = 0; k < 20; ++k) {

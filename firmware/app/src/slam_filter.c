@@ -114,7 +114,7 @@ static coslam_status_t seed_fastslam(fastslam_t *fs, const map_estimate_t *map)
         p->pending_cov = cov3_zero();
         p->pose_marg = marg;
         p->log_w = 0.0;
-        p->n_lm = 0U;
+        fastslam_particle_clear(fs, k);
     }
     coslam_status_t result = COSLAM_OK;
     uint32_t max_id = 0U;

@@ -84,6 +84,11 @@ coslam_status_t fastslam_init(fastslam_t *fs, const fastslam_config_t *cfg, pose
     rng_seed(&fs->rng, seed);
     fs->next_id = 1U;
     fs->last_ess = (double)cfg->n_particles;
+    lm_tree_pool_init(&fs->lm_pool, 0U, 0U);
+    for (uint16_t k = 0; k < COSLAM_MAX_PARTICLES; ++k) {
+        fs->particles[k].lm_root = LM_TREE_NIL;
+        fs->particles[k].n_lm = 0;
+    }
     const cov3_t p0 = cov3_diag(cfg->slam.noise.init_xy_var_m2, cfg->slam.noise.init_xy_var_m2,
                                 cfg->slam.noise.init_theta_var_rad2);
     for (uint16_t k = 0; k < cfg->n_particles; ++k) {
@@ -134,8 +139,14 @@ coslam_status_t fastslam_predict(fastslam_t *fs, odo_increment_t u)
         for (uint16_t k = 0; k < n; ++k) {
             fastslam_particle_t *p = &fs->particles[k];
             for (uint16_t j = 0; j < p->n_lm; ++j) {
-                p->lm[j].cov.xx += add;
-                p->lm[j].cov.yy += add;
+                landmark_t *lm = lm_tree_write(&fs->lm_pool, &p->lm_root, j);
+                if (lm == 0) {
+                    fs->ctr.tree_capacity_drops++;
+                    continue;
+                }
+                lm->cov.xx += add;
+                lm->cov.yy += add;
+                lm_tree_changed(&fs->lm_pool, p->lm_root, j);
             }
         }
     }
@@ -167,7 +178,7 @@ static void fs2_improve_and_sample(fastslam_t *fs, fastslam_particle_t *p, const
         if (assign[i] < 0) {
             continue;
         }
-        const landmark_t *lm = &p->lm[assign[i]];
+        const landmark_t *lm = lm_tree_get(&fs->lm_pool, p->lm_root, (uint32_t)assign[i]);
         lm_expect_t e;
         if (landmark_expect(lm, sp, p->pose, &p->pending_cov, &e) != COSLAM_OK) {
             fs->ctr.numeric_faults++;
@@ -221,13 +232,20 @@ typedef struct {
     double key;
 } marg_obs_t;
 
-/* Remove landmark j from particle p, keeping order irrelevant (swap with last). */
-static void particle_remove(fastslam_particle_t *p, uint16_t j)
+/* Remove landmark j from particle p, keeping order irrelevant (the last
+ * moves into the hole, as in a flat array). 0 if the tree pool ran out (the
+ * map is then unchanged). */
+static int particle_remove(fastslam_t *fs, fastslam_particle_t *p, uint16_t j)
 {
-    p->n_lm--;
-    if (j != p->n_lm) {
-        p->lm[j] = p->lm[p->n_lm];
+    const uint16_t last = (uint16_t)(p->n_lm - 1U);
+    const coslam_status_t st = j != last ? lm_tree_move(&fs->lm_pool, &p->lm_root, j, last)
+                                         : lm_tree_clear(&fs->lm_pool, &p->lm_root, j);
+    if (st != COSLAM_OK) {
+        fs->ctr.tree_capacity_drops++;
+        return 0;
     }
+    p->n_lm = last;
+    return 1;
 }
 
 coslam_status_t fastslam_particle_add(fastslam_t *fs, uint16_t k, const landmark_t *lm)
@@ -237,8 +255,47 @@ coslam_status_t fastslam_particle_add(fastslam_t *fs, uint16_t k, const landmark
         fs->ctr.lm_capacity_drops++;
         return COSLAM_E_CAPACITY;
     }
-    p->lm[p->n_lm++] = *lm;
+    if (lm_tree_set(&fs->lm_pool, &p->lm_root, p->n_lm, lm) != COSLAM_OK) {
+        fs->ctr.tree_capacity_drops++;
+        return COSLAM_E_CAPACITY;
+    }
+    p->n_lm++;
     return COSLAM_OK;
+}
+
+const landmark_t *fastslam_particle_lm(const fastslam_t *fs, uint16_t k, uint16_t j)
+{
+    const fastslam_particle_t *p = &fs->particles[k];
+    COSLAM_ASSERT(j < p->n_lm);
+    return lm_tree_get(&fs->lm_pool, p->lm_root, j);
+}
+
+const landmark_t *const *fastslam_particle_landmarks(fastslam_t *fs, uint16_t k)
+{
+    const fastslam_particle_t *p = &fs->particles[k];
+    const uint32_t n = lm_tree_gather(&fs->lm_pool, p->lm_root, p->n_lm, fs->scratch.view, 0);
+    COSLAM_ASSERT(n == p->n_lm);
+    (void)n;
+    return fs->scratch.view;
+}
+
+coslam_status_t fastslam_particle_set(fastslam_t *fs, uint16_t k, uint16_t j, const landmark_t *lm)
+{
+    fastslam_particle_t *p = &fs->particles[k];
+    if (j >= p->n_lm) {
+        return COSLAM_E_ARG;
+    }
+    if (lm_tree_set(&fs->lm_pool, &p->lm_root, j, lm) != COSLAM_OK) {
+        fs->ctr.tree_capacity_drops++;
+        return COSLAM_E_CAPACITY;
+    }
+    return COSLAM_OK;
+}
+
+void fastslam_particle_clear(fastslam_t *fs, uint16_t k)
+{
+    lm_tree_release(&fs->lm_pool, &fs->particles[k].lm_root);
+    fs->particles[k].n_lm = 0;
 }
 
 /* One particle's share of an update. Returns COSLAM_E_CAPACITY if its map filled up. */
@@ -252,13 +309,19 @@ static coslam_status_t update_particle(fastslam_t *fs, uint16_t k, const sightin
     const cov3_t *pose_cov = fs2 ? &p->pending_cov : 0;
     coslam_status_t result = COSLAM_OK;
 
-    /* 1. expected sightings of the landmarks near the sensor */
+    /* 1. expected sightings of the landmarks near the sensor; the tree hands
+     *    out, in slot order, every landmark that can pass the reach test
+     *    below (lm_tree.h), the others are neither near nor matched */
     int n_pairs = 0;
     for (int i = 0; i < ns; ++i) {
         sc->n_near[i] = 0U;
     }
-    for (uint16_t j = 0; j < p->n_lm; ++j) {
-        const landmark_t *lm = &p->lm[j];
+    const uint32_t n_cand = lm_tree_query(&fs->lm_pool, p->lm_root, p->n_lm, p->pose.x, p->pose.y, max_range_m,
+                                          sc->view, sc->view_slot);
+    uint16_t n_near_list = 0;
+    for (uint32_t c = 0; c < n_cand; ++c) {
+        const uint16_t j = sc->view_slot[c];
+        const landmark_t *lm = sc->view[c];
         const double dx = lm->mean.x - p->pose.x;
         const double dy = lm->mean.y - p->pose.y;
         const double reach = max_range_m + 3.0 * sqrt(lm->cov.xx + lm->cov.yy) + 0.5;
@@ -272,6 +335,7 @@ static coslam_status_t update_particle(fastslam_t *fs, uint16_t k, const sightin
             continue;
         }
         sc->near[j] = 1;
+        sc->near_list[n_near_list++] = j;
         /* 2. gated candidate pairs, scored by log-likelihood */
         for (int i = 0; i < ns; ++i) {
             if (z[i].signature != lm->signature) {
@@ -308,18 +372,26 @@ static coslam_status_t update_particle(fastslam_t *fs, uint16_t k, const sightin
             p->log_w += sp->new_landmark_log_lik;
             continue;
         }
-        landmark_t *lm = &p->lm[j];
+        const landmark_t *lmc = lm_tree_get(&fs->lm_pool, p->lm_root, (uint32_t)j);
         lm_expect_t e;
         const lm_expect_t *ep = &sc->expect[j];
         if (fs2) {
             /* landmark update at the sampled pose, pose now known */
-            if (landmark_expect(lm, sp, p->pose, 0, &e) != COSLAM_OK) {
+            if (landmark_expect(lmc, sp, p->pose, 0, &e) != COSLAM_OK) {
                 fs->ctr.numeric_faults++;
                 continue;
             }
             ep = &e;
         } else {
             p->log_w += landmark_log_lik(ep, landmark_mahalanobis2(ep, z[i]));
+        }
+        /* this particle's own copy of the landmark (copy-on-write) */
+        landmark_t *lm = lm_tree_write(&fs->lm_pool, &p->lm_root, (uint32_t)j);
+        if (lm == 0) {
+            fs->ctr.tree_capacity_drops++;
+            result = COSLAM_E_CAPACITY;
+            sc->matched[j] = 1; /* not updated, but not missed either */
+            continue;
         }
         /* pose marginal: the sighting bounds the drift since the landmark's
          * anchor; applied below, after the frame's other sightings */
@@ -333,6 +405,7 @@ static coslam_status_t update_particle(fastslam_t *fs, uint16_t k, const sightin
         }
         landmark_update(lm, sp, ep, z[i]);
         exist_hit(&lm->exist, sp);
+        lm_tree_changed(&fs->lm_pool, p->lm_root, (uint32_t)j);
         sc->matched[j] = 1;
     }
     /* Each sighting leaves the pose marginal at least its landmark's
@@ -353,17 +426,36 @@ static coslam_status_t update_particle(fastslam_t *fs, uint16_t k, const sightin
     }
 
     /* 5. negative evidence (before adding, so that freed slots can be reused);
-     *    iterate downwards because removal swaps in the last landmark */
-    for (int j = (int)p->n_lm - 1; j >= 0; --j) {
-        if (!sc->near[j] || sc->matched[j]) {
+     *    iterate downwards because removal swaps in the last landmark (which
+     *    was visited already); only near landmarks can be missed */
+    for (int c = (int)n_near_list - 1; c >= 0; --c) {
+        const uint16_t j = sc->near_list[c];
+        if (sc->matched[j]) {
             continue;
         }
-        landmark_t *lm = &p->lm[j];
         const lm_expect_t *ep = &sc->expect[j];
-        if (landmark_should_be_seen(sp, ep->zhat) &&
-            exist_miss(&lm->exist, &lm->confirmed_once, landmark_miss_is_certain(sp, ep), sp)) {
-            particle_remove(p, (uint16_t)j);
-            fs->ctr.landmarks_removed++;
+        if (!landmark_should_be_seen(sp, ep->zhat)) {
+            continue;
+        }
+        /* on a copy: the shared landmark is written only if it changed */
+        const landmark_t *lmc = lm_tree_get(&fs->lm_pool, p->lm_root, j);
+        float exist = lmc->exist;
+        uint8_t confirmed_once = lmc->confirmed_once;
+        if (exist_miss(&exist, &confirmed_once, landmark_miss_is_certain(sp, ep), sp)) {
+            if (particle_remove(fs, p, j)) {
+                fs->ctr.landmarks_removed++;
+            } else {
+                result = COSLAM_E_CAPACITY;
+            }
+        } else if (memcmp(&exist, &lmc->exist, sizeof exist) != 0 || confirmed_once != lmc->confirmed_once) {
+            landmark_t *lm = lm_tree_write(&fs->lm_pool, &p->lm_root, j);
+            if (lm == 0) {
+                fs->ctr.tree_capacity_drops++;
+                result = COSLAM_E_CAPACITY;
+                continue;
+            }
+            lm->exist = exist; /* the box does not depend on it: not changed */
+            lm->confirmed_once = confirmed_once;
         }
     }
 
@@ -449,14 +541,17 @@ void fastslam_weights(const fastslam_t *fs, double *out)
     }
 }
 
-static void copy_particle(fastslam_particle_t *dst, const fastslam_particle_t *src)
+/* O(1) plus freeing what only dst held: the map is shared, not copied. */
+static void copy_particle(lm_tree_pool_t *pool, fastslam_particle_t *dst, const fastslam_particle_t *src)
 {
     dst->pose = src->pose;
     dst->pending_cov = src->pending_cov;
     dst->pose_marg = src->pose_marg;
     dst->log_w = src->log_w;
     dst->n_lm = src->n_lm;
-    memcpy(dst->lm, src->lm, (size_t)src->n_lm * sizeof src->lm[0]);
+    lm_tree_release(pool, &dst->lm_root);
+    lm_tree_retain(pool, src->lm_root);
+    dst->lm_root = src->lm_root;
 }
 
 void fastslam_resample(fastslam_t *fs)
@@ -490,7 +585,7 @@ void fastslam_resample(fastslam_t *fs)
             while (copies[free_slot] != 0) {
                 ++free_slot;
             }
-            copy_particle(&fs->particles[free_slot], &fs->particles[k]);
+            copy_particle(&fs->lm_pool, &fs->particles[free_slot], &fs->particles[k]);
             copies[free_slot] = 1; /* now occupied; never a source of copies */
             copies[k]--;
         }
@@ -510,7 +605,7 @@ coslam_status_t fastslam_update(fastslam_t *fs, const sighting_t *z_in, int n_in
     int ns = 0;
     double max_range_m = fs->cfg.slam.sensor_max_range_m;
     for (int i = 0; i < n_in; ++i) {
-        if (!sighting_is_valid(&z_in[i])) {
+        if (!sighting_is_plausible(&z_in[i], &fs->cfg.slam)) {
             fs->ctr.rejected_sightings++;
             if (result == COSLAM_OK) {
                 result = COSLAM_E_NUMERIC;
@@ -659,8 +754,9 @@ coslam_status_t fastslam_export(fastslam_t *fs, map_estimate_t *out)
     /* pass 1: total weight and weighted mean per identity */
     for (uint16_t k = 0; k < n; ++k) {
         const fastslam_particle_t *p = &fs->particles[k];
+        const landmark_t *const *lms = fastslam_particle_landmarks(fs, k);
         for (uint16_t j = 0; j < p->n_lm; ++j) {
-            const landmark_t *lm = &p->lm[j];
+            const landmark_t *lm = lms[j];
             if (!landmark_is_confirmed(lm, sp)) {
                 continue;
             }
@@ -695,8 +791,9 @@ coslam_status_t fastslam_export(fastslam_t *fs, map_estimate_t *out)
         const double c = cos(p->pose.theta);
         const double sn = sin(p->pose.theta);
         double rt[2][2] = {{c, sn}, {-sn, c}}; /* R^T: map -> this particle's body frame */
+        const landmark_t *const *lms = fastslam_particle_landmarks(fs, k);
         for (uint16_t j = 0; j < p->n_lm; ++j) {
-            const landmark_t *lm = &p->lm[j];
+            const landmark_t *lm = lms[j];
             if (!landmark_is_confirmed(lm, sp)) {
                 continue;
             }

@@ -524,10 +524,11 @@ coslam_status_t merge_into_fastslam(fastslam_t *fs, const merge_body_map_t *bm, 
         double rt[2][2] = {{c, s}, {-s, c}}; /* world -> body */
         double r[2][2] = {{c, -s}, {s, c}};  /* body -> world */
         /* own map in this particle's body frame */
+        const landmark_t *const *own = fastslam_particle_landmarks(fs, k);
         for (uint16_t j = 0; j < p->n_lm; ++j) {
-            sc->own_body[j] = pose2_apply_inverse(p->pose, p->lm[j].mean);
-            sc->own_cov[j] = cov2_congruence(rt, p->lm[j].cov);
-            sc->own_sig[j] = p->lm[j].signature;
+            sc->own_body[j] = pose2_apply_inverse(p->pose, own[j]->mean);
+            sc->own_cov[j] = cov2_congruence(rt, own[j]->cov);
+            sc->own_sig[j] = own[j]->signature;
         }
         pair_and_select(sc, bm, cfg, p->n_lm, stats);
         const double dup_w = duplicate_weight(sc, bm, cfg);
@@ -537,7 +538,8 @@ coslam_status_t merge_into_fastslam(fastslam_t *fs, const merge_body_map_t *bm, 
             /* a duplicate's information scaled by dup_w: its covariance by 1 / dup_w */
             const cov2_t wc = cov2_scale(cov2_congruence(r, bm->cov[i]), j >= 0 ? 1.0 / dup_w : 1.0);
             if (j >= 0) {
-                landmark_t *lm = &p->lm[j];
+                landmark_t fused = *fastslam_particle_lm(fs, k, (uint16_t)j); /* maps are shared: */
+                landmark_t *lm = &fused;                                      /* written back below */
                 point2_t xm;
                 cov2_t xc;
                 coslam_status_t st;
@@ -559,6 +561,11 @@ coslam_status_t merge_into_fastslam(fastslam_t *fs, const merge_body_map_t *bm, 
                 lm->mean = xm;
                 lm->cov = xc;
                 absorb_meta(&lm->src_mask, &lm->n_obs, &lm->exist, bm, i, sp);
+                if (fastslam_particle_set(fs, k, (uint16_t)j, lm) != COSLAM_OK) {
+                    stats->capacity_drops++;
+                    result = COSLAM_E_CAPACITY;
+                    continue;
+                }
                 stats->fused++;
             } else {
                 landmark_t lm;

@@ -26,14 +26,31 @@
  * resample_ess_fraction * N the particles are resampled with the
  * low-variance sampler, in place (no second particle array).
  *
- * Memory: sizeof(fastslam_t) ~ COSLAM_MAX_PARTICLES * (40 + 56 *
- * COSLAM_MAX_LANDMARKS) bytes plus O(COSLAM_MAX_SIGHTINGS *
- * COSLAM_MAX_LANDMARKS) scratch. The caller owns it (static storage on the
- * robot); the functions never allocate.
+ * Maps are shared between particles (log-time Fast-SLAM, Montemerlo et al.
+ * 2002): each particle's map is the root of a balanced tree over its
+ * landmark slots in fastslam_t.lm_pool, with copy-on-write and reference
+ * counts (lm_tree.h). Resampling copies a root (O(1) per particle plus the
+ * release of the maps no longer drawn); updating a landmark copies its path
+ * (O(F log_F M)); the sighting's candidates come from the tree's spatial
+ * boxes, not a scan of the whole map. A particle's slots and their order are
+ * exactly those of the former flat array (removal still moves the last
+ * landmark into the hole), so results are bit-identical to it.
+ * Read a particle's landmarks with fastslam_particle_lm() or
+ * fastslam_particle_landmarks(), change them with fastslam_particle_set().
  *
- * Time per update: O(N * (M + S * M_near + S^2)) for N particles, M landmarks
- * per particle, S sightings, M_near landmarks close enough to be sighted;
- * resampling O(N * M). Prediction: O(N) (O(N * M) if w5 > 0).
+ * Memory: sizeof(fastslam_t) ~ COSLAM_MAX_PARTICLES * (190 + 90 *
+ * COSLAM_MAX_LANDMARKS + 36 * LM_TREE_NODES_PER_MAP) bytes plus
+ * O(COSLAM_MAX_SIGHTINGS * COSLAM_MAX_LANDMARKS) scratch; the tree pools are
+ * sized for the worst case (no particle shares anything, lm_tree.h), so the
+ * tree never runs out unless LM_TREE_MAX_LEAVES / LM_TREE_MAX_NODES are
+ * lowered (then COSLAM_E_CAPACITY, counted in tree_capacity_drops). The
+ * caller owns it (static storage on the robot); the functions never allocate.
+ *
+ * Time per update: O(N * (D F K + S * M_near + S^2 + S D F)) for N particles,
+ * M landmarks per particle (tree depth D = ceil(log_F M), fan-out F), K
+ * landmarks in tree cells within sensor reach, S sightings, M_near landmarks
+ * close enough to be sighted; resampling O(N) plus the maps it frees.
+ * Prediction: O(N) (O(N * M * D F) if w5 > 0: every landmark changes).
  */
 #ifndef COSLAM_FASTSLAM_H
 #define COSLAM_FASTSLAM_H
@@ -43,6 +60,7 @@
 #include "coslam/config.h"
 #include "coslam/cov3.h"
 #include "coslam/landmark.h"
+#include "coslam/lm_tree.h"
 #include "coslam/map_estimate.h"
 #include "coslam/motion.h"
 #include "coslam/rng.h"
@@ -75,8 +93,9 @@ typedef struct {
                                 (marginal.h): odometry noise in, sightings of
                                 landmarks out by covariance intersection */
     double log_w;          /**< log importance weight, max over particles = 0 */
-    uint16_t n_lm;
-    landmark_t lm[COSLAM_MAX_LANDMARKS];
+    uint16_t n_lm;         /**< landmarks: slots 0 .. n_lm-1 of the map */
+    lm_tree_idx_t lm_root; /**< the map in fastslam_t.lm_pool (shared, copy-on-write:
+                                never write through it, see fastslam_particle_set) */
 } fastslam_particle_t;
 
 typedef struct {
@@ -88,9 +107,11 @@ typedef struct {
     uint32_t lm_capacity_drops;     /**< a particle's map was full: sighting not mapped */
     uint32_t sighting_capacity_drops; /**< sightings beyond COSLAM_MAX_SIGHTINGS */
     uint32_t export_capacity_drops; /**< identities or landmarks beyond the export tables */
-    uint32_t rejected_sightings;    /**< NaN/Inf/non-positive range */
-    uint32_t rejected_controls;     /**< NaN/Inf odometry */
+    uint32_t rejected_sightings;    /**< NaN/Inf, range <= 0 or beyond sighting_max_range_m, abs(bearing) > pi */
+    uint32_t rejected_controls;     /**< NaN/Inf odometry, or beyond max_speed_mps / max_turn_radps (slam_filter_predict) */
     uint32_t numeric_faults;        /**< degenerate geometry skipped, weight collapse */
+    uint32_t tree_capacity_drops;   /**< the landmark tree pool ran out (only if
+                                         LM_TREE_MAX_* were lowered): change skipped */
 } fastslam_counters_t;
 
 /* Scratch for one update; contents are meaningless between calls. */
@@ -104,6 +125,9 @@ typedef struct {
     uint32_t new_id[COSLAM_MAX_SIGHTINGS];
     uint16_t copies[COSLAM_MAX_PARTICLES];
     double weights[COSLAM_MAX_PARTICLES];
+    const landmark_t *view[COSLAM_MAX_LANDMARKS]; /**< one particle's landmarks (tree query) */
+    uint16_t view_slot[COSLAM_MAX_LANDMARKS];
+    uint16_t near_list[COSLAM_MAX_LANDMARKS];     /**< slots with near[] set, ascending */
 } fastslam_scratch_t;
 
 /* Scratch of the map export: identity hash table and accumulators. */
@@ -133,6 +157,7 @@ typedef struct {
     double last_ess;         /**< effective sample size after the last update */
     fastslam_counters_t ctr;
     fastslam_particle_t particles[COSLAM_MAX_PARTICLES];
+    lm_tree_pool_t lm_pool;  /**< every particle's map (lm_tree.h) */
     fastslam_scratch_t scratch;
     fastslam_export_scratch_t export_scratch;
 } fastslam_t;
@@ -201,7 +226,7 @@ uint16_t fastslam_best_particle(const fastslam_t *fs);
 /**
  * After the log weights changed (an update, a merge that re-weights):
  * normalise them (max = 0), record the ESS in last_ess, and resample if it
- * fell below resample_ess_fraction * N. O(N), O(N * M) when resampling.
+ * fell below resample_ess_fraction * N. O(N) (resampling: see fastslam_resample).
  */
 void fastslam_reweighted(fastslam_t *fs);
 
@@ -210,15 +235,38 @@ void fastslam_weights(const fastslam_t *fs, double *out);
 
 /**
  * Low-variance resampling now, in place (exposed for tests and for the
- * merge). O(N * M) copies at most.
+ * merge). O(N) map references copied, plus releasing the maps that were
+ * not drawn (each node freed once).
  */
 void fastslam_resample(fastslam_t *fs);
 
 /**
- * Add a landmark to particle k's map (used by the map merge). Returns
- * COSLAM_E_CAPACITY (counted) if the map is full.
+ * Add a landmark to particle k's map (slot n_lm; used by the map merge).
+ * Returns COSLAM_E_CAPACITY (counted) if the map is full (lm_capacity_drops)
+ * or the tree pool ran out (tree_capacity_drops). O(F log_F M).
  */
 coslam_status_t fastslam_particle_add(fastslam_t *fs, uint16_t k, const landmark_t *lm);
+
+/** Landmark j (< n_lm) of particle k, read-only; valid until the filter
+ *  changes. O(log_F M). */
+const landmark_t *fastslam_particle_lm(const fastslam_t *fs, uint16_t k, uint16_t j);
+
+/**
+ * All landmarks of particle k in slot order (n_lm of them), read-only, in
+ * fs->scratch: valid until the next call into the filter. O(M).
+ */
+const landmark_t *const *fastslam_particle_landmarks(fastslam_t *fs, uint16_t k);
+
+/**
+ * Replace landmark j (< n_lm) of particle k by *lm (copy-on-write: other
+ * particles sharing it keep theirs). COSLAM_E_ARG if j >= n_lm;
+ * COSLAM_E_CAPACITY (tree_capacity_drops) if the tree pool ran out.
+ * O(F log_F M).
+ */
+coslam_status_t fastslam_particle_set(fastslam_t *fs, uint16_t k, uint16_t j, const landmark_t *lm);
+
+/** Empty particle k's map (releases its share of the tree). O(freed). */
+void fastslam_particle_clear(fastslam_t *fs, uint16_t k);
 
 /** A fresh landmark identity (never 0). */
 uint32_t fastslam_new_id(fastslam_t *fs);

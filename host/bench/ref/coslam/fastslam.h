@@ -1,0 +1,232 @@
+/* Reference for coslam-bench-fastslam only: fastslam.h with a flat landmark
+ * array per particle, as before the shared landmark tree (see fastslam_ref.c). */
+/*
+ * coslam/fastslam.h - Fast-SLAM 1.0 and 2.0 with unknown data association
+ * over a static particle pool (Montemerlo et al.; Thrun, Burgard, Fox,
+ * "Probabilistic Robotics", ch. 13).
+ *
+ * Each particle holds a pose and its own map: one 2-D EKF per landmark
+ * (landmark.h). Per update and per particle:
+ *   1. every landmark near the sensor footprint gets its expected sighting
+ *      and innovation covariance;
+ *   2. sightings are associated by maximum likelihood inside a chi-square
+ *      gate, greedily and with mutual exclusion (two sightings of one update
+ *      never claim the same landmark) and only within the same signature;
+ *   3. Fast-SLAM 1.0: the particle weight is multiplied by the likelihood of
+ *      each matched sighting (p0 for a new landmark), and the matched
+ *      landmarks get an EKF update.
+ *      Fast-SLAM 2.0: the pose is sampled from the proposal improved by the
+ *      matched sightings (the motion Gaussian updated sighting by sighting),
+ *      and the weight is the product of the sequential predictive
+ *      likelihoods; landmarks are then updated at the sampled pose.
+ *   4. unmatched sightings start tentative landmarks (the copies started by
+ *      one sighting in different particles share one identity); sightings
+ *      in the ambiguity band (see slam_params_t) are dropped;
+ *   5. landmarks that should have been seen but were not lose existence
+ *      evidence; tentative ones that run out are removed (negative evidence).
+ * Weights are kept in log space; when the effective sample size falls below
+ * resample_ess_fraction * N the particles are resampled with the
+ * low-variance sampler, in place (no second particle array).
+ *
+ * Memory: sizeof(fastslam_t) ~ COSLAM_MAX_PARTICLES * (40 + 56 *
+ * COSLAM_MAX_LANDMARKS) bytes plus O(COSLAM_MAX_SIGHTINGS *
+ * COSLAM_MAX_LANDMARKS) scratch. The caller owns it (static storage on the
+ * robot); the functions never allocate.
+ *
+ * Time per update: O(N * (M + S * M_near + S^2)) for N particles, M landmarks
+ * per particle, S sightings, M_near landmarks close enough to be sighted;
+ * resampling O(N * M). Prediction: O(N) (O(N * M) if w5 > 0).
+ */
+#ifndef COSLAM_FASTSLAM_H
+#define COSLAM_FASTSLAM_H
+
+#include <stdint.h>
+
+#include "coslam/config.h"
+#include "coslam/cov3.h"
+#include "coslam/landmark.h"
+#include "coslam/map_estimate.h"
+#include "coslam/motion.h"
+#include "coslam/rng.h"
+#include "coslam/slam_params.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum {
+    FASTSLAM_PROPOSAL_MOTION = 1,   /**< Fast-SLAM 1.0 */
+    FASTSLAM_PROPOSAL_OPTIMAL = 2,  /**< Fast-SLAM 2.0 */
+} fastslam_proposal_t;
+
+typedef struct {
+    slam_params_t slam;
+    uint16_t n_particles;           /**< 1 .. COSLAM_MAX_PARTICLES */
+    fastslam_proposal_t proposal;
+    double resample_ess_fraction;   /**< resample when ESS < this * N, in (0, 1] */
+    double export_min_weight;       /**< export a landmark held (confirmed) by at
+                                         least this weight fraction, in (0, 1] */
+    uint8_t robot_id;               /**< own provenance bit, < COSLAM_MAX_ROBOTS */
+} fastslam_config_t;
+
+typedef struct {
+    pose2_t pose;          /**< [m, m, rad], map frame */
+    cov3_t pending_cov;    /**< Fast-SLAM 2.0: motion covariance accumulated
+                                since the pose was last sampled (else zero) */
+    cov3_t pose_marg;      /**< conservative marginal covariance of the pose
+                                (marginal.h): odometry noise in, sightings of
+                                landmarks out by covariance intersection */
+    double log_w;          /**< log importance weight, max over particles = 0 */
+    uint16_t n_lm;
+    landmark_t lm[COSLAM_MAX_LANDMARKS];
+} fastslam_particle_t;
+
+typedef struct {
+    uint32_t predictions;
+    uint32_t updates;
+    uint32_t resamples;
+    uint32_t landmarks_added;       /**< counted once per identity */
+    uint32_t landmarks_removed;     /**< removals by negative evidence, all particles */
+    uint32_t lm_capacity_drops;     /**< a particle's map was full: sighting not mapped */
+    uint32_t sighting_capacity_drops; /**< sightings beyond COSLAM_MAX_SIGHTINGS */
+    uint32_t export_capacity_drops; /**< identities or landmarks beyond the export tables */
+    uint32_t rejected_sightings;    /**< NaN/Inf/non-positive range */
+    uint32_t rejected_controls;     /**< NaN/Inf odometry */
+    uint32_t numeric_faults;        /**< degenerate geometry skipped, weight collapse */
+} fastslam_counters_t;
+
+/* Scratch for one update; contents are meaningless between calls. */
+typedef struct {
+    lm_expect_t expect[COSLAM_MAX_LANDMARKS];
+    uint8_t near[COSLAM_MAX_LANDMARKS];
+    uint8_t matched[COSLAM_MAX_LANDMARKS];
+    assoc_pair_t pairs[COSLAM_MAX_SIGHTINGS * COSLAM_MAX_LANDMARKS];
+    uint8_t n_near[COSLAM_MAX_SIGHTINGS];
+    int32_t assign[COSLAM_MAX_SIGHTINGS];
+    uint32_t new_id[COSLAM_MAX_SIGHTINGS];
+    uint16_t copies[COSLAM_MAX_PARTICLES];
+    double weights[COSLAM_MAX_PARTICLES];
+} fastslam_scratch_t;
+
+/* Scratch of the map export: identity hash table and accumulators. */
+typedef struct {
+    uint32_t id[COSLAM_MAX_EXPORT_IDS];     /**< 0 = empty slot */
+    double w[COSLAM_MAX_EXPORT_IDS];
+    double mx[COSLAM_MAX_EXPORT_IDS];
+    double my[COSLAM_MAX_EXPORT_IDS];
+    double cxx[COSLAM_MAX_EXPORT_IDS];      /**< mixture of the marginals */
+    double cxy[COSLAM_MAX_EXPORT_IDS];
+    double cyy[COSLAM_MAX_EXPORT_IDS];
+    double rx[COSLAM_MAX_EXPORT_IDS];       /**< relative (body-frame) mean */
+    double ry[COSLAM_MAX_EXPORT_IDS];
+    double rxx[COSLAM_MAX_EXPORT_IDS];      /**< relative covariance */
+    double rxy[COSLAM_MAX_EXPORT_IDS];
+    double ryy[COSLAM_MAX_EXPORT_IDS];
+    double nobs[COSLAM_MAX_EXPORT_IDS];
+    uint16_t src_mask[COSLAM_MAX_EXPORT_IDS];
+    uint8_t signature[COSLAM_MAX_EXPORT_IDS];
+    uint32_t sel[COSLAM_MAX_EXPORT_IDS];    /**< selected slots */
+} fastslam_export_scratch_t;
+
+typedef struct {
+    fastslam_config_t cfg;
+    rng_t rng;
+    uint32_t next_id;        /**< next landmark identity (never 0) */
+    double last_ess;         /**< effective sample size after the last update */
+    fastslam_counters_t ctr;
+    fastslam_particle_t particles[COSLAM_MAX_PARTICLES];
+    fastslam_scratch_t scratch;
+    fastslam_export_scratch_t export_scratch;
+} fastslam_t;
+
+/** Defaults: 100 particles (or COSLAM_MAX_PARTICLES if smaller), Fast-SLAM 1.0,
+ *  ESS fraction 0.5, export weight 0.5, robot 0, slam_params_default(). */
+fastslam_config_t fastslam_config_default(void);
+
+/**
+ * Start the filter at `pose0` (map frame = this pose unless w6/w7 > 0, in
+ * which case the particles are drawn around it). Returns COSLAM_E_ARG for an
+ * invalid configuration (the state is then unusable). O(N).
+ */
+coslam_status_t fastslam_init(fastslam_t *fs, const fastslam_config_t *cfg, pose2_t pose0, uint64_t seed);
+
+/**
+ * Prediction with one odometry increment (motion.h). Fast-SLAM 1.0 samples
+ * every particle's pose; 2.0 moves the proposal mean and accumulates its
+ * covariance. Non-finite input returns COSLAM_E_NUMERIC, counted, and
+ * changes nothing.
+ */
+coslam_status_t fastslam_predict(fastslam_t *fs, odo_increment_t u);
+
+/**
+ * Update with the sightings of one camera frame (n may be 0: a frame with
+ * nothing in view still gives negative evidence). Invalid sightings are
+ * skipped and counted; sightings beyond COSLAM_MAX_SIGHTINGS are counted
+ * and dropped and the call returns COSLAM_E_CAPACITY after processing the
+ * rest; a full particle map likewise returns COSLAM_E_CAPACITY. Returns
+ * COSLAM_E_NUMERIC if an invalid sighting was skipped, else COSLAM_OK.
+ */
+coslam_status_t fastslam_update(fastslam_t *fs, const sighting_t *z, int n);
+
+/**
+ * Pose estimate over the particles: weighted mean (circular mean for the
+ * heading); covariance: the bound (cov3_loewner_max) of the particles'
+ * mixture covariance (spread plus the Fast-SLAM 2.0 pending covariance) and
+ * the mixture of their conservative marginals (pose_marg plus spread), so
+ * that it stays honest after resampling has collapsed the spread
+ * (marginal.h). O(N).
+ */
+void fastslam_pose_estimate(const fastslam_t *fs, pose2_t *mean, cov3_t *cov);
+
+/**
+ * Export the map estimate (map_estimate.h). Landmarks with the same identity
+ * are combined over the particles as a Gaussian mixture, moment matched:
+ *   W = sum_k w_k,  mean = sum_k w_k mu_k / W,
+ *   cov = sum_k w_k (Sigma_k + (mu_k - mean)(mu_k - mean)^T) / W,
+ * over the particles in which the landmark is confirmed; a landmark is
+ * exported if W >= export_min_weight, with Sigma_k the landmark's marginal
+ * (landmark_marginal: its EKF covariance plus its anchor's pose error,
+ * marginal.h), which carries the pose uncertainty that resampling removes
+ * from the spread.
+ * cov_rel is the mixture of the positions relative to each particle's own
+ * pose (R_k^T (mu_k - x_k), with covariance R_k^T C_k R_k, C_k the EKF
+ * covariance, plus the pose drift since the anchor,
+ * marginal_relative_drift). Landmarks are ordered by identity.
+ * Returns COSLAM_E_CAPACITY (counted) if the identity table or the message
+ * overflowed, the heaviest landmarks being kept. O(N * M) time.
+ */
+coslam_status_t fastslam_export(fastslam_t *fs, map_estimate_t *out);
+
+/** Index of the particle with the largest weight. O(N). */
+uint16_t fastslam_best_particle(const fastslam_t *fs);
+
+/**
+ * After the log weights changed (an update, a merge that re-weights):
+ * normalise them (max = 0), record the ESS in last_ess, and resample if it
+ * fell below resample_ess_fraction * N. O(N), O(N * M) when resampling.
+ */
+void fastslam_reweighted(fastslam_t *fs);
+
+/** Normalised weights w_k (sum 1) into out[0..N-1]. O(N). */
+void fastslam_weights(const fastslam_t *fs, double *out);
+
+/**
+ * Low-variance resampling now, in place (exposed for tests and for the
+ * merge). O(N * M) copies at most.
+ */
+void fastslam_resample(fastslam_t *fs);
+
+/**
+ * Add a landmark to particle k's map (used by the map merge). Returns
+ * COSLAM_E_CAPACITY (counted) if the map is full.
+ */
+coslam_status_t fastslam_particle_add(fastslam_t *fs, uint16_t k, const landmark_t *lm);
+
+/** A fresh landmark identity (never 0). */
+uint32_t fastslam_new_id(fastslam_t *fs);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* COSLAM_FASTSLAM_H */
