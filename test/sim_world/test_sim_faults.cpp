@@ -169,10 +169,14 @@ FaultSpec fault(FaultKind kind, double at_s = kFaultAtS, double duration_s = kFa
 void report(const char *name, const FaultRun &r)
 {
     std::printf("[fault] %-15s max pos err during %.3f m, after recovery %.3f m; landmarks held %zu -> %zu; "
-                "map RMSE end %.3f m; rejected controls %u; diverged %zu time(s)%s%.1f\n",
+                "map RMSE end %.3f m; rejected controls %u; diverged %zu time(s)%s%.1f\n"
+                "        counters: laser_lost %u connect_failures %u scan_errors %u can_errors %u drive_faults %u "
+                "stop_steps %u frames %u; link tx_dropped_partition %llu; first merge %.1f s\n",
                 name, r.max_err_during_m, r.max_err_after_m, r.held_at_start.size(), r.held_at_end.size(),
                 r.map_rmse_end_m, r.rejected_controls, r.diverged_at_s.size(), r.diverged_at_s.empty() ? "" : ", first at ",
-                r.diverged_at_s.empty() ? 0.0 : r.diverged_at_s.front());
+                r.diverged_at_s.empty() ? 0.0 : r.diverged_at_s.front(), r.ctr.laser_lost,
+                r.ctr.laser_connect_failures, r.ctr.scan_errors, r.ctr.can_errors, r.ctr.drive_faults, r.ctr.stop_steps,
+                r.ctr.frames, static_cast<unsigned long long>(r.link.tx_dropped_partition), r.first_merge_s);
 }
 
 // the common claims 1 and 3
@@ -192,6 +196,14 @@ FaultRun run_fault(const FaultSpec &f)
 }
 
 }  // namespace
+
+// The reference: the same run without a fault, measured over the same spans.
+TEST(SimFaults, FaultFreeReference)
+{
+    const FaultRun r = run_with(paper(), 1, kFaultAtS, kFaultAtS + kFaultS);
+    expect_recovered("none", r, kFaultAtS + kFaultS);
+    EXPECT_TRUE(r.diverged_at_s.empty());
+}
 
 TEST(SimFaults, LaserUnplugThenReplug)
 {

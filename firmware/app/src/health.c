@@ -58,7 +58,7 @@ static void mark(health_t *h, uint8_t sig)
 
 static int marked(const health_t *h, uint8_t sig)
 {
-    return (h->in_view_sig[sig >> 3] >> (sig & 7U)) & 1U;
+    return (((unsigned)h->in_view_sig[sig >> 3] >> (sig & 7U)) & 1U) != 0U;
 }
 
 static void judge(health_t *h, int frame_bad)
