@@ -22,14 +22,23 @@
  *    unassociated (the k new identities of a frame are charged to its
  *    eligible sightings, at most one each), and the effective sample size
  *    after the update (last_ess / N) is kept.
+ *  - every frame: the landmarks in view that no sighting was paired with
+ *    (missed; Fast-SLAM: in the best particle, by identity and count).
  * Over the window: mean NIS (2 dof: 2 when the filter is consistent),
- * unassociated fraction of the eligible sightings, mean ESS fraction.
+ * unassociated fraction of the eligible sightings, missed fraction of the
+ * landmarks in view, mean ESS fraction. Per laser scan (health_on_scan),
+ * over COSLAM_APP_HEALTH_SCANS scans: the fraction of returns contradicting
+ * the occupancy grid at the estimated pose.
  * DIVERGED while any of (thresholds in health_config_t, defaults and why in
  * docs/robot-app.md "Health monitor"):
  *   mean NIS > nis_max            with >= min_sightings paired sightings,
  *   unassociated > unassoc_max    with >= min_sightings eligible sightings,
- *   mean ESS fraction < ess_min   (Fast-SLAM, a full window).
- * `diverged` is a status flag (cleared when all three are back within
+ *   missed > missed_max           with >= min_sightings landmarks in view,
+ *   mean ESS fraction < ess_min   (Fast-SLAM, a full window),
+ *   scan conflicts > conflict_max with >= min_returns returns on known cells.
+ * Known blind spot (docs/sim.md "Faults"): a filter that re-localised
+ * among look-alike (non-unique) markers has normal figures.
+ * `diverged` is a status flag (cleared when all are back within
  * bounds); `episodes` counts its rises, `diverged_frames` the frames spent
  * diverged. Caller-owned, no heap; O(landmarks + sightings) per frame.
  */
@@ -119,7 +128,8 @@ typedef struct {
     double worst_nis, worst_unassoc, worst_ess, worst_missed;
 } health_t;
 
-/** nis_max 6, unassoc_max 0.6, ess_min 0.02, min_sightings 8 (docs/robot-app.md). */
+/** nis_max 6, unassoc_max 0.6, ess_min 0.02, missed_max 0.8, min_sightings 8, conflict_max 0.25,
+ *  free_logodds -1.2, wall_logodds 2, min_returns 200 (docs/robot-app.md "Health monitor"). */
 health_config_t health_config_default(void);
 
 /** COSLAM_OK or COSLAM_E_ARG (NULL, thresholds out of range). */

@@ -46,6 +46,12 @@
  *  - robot_node_hold(): an external stop (shutdown, a supervisor).
  * With no CAN bus the drive bring-up keeps failing (counted in
  * drive_errors): no odometry, no motion; sightings, filter and meeting run.
+ * In every mode a laser that went silent after start-up for laser_lost_us
+ * (unplugged, garbled line) is counted in laser_lost and reconnected every
+ * retry_period_us; without a scan the robot does not translate.
+ *
+ * Health monitor (app/health.h): every camera frame and laser scan, read
+ * only; robot_node_diverged() and ctr.diverged report it.
  *
  * Start-up inside robot_node_step: the laser is connected first (SCIP2.0,
  * PP, MD over laser_fov_rad); these driver commands block up to the URG
