@@ -181,7 +181,14 @@ nlohmann::json run_metrics(const Simulation &sim)
                       {"frames", rr.node.frames}, {"filter_errors", rr.node.filter_errors},
                       {"drive_faults", rr.node.drive_faults}, {"drive_errors", rr.node.drive_errors},
                       {"stop_steps", rr.node.stop_steps}, {"bumper_acks", rr.node.bumper_acks},
-                      {"grid_out_of_grid", rr.node.grid_out_of_grid}}},
+                      {"grid_out_of_grid", rr.node.grid_out_of_grid}, {"laser_lost", rr.node.laser_lost},
+                      {"laser_connect_failures", rr.node.laser_connect_failures},
+                      {"odometry_errors", rr.node.odometry_errors}, {"can_errors", rr.node.can_errors},
+                      {"diverged", rr.node.diverged}}},
+            {"health", {{"diverged_now", rr.health.diverged != 0}, {"episodes", rr.health.episodes},
+                        {"diverged_frames", rr.health.diverged_frames}, {"diverged_at_s", rr.diverged_at_s},
+                        {"worst_mean_nis", rr.health.worst_nis}, {"worst_unassociated", rr.health.worst_unassoc},
+                        {"worst_ess_fraction", rr.health.worst_ess}, {"worst_missed", rr.health.worst_missed}}},
             {"meeting", {{"sent", rr.meeting.sent}, {"send_failures", rr.meeting.send_failures},
                          {"received", rr.meeting.received}, {"rx_errors", rr.meeting.rx_errors},
                          {"ignored_recent", rr.meeting.ignored_recent}, {"replays", rr.meeting.replays},
@@ -200,6 +207,14 @@ nlohmann::json run_metrics(const Simulation &sim)
     for (const auto &m : r.merges) j["merges"].push_back(merge_json(m));
     j["refusals"] = nlohmann::json::array();
     for (const auto &m : r.refusals) j["refusals"].push_back(merge_json(m));
+    if (!r.faults.empty()) {
+        j["faults"] = nlohmann::json::array();
+        for (const auto &f : r.faults) {
+            j["faults"].push_back({{"robot", f.spec.robot}, {"kind", fault_kind_name(f.spec.kind)},
+                                   {"at_s", f.spec.at_s}, {"duration_s", f.spec.duration_s},
+                                   {"start_s", f.start_s}, {"end_s", f.end_s}, {"applied", f.applied_ok}});
+        }
+    }
     return j;
 }
 
@@ -343,6 +358,28 @@ std::string run_summary(const Simulation &sim, const std::string &out_dir)
     }
     if (!r.refusals.empty()) {
         s << "  refused messages: " << r.refusals.size() << " (see metrics.json)\n";
+    }
+    for (const auto &f : r.faults) {
+        char fl[256];
+        std::snprintf(fl, sizeof fl, "  fault %s on %s: %.1f s .. %.1f s%s\n", fault_kind_name(f.spec.kind),
+                      r.robots[static_cast<size_t>(f.spec.robot)].name.c_str(), f.start_s, f.end_s,
+                      f.applied_ok ? "" : " (NOT applied: target not free)");
+        s << fl;
+    }
+    // the health monitor speaks only when it has something to say (a
+    // fault-free run prints what it always printed)
+    for (const auto &rr : r.robots) {
+        if (r.faults.empty() && rr.diverged_at_s.empty()) continue;
+        char first[48] = "";
+        if (!rr.diverged_at_s.empty()) std::snprintf(first, sizeof first, ", first at %.1f s", rr.diverged_at_s.front());
+        char hl[320];
+        std::snprintf(hl, sizeof hl,
+                      "  health %s: %s, diverged %u time(s)%s; laser lost %u, scan errors %u, drive faults %u, "
+                      "CAN errors %u, stop steps %u\n",
+                      rr.name.c_str(), rr.health.diverged ? "DIVERGED" : "ok", rr.health.episodes, first,
+                      rr.node.laser_lost, rr.node.scan_errors, rr.node.drive_faults, rr.node.can_errors,
+                      rr.node.stop_steps);
+        s << hl;
     }
     s << "  outputs: " << out_dir << "/ (metrics.json, robot<k>_path.tum, robot<k>_map.csv, merge_events.csv, ...)";
     return s.str();

@@ -44,6 +44,7 @@ robot_node_config_t robot_node_config_default(uint8_t robot_id, uint8_t n_robots
     c.blind_max_turn_radps = 0.3;
     c.gpio_optional = 0U;
     c.motion_without_gpio = 0U;
+    c.health = health_config_default();
     return c;
 }
 
@@ -81,6 +82,9 @@ coslam_status_t robot_node_init(robot_node_t *n, const robot_node_config_t *cfg,
     }
     if (st == COSLAM_OK) {
         st = behaviour_init(&n->behaviour, &n->cfg.behaviour);
+    }
+    if (st == COSLAM_OK) {
+        st = health_init(&n->health, &n->cfg.health);
     }
     if (st != COSLAM_OK) {
         return COSLAM_E_ARG;
@@ -268,6 +272,7 @@ static void use_scan(robot_node_t *n)
     cov3_t cov;
     slam_filter_pose(&n->filter, &map_pose, &cov);
     const pose2_t sensor = pose2_compose(map_pose, n->cfg.laser_in_robot);
+    health_on_scan(&n->health, &n->grid, sensor, n->scan_range_m, n->scan_angle_rad, np);
     if (occ_grid_integrate_scan(&n->grid, sensor, n->scan_range_m, n->scan_angle_rad, np, NULL) == COSLAM_E_CAPACITY) {
         n->ctr.grid_out_of_grid++;
     }
@@ -316,10 +321,13 @@ static void read_sightings(robot_node_t *n)
     n->ctr.sightings_dropped += n->frame.dropped;
     flush_prediction(n);
     const int nz = n->frame.n_landmarks <= COSLAM_MAX_SIGHTINGS ? (int)n->frame.n_landmarks : COSLAM_MAX_SIGHTINGS;
+    health_before_update(&n->health, &n->filter);
     const coslam_status_t st = slam_filter_update(&n->filter, n->frame.landmarks, nz);
     if (st != COSLAM_OK && st != COSLAM_E_CAPACITY) {
         n->ctr.filter_errors++;
     }
+    health_after_update(&n->health, &n->filter, n->frame.landmarks, nz);
+    n->ctr.diverged = n->health.episodes;
     const unsigned nr = n->frame.n_robots <= COSLAM_MAX_ROBOTS ? n->frame.n_robots : COSLAM_MAX_ROBOTS;
     for (unsigned i = 0; i < nr; ++i) {
         const robot_seen_t *r = &n->frame.robots[i];
@@ -454,13 +462,24 @@ coslam_status_t robot_node_step(robot_node_t *n)
         if (st == COSLAM_OK) {
             n->state = ROBOT_NODE_DRIVE_UP;
             n->laser_up = 1;
+            n->laser_alive_us = now;
         } else {
             n->ctr.laser_connect_failures++;
             n->retry_at_us = now + n->cfg.retry_period_us;
             result = st;
         }
+    } else if (n->state != ROBOT_NODE_LASER_UP && n->cfg.laser_lost_us > 0U) {
+        /* a laser that went silent after start-up (unplugged, or its line
+         * garbled for longer than laser_lost_us) is counted lost and
+         * reconnected every retry_period_us, as in laser_optional; until
+         * then there is no scan, so no translation */
+        result = laser_background(n);
     }
     if (n->state != ROBOT_NODE_LASER_UP) {
+        hal_can_status_t cs;
+        if (hal_can_get_status(n->io.can, &cs) == HAL_OK) {
+            n->ctr.can_errors = cs.rx_overflow_count + cs.rx_malformed_count;
+        }
         const coslam_status_t st = run_drive(n);
         if (result == COSLAM_OK) {
             result = st;
@@ -605,6 +624,16 @@ const occ_grid_t *robot_node_grid(const robot_node_t *n)
 behaviour_mode_t robot_node_mode(const robot_node_t *n)
 {
     return n->behaviour.mode;
+}
+
+int robot_node_diverged(const robot_node_t *n)
+{
+    return n->health.diverged;
+}
+
+const health_t *robot_node_health(const robot_node_t *n)
+{
+    return &n->health;
 }
 
 const robot_node_counters_t *robot_node_counters(const robot_node_t *n)

@@ -131,6 +131,12 @@ void CanBus::set_bus_off(hal_can_t *dev, bool off)
     }
 }
 
+void CanBus::set_error_rate(double p, uint64_t seed)
+{
+    if (error_rate_ <= 0.0 && p > 0.0) rng_seed(&error_rng_, seed);
+    error_rate_ = p > 0.0 ? (p < 1.0 ? p : 1.0) : 0.0;
+}
+
 hal_status_t CanBus::send_from(Endpoint &from, const hal_can_frame_t &frame)
 {
     if (from.closed) return HAL_E_CLOSED;
@@ -140,6 +146,14 @@ hal_status_t CanBus::send_from(Endpoint &from, const hal_can_frame_t &frame)
     if ((f.flags & HAL_CAN_FLAG_RTR) != 0u) std::fill(std::begin(f.data), std::end(f.data), uint8_t{0});
     for (std::size_t i = f.dlc; i < HAL_CAN_MAX_DLC; ++i) f.data[i] = 0;
     ++frames_on_bus_;
+    if (error_rate_ > 0.0 && rng_uniform(&error_rng_) < error_rate_) {
+        // destroyed on the wire: every other controller saw an error frame
+        ++frames_destroyed_;
+        for (auto &ep : endpoints_) {
+            if (ep.get() != &from && !ep->closed) ep->status.rx_malformed_count++;
+        }
+        return HAL_OK;
+    }
     if (monitor_) monitor_(from.index, f);
     for (auto &ep : endpoints_) {
         if (ep.get() == &from || ep->closed || !accepts(*ep, f)) continue;

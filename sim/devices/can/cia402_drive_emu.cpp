@@ -49,6 +49,7 @@ Cia402DriveEmu::Cia402DriveEmu(hal_can_t *endpoint, const Cia402DriveEmuConfig &
         throw std::invalid_argument("Cia402DriveEmu: bad configuration");
     }
     rng_seed(&rng_, cfg_.seed);
+    rng_seed(&enc_rng_, cfg_.seed ^ 0x5DEECE66Dull);
 }
 
 double Cia402DriveEmu::true_wheel_speed_radps() const
@@ -79,7 +80,8 @@ uint16_t Cia402DriveEmu::statusword() const
 
 int32_t Cia402DriveEmu::velocity_actual_units() const
 {
-    const double u = std::round(motor_rpm_ / cfg_.velocity_unit_rpm);
+    const double rpm = enc_garbage_ ? (2.0 * rng_uniform(&enc_rng_) - 1.0) * cfg_.max_motor_rpm : motor_rpm_ * enc_scale_;
+    const double u = std::round(rpm / cfg_.velocity_unit_rpm);
     if (u > 2147483647.0) return 2147483647;
     if (u < -2147483647.0) return -2147483647;
     return static_cast<int32_t>(u);

@@ -55,6 +55,21 @@ UrgEmulator::UrgEmulator(const UrgEmulatorConfig &cfg, RangeFn range_m)
     rng_seed(&noise_rng_, cfg_.seed);
     rng_seed(&io_rng_, cfg_.seed ^ 0x9E3779B97F4A7C15ull);
     rng_seed(&fault_rng_, cfg_.seed ^ 0xD1B54A32D192ED03ull);
+    rng_seed(&noise_line_rng_, cfg_.seed ^ 0x94D049BB133111EBull);
+}
+
+void UrgEmulator::set_unplugged(bool unplugged)
+{
+    if (unplugged && !unplugged_) {
+        // power lost: everything in flight and all state is gone
+        stats_.bytes_dropped += out_.size();
+        out_.clear();
+        in_.clear();
+        md_active_ = false;
+        laser_ = false;
+        scip2_ = cfg_.start_in_scip2;
+    }
+    unplugged_ = unplugged;
 }
 
 char UrgEmulator::sum(const std::string &s)
@@ -93,6 +108,10 @@ hal_status_t UrgEmulator::op_write(hal_serial_t *d, const uint8_t *data, size_t 
 {
     auto *self = static_cast<UrgEmulator *>(d->backend);
     if (self->closed_) return HAL_E_CLOSED;
+    if (self->unplugged_) {
+        self->stats_.unplugged_ops++;
+        return HAL_E_IO;
+    }
     self->stats_.bytes_in += len;
     for (size_t i = 0; i < len; ++i) {
         const char c = static_cast<char>(data[i]);
@@ -113,6 +132,10 @@ hal_status_t UrgEmulator::op_read(hal_serial_t *d, uint8_t *buf, size_t cap, siz
 {
     auto *self = static_cast<UrgEmulator *>(d->backend);
     if (self->closed_) return HAL_E_CLOSED;
+    if (self->unplugged_) {
+        self->stats_.unplugged_ops++;
+        return HAL_E_IO;
+    }
     if (self->out_.empty()) return HAL_E_TIMEOUT; // simulated time does not pass in here
     size_t n = std::min(cap, self->out_.size());
     if (self->cfg_.max_read_chunk > 0) {
@@ -274,7 +297,19 @@ void UrgEmulator::handle_scan_cmd(const std::string &line, bool md)
 
 void UrgEmulator::set_time_us(uint64_t t_us)
 {
+    const uint64_t before = now_us_;
     if (t_us > now_us_) now_us_ = t_us;
+    if (unplugged_) return;
+    if (noise_bytes_per_ms_ > 0.0) {
+        noise_carry_ += noise_bytes_per_ms_ * static_cast<double>(now_us_ - before) * 1e-3;
+        std::string junk;
+        while (noise_carry_ >= 1.0) {
+            junk.push_back(static_cast<char>(rng_below(&noise_line_rng_, 256u)));
+            noise_carry_ -= 1.0;
+        }
+        stats_.noise_bytes += junk.size();
+        emit(junk);
+    }
     run_until(now_us_);
 }
 

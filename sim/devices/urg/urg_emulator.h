@@ -100,6 +100,8 @@ public:
         uint64_t bytes_in = 0;
         uint64_t bytes_out = 0;
         uint64_t bytes_dropped = 0;     // output lost to max_queued_bytes or flush
+        uint64_t noise_bytes = 0;       // random bytes put on the line (set_line_noise)
+        uint64_t unplugged_ops = 0;     // reads/writes refused while unplugged (HAL_E_IO)
     };
 
     UrgEmulator(const UrgEmulatorConfig &cfg, RangeFn range_m);
@@ -115,6 +117,17 @@ public:
     void advance_us(uint64_t dt_us) { set_time_us(now_us_ + dt_us); }
     uint64_t time_us() const { return now_us_; }
 
+    /// Fault: unplug (true): the serial device errors (reads and writes
+    /// HAL_E_IO, like the tty of a removed USB device), queued output is
+    /// lost and the sensor loses power. Replug (false): a fresh sensor in
+    /// its start-up state (start_in_scip2, laser off, no MD) that the
+    /// driver has to connect again.
+    void set_unplugged(bool unplugged);
+    bool unplugged() const { return unplugged_; }
+    /// Fault: put bytes_per_ms random bytes (any value, LF included) on the
+    /// line per millisecond of simulated time, between and inside the
+    /// sensor's messages (a noisy cable); 0 = off. Own seeded RNG.
+    void set_line_noise(double bytes_per_ms) { noise_bytes_per_ms_ = bytes_per_ms > 0.0 ? bytes_per_ms : 0.0; }
     /// Corrupt the next scan message with `f` (queued faults come first).
     void inject(UrgFault f) { pending_faults_.push_back(f); }
 
@@ -182,6 +195,10 @@ private:
     uint64_t md_next_turn_ = 0;
     std::deque<UrgFault> pending_faults_;
     Stats stats_;
+    bool unplugged_ = false;
+    double noise_bytes_per_ms_ = 0.0;
+    double noise_carry_ = 0.0;
+    rng_t noise_line_rng_;
 };
 
 } // namespace coslam::sim

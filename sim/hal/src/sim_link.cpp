@@ -91,6 +91,12 @@ void SimLinkHub::set_range_m(double range_m)
     params_ = p;
 }
 
+void SimLinkHub::set_partitioned(uint16_t robot_id, bool partitioned)
+{
+    std::lock_guard<std::mutex> lk(clock_.mutex());
+    if (Endpoint *ep = find_locked(robot_id)) ep->partitioned = partitioned;
+}
+
 void SimLinkHub::set_loss_prob(double loss_prob)
 {
     std::lock_guard<std::mutex> lk(clock_.mutex());
@@ -173,6 +179,10 @@ hal_status_t SimLinkHub::op_send(hal_link_t *dev, uint16_t dest_id, const uint8_
     auto payload = std::make_shared<const std::vector<uint8_t>>(data, data + len);
     for (Endpoint *dst : targets) {
         hub->pump_locked(*dst);  // bounds in-flight memory
+        if (ep->partitioned || dst->partitioned) {
+            ++ep->stats.tx_dropped_partition;
+            continue;
+        }
         const double d = std::hypot(dst->x_m - ep->x_m, dst->y_m - ep->y_m);
         if (d > p.range_m) {
             ++ep->stats.tx_dropped_range;

@@ -63,7 +63,7 @@ PixelCamera::~PixelCamera()
 void PixelCamera::set_time_us(uint64_t t_us, double vx, double vy, double w)
 {
     while (next_us_ <= t_us) {
-        const RobotBody *me = world_.body(self_);
+        const RobotBody *me = stalled_ ? nullptr : world_.body(self_);
         if (me != nullptr) {
             renderer_.render(me->pose, vx, vy, w, self_, frame_.data(), nullptr, &scratch_);
             // stamp: the start of the exposure (hal_camera.h), which ends now

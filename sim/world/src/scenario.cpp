@@ -421,6 +421,107 @@ void read_robot(const toml::table &t, size_t i, const Scenario &sc, RobotSpec &r
     r.done();
 }
 
+// The free space a kidnapped robot lands in, as a start pose is checked.
+bool point_is_free(const Scenario &sc, const Eigen::Vector2d &p, double radius, std::string &why)
+{
+    const WorldSpec &w = sc.world;
+    if (w.arena.size() >= 3) {
+        if (!inside_polygon(p, w.arena)) {
+            why = "outside the arena";
+            return false;
+        }
+        for (size_t k = 0, j = w.arena.size() - 1; k < w.arena.size(); j = k++) {
+            if (point_segment_distance(p, w.arena[j], w.arena[k]) < radius) {
+                why = "the body overlaps the arena wall";
+                return false;
+            }
+        }
+    }
+    for (size_t b = 0; b < w.boxes.size(); ++b) {
+        const BoxSpec &bx = w.boxes[b];
+        const double a = -bx.angle_deg * kDeg;
+        const Eigen::Vector2d d = p - bx.center;
+        const Eigen::Vector2d q(std::cos(a) * d.x() - std::sin(a) * d.y(), std::sin(a) * d.x() + std::cos(a) * d.y());
+        if (std::fabs(q.x()) < 0.5 * bx.size.x() + radius && std::fabs(q.y()) < 0.5 * bx.size.y() + radius) {
+            why = "the body overlaps box " + std::to_string(b);
+            return false;
+        }
+    }
+    for (size_t k = 0; k < w.pillars.size(); ++k) {
+        if ((p - w.pillars[k].center).norm() < w.pillars[k].radius_m + radius) {
+            why = "the body overlaps pillar " + std::to_string(k);
+            return false;
+        }
+    }
+    for (const WallSpec &ws : w.walls) {
+        if (point_segment_distance(p, ws.from, ws.to) < radius) {
+            why = "the body overlaps a wall";
+            return false;
+        }
+    }
+    return true;
+}
+
+void read_fault(const toml::table &t, size_t i, const Scenario &sc, FaultSpec &f)
+{
+    const std::string p = "fault[" + std::to_string(i) + "]";
+    Reader r(t, p);
+    f.line = static_cast<int>(t.source().begin.line);
+    r.require("robot");
+    r.require("kind");
+    r.require("at_s");
+    r.integer("robot", f.robot, 0, static_cast<int>(sc.robots.size()) - 1);
+    std::string kind;
+    r.str("kind", kind);
+    static const std::pair<const char *, FaultKind> kinds[] = {
+        {"laser_unplug", FaultKind::LaserUnplug}, {"laser_garbage", FaultKind::LaserGarbage},
+        {"can_errors", FaultKind::CanErrors},     {"drive_emcy", FaultKind::DriveEmcy},
+        {"estop", FaultKind::Estop},              {"camera_stall", FaultKind::CameraStall},
+        {"link_partition", FaultKind::LinkPartition}, {"kidnap", FaultKind::Kidnap},
+        {"odometry_wild", FaultKind::OdometryWild}};
+    bool found = false;
+    for (const auto &k : kinds) {
+        if (kind == k.first) {
+            f.kind = k.second;
+            found = true;
+        }
+    }
+    if (!found) {
+        r.fail("kind", "unknown fault kind '" + kind +
+                           "' (laser_unplug, laser_garbage, can_errors, drive_emcy, estop, camera_stall, "
+                           "link_partition, kidnap, odometry_wild)");
+    }
+    r.num("at_s", f.at_s, 0.0, kMaxDurationS);
+    if (f.kind != FaultKind::Kidnap) r.require("duration_s");
+    r.num("duration_s", f.duration_s, 0.0, kMaxDurationS);
+    // kind-specific keys: only the kind's own are read, so another kind's
+    // key is refused by done() as unknown
+    switch (f.kind) {
+    case FaultKind::LaserGarbage: r.num("bytes_per_ms", f.bytes_per_ms, 0.1, 1000.0); break;
+    case FaultKind::CanErrors: r.num("loss", f.loss, 0.0, 1.0); break;
+    case FaultKind::DriveEmcy:
+        r.integer("wheel", f.wheel, 0, 2);
+        r.integer("emcy_code", f.emcy_code, 1, 0xFFFF);
+        break;
+    case FaultKind::OdometryWild:
+        r.num("scale", f.scale, -1000.0, 1000.0);
+        r.boolean("garbage", f.garbage);
+        break;
+    case FaultKind::Kidnap: {
+        r.require("to");
+        r.pose_deg("to", f.to);
+        std::string why;
+        const double radius = sc.robots[static_cast<size_t>(f.robot)].radius_m;
+        if (!point_is_free(sc, Eigen::Vector2d(f.to.x, f.to.y), radius, why)) {
+            r.fail("to", fmt_xy(Eigen::Vector2d(f.to.x, f.to.y)) + " is not free space: " + why);
+        }
+        break;
+    }
+    default: break;
+    }
+    r.done();
+}
+
 Scenario parse(const toml::table &root, const std::string &source)
 {
     Scenario sc;
@@ -463,6 +564,13 @@ Scenario parse(const toml::table &root, const std::string &source)
         read_robot(as_table((*robots)[i], "robot[" + std::to_string(i) + "]"), i, sc, rs);
         sc.robots.push_back(rs);
     }
+    if (const toml::array *faults = r.array("fault")) {
+        for (size_t i = 0; i < faults->size(); ++i) {
+            FaultSpec f;
+            read_fault(as_table((*faults)[i], "fault[" + std::to_string(i) + "]"), i, sc, f);
+            sc.faults.push_back(f);
+        }
+    }
     r.done();
     check_start_poses(sc);
     if (std::fmod(sc.control_period_ms + 1e-9, sc.physics_dt_ms) > 1e-6) {
@@ -486,6 +594,22 @@ CameraSource parse_camera_source(const std::string &s)
 const char *camera_source_name(CameraSource s)
 {
     return s == CameraSource::Pixels ? "pixels" : "oracle";
+}
+
+const char *fault_kind_name(FaultKind k)
+{
+    switch (k) {
+    case FaultKind::LaserUnplug: return "laser_unplug";
+    case FaultKind::LaserGarbage: return "laser_garbage";
+    case FaultKind::CanErrors: return "can_errors";
+    case FaultKind::DriveEmcy: return "drive_emcy";
+    case FaultKind::Estop: return "estop";
+    case FaultKind::CameraStall: return "camera_stall";
+    case FaultKind::LinkPartition: return "link_partition";
+    case FaultKind::Kidnap: return "kidnap";
+    case FaultKind::OdometryWild: return "odometry_wild";
+    }
+    return "?";
 }
 
 slam_filter_kind_t parse_filter_kind(const std::string &s)

@@ -19,7 +19,12 @@ SightingOracle::SightingOracle(const World &world, int self_id, const SightingOr
 void SightingOracle::set_time_us(uint64_t t_us)
 {
     while (next_us_ <= t_us) {
-        capture(next_us_);
+        if (stalled_) {
+            ++stalled_frames_;
+            ++frame_seq_;
+        } else {
+            capture(next_us_);
+        }
         next_us_ += cfg_.period_us;
     }
 }

@@ -72,6 +72,25 @@ const std::vector<int> &SimRobot::detections() const
     return oracle_ ? oracle_->detections() : pixels_->detections();
 }
 
+bool SimRobot::teleport(const pose2_t &to)
+{
+    const Eigen::Vector2d p(to.x, to.y);
+    if (!pose2_is_finite(to) || world_.static_clearance(p) < cfg_.radius_m ||
+        world_.body_clearance(p, cfg_.id) < cfg_.radius_m) {
+        return false;
+    }
+    pose_ = to;
+    world_.set_body(cfg_.id, pose_, cfg_.radius_m);
+    hub_.set_position(static_cast<uint16_t>(cfg_.id), pose_.x, pose_.y);
+    return true;
+}
+
+void SimRobot::set_camera_stalled(bool stalled)
+{
+    if (oracle_) oracle_->set_stalled(stalled);
+    if (pixels_) pixels_->set_stalled(stalled);
+}
+
 double SimRobot::laser_range(double angle_rad) const
 {
     const pose2_t s = pose2_compose(pose_, cfg_.laser_mount);

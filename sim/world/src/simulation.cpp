@@ -235,6 +235,12 @@ Simulation::Simulation(const Scenario &sc, const SimulationOptions &opt)
         r.particles = sc.robots[k].filter == SLAM_FILTER_EKF ? 0 : sc.robots[k].particles;
         r.start = sc.robots[k].start;
     }
+    for (const FaultSpec &f : sc.faults) {
+        if (f.robot < 0 || static_cast<size_t>(f.robot) >= n) throw std::invalid_argument("fault: no robot " + std::to_string(f.robot));
+        FaultRecord fr;
+        fr.spec = f;
+        result_.faults.push_back(fr);
+    }
     result_.team_detections.assign(world_.landmarks().size(), 0);
     for (const auto &l : world_.landmarks()) truth_sig_.push_back(l.signature);
 }
@@ -311,6 +317,60 @@ void Simulation::collect_events(size_t k, double t_s)
     }
 }
 
+// Faults act on the devices only (docs/sim.md "Faults"); the firmware
+// finds out through its drivers, as on the robot.
+void Simulation::set_fault(FaultRecord &f, bool on)
+{
+    const FaultSpec &s = f.spec;
+    SimRobot &r = *robots_.at(static_cast<size_t>(s.robot));
+    switch (s.kind) {
+    case FaultKind::LaserUnplug: r.urg().set_unplugged(on); break;
+    case FaultKind::LaserGarbage: r.urg().set_line_noise(on ? s.bytes_per_ms : 0.0); break;
+    case FaultKind::CanErrors:
+        r.rig().bus().set_error_rate(on ? s.loss : 0.0, derive_seed(seed_, s.robot, 6));
+        break;
+    case FaultKind::DriveEmcy:
+        if (on) r.rig().drive(s.wheel).raise_fault(static_cast<uint16_t>(s.emcy_code));
+        break;
+    case FaultKind::Estop: r.gpio().set_input_level(SimRobot::kEstopLine, !on); break;
+    case FaultKind::CameraStall: r.set_camera_stalled(on); break;
+    case FaultKind::LinkPartition: hub_->set_partitioned(static_cast<uint16_t>(s.robot), on); break;
+    case FaultKind::Kidnap:
+        if (on) f.applied_ok = r.teleport(s.to);
+        break;
+    case FaultKind::OdometryWild:
+        for (int w = 0; w < 3; ++w) r.rig().drive(w).set_encoder_fault(on ? s.scale : 1.0, on && s.garbage);
+        break;
+    }
+}
+
+void Simulation::apply_faults(uint64_t t_us)
+{
+    const double t_s = static_cast<double>(t_us) * 1e-6;
+    for (FaultRecord &f : result_.faults) {
+        const FaultSpec &s = f.spec;
+        const uint64_t at = static_cast<uint64_t>(std::llround(s.at_s * 1e6));
+        const uint64_t end = at + static_cast<uint64_t>(std::llround(s.duration_s * 1e6));
+        if (f.start_s < 0.0 && t_us >= at) {
+            f.start_s = t_s;
+            set_fault(f, true);
+            if (s.kind == FaultKind::Kidnap) f.end_s = t_s;
+        }
+        if (f.start_s >= 0.0 && f.end_s < 0.0) {
+            if (t_us >= end) {
+                f.end_s = t_s;
+                set_fault(f, false);
+            } else if (s.kind == FaultKind::DriveEmcy) {
+                // a persistent fault: the drive faults again after every reset
+                Cia402DriveEmu &d = robots_.at(static_cast<size_t>(s.robot))->rig().drive(s.wheel);
+                if (d.state() != Cia402DriveEmu::State::Fault && d.state() != Cia402DriveEmu::State::FaultReactionActive) {
+                    d.raise_fault(static_cast<uint16_t>(s.emcy_code));
+                }
+            }
+        }
+    }
+}
+
 void Simulation::sample(double t_s)
 {
     for (size_t k = 0; k < robots_.size(); ++k) {
@@ -349,6 +409,7 @@ void Simulation::advance_to(double t_end_s, const std::function<void(const Simul
     for (; next_t_us_ <= end_us; next_t_us_ += dt_us) {
         const uint64_t t = next_t_us_;
         clock_->advance_to(t);
+        if (!result_.faults.empty()) apply_faults(t);
         for (auto &r : robots_) r->physics_step(t, dt_s);
         const double t_s = static_cast<double>(t) * 1e-6;
         if (t >= next_ctrl_us_) {
@@ -364,7 +425,9 @@ void Simulation::advance_to(double t_end_s, const std::function<void(const Simul
                 for (size_t j = 0; j < d.size() && j < result_.team_detections.size(); ++j) result_.team_detections[j] += d[j];
             }
             for (size_t k = 0; k < nodes_.size(); ++k) {
+                const int was = robot_node_diverged(nodes_[k].get());
                 (void)robot_node_step(nodes_[k].get());
+                if (!was && robot_node_diverged(nodes_[k].get())) result_.robots[k].diverged_at_s.push_back(t_s);
                 collect_events(k, t_s);
             }
         }
@@ -449,6 +512,7 @@ void Simulation::finish(double wall_s)
         r.node = *robot_node_counters(nodes_[k].get());
         r.meeting = *robot_node_meeting_counters(nodes_[k].get());
         r.laser = *robot_node_laser_stats(nodes_[k].get());
+        r.health = *robot_node_health(nodes_[k].get());
         r.final_mode = robot_node_mode(nodes_[k].get());
         r.avoid_turns = nodes_[k]->behaviour.avoid_turns;
     }

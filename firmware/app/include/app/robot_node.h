@@ -46,6 +46,12 @@
  *  - robot_node_hold(): an external stop (shutdown, a supervisor).
  * With no CAN bus the drive bring-up keeps failing (counted in
  * drive_errors): no odometry, no motion; sightings, filter and meeting run.
+ * In every mode a laser that went silent after start-up for laser_lost_us
+ * (unplugged, garbled line) is counted in laser_lost and reconnected every
+ * retry_period_us; without a scan the robot does not translate.
+ *
+ * Health monitor (app/health.h): every camera frame and laser scan, read
+ * only; robot_node_diverged() and ctr.diverged report it.
  *
  * Start-up inside robot_node_step: the laser is connected first (SCIP2.0,
  * PP, MD over laser_fov_rad); these driver commands block up to the URG
@@ -67,6 +73,7 @@
 #include <stdint.h>
 
 #include "app/behaviour.h"
+#include "app/health.h"
 #include "app/meeting.h"
 #include "app/sighting_source.h"
 #include "app/slam_filter.h"
@@ -120,6 +127,7 @@ typedef struct {
     double blind_max_turn_radps;    /**< laser_optional: |w| limit without a recent scan [rad/s], >= 0 */
     uint8_t gpio_optional;          /**< 1: init succeeds without the GPIO lines */
     uint8_t motion_without_gpio;    /**< 1: move even while the GPIO roles are not attached */
+    health_config_t health;         /**< the health monitor (app/health.h); health_config_default */
 } robot_node_config_t;
 
 typedef enum {
@@ -149,6 +157,8 @@ typedef struct {
     uint32_t blind_steps;         /**< laser_optional: running steps without a recent scan */
     uint32_t hold_steps;          /**< running steps stopped by robot_node_hold or missing GPIO roles */
     uint32_t gpio_attach_failures;/**< robot_node_init (gpio_optional) / robot_node_gpio_attach failures */
+    uint32_t diverged;            /**< health monitor: times the filter was judged diverged (app/health.h) */
+    uint32_t can_errors;          /**< CAN frames the controller lost: HAL rx_overflow + rx_malformed counts */
 } robot_node_counters_t;
 
 typedef struct {
@@ -191,6 +201,7 @@ typedef struct {
     uint64_t laser_retry_at_us;   /**< laser_optional: next connect attempt */
     uint64_t laser_alive_us;      /**< laser_optional: connected at */
     int hold;                     /**< robot_node_hold */
+    health_t health;              /**< the filter's health monitor (reads the filter only) */
 } robot_node_t;
 
 /** Defaults for robot `robot_id` of `n_robots`: slam_filter_config_default,
@@ -295,6 +306,12 @@ const occ_grid_t *robot_node_grid(const robot_node_t *n);
 
 /** Behaviour mode of the last step. */
 behaviour_mode_t robot_node_mode(const robot_node_t *n);
+
+/** 1 while the health monitor judges the filter diverged (app/health.h). O(1). */
+int robot_node_diverged(const robot_node_t *n);
+
+/** The health monitor's state: window figures, worst figures, episodes. O(1). */
+const health_t *robot_node_health(const robot_node_t *n);
 
 /** Counters of the node, its meeting protocol and its drivers. */
 const robot_node_counters_t *robot_node_counters(const robot_node_t *n);

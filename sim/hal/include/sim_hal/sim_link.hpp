@@ -48,6 +48,7 @@ public:
         uint64_t tx_dropped_range = 0;    ///< copies not delivered: out of range
         uint64_t tx_dropped_loss = 0;     ///< copies not delivered: random loss
         uint64_t tx_dropped_unknown = 0;  ///< unicasts to an unknown or closed robot
+        uint64_t tx_dropped_partition = 0;///< copies not delivered: sender or receiver partitioned
         uint64_t rx_delivered = 0;        ///< datagrams handed to the firmware whole
         uint64_t rx_dropped_full = 0;     ///< arrivals dropped: receive queue full
         uint64_t rx_truncated = 0;        ///< recv() into a too-small buffer (HAL_E_OVERFLOW)
@@ -68,6 +69,10 @@ public:
     // ---- simulator side (thread-safe) -----------------------------------
     void set_position(uint16_t robot_id, double x_m, double y_m);
     void set_range_m(double range_m);
+    /// Fault: cut robot_id off the link (true): every datagram it sends or
+    /// that is sent to it is dropped (counted at the sender,
+    /// tx_dropped_partition); false heals the partition.
+    void set_partitioned(uint16_t robot_id, bool partitioned);
     void set_loss_prob(double loss_prob);
     Stats stats(uint16_t robot_id) const;
     /// Datagrams sent but not yet delivered into a receive queue.
@@ -85,6 +90,7 @@ private:
         uint16_t id = 0;
         double x_m = 0.0, y_m = 0.0;
         bool closed = false;
+        bool partitioned = false;
         uint64_t send_count = 0;
         std::map<Key, Packet> in_flight;
         std::deque<Packet> rx;

@@ -72,6 +72,8 @@ public:
     /// Render every frame due up to t_us at the world's current state; the
     /// body moves with (vx, vy) [m/s, robot frame] and w [rad/s].
     void set_time_us(uint64_t t_us, double vx, double vy, double w);
+    /// Fault: a stalled camera delivers no frames (those falling due are skipped).
+    void set_stalled(bool stalled) { stalled_ = stalled; }
 
     const std::vector<int> &detections() const { return detections_; }
     const PixelCameraStats &stats() const { return stats_; }
@@ -101,6 +103,7 @@ private:
     std::vector<RenderedMarker> scratch_;
     std::vector<int> detections_;
     PixelCameraStats stats_;
+    bool stalled_ = false;
 };
 
 }  // namespace coslam::sim

@@ -143,6 +143,37 @@ struct EvaluationSpec {
     int min_seen = 5;                     ///< a true landmark counts as missed if detected at least this often
 };
 
+/// A fault injected at the wire / device level (docs/sim.md "Faults").
+enum class FaultKind {
+    LaserUnplug,   ///< the URG's serial device errors, output lost; replugged: a fresh device (SCIP 1.1, laser off)
+    LaserGarbage,  ///< random bytes on the URG's serial line
+    CanErrors,     ///< frames destroyed on the robot's CAN bus with probability `loss`
+    DriveEmcy,     ///< drive `wheel` goes to FAULT with an EMCY; faults again while the window lasts
+    Estop,         ///< the e-stop loop opened (line low)
+    CameraStall,   ///< no camera frames
+    LinkPartition, ///< the robot's link drops every datagram, both ways
+    Kidnap,        ///< the true pose jumps to `to` at at_s (duration ignored)
+    OdometryWild,  ///< the drives' encoders report `scale` times the motor speed, or garbage
+};
+
+/// "laser_unplug", ...; nullptr-safe name of a kind.
+const char *fault_kind_name(FaultKind k);
+
+struct FaultSpec {
+    int robot = 0;
+    FaultKind kind = FaultKind::Estop;
+    double at_s = 0.0;
+    double duration_s = 0.0;
+    double loss = 0.5;            ///< can_errors: probability a frame is destroyed
+    int wheel = 0;                ///< drive_emcy: wheel 0..2
+    int emcy_code = 0x2310;       ///< drive_emcy: CiA 301 error code (0x2310: continuous over-current)
+    double scale = 5.0;           ///< odometry_wild: encoder scale
+    bool garbage = false;         ///< odometry_wild: random encoder readings instead of scaled ones
+    double bytes_per_ms = 10.0;   ///< laser_garbage: random bytes put on the line per ms
+    pose2_t to{0, 0, 0};          ///< kidnap: new true pose (world frame, heading in rad after loading)
+    int line = 0;                 ///< the [[fault]] table's line in the file (for messages)
+};
+
 struct Scenario {
     std::string name = "unnamed";
     std::string description;
@@ -162,6 +193,7 @@ struct Scenario {
     MeetingSpec meeting;
     EvaluationSpec evaluation;
     std::vector<RobotSpec> robots;
+    std::vector<FaultSpec> faults;        ///< [[fault]] tables; none: a fault-free run
 };
 
 /// Parse a scenario from TOML text; `source` names it in error messages.

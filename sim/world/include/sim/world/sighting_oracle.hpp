@@ -61,6 +61,11 @@ public:
     /// simulator calls this each physics step, after moving the robots).
     void set_time_us(uint64_t t_us);
 
+    /// Fault: a stalled camera takes no frames (frames falling due are
+    /// skipped, not caught up later; the sequence numbers show the gap).
+    void set_stalled(bool stalled) { stalled_ = stalled; }
+    uint64_t stalled_frames() const { return stalled_frames_; }
+
     /// Times true landmark j was detected (ground truth for evaluation).
     const std::vector<int> &detections() const { return detections_; }
     uint64_t frames() const { return frames_; }
@@ -86,6 +91,8 @@ private:
     uint64_t frames_ = 0;
     uint64_t robot_sightings_ = 0;
     uint64_t dropped_ = 0;
+    bool stalled_ = false;
+    uint64_t stalled_frames_ = 0;
 };
 
 }  // namespace coslam::sim

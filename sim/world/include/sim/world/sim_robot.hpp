@@ -82,6 +82,13 @@ public:
     double min_wall_clearance_m() const { return min_wall_clearance_m_; }
     double distance_m() const { return distance_m_; }
 
+    /// Fault (kidnap): move the true body to `to` if the body fits there
+    /// (clear of walls, boxes, pillars and robots); false (nothing moved)
+    /// otherwise. The devices see the world from there at the next step.
+    bool teleport(const pose2_t &to);
+    /// Fault: the camera (stand-in or pixel camera) stops delivering frames.
+    void set_camera_stalled(bool stalled);
+
     OmniCanRig &rig() { return rig_; }
     UrgEmulator &urg() { return *urg_; }
     SimGpio &gpio() { return gpio_; }

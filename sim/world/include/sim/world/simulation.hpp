@@ -92,8 +92,18 @@ struct RobotRecord {
     robot_node_counters_t node{};
     meeting_counters_t meeting{};
     urg_scip2_stats_t laser{};
+    health_t health{};                    ///< the node's health monitor at the end
+    std::vector<double> diverged_at_s;    ///< when its diverged flag rose
     behaviour_mode_t final_mode = BEHAVIOUR_WANDER;
     uint32_t avoid_turns = 0;
+};
+
+/// One scenario fault as it happened.
+struct FaultRecord {
+    FaultSpec spec;
+    double start_s = -1.0;                ///< applied (-1: not reached)
+    double end_s = -1.0;                  ///< reverted (-1: not reached; kidnap: = start)
+    bool applied_ok = true;               ///< kidnap: false if the target was not free at at_s
 };
 
 struct SimulationResult {
@@ -103,6 +113,7 @@ struct SimulationResult {
     std::vector<MergeRecord> merges;      ///< MEETING_EV_MERGED events
     std::vector<MergeRecord> refusals;    ///< MEETING_EV_REFUSED events
     std::vector<int> team_detections;     ///< per true landmark
+    std::vector<FaultRecord> faults;      ///< the scenario's [[fault]] tables, in order
 };
 
 struct SimulationOptions {
@@ -156,6 +167,8 @@ private:
     MapSnapshot snapshot(size_t k, double t_s);
     void collect_events(size_t k, double t_s);
     void sample(double t_s);
+    void apply_faults(uint64_t t_us);
+    void set_fault(FaultRecord &f, bool on);
     void finish(double wall_s);
     static double wall_since(std::chrono::steady_clock::time_point t0);
 

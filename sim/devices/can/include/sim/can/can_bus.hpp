@@ -20,6 +20,12 @@
 // Fault injection: set_bus_off() puts one endpoint's controller bus-off
 // (its sends fail with HAL_E_IO, its status reports BUS_OFF, TEC 256).
 //
+// Bus errors: set_error_rate(p) destroys each frame put on the bus with
+// probability p (a CRC / bit error seen by every node: no endpoint receives
+// it; the error-signalling controllers count it in rx_malformed_count, the
+// bus in frames_destroyed). The frame is not retransmitted (the drives'
+// PDOs are cyclic, the next one carries the news). Seeded, own RNG.
+//
 // Threading: single-threaded; the bus and its endpoints belong to the
 // thread that runs the simulation. Endpoints live as long as the bus.
 #ifndef COSLAM_SIM_CAN_BUS_HPP
@@ -33,6 +39,7 @@
 #include <string>
 #include <vector>
 
+#include "coslam/rng.h"
 #include "hal/hal_can.h"
 
 namespace coslam::sim {
@@ -65,6 +72,10 @@ public:
     /// Put endpoint `ep` bus-off (true) or back to error-active (false).
     void set_bus_off(hal_can_t *ep, bool off);
 
+    /// Destroy each frame with probability p in [0, 1] (0: off); seed for the draws.
+    void set_error_rate(double p, uint64_t seed);
+    uint64_t frames_destroyed() const { return frames_destroyed_; }
+
     std::size_t endpoint_count() const { return endpoints_.size(); }
     uint64_t frames_on_bus() const { return frames_on_bus_; }
     uint64_t now_us() const { return clock_(); }
@@ -81,6 +92,9 @@ private:
     WaitHook wait_hook_;
     Monitor monitor_;
     uint64_t frames_on_bus_ = 0;
+    double error_rate_ = 0.0;
+    rng_t error_rng_{};
+    uint64_t frames_destroyed_ = 0;
 };
 
 } // namespace coslam::sim

@@ -86,6 +86,15 @@ public:
     void raise_fault(uint16_t emcy_code = 0x2310, uint8_t error_register = 0x03);
     void set_silent(bool silent) { silent_ = silent; }
     void power_cycle(uint64_t now_us);
+    /// Encoder fault: velocity actual (0x606C, TPDO1) reports scale times
+    /// the motor speed, or (garbage) a uniform random value within
+    /// +-max_motor_rpm per reading; scale 1 and no garbage: healthy. The
+    /// motor itself and the floor are not affected.
+    void set_encoder_fault(double scale, bool garbage)
+    {
+        enc_scale_ = scale;
+        enc_garbage_ = garbage;
+    }
 
     // observation (ground truth)
     double motor_rpm() const { return motor_rpm_; }               ///< encoder speed
@@ -146,6 +155,9 @@ private:
     double motor_rpm_ = 0.0;
     double cmd_rpm_ = 0.0;
     double slip_ = 0.0;
+    double enc_scale_ = 1.0;
+    bool enc_garbage_ = false;
+    mutable rng_t enc_rng_{};
     Counters counters_;
 };
 

@@ -1,0 +1,389 @@
+// Fault injection (issue 12, item 5): the paper scenario (oracle camera, for
+// speed) with one [[fault]] at a time, injected at the wire / device level
+// (docs/sim.md "Faults"), on robot 1 (EKF-SLAM) after the robots merged
+// (about 65 s) unless said otherwise.
+//
+// Claims, per fault:
+//  1. the run completes; no NaN in any robot's pose or exported map (every
+//     landmark mean and covariance, the pose and its covariance), sampled
+//     every 0.5 s and at the end;
+//  2. the fault was seen by the firmware: the node counter that belongs to
+//     it moved (laser_lost / scan_errors, can_errors and drive_faults,
+//     drive_faults, stop_steps, no frames, link drops, the health monitor);
+//  3. recovery: from kRecoverS after the fault ended to the end of the run
+//     the robot's position error stays below kPoseErrM; and every true
+//     landmark its map held (matched within the evaluation gate) when the
+//     fault started is still held at the end (nothing merged is lost);
+//  4. a kidnap (the filter cannot recover: the landmarks are not unique and
+//     the pose is wrong by metres) is instead reported by the health
+//     monitor within kDetectS. Only for one destination: the others, and
+//     wrong odometry, are neither recovered nor reported (DISABLED_ tests,
+//     docs/sim.md "Faults": open).
+// And the false-alarm check: fault-free runs on seeds 1, 2, 3, where the
+// health monitor must never report divergence on either robot.
+//
+// Why the bounds. kPoseErrM = 0.5 m: the EKF robot's position error in the
+// fault-free run stays below 0.2 m (RMSE 0.07 m after the merge, seeds
+// 1-3); a fault that leaves 0.5 m behind has left a bias the map did not
+// correct. The faults last 5 s at 0.2 m/s: 1 m of travel without one of
+// the inputs; kRecoverS = 10 s (50 camera frames, 2 m of travel) is enough
+// for the landmarks in view to pull the pose back, and short enough that a
+// filter that did not recover is not excused by the end of the run.
+// kDetectS = 15 s: three health windows (5 s each, 25 frames).
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <memory>
+#include <set>
+#include <sstream>
+#include <string>
+
+#include "sim/world/scenario.hpp"
+#include "sim/world/simulation.hpp"
+
+using namespace coslam::sim;
+
+namespace {
+
+const std::string kPaper = std::string(COSLAM_SOURCE_DIR) + "/sim/scenarios/paper.toml";
+constexpr double kPoseErrM = 0.5;
+constexpr double kRecoverS = 10.0;
+constexpr double kDetectS = 15.0;
+constexpr double kFaultAtS = 75.0;
+constexpr double kFaultS = 5.0;
+
+Scenario paper()
+{
+    Scenario sc = load_scenario_file(kPaper);
+    sc.camera.source = CameraSource::Oracle;
+    return sc;
+}
+
+bool finite_map(const map_estimate_t &m)
+{
+    if (!pose2_is_finite(m.pose)) return false;
+    const double *pc = &m.pose_cov.m[0][0];
+    for (int i = 0; i < 9; ++i)
+        if (!std::isfinite(pc[i])) return false;
+    for (int i = 0; i < m.n_landmarks; ++i) {
+        const map_landmark_t &l = m.lm[i];
+        if (!std::isfinite(l.mean.x) || !std::isfinite(l.mean.y) || !std::isfinite(l.cov.xx) ||
+            !std::isfinite(l.cov.xy) || !std::isfinite(l.cov.yy))
+            return false;
+    }
+    return true;
+}
+
+struct FaultRun {
+    bool finite = true;
+    double max_err_after_m = 0.0;   ///< from fault end + kRecoverS to the end
+    double max_err_during_m = 0.0;  ///< from the fault start to its end + kRecoverS
+    std::set<int> held_at_start, held_at_end;
+    std::vector<double> diverged_at_s;
+    robot_node_counters_t ctr{};
+    SimLinkHub::Stats link{};
+    double first_merge_s = -1.0;
+    double map_rmse_end_m = 0.0;
+    uint32_t rejected_controls = 0;       ///< the filter's (EKF-SLAM robot 1)
+};
+
+std::set<int> held(Simulation &sim, size_t k, map_estimate_t &buf, map_eval_t *ev_out = nullptr)
+{
+    (void)robot_node_export(&sim.node(k), &buf);
+    std::vector<uint8_t> sig;
+    for (const auto &l : sim.world().landmarks()) sig.push_back(l.signature);
+    map_eval_t ev{};
+    evaluate_map(buf, sim.truth_in_map(k), sig, sim.result().team_detections, sim.scenario().evaluation.min_seen,
+                 sim.scenario().evaluation.gate_m, &ev);
+    std::set<int> s;
+    for (int i = 0; i < ev.n_estimated; ++i)
+        if (ev.match[i] >= 0) s.insert(ev.match[i]);
+    if (ev_out != nullptr) *ev_out = ev;
+    return s;
+}
+
+FaultRun run_with(const Scenario &sc, size_t k, double fault_at_s, double fault_end_s, uint64_t seed = 1)
+{
+    SimulationOptions opt;
+    opt.seed = seed;
+    Simulation sim(sc, opt);
+    FaultRun r;
+    auto buf = std::make_unique<map_estimate_t>();
+    const pose2_t start = sc.robots[k].start;
+    const double end_s = sc.duration_s;
+    bool started = false;
+    for (double t = 0.5; t <= end_s + 1e-9; t += 0.5) {
+        if (!started && t >= fault_at_s) {
+            sim.advance_to(fault_at_s - 1e-3);
+            r.held_at_start = held(sim, k, *buf);
+            started = true;
+        }
+        sim.advance_to(t);
+        for (size_t j = 0; j < sim.n_robots(); ++j) {
+            (void)robot_node_export(&sim.node(j), buf.get());
+            if (!finite_map(*buf)) r.finite = false;
+        }
+        pose2_t est;
+        cov3_t cov;
+        robot_node_pose(&sim.node(k), &est, &cov);
+        const pose2_t truth = pose2_between(start, sim.robot(k).pose());
+        const double e = std::hypot(est.x - truth.x, est.y - truth.y);
+        if (!std::isfinite(e)) r.finite = false;
+        if (std::getenv("COSLAM_FAULT_TRACE") != nullptr && t >= fault_at_s - 5.0 && t <= fault_end_s + 30.0) {
+            const health_t &h = *robot_node_health(&sim.node(k));
+            std::printf("  t %.1f err %.2f nis %.2f unassoc %.2f missed %.2f ess %.2f conflict %.2f%s\n", t, e, h.mean_nis,
+                        h.unassoc_frac, h.missed_frac, h.ess_frac, h.conflict_frac, h.diverged ? " DIVERGED" : "");
+        }
+        if (t >= fault_end_s + kRecoverS) {
+            r.max_err_after_m = std::fmax(r.max_err_after_m, e);
+        } else if (t >= fault_at_s) {
+            r.max_err_during_m = std::fmax(r.max_err_during_m, e);
+        }
+    }
+    sim.run();
+    map_eval_t ev{};
+    r.held_at_end = held(sim, k, *buf, &ev);
+    r.map_rmse_end_m = ev.rmse_m;
+    if (!finite_map(*buf)) r.finite = false;
+    r.diverged_at_s = sim.result().robots[k].diverged_at_s;
+    r.ctr = sim.result().robots[k].node;
+    r.link = sim.link().stats(static_cast<uint16_t>(k));
+    r.first_merge_s = sim.result().robots[k].first_merge_s;
+    if (sim.node(k).filter.kind == SLAM_FILTER_EKF) r.rejected_controls = sim.node(k).filter.u.ekf.ctr.rejected_controls;
+    return r;
+}
+
+FaultSpec fault(FaultKind kind, double at_s = kFaultAtS, double duration_s = kFaultS)
+{
+    FaultSpec f;
+    f.robot = 1;
+    f.kind = kind;
+    f.at_s = at_s;
+    f.duration_s = duration_s;
+    return f;
+}
+
+void report(const char *name, const FaultRun &r)
+{
+    std::printf("[fault] %-15s max pos err during %.3f m, after recovery %.3f m; landmarks held %zu -> %zu; "
+                "map RMSE end %.3f m; rejected controls %u; diverged %zu time(s)%s%.1f\n"
+                "        counters: laser_lost %u connect_failures %u scan_errors %u can_errors %u drive_faults %u "
+                "stop_steps %u frames %u; link tx_dropped_partition %llu; first merge %.1f s\n",
+                name, r.max_err_during_m, r.max_err_after_m, r.held_at_start.size(), r.held_at_end.size(),
+                r.map_rmse_end_m, r.rejected_controls, r.diverged_at_s.size(), r.diverged_at_s.empty() ? "" : ", first at ",
+                r.diverged_at_s.empty() ? 0.0 : r.diverged_at_s.front(), r.ctr.laser_lost,
+                r.ctr.laser_connect_failures, r.ctr.scan_errors, r.ctr.can_errors, r.ctr.drive_faults, r.ctr.stop_steps,
+                r.ctr.frames, static_cast<unsigned long long>(r.link.tx_dropped_partition), r.first_merge_s);
+}
+
+// the common claims 1 and 3
+void expect_recovered(const char *name, const FaultRun &r, double fault_end_s)
+{
+    report(name, r);
+    EXPECT_TRUE(r.finite) << name;
+    EXPECT_LT(r.max_err_after_m, kPoseErrM) << name << ": no recovery by " << fault_end_s + kRecoverS << " s";
+    for (int j : r.held_at_start) EXPECT_TRUE(r.held_at_end.count(j)) << name << ": true landmark " << j << " lost";
+}
+
+FaultRun run_fault(const FaultSpec &f)
+{
+    Scenario sc = paper();
+    sc.faults.push_back(f);
+    return run_with(sc, static_cast<size_t>(f.robot), f.at_s, f.at_s + f.duration_s);
+}
+
+}  // namespace
+
+// The reference: the same run without a fault, measured over the same spans.
+TEST(SimFaults, FaultFreeReference)
+{
+    const FaultRun r = run_with(paper(), 1, kFaultAtS, kFaultAtS + kFaultS);
+    expect_recovered("none", r, kFaultAtS + kFaultS);
+    EXPECT_TRUE(r.diverged_at_s.empty());
+}
+
+TEST(SimFaults, LaserUnplugThenReplug)
+{
+    const FaultRun r = run_fault(fault(FaultKind::LaserUnplug));
+    EXPECT_GE(r.ctr.laser_lost, 1u);          // noticed after laser_lost_us (2 s)
+    EXPECT_GE(r.ctr.laser_connect_failures, 1u); // reconnects refused while unplugged
+    EXPECT_GT(r.ctr.scan_errors, 0u);
+    expect_recovered("laser_unplug", r, kFaultAtS + kFaultS);
+}
+
+TEST(SimFaults, LaserGarbage)
+{
+    const FaultRun r = run_fault(fault(FaultKind::LaserGarbage));
+    EXPECT_GT(r.ctr.scan_errors, 0u);
+    expect_recovered("laser_garbage", r, kFaultAtS + kFaultS);
+}
+
+TEST(SimFaults, CanErrors)
+{
+    FaultSpec f = fault(FaultKind::CanErrors);
+    f.loss = 0.3;
+    const FaultRun r = run_fault(f);
+    EXPECT_GT(r.ctr.can_errors, 0u);
+    expect_recovered("can_errors", r, kFaultAtS + kFaultS);
+}
+
+TEST(SimFaults, DriveEmcy)
+{
+    const FaultRun r = run_fault(fault(FaultKind::DriveEmcy));
+    EXPECT_GE(r.ctr.drive_faults, 2u);  // the first EMCY and again after a reset within the window
+    expect_recovered("drive_emcy", r, kFaultAtS + kFaultS);
+}
+
+TEST(SimFaults, Estop)
+{
+    const FaultRun r = run_fault(fault(FaultKind::Estop));
+    EXPECT_GE(r.ctr.stop_steps, 450u);  // 5 s of 10 ms steps, less the release debounce
+    expect_recovered("estop", r, kFaultAtS + kFaultS);
+}
+
+TEST(SimFaults, CameraStall)
+{
+    const FaultRun r = run_fault(fault(FaultKind::CameraStall));
+    // 120 s at 5 Hz is 600 frames; 5 s (25 frames) did not come
+    EXPECT_LE(r.ctr.frames, 600u - 24u);
+    expect_recovered("camera_stall", r, kFaultAtS + kFaultS);
+}
+
+// Wrong odometry. The EKF-SLAM robot takes increments that are physically
+// possible (motion_is_plausible: up to 3 m/s, 2 pi rad/s) even when they
+// are garbage or five times the truth, drifts metres in 5 s and then
+// localises itself into a look-alike place among the non-unique markers
+// (4 classes), where its innovations are normal: no recovery and, with the
+// monitor's measures, no report. What holds is checked here; the open
+// claims are the DISABLED_ tests below (docs/sim.md "Faults", not done).
+TEST(SimFaults, OdometryGarbageKeepsEverythingFinite)
+{
+    FaultSpec f = fault(FaultKind::OdometryWild);
+    f.garbage = true;
+    const FaultRun r = run_fault(f);
+    report("odometry_garbage", r);
+    EXPECT_TRUE(r.finite);
+    EXPECT_GT(r.max_err_during_m, 1.0);  // the fault is real: the estimate was thrown off
+}
+
+TEST(SimFaults, OdometryScaledKeepsEverythingFinite)
+{
+    FaultSpec f = fault(FaultKind::OdometryWild);
+    f.scale = 5.0;
+    const FaultRun r = run_fault(f);
+    report("odometry_x5", r);
+    EXPECT_TRUE(r.finite);
+    EXPECT_GT(r.max_err_during_m, 1.0);
+}
+
+TEST(SimFaults, DISABLED_OdometryGarbageRecoversOrIsReported)
+{
+    FaultSpec f = fault(FaultKind::OdometryWild);
+    f.garbage = true;
+    const FaultRun r = run_fault(f);
+    if (r.diverged_at_s.empty()) expect_recovered("odometry_garbage", r, kFaultAtS + kFaultS);
+}
+
+TEST(SimFaults, DISABLED_OdometryScaledRecoversOrIsReported)
+{
+    FaultSpec f = fault(FaultKind::OdometryWild);
+    f.scale = 5.0;
+    const FaultRun r = run_fault(f);
+    if (r.diverged_at_s.empty()) expect_recovered("odometry_x5", r, kFaultAtS + kFaultS);
+}
+
+// The partition cuts the first merge exchange (about 65 s in the fault-free
+// run): the robots still merge once it heals.
+TEST(SimFaults, LinkPartitionDuringMerge)
+{
+    const FaultSpec f = fault(FaultKind::LinkPartition, 62.0, 8.0);
+    const FaultRun r = run_fault(f);
+    EXPECT_GT(r.link.tx_dropped_partition, 0u);
+    EXPECT_GE(r.first_merge_s, 70.0);
+    report("link_partition", r);
+    EXPECT_TRUE(r.finite);
+    EXPECT_LT(r.max_err_after_m, kPoseErrM);
+}
+
+void expect_kidnap_reported(const pose2_t &to, const char *name)
+{
+    FaultSpec f = fault(FaultKind::Kidnap, kFaultAtS, 0.0);
+    f.to = to;
+    const FaultRun r = run_fault(f);
+    report(name, r);
+    EXPECT_TRUE(r.finite);
+    ASSERT_FALSE(r.diverged_at_s.empty()) << name << ": never reported";
+    EXPECT_LE(r.diverged_at_s.front(), kFaultAtS + kDetectS);
+    EXPECT_GE(r.diverged_at_s.front(), kFaultAtS);
+}
+
+// Into the south-west corner, facing north: the map has landmarks in view
+// there that the camera does not see (missed fraction) and the sightings
+// are not explained (unassociated): reported 11.5 s later (seed 1).
+TEST(SimFaults, KidnapIsReportedAsDivergence)
+{
+    expect_kidnap_reported(pose2_t{-3.0, -2.5, 0.5 * COSLAM_PI}, "kidnap_sw");
+}
+
+// Kidnaps the monitor does not report (measured, seed 1, robot 1): the
+// filter re-localises among look-alike markers with normal innovations.
+TEST(SimFaults, DISABLED_KidnapElsewhereIsReported)
+{
+    expect_kidnap_reported(pose2_t{2.5, -2.0, 0.5 * COSLAM_PI}, "kidnap_se");
+    expect_kidnap_reported(pose2_t{-3.0, 2.0, COSLAM_PI}, "kidnap_nw");
+    expect_kidnap_reported(pose2_t{3.5, 2.5, 0.0}, "kidnap_ne");
+}
+
+class NoFault : public ::testing::TestWithParam<uint64_t> {};
+
+TEST_P(NoFault, HealthMonitorRaisesNoFalseAlarm)
+{
+    const Scenario sc = paper();
+    SimulationOptions opt;
+    opt.seed = GetParam();
+    Simulation sim(sc, opt);
+    sim.run();
+    for (size_t k = 0; k < sim.n_robots(); ++k) {
+        const RobotRecord &rr = sim.result().robots[k];
+        std::printf("[health] seed %llu %s: worst mean NIS %.2f, unassociated %.2f, missed %.2f, ESS %.2f, scan conflicts %.3f\n",
+                    static_cast<unsigned long long>(GetParam()), rr.name.c_str(), rr.health.worst_nis,
+                    rr.health.worst_unassoc, rr.health.worst_missed, rr.health.worst_ess, rr.health.worst_conflict);
+        EXPECT_TRUE(rr.diverged_at_s.empty()) << rr.name << " diverged at " << rr.diverged_at_s.front() << " s";
+        EXPECT_EQ(rr.node.diverged, 0u);
+    }
+}
+
+INSTANTIATE_TEST_SUITE_P(Seeds, NoFault, ::testing::Values(1u, 2u, 3u));
+
+TEST(SimFaults, ScenarioFaultTablesAreChecked)
+{
+    const std::string base = [] {
+        std::ifstream f(kPaper);
+        std::stringstream ss;
+        ss << f.rdbuf();
+        return ss.str();
+    }();
+    const Scenario ok = load_scenario_string(
+        base + "\n[[fault]]\nrobot = 1\nkind = \"can_errors\"\nat_s = 3\nduration_s = 2\nloss = 0.2\n");
+    ASSERT_EQ(ok.faults.size(), 1u);
+    EXPECT_EQ(ok.faults[0].kind, FaultKind::CanErrors);
+    EXPECT_DOUBLE_EQ(ok.faults[0].loss, 0.2);
+    auto refused = [&](const std::string &t, const std::string &what) {
+        try {
+            (void)load_scenario_string(base + t);
+            ADD_FAILURE() << "accepted: " << t;
+        } catch (const ScenarioError &e) {
+            EXPECT_NE(std::string(e.what()).find(what), std::string::npos) << e.what();
+            EXPECT_NE(std::string(e.what()).find("line "), std::string::npos) << e.what();
+        }
+    };
+    refused("\n[[fault]]\nrobot = 1\nkind = \"meteor\"\nat_s = 3\nduration_s = 2\n", "unknown fault kind");
+    refused("\n[[fault]]\nrobot = 1\nkind = \"estop\"\nat_s = 3\nduration_s = 2\nloss = 0.5\n", "unknown key");
+    refused("\n[[fault]]\nrobot = 1\nkind = \"estop\"\nat_s = 3\nduraton_s = 2\n", "duration_s");
+    refused("\n[[fault]]\nrobot = 7\nkind = \"estop\"\nat_s = 3\nduration_s = 2\n", "robot");
+    refused("\n[[fault]]\nrobot = 0\nkind = \"kidnap\"\nat_s = 3\nto = [2.0, 1.3, 0]\n", "not free space");
+    refused("\n[[fault]]\nrobot = 0\nkind = \"kidnap\"\nat_s = 3\nto = [40.0, 0.0, 0]\n", "not free space");
+}
