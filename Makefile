@@ -4,14 +4,31 @@
 #   make sim      build and run the main job, results under out/
 #   make bench    build and run the benchmarks (figures in out/bench/)
 #   make replay   replay MRCLAM Dataset 6 (2 and 5 robots, both filters), out/replay/
+#   make calibrate  noise calibration (coslam-calibrate, docs/calibration.md), out/calibrate/
 #   make bench-mrpt  install MRPT, then coslam vs MRPT EKF-SLAM on MRCLAM (out/bench/)
 #   make deps     install the Debian packages the build needs
 #   make robot    coslam-robot for the host ($(BUILD)) and for aarch64 ($(CROSS_BUILD))
 #   make cross    the aarch64 robot-side build and its tests under qemu-aarch64
 #   make package  Debian packages of coslam-robot (amd64, arm64) in out/package/
+#   make fuzz     run every libFuzzer target FUZZ_SECONDS each, corpus in out/fuzz/ (docs/fuzzing.md)
 # Variables: BUILD (build dir), JOBS, PROFILE (default|large), TEST_LEVEL (ci|full),
-#   CROSS_BUILD (aarch64 build dir), CROSS_CTEST_ARGS (ctest arguments of `make cross`)
+#   CROSS_BUILD (aarch64 build dir), CROSS_CTEST_ARGS (ctest arguments of `make cross`),
+#   SANITIZE=1 (every target with ASan+UBSan, in build-san unless BUILD is given),
+#   FUZZ_SECONDS (per target, `make fuzz`), FUZZ_TARGETS (a subset, `make fuzz`)
 
+SANITIZE   ?= 0
+ifeq ($(SANITIZE),1)
+BUILD      ?= build-san
+SAN_ARGS   := -DCOSLAM_SANITIZE=ON
+# halt at the first report, with a stack (CTest passes the environment on)
+export UBSAN_OPTIONS ?= print_stacktrace=1:halt_on_error=1
+export ASAN_OPTIONS ?= detect_leaks=1
+else
+SAN_ARGS   := -DCOSLAM_SANITIZE=OFF
+endif
+FUZZ_SECONDS ?= 300
+FUZZ_TARGETS ?=
+FUZZ_OUT   ?= out/fuzz
 BUILD      ?= build
 JOBS       ?= $(shell nproc 2>/dev/null || echo 2)
 PROFILE    ?= default
@@ -22,7 +39,8 @@ CROSS_BUILD ?= build-aarch64
 # (label long) are left out unless CROSS_CTEST_ARGS= is given
 CROSS_CTEST_ARGS ?= -LE long
 
-.PHONY: all deps build configure test sim bench replay bench-mrpt clean distclean robot cross package
+.PHONY: calibrate
+.PHONY: all deps build configure test sim bench replay bench-mrpt clean distclean robot cross package fuzz
 
 all: build
 
@@ -30,13 +48,21 @@ deps:
 	@tools/deps.sh install
 
 configure: deps
-	@cmake -S . -B $(BUILD) -DCOSLAM_PROFILE=$(PROFILE) -DCOSLAM_TEST_LEVEL=$(TEST_LEVEL) $(CMAKE_ARGS) >/dev/null
+	@cmake -S . -B $(BUILD) -DCOSLAM_PROFILE=$(PROFILE) -DCOSLAM_TEST_LEVEL=$(TEST_LEVEL) $(SAN_ARGS) $(CMAKE_ARGS) >/dev/null
 
 build: configure
 	@cmake --build $(BUILD) -j$(JOBS)
 
 test: build
 	@cd $(BUILD) && ctest --output-on-failure -j$(JOBS)
+
+# Each libFuzzer target for FUZZ_SECONDS with a persistent corpus under
+# $(FUZZ_OUT)/<target>; a summary table (executions, cov, ft) at the end.
+# Needs clang and libclang-rt-14-dev (the configure step skips the targets
+# without them: apt-get install clang-14 libclang-rt-14-dev).
+fuzz: configure
+	@cmake --build $(BUILD) -j$(JOBS) --target fuzz_all
+	@test/fuzz/run_fuzz.sh long $(BUILD) $(FUZZ_OUT) $(FUZZ_SECONDS) $(FUZZ_TARGETS)
 
 sim: build
 	@tools/run_sim.sh $(BUILD)
@@ -46,6 +72,17 @@ bench: build
 
 replay: build
 	@tools/run_replay.sh $(BUILD)
+
+# Noise calibration (docs/calibration.md): simulated worlds (train seeds 1-16,
+# held-out 101-116), then MRCLAM Dataset 6 robots 1-3 (held-out 4-5, map
+# score on Dataset 1), EKF-SLAM. CAL_ARGS adds options to both.
+CAL_ARGS ?=
+calibrate: configure
+	@cmake --build $(BUILD) -j$(JOBS) --target coslam-calibrate
+	@$(BUILD)/host/calibrate/coslam-calibrate --train-seeds 1-16 --test-seeds 101-116 --evals 301 \
+	  --lambda 10 -o out/calibrate/synth_paper $(CAL_ARGS)
+	@$(BUILD)/host/calibrate/coslam-calibrate --source mrclam -c host/replay/mrclam6.ini --evals 301 \
+	  --lambda 10 --map-data ../shared/data/mrclam/MRCLAM_Dataset1 -o out/calibrate/mrclam6_ekf $(CAL_ARGS)
 
 bench-mrpt:
 	@tools/deps.sh install

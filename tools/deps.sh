@@ -34,11 +34,16 @@ libtomlplusplus-dev
 libinih-dev
 nlohmann-json3-dev
 libcli11-dev
+libnlopt-dev
+libopenmpi-dev
+openmpi-bin
 libgpiod-dev
 libturbojpeg0-dev
 cyclonedds-dev
 cyclonedds-tools
 libsodium-dev
+clang-14
+libclang-rt-14-dev
 libopencv-core-dev libopencv-imgproc-dev libopencv-imgcodecs-dev libopencv-videoio-dev
 "
 

@@ -9,10 +9,15 @@
  *      fuzzer starts from valid messages and spends its time in the field
  *      checks instead of guessing CRCs (no seed corpus needed).
  * Property: the decoder returns OK or a COSLAM_E_MSG_* code; an accepted
- * input re-encodes to exactly the same bytes; *out is untouched on error.
+ * input re-encodes to exactly the same bytes (so decode -> encode -> decode
+ * is the identity); an accepted message satisfies every validity rule of
+ * map_msg.h, re-checked here independently (finite, PD covariances with
+ * bit-identical mirror entries, theta and bearing in [-pi, pi], ids
+ * non-zero and distinct, src_mask non-zero); *out is untouched on error.
  * Out-of-bounds reads are caught by ASan (libFuzzer hands over an
  * exact-size buffer; the overlaid copy is an exact-size heap block).
  */
+#include <math.h>
 #include <stddef.h>
 #include <stdint.h>
 #include <stdlib.h>
@@ -34,11 +39,57 @@ static void put_le(uint8_t *p, uint32_t v, unsigned n)
     }
 }
 
+static int pd2(cov2_t c)
+{
+    return isfinite(c.xx) && isfinite(c.xy) && isfinite(c.yy) && c.xx > 0.0 && c.yy > 0.0 &&
+           c.xx * c.yy - c.xy * c.xy > 0.0;
+}
+
+/* What the decoder promises of an accepted message (map_msg.h, "Validity"),
+ * checked here independently of map_msg_validate. */
+static void check_valid(const map_msg_t *m)
+{
+    const map_estimate_t *e = &m->map;
+    if (!isfinite(e->pose.x) || !isfinite(e->pose.y) || !(fabs(e->pose.theta) <= 3.14159265358979324)) {
+        abort();
+    }
+    for (int i = 0; i < 3; ++i) {
+        if (!(e->pose_cov.m[i][i] > 0.0)) {
+            abort(); /* a PD covariance has a positive diagonal */
+        }
+        for (int j = 0; j < 3; ++j) {
+            if (!isfinite(e->pose_cov.m[i][j]) || memcmp(&e->pose_cov.m[i][j], &e->pose_cov.m[j][i], sizeof(double))) {
+                abort();
+            }
+        }
+    }
+    if (e->n_landmarks > COSLAM_MAX_MSG_LANDMARKS) {
+        abort();
+    }
+    for (uint16_t j = 0; j < e->n_landmarks; ++j) {
+        const map_landmark_t *l = &e->lm[j];
+        if (!isfinite(l->mean.x) || !isfinite(l->mean.y) || !pd2(l->cov) || !pd2(l->cov_rel) || l->id == 0U ||
+            l->src_mask == 0U) {
+            abort();
+        }
+        for (uint16_t k = 0; k < j; ++k) {
+            if (e->lm[k].id == l->id) {
+                abort(); /* duplicate identity accepted */
+            }
+        }
+    }
+    if (m->sighting.valid && (!(m->sighting.range_m >= 0.0) || !(m->sighting.range_var_m2 > 0.0) ||
+                              !(m->sighting.bearing_var_rad2 > 0.0) || !(fabs(m->sighting.bearing_rad) <= 3.14159265358979324))) {
+        abort();
+    }
+}
+
 static void check(const uint8_t *data, size_t size)
 {
     memset(&g_out, 0x5A, sizeof g_out);
     const coslam_status_t st = map_msg_decode(data, size, &g_out);
     if (st == COSLAM_OK) {
+        check_valid(&g_out);
         size_t len = 0;
         if (map_msg_encode(&g_out, g_buf, sizeof g_buf, &len) != COSLAM_OK || len != size ||
             memcmp(g_buf, data, size) != 0) {

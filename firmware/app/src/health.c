@@ -164,10 +164,11 @@ void health_before_update(health_t *h, const slam_filter_t *f)
     }
     const fastslam_particle_t *pt = &fs->particles[best];
     for (uint16_t j = 0; j < pt->n_lm; ++j) {
-        if (in_view(sp, pt->pose, pt->lm[j].mean)) {
-            mark(h, pt->lm[j].signature);
-            h->in_view_id[h->n_in_view] = pt->lm[j].id;
-            h->in_view_obs[h->n_in_view] = pt->lm[j].n_obs;
+        const landmark_t *lm = fastslam_particle_lm(fs, best, j);
+        if (in_view(sp, pt->pose, lm->mean)) {
+            mark(h, lm->signature);
+            h->in_view_id[h->n_in_view] = lm->id;
+            h->in_view_obs[h->n_in_view] = lm->n_obs;
             h->n_in_view++;
         }
     }
@@ -235,8 +236,9 @@ void health_after_update(health_t *h, const slam_filter_t *f, const sighting_t *
             fr.n_expected++;
             int seen = 0;
             for (uint16_t j = 0; j < pt->n_lm; ++j) {
-                if (pt->lm[j].id == h->in_view_id[k]) {
-                    seen = pt->lm[j].n_obs > h->in_view_obs[k];
+                const landmark_t *lm = fastslam_particle_lm(fs, best, j);
+                if (lm->id == h->in_view_id[k]) {
+                    seen = lm->n_obs > h->in_view_obs[k];
                     break;
                 }
             }

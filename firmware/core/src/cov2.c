@@ -44,7 +44,13 @@ coslam_status_t cov2_inverse(cov2_t a, cov2_t *out)
         return COSLAM_E_NOT_PD;
     }
     const double inv_det = 1.0 / cov2_det(a);
-    *out = cov2_make(a.yy * inv_det, -a.xy * inv_det, a.xx * inv_det);
+    const cov2_t inv = cov2_make(a.yy * inv_det, -a.xy * inv_det, a.xx * inv_det);
+    /* a determinant that overflows (entries >= ~1e154) gives inv_det = 0:
+     * not an inverse */
+    if (!(isfinite(inv_det) && inv_det > 0.0 && cov2_is_pd(inv))) {
+        return COSLAM_E_NUMERIC;
+    }
+    *out = inv;
     return COSLAM_OK;
 }
 

@@ -113,7 +113,7 @@ double ekfslam_p(const ekfslam_t *ekf, int r, int c)
 
 coslam_status_t ekfslam_predict(ekfslam_t *ekf, odo_increment_t u)
 {
-    if (!motion_is_finite(u)) {
+    if (!motion_is_plausible(&ekf->cfg.slam, u, MOTION_MAX_INCREMENT_S)) {
         ekf->ctr.rejected_controls++;
         return COSLAM_E_NUMERIC;
     }

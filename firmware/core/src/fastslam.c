@@ -108,7 +108,7 @@ coslam_status_t fastslam_init(fastslam_t *fs, const fastslam_config_t *cfg, pose
 
 coslam_status_t fastslam_predict(fastslam_t *fs, odo_increment_t u)
 {
-    if (!motion_is_finite(u)) {
+    if (!motion_is_plausible(&fs->cfg.slam, u, MOTION_MAX_INCREMENT_S)) {
         fs->ctr.rejected_controls++;
         return COSLAM_E_NUMERIC;
     }

@@ -305,6 +305,15 @@ static int peer_char_ok(char ch)
            ch == ':' || ch == '-' || ch == '_' || ch == '[' || ch == ']';
 }
 
+/* libinih reads lines of at most INI_MAX_LINE - 2 characters (plus the
+ * newline and the NUL); robot_config_print writes "key = value". A value is
+ * kept only if that line fits, so that every configuration printed reads
+ * back (found by fuzzing, docs/fuzzing.md). */
+static int fits_line(const char *key, size_t value_len)
+{
+    return strlen(key) + 3U + value_len <= (size_t)(INI_MAX_LINE - 2);
+}
+
 static coslam_status_t parse_peers(robot_config_t *c, const char *v, char *msg, size_t cap)
 {
     char out[ROBOT_CONFIG_PATH_MAX + 1u];
@@ -340,8 +349,9 @@ static coslam_status_t parse_peers(robot_config_t *c, const char *v, char *msg, 
             return COSLAM_E_ARG;
         }
         const size_t add = (size_t)(end - start) + (n > 1U ? 2U : 0U);
-        if (len + add > ROBOT_CONFIG_PATH_MAX) {
-            put_text(msg, cap, "list too long");
+        if (len + add > ROBOT_CONFIG_PATH_MAX || !fits_line("peers", len + add)) {
+            put_text(msg, cap, "list too long (written back as 'a, b, ...' it must fit in one line of %d characters)",
+                     INI_MAX_LINE - 2);
             return COSLAM_E_ARG;
         }
         if (n > 1U) {
@@ -614,7 +624,27 @@ static int on_ini(void *user, const char *section, const char *name, const char 
     }
     char msg[ROBOT_CONFIG_MSG_MAX + 1u];
     msg[0] = '\0';
+    /* Only printable ASCII (and tabs) in values: a device path, address or
+     * number never needs more, and every message below quotes the value,
+     * which must not echo raw bytes to a terminal or log (found by fuzzing,
+     * docs/fuzzing.md). */
+    for (size_t j = 0; value[j] != '\0'; ++j) {
+        const unsigned char ch = (unsigned char)value[j];
+        if ((ch < 0x20U && ch != (unsigned char)'\t') || ch > 0x7EU) {
+            put_text(msg, sizeof msg, "byte 0x%02X at character %u of the value is not printable ASCII", (unsigned)ch,
+                     (unsigned)(j + 1U));
+            fail(st, section, name, msg);
+            return 0;
+        }
+    }
     if (strcmp(section, "slam") == 0) {
+        const slam_params_ini_key_t *sk = slam_params_ini_find(name);
+        if (sk != NULL && st->slam_line[slam_params_ini_index(sk)] != 0) {
+            put_text(msg, sizeof msg, "given twice (first on line %d; an indented line continues the key above)",
+                     st->slam_line[slam_params_ini_index(sk)]);
+            fail(st, "slam", name, msg);
+            return 0;
+        }
         const coslam_status_t s = slam_params_ini_set(&st->cfg->node.filter.slam, name, value, msg, sizeof msg);
         if (s != COSLAM_OK) {
             /* an unknown key's message names it already */
@@ -634,6 +664,16 @@ static int on_ini(void *user, const char *section, const char *name, const char 
         if (strcmp(k->name, name) != 0) {
             continue;
         }
+        /* A key read twice is refused: libinih also hands over an indented
+         * line as a continuation of the key above (INI_ALLOW_MULTILINE), so
+         * a stray indented line would otherwise replace that key's value
+         * silently (found by fuzzing, docs/fuzzing.md). */
+        if (st->key_line[i] != 0) {
+            put_text(msg, sizeof msg, "given twice (first on line %d; an indented line continues the key above)",
+                     st->key_line[i]);
+            fail(st, section, name, msg);
+            return 0;
+        }
         coslam_status_t s = COSLAM_OK;
         uint8_t *p = (uint8_t *)st->cfg + k->offset;
         switch (k->type) {
@@ -646,6 +686,10 @@ static int on_ini(void *user, const char *section, const char *name, const char 
         case K_STR:
             if (strlen(value) > ROBOT_CONFIG_PATH_MAX) {
                 put_text(msg, sizeof msg, "longer than %u characters", ROBOT_CONFIG_PATH_MAX);
+                s = COSLAM_E_ARG;
+            } else if (!fits_line(name, strlen(value))) {
+                put_text(msg, sizeof msg, "too long: '%s = <value>' must fit in one line of %d characters", name,
+                         INI_MAX_LINE - 2);
                 s = COSLAM_E_ARG;
             } else {
                 set_str((char *)p, value);
@@ -675,6 +719,19 @@ static int on_ini(void *user, const char *section, const char *name, const char 
     return 0;
 }
 
+/* A line longer than libinih's buffer would reach it cut in two, the rest
+ * parsed as a line of its own (a long value could end in "key = value"):
+ * it is an error instead, and the whole line is skipped (found by fuzzing,
+ * docs/fuzzing.md). */
+static void line_too_long(load_t *st, char *str, int num)
+{
+    char msg[64];
+    put_text(msg, sizeof msg, "line longer than %d characters", num - 2);
+    fail(st, "", NULL, msg);
+    str[0] = '\n';
+    str[1] = '\0';
+}
+
 /* Readers that count lines, so the handler knows where it is. */
 static char *read_file_line(char *str, int num, void *stream)
 {
@@ -684,6 +741,12 @@ static char *read_file_line(char *str, int num, void *stream)
         st->line++;
     } else if (r != NULL && feof(st->file)) {
         st->line++; /* last line without a newline */
+    } else if (r != NULL) {
+        int ch;
+        while ((ch = fgetc(st->file)) != EOF && ch != '\n') {
+        }
+        st->line++;
+        line_too_long(st, str, num);
     }
     return r;
 }
@@ -696,8 +759,11 @@ static char *read_text_line(char *str, int num, void *stream)
     }
     const char *nl = strchr(st->text, '\n');
     size_t len = nl != NULL ? (size_t)(nl - st->text) + 1U : strlen(st->text);
-    if (len > (size_t)num - 1U) {
-        len = (size_t)num - 1U;
+    if (len > (size_t)num - 1U || (nl == NULL && len > (size_t)num - 2U)) {
+        st->text += len;
+        st->line++;
+        line_too_long(st, str, num);
+        return str;
     }
     memcpy(str, st->text, len);
     str[len] = '\0';

@@ -12,10 +12,15 @@
  * there is one settings source for the noise. [filter] and [merge] use
  * coslam-replay's key names where the two tools share a setting.
  *
- * Errors: an unknown section or key, a value that is not a number (or not
- * one of the words a key accepts), a value outside its domain, or two keys
- * that contradict each other are reported as "FILE:LINE: [section] key:
- * reason" (the line of the later key for a contradiction); the first error
+ * Errors: an unknown section or key, a key given twice (libinih also reads
+ * an indented line as a continuation of the key above: that is a second
+ * value, refused), a line longer than 198 characters, a value with a byte
+ * outside printable ASCII and tab (the message names its position, never
+ * echoes it), a text value whose "key = value" line would not fit when
+ * written back, a value that is not a number (or not one of the words a
+ * key accepts), a value outside its domain, or two keys that contradict
+ * each other are reported as "FILE:LINE: [section] key: reason" (the line
+ * of the later key for a contradiction); the first error
  * wins. The caller exits with status 2 (robot_main.c).
  *
  * No heap: robot_config_t is caller-owned (about 3 KB plus

@@ -134,8 +134,11 @@ public:
     {
         const toml::node *n = get(key);
         if (n == nullptr) return;
-        const auto v = n->value<int64_t>();
-        if (!v || !n->is_integer()) fail(key, "expected an integer");
+        // is_integer first: value<int64_t>() of a float like 1e308 is UB
+        // (found by fuzz_scenario)
+        if (!n->is_integer()) fail(key, "expected an integer");
+        const auto v = n->value_exact<int64_t>();
+        if (!v) fail(key, "expected an integer");
         if (*v < lo || *v > hi) fail(key, "value " + std::to_string(*v) + " outside [" + std::to_string(lo) + ", " +
                                               std::to_string(hi) + "]");
         out = static_cast<int>(*v);
@@ -144,8 +147,9 @@ public:
     {
         const toml::node *n = get(key);
         if (n == nullptr) return;
-        const auto v = n->value<int64_t>();
-        if (!v || !n->is_integer() || *v < 0) fail(key, "expected a non-negative integer");
+        if (!n->is_integer()) fail(key, "expected a non-negative integer");
+        const auto v = n->value_exact<int64_t>();
+        if (!v || *v < 0) fail(key, "expected a non-negative integer");
         out = static_cast<uint64_t>(*v);
     }
     void boolean(const std::string &key, bool &out)

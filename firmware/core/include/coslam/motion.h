@@ -64,6 +64,13 @@ int motion_is_finite(odo_increment_t u);
  *  control clocks). */
 #define MOTION_PLAUSIBLE_SLACK_S 0.1
 
+/** The longest time one increment may stand for in the filters' own check
+ *  [s]: ekfslam_predict / fastslam_predict, which are not told the time,
+ *  refuse an increment the base could not do in this long (180 m at the
+ *  default 3 m/s), so an absurd value (1e308 m) never reaches the
+ *  covariance. slam_filter_predict checks against the real time span. */
+#define MOTION_MAX_INCREMENT_S 60.0
+
 /**
  * 1 if the increment u is something the base can do in dt_s seconds:
  * finite, |(dx, dy)| <= max_speed_mps * (dt_s + slack) and |dtheta| <=
