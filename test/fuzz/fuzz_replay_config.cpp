@@ -21,6 +21,7 @@
 #include <sstream>
 #include <string>
 
+#include "fuzz_check.h"
 #include "app/slam_params_ini.h"
 #include "replay_config.h"
 #include "replay_data.h"
@@ -33,10 +34,7 @@ namespace {
 
 void require(bool ok, const char *what)
 {
-    if (!ok) {
-        std::fprintf(stderr, "property violated: %s\n", what);
-        std::abort();
-    }
+    fuzz_require(ok ? 1 : 0, what);
 }
 
 void finite(double v, const char *what)

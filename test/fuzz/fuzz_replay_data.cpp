@@ -35,6 +35,7 @@
 #include <string>
 #include <vector>
 
+#include "fuzz_check.h"
 #include "replay_data.h"
 
 namespace fs = std::filesystem;
@@ -46,10 +47,7 @@ namespace {
 
 void require(bool ok, const char *what)
 {
-    if (!ok) {
-        std::fprintf(stderr, "property violated: %s\n", what);
-        std::abort();
-    }
+    fuzz_require(ok ? 1 : 0, what);
 }
 
 const fs::path &scratch()

@@ -16,6 +16,7 @@
 #include <cstdlib>
 #include <string>
 
+#include "fuzz_check.h"
 #include "sim/world/scenario.hpp"
 
 using namespace coslam::sim;
@@ -28,10 +29,7 @@ namespace {
 
 void require(bool ok, const char *what)
 {
-    if (!ok) {
-        std::fprintf(stderr, "property violated: %s\n", what);
-        std::abort();
-    }
+    fuzz_require(ok ? 1 : 0, what);
 }
 
 void pos(double v, const char *what)
