@@ -247,6 +247,12 @@ int main(int argc, char **argv)
             replay_config_write(cfg, std::cout);
             return 0;
         }
+        if (*run) {
+            // the capacities this binary was built with (one visible choice)
+            std::cerr << "coslam-replay: core profile " << COSLAM_PROFILE_NAME << ": " << COSLAM_MAX_PARTICLES
+                      << " particles, " << COSLAM_MAX_LANDMARKS << " landmarks per map, " << COSLAM_MAX_SIGHTINGS
+                      << " sightings per frame\n";
+        }
         const auto t_load = std::chrono::steady_clock::now();
         const Dataset ds = load_dataset(dataset, parse_format(format));
         const double load_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_load).count();
