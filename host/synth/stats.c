@@ -402,6 +402,12 @@ out:
 void eval_map(const map_estimate_t *est, const point2_t *truth, const int *n_seen, int n_truth, int min_seen,
               double gate_m, map_eval_t *out)
 {
+    eval_map_signed(est, truth, NULL, n_seen, n_truth, min_seen, gate_m, out);
+}
+
+void eval_map_signed(const map_estimate_t *est, const point2_t *truth, const uint8_t *truth_sig, const int *n_seen,
+                     int n_truth, int min_seen, double gate_m, map_eval_t *out)
+{
     memset(out, 0, sizeof *out);
     const int n = est->n_landmarks;
     out->n_estimated = n;
@@ -414,10 +420,13 @@ void eval_map(const map_estimate_t *est, const point2_t *truth, const int *n_see
     /* gated, per component (assign_gated): most pairs, then least sum of d2 */
     point2_t *mean = (point2_t *)calloc((size_t)(n > 0 ? n : 1), sizeof(point2_t));
     int *r2c = (int *)calloc((size_t)(n > 0 ? n : 1), sizeof(int));
+    uint8_t *sig = (uint8_t *)calloc((size_t)(n > 0 ? n : 1), sizeof(uint8_t));
     for (int i = 0; i < n; ++i) {
         mean[i] = est->lm[i].mean;
+        sig[i] = est->lm[i].signature;
     }
-    (void)assign_gated(mean, NULL, n, truth, NULL, n_truth, gate_m, r2c);
+    (void)assign_gated(mean, truth_sig != NULL ? sig : NULL, n, truth, truth_sig, n_truth, gate_m, r2c);
+    free(sig);
     int *truth_matched = (int *)calloc((size_t)(n_truth > 0 ? n_truth : 1), sizeof(int));
     double se = 0.0;
     double nees = 0.0;

@@ -48,6 +48,11 @@ typedef struct {
 void eval_map(const map_estimate_t *est, const point2_t *truth, const int *n_seen, int n_truth, int min_seen,
               double gate_m, map_eval_t *out);
 
+/** eval_map where an estimate may pair only with a true landmark of its
+ *  own signature (truth_sig[j]; NULL: any), the simulator's marker classes. */
+void eval_map_signed(const map_estimate_t *est, const point2_t *truth, const uint8_t *truth_sig, const int *n_seen,
+                     int n_truth, int min_seen, double gate_m, map_eval_t *out);
+
 /* Search limits of eval_map_rigid (defaults; a test may define its own). */
 #ifndef EVAL_RIGID_MAX_STEPS
 #define EVAL_RIGID_MAX_STEPS 720        /**< rotation steps of the sweep, at most */

@@ -42,45 +42,9 @@ slam_params_t filter_params(const Scenario &sc, const RobotSpec &rs)
 void evaluate_map(const map_estimate_t &est, const std::vector<point2_t> &truth, const std::vector<uint8_t> &truth_sig,
                   const std::vector<int> &n_seen, int min_seen, double gate_m, map_eval_t *out)
 {
-    *out = map_eval_t{};
-    const int n = est.n_landmarks;
-    const int nt = static_cast<int>(truth.size());
-    out->n_estimated = n;
-    for (int i = 0; i < n; ++i) out->match[i] = -1;
-    if (n == 0 && nt == 0) return;
-    // pairs of the same marker class within the gate, assigned per
-    // component (assign_gated: bounded cost on large maps); staying
-    // unmatched costs as much as a pair at the gate
-    std::vector<point2_t> mean(static_cast<size_t>(n));
-    std::vector<uint8_t> sig(static_cast<size_t>(n));
-    for (int i = 0; i < n; ++i) {
-        mean[static_cast<size_t>(i)] = est.lm[i].mean;
-        sig[static_cast<size_t>(i)] = est.lm[i].signature;
-    }
-    std::vector<int> r2c(static_cast<size_t>(std::max(n, 1)));
-    (void)assign_gated(mean.data(), sig.data(), n, truth.data(), truth_sig.data(), nt, gate_m, r2c.data());
-    std::vector<char> matched(static_cast<size_t>(nt), 0);
-    double se = 0.0, nees = 0.0;
-    for (int i = 0; i < n; ++i) {
-        const int j = r2c[static_cast<size_t>(i)];
-        if (j >= 0) {
-            out->match[i] = j;
-            matched[static_cast<size_t>(j)] = 1;
-            const double e2 = sq(est.lm[i].mean.x - truth[static_cast<size_t>(j)].x) +
-                              sq(est.lm[i].mean.y - truth[static_cast<size_t>(j)].y);
-            se += e2;
-            out->max_err_m = std::fmax(out->max_err_m, std::sqrt(e2));
-            nees += nees_point(est.lm[i].mean, est.lm[i].cov, truth[static_cast<size_t>(j)]);
-            out->n_matched++;
-        } else {
-            out->n_spurious++;
-        }
-    }
-    for (int j = 0; j < nt; ++j) {
-        if (!matched[static_cast<size_t>(j)] && n_seen[static_cast<size_t>(j)] >= min_seen) out->n_missed++;
-    }
-    out->rmse_m = out->n_matched > 0 ? std::sqrt(se / out->n_matched) : 0.0;
-    out->nees_mean = out->n_matched > 0 ? nees / out->n_matched : 0.0;
+    // one evaluation for every tool (host/synth/stats.h), with the marker classes
+    eval_map_signed(&est, truth.data(), truth_sig.data(), n_seen.data(), static_cast<int>(truth.size()), min_seen,
+                    gate_m, out);
 }
 
 uint64_t derive_seed(uint64_t seed, int robot, int stream)
