@@ -188,7 +188,12 @@ nlohmann::json run_metrics(const Simulation &sim)
             {"health", {{"diverged_now", rr.health.diverged != 0}, {"episodes", rr.health.episodes},
                         {"diverged_frames", rr.health.diverged_frames}, {"diverged_at_s", rr.diverged_at_s},
                         {"worst_mean_nis", rr.health.worst_nis}, {"worst_unassociated", rr.health.worst_unassoc},
-                        {"worst_ess_fraction", rr.health.worst_ess}, {"worst_missed", rr.health.worst_missed}}},
+                        {"worst_ess_fraction", rr.health.worst_ess}, {"worst_missed", rr.health.worst_missed},
+                        {"odometry_check",
+                         {{"checks", rr.health.odo.checks}, {"unjudged", rr.health.odo.unjudged},
+                          {"agreements", rr.health.odo.agreements}, {"disagreements", rr.health.odo.disagreements},
+                          {"mismatches", rr.health.odo.mismatches}, {"worst_chi2", rr.health.odo.worst_chi2},
+                          {"worst_inlier_fraction", rr.health.odo.worst_inlier_frac}}}}},
             {"meeting", {{"sent", rr.meeting.sent}, {"send_failures", rr.meeting.send_failures},
                          {"received", rr.meeting.received}, {"rx_errors", rr.meeting.rx_errors},
                          {"ignored_recent", rr.meeting.ignored_recent}, {"replays", rr.meeting.replays},
@@ -372,13 +377,13 @@ std::string run_summary(const Simulation &sim, const std::string &out_dir)
         if (r.faults.empty() && rr.diverged_at_s.empty()) continue;
         char first[48] = "";
         if (!rr.diverged_at_s.empty()) std::snprintf(first, sizeof first, ", first at %.1f s", rr.diverged_at_s.front());
-        char hl[320];
+        char hl[400];
         std::snprintf(hl, sizeof hl,
                       "  health %s: %s, diverged %u time(s)%s; laser lost %u, scan errors %u, drive faults %u, "
-                      "CAN errors %u, stop steps %u\n",
+                      "CAN errors %u, stop steps %u; wheels against laser: %u disagreements, %u mismatches\n",
                       rr.name.c_str(), rr.health.diverged ? "DIVERGED" : "ok", rr.health.episodes, first,
                       rr.node.laser_lost, rr.node.scan_errors, rr.node.drive_faults, rr.node.can_errors,
-                      rr.node.stop_steps);
+                      rr.node.stop_steps, rr.health.odo.disagreements, rr.health.odo.mismatches);
         s << hl;
     }
     s << "  outputs: " << out_dir << "/ (metrics.json, robot<k>_path.tum, robot<k>_map.csv, merge_events.csv, ...)";

@@ -19,6 +19,7 @@ health_config_t health_config_default(void)
     c.wall_logodds = 2.0;
     c.min_returns = 200U;
     c.min_sightings = 8U;
+    c.odo = odo_check_config_default();
     return c;
 }
 
@@ -31,6 +32,9 @@ coslam_status_t health_init(health_t *h, const health_config_t *cfg)
         return COSLAM_E_ARG;
     }
     memset(h, 0, sizeof *h);
+    if (odo_check_init(&h->odo, &cfg->odo) != COSLAM_OK) {
+        return COSLAM_E_ARG;
+    }
     h->cfg = *cfg;
     h->ess_frac = 1.0;
     h->worst_ess = 1.0;
@@ -63,7 +67,7 @@ static int marked(const health_t *h, uint8_t sig)
 
 static void judge(health_t *h, int frame_bad)
 {
-    const int bad = frame_bad || h->scan_bad;
+    const int bad = frame_bad || h->scan_bad || h->odo.bad;
     if (bad && !h->diverged) {
         h->episodes++;
     }
@@ -135,6 +139,12 @@ void health_on_scan(health_t *h, const occ_grid_t *g, pose2_t sensor_pose, const
     if (h->diverged) {
         h->diverged_scans++;
     }
+}
+
+void health_on_motion_scan(health_t *h, uint64_t now_us, pose2_t odo_pose, const point2_t *pts, size_t n)
+{
+    (void)odo_check_on_scan(&h->odo, now_us, odo_pose, pts, n);
+    judge(h, h->frame_bad);
 }
 
 void health_before_update(health_t *h, const slam_filter_t *f)

@@ -284,6 +284,8 @@ static void use_scan(robot_node_t *n)
             n->scan_points_m[n->scan_n_points++] = pose2_apply(n->cfg.laser_in_robot, q);
         }
     }
+    health_on_motion_scan(&n->health, n->now_us, n->odo_pose, n->scan_points_m, n->scan_n_points);
+    n->ctr.diverged = n->health.episodes;
     n->scan_n = np;
     n->scan_us = n->now_us;
     n->scan_heading_rad = n->odo_pose.theta;

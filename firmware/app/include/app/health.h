@@ -35,9 +35,13 @@
  *   unassociated > unassoc_max    with >= min_sightings eligible sightings,
  *   missed > missed_max           with >= min_sightings landmarks in view,
  *   mean ESS fraction < ess_min   (Fast-SLAM, a full window),
- *   scan conflicts > conflict_max with >= min_returns returns on known cells.
- * Known blind spot (docs/sim.md "Faults"): a filter that re-localised
- * among look-alike (non-unique) markers has normal figures.
+ *   scan conflicts > conflict_max with >= min_returns returns on known cells,
+ *   the odometry check is bad: the laser saw a motion the wheels did not
+ *   report, or scans that no motion explains (health_on_motion_scan,
+ *   app/odo_check.h; held odo.hold_s after the event).
+ * A filter that re-localised among look-alike (non-unique) markers has
+ * normal landmark figures; the odometry check catches the moment the
+ * wheels went wrong or the robot was carried (docs/sim.md "Faults").
  * `diverged` is a status flag (cleared when all are back within
  * bounds); `episodes` counts its rises, `diverged_frames` the frames spent
  * diverged. Caller-owned, no heap; O(landmarks + sightings) per frame.
@@ -47,6 +51,7 @@
 
 #include <stdint.h>
 
+#include "app/odo_check.h"
 #include "app/slam_filter.h"
 #include "coslam/occ_grid.h"
 
@@ -80,6 +85,7 @@ typedef struct {
     double free_logodds;     /**< a cell is "known free" at or below this log-odds (< 0) */
     double wall_logodds;     /**< a cell is "known wall" above this log-odds (> 0); every 4th ray is traced */
     uint32_t min_returns;    /**< returns on known cells in the scan window before judging, >= 1 */
+    odo_check_config_t odo;  /**< the scan-to-scan odometry check (app/odo_check.h) */
 } health_config_t;
 
 typedef struct {
@@ -104,6 +110,7 @@ typedef struct {
     double conflict_frac;         /**< scan window: returns in known free space / returns on known cells */
     double worst_conflict;
     int scan_bad;
+    odo_check_t odo;              /**< wheels against laser (health_on_motion_scan) */
     health_frame_t frame[COSLAM_APP_HEALTH_WINDOW];
     uint16_t head, count;
     /* before the current update */
@@ -119,7 +126,7 @@ typedef struct {
     double missed_frac;           /**< landmarks in view not seen; 0 without any in view */
     double ess_frac;              /**< 1 for EKF-SLAM */
     int frame_bad;                /**< the camera window's figures are out of bounds */
-    int diverged;                 /**< status flag: frame_bad or scan_bad */
+    int diverged;                 /**< status flag: frame_bad, scan_bad or odo.bad */
     uint32_t diverged_scans;
     uint32_t episodes;            /**< times diverged rose */
     uint32_t diverged_frames;
@@ -146,6 +153,14 @@ coslam_status_t health_init(health_t *h, const health_config_t *cfg);
  */
 void health_on_scan(health_t *h, const occ_grid_t *g, pose2_t sensor_pose, const double *range_m,
                     const double *angle_rad, size_t n);
+
+/**
+ * One laser scan for the odometry check (app/odo_check.h): `pts` in the
+ * robot frame, `odo_pose` the odometry-only pose at the scan, now_us its
+ * time. Updates odo.bad and the flag. O(1), or one check every
+ * odo.period_s.
+ */
+void health_on_motion_scan(health_t *h, uint64_t now_us, pose2_t odo_pose, const point2_t *pts, size_t n);
 
 /** Before slam_filter_update: note the landmark classes in view and the counters. O(landmarks). */
 void health_before_update(health_t *h, const slam_filter_t *f);
