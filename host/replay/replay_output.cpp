@@ -359,38 +359,13 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
 
 bool report_limits(std::ostream &err, const Dataset &ds, const ReplayResult &res)
 {
-    struct Limit {
-        const char *counter;
-        const char *what;
-        const char *raise; // the capacity macro; nullptr: a refusal, not a capacity
-    };
-    static const Limit limits[] = {
-        {"lm_capacity_drops", "sightings not mapped: the map is full", "COSLAM_MAX_LANDMARKS"},
-        {"sighting_capacity_drops", "sightings dropped: more in one frame than fit", "COSLAM_MAX_SIGHTINGS"},
-        {"export_capacity_drops", "landmarks left out of the exported map", "COSLAM_MAX_EXPORT_IDS"},
-        {"rejected_controls", "odometry increments refused (non-finite, or faster than max_speed_mps / "
-                              "max_turn_radps allow)", nullptr},
-        {"rejected_sightings", "sightings refused (non-finite, range beyond sighting_max_range_m, |bearing| > pi)",
-         nullptr},
-        {"numeric_faults", "numeric faults (degenerate geometry skipped, weight collapse)", nullptr},
-    };
-    const long caps[] = {COSLAM_MAX_LANDMARKS, COSLAM_MAX_SIGHTINGS, COSLAM_MAX_EXPORT_IDS};
     bool capacity = false;
     for (const auto &r : res.robots) {
-        for (size_t i = 0; i < sizeof limits / sizeof limits[0]; ++i) {
-            const auto it = r.counters.find(limits[i].counter);
-            if (it == r.counters.end() || it->second == 0) {
-                continue;
-            }
-            if (limits[i].raise != nullptr) {
-                capacity = true;
-                err << "LIMIT robot " << r.id << ": " << it->second << " " << limits[i].what << " ("
-                    << limits[i].counter << "; " << limits[i].raise << " = " << caps[i] << " in this build, profile "
-                    << COSLAM_PROFILE_NAME << "; raise it with -D" << limits[i].raise << "=N at build time)\n";
-            } else {
-                err << "warning: robot " << r.id << ": " << it->second << " " << limits[i].what << " ("
-                    << limits[i].counter << ")\n";
-            }
+        for (const slam_filter_limit_t &l : r.limits) {
+            char line[512];
+            (void)slam_filter_limit_format(&l, static_cast<unsigned>(r.id), line, sizeof line);
+            err << line << "\n";
+            capacity = capacity || l.capacity_macro != nullptr;
         }
     }
     for (const auto &r : res.robots) {

@@ -669,6 +669,11 @@ ReplayResult Replay::run()
         res.pose_nees_mean = r.nees_n > 0 ? r.nees_sum / static_cast<double>(r.nees_n) : 0.0;
         res.step_us_mean = res.frames > 0 ? r.step_us_sum / static_cast<double>(res.frames) : 0.0;
         res.counters = r.filter->counters();
+        {
+            slam_filter_limit_t lim[SLAM_FILTER_N_LIMITS];
+            const int nl = slam_filter_limits(r.filter->app(), lim);
+            res.limits.assign(lim, lim + nl);
+        }
         if (r.meeting) {
             const meeting_counters_t *mc = meeting_counters(r.meeting.get());
             res.counters["meeting_sent"] = mc->sent;

@@ -27,6 +27,7 @@
 #include <string>
 #include <vector>
 
+#include "app/slam_filter.h"
 #include "coslam/map_estimate.h"
 #include "coslam/map_merge.h"
 #include "replay_config.h"
@@ -156,6 +157,7 @@ struct RobotResult {
     long robot_sightings = 0;
     long capacity_errors = 0;
     std::map<std::string, long> counters;
+    std::vector<slam_filter_limit_t> limits; ///< the filter's loss counters that moved (slam_filter_limits)
 };
 
 struct ReplayResult {

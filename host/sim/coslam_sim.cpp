@@ -65,6 +65,7 @@ int main(int argc, char **argv)
     double duration = -1.0;
     bool quiet = false;
     std::string camera;
+    bool allow_limits = false;
     app.add_option("--scenario", scenario_path, "scenario file (TOML, docs/sim.md)")->capture_default_str();
     app.add_option("--out", out_dir, "output directory of the run")->capture_default_str();
     app.add_option("--seed", seed, "seed (default: the scenario's)")
@@ -75,6 +76,8 @@ int main(int argc, char **argv)
     app.add_option("--camera", camera, "sightings from rendered pixels through the detector, or from the geometric stand-in "
                                        "(default: the scenario's camera.source, pixels)")
         ->check(CLI::IsMember({"pixels", "oracle"}));
+    app.add_flag("--allow-capacity-limits", allow_limits,
+                 "exit 0 even when a capacity of the core was hit (LIMIT lines); without it such a run exits 3");
     CLI11_PARSE(app, argc, argv);
 
     try {
@@ -91,6 +94,32 @@ int main(int argc, char **argv)
         sim.run([&](const coslam::sim::SimulationProgress &p) { bar.update(p); }, 0.5);
         coslam::sim::write_run_outputs(sim, out_dir);
         std::cout << coslam::sim::run_summary(sim, out_dir) << std::endl;
+        // limits are loud: every loss counter of every robot's filter, and
+        // the sightings its source could not fit in a frame
+        bool capacity = false;
+        for (size_t k = 0; k < sim.n_robots(); ++k) {
+            const robot_node_t &node = sim.node(k);
+            slam_filter_limit_t lim[SLAM_FILTER_N_LIMITS];
+            const int nl = slam_filter_limits(&node.filter, lim);
+            for (int i = 0; i < nl; ++i) {
+                char line[512];
+                (void)slam_filter_limit_format(&lim[i], static_cast<unsigned>(k), line, sizeof line);
+                std::fprintf(stderr, "%s\n", line);
+                capacity = capacity || lim[i].capacity_macro != nullptr;
+            }
+            if (node.ctr.sightings_dropped > 0U) {
+                std::fprintf(stderr,
+                             "LIMIT robot %zu: %u sightings dropped by the camera source: more in one frame than "
+                             "fit (sightings_dropped; COSLAM_MAX_SIGHTINGS = %d in this build, profile %s)\n",
+                             k, node.ctr.sightings_dropped, (int)COSLAM_MAX_SIGHTINGS, COSLAM_PROFILE_NAME);
+                capacity = true;
+            }
+        }
+        if (capacity && !allow_limits) {
+            std::fprintf(stderr, "coslam-sim: a capacity of the core was hit (LIMIT lines above); the results are "
+                                 "not those of an unlimited run. Exit 3 (--allow-capacity-limits to accept)\n");
+            return 3;
+        }
     } catch (const std::exception &e) {
         std::cerr << "coslam-sim: " << e.what() << std::endl;
         return 1;

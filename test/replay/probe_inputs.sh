@@ -222,6 +222,22 @@ sed 's/^start = \[1.0, 0.0, 0.0\].*/start = [-1.1, 0.0, 0.0]/' "$SCENARIO" > "$W
 probe "scenario: robots on top of each other" 1 "overlaps robot" "$SIM" --scenario "$WORK/overlap.toml" --quiet --out "$WORK/s"
 sed 's/^\[timing\]/[timing]\nbogus_key = 3/' "$SCENARIO" > "$WORK/badkey.toml"
 probe "scenario: unknown key (line number)" 1 "line [0-9]+: timing.bogus_key: unknown key" "$SIM" --scenario "$WORK/badkey.toml" --quiet --out "$WORK/s"
+# a simulated map that cannot fit: a marker every 0.3 m over the arena
+# (about 700), far more than COSLAM_MAX_LANDMARKS in any profile, and more in
+# one frame than COSLAM_MAX_SIGHTINGS
+awk 'BEGIN { skip = 0 }
+    /^landmarks = \[/ {
+        print "landmarks = ["
+        for (x = -4.2; x <= 4.2; x += 0.3) for (y = -3.2; y <= 3.2; y += 0.3)
+            if (x * x + y * y > 2.0) printf "  { pos = [%.2f, %.2f], signature = %d },\n", x, y, int((x + 5) * 7 + (y + 4) * 3) % 4
+        skip = 1; next
+    }
+    skip && /^\]/ { print "]"; skip = 0; next }
+    !skip { print }' "$SCENARIO" > "$WORK/dense.toml"
+probe "coslam-sim: map full (dense markers)" 3 "LIMIT robot [01]: .* COSLAM_MAX_(LANDMARKS|SIGHTINGS) = " \
+    "$SIM" --scenario "$WORK/dense.toml" --camera oracle --duration 20 --quiet --out "$WORK/sd"
+probe "coslam-sim: map full, --allow-capacity-limits" 0 "LIMIT robot [01]: " \
+    "$SIM" --scenario "$WORK/dense.toml" --camera oracle --duration 20 --allow-capacity-limits --quiet --out "$WORK/sd"
 
 if [ -n "$TABLE" ]; then
     {

@@ -1,5 +1,7 @@
 #include "app/slam_filter.h"
 
+#include <stdio.h>
+
 #include <math.h>
 #include <stddef.h>
 #include <string.h>
@@ -266,4 +268,65 @@ coslam_status_t slam_filter_merge_map(slam_filter_t *f, const map_estimate_t *in
 
     }
     return slam_filter_merge(f, &w->body, cfg, &w->scratch, stats);
+}
+
+int slam_filter_limits(const slam_filter_t *f, slam_filter_limit_t out[SLAM_FILTER_N_LIMITS])
+{
+    if (f == NULL || out == NULL) {
+        return 0;
+    }
+    /* both filters' counter structs name these fields alike */
+#define SLAM_FILTER_LOSS_COUNTERS(v, c)                                                                                  \
+    do {                                                                                                                 \
+        (v)[0] = (c)->lm_capacity_drops;                                                                                 \
+        (v)[1] = (c)->sighting_capacity_drops;                                                                           \
+        (v)[2] = (c)->export_capacity_drops;                                                                             \
+        (v)[3] = (c)->rejected_controls;                                                                                 \
+        (v)[4] = (c)->rejected_sightings;                                                                                \
+        (v)[5] = (c)->numeric_faults;                                                                                    \
+    } while (0)
+    uint32_t v[SLAM_FILTER_N_LIMITS];
+    if (f->kind == SLAM_FILTER_EKF) {
+        SLAM_FILTER_LOSS_COUNTERS(v, &f->u.ekf.ctr);
+    } else {
+        SLAM_FILTER_LOSS_COUNTERS(v, &f->u.fs.ctr);
+    }
+#undef SLAM_FILTER_LOSS_COUNTERS
+    static const slam_filter_limit_t table[SLAM_FILTER_N_LIMITS] = {
+        {"lm_capacity_drops", "sightings not mapped: the map is full", "COSLAM_MAX_LANDMARKS", COSLAM_MAX_LANDMARKS, 0U},
+        {"sighting_capacity_drops", "sightings dropped: more in one frame than fit", "COSLAM_MAX_SIGHTINGS",
+         COSLAM_MAX_SIGHTINGS, 0U},
+        {"export_capacity_drops", "landmarks left out of the exported map", "COSLAM_MAX_EXPORT_IDS",
+         COSLAM_MAX_EXPORT_IDS, 0U},
+        {"rejected_controls",
+         "odometry increments refused (non-finite, or faster than max_speed_mps / max_turn_radps allow)", NULL, 0L, 0U},
+        {"rejected_sightings", "sightings refused (non-finite, range beyond sighting_max_range_m, |bearing| > pi)",
+         NULL, 0L, 0U},
+        {"numeric_faults", "numeric faults (degenerate geometry skipped, weight collapse)", NULL, 0L, 0U},
+    };
+    int n = 0;
+    for (int i = 0; i < SLAM_FILTER_N_LIMITS; ++i) {
+        if (v[i] > 0U) {
+            out[n] = table[i];
+            out[n].value = v[i];
+            ++n;
+        }
+    }
+    return n;
+}
+
+int slam_filter_limit_format(const slam_filter_limit_t *l, unsigned robot_id, char *buf, size_t cap)
+{
+    if (l == NULL || buf == NULL || cap == 0U) {
+        return 0;
+    }
+    if (l->capacity_macro != NULL) {
+        return snprintf(buf, cap,
+                        "LIMIT robot %u: %lu %s (%s; %s = %ld in this build, profile %s; raise it with -D%s=N at "
+                        "build time)",
+                        robot_id, (unsigned long)l->value, l->what, l->counter, l->capacity_macro, l->capacity,
+                        COSLAM_PROFILE_NAME, l->capacity_macro);
+    }
+    return snprintf(buf, cap, "warning: robot %u: %lu %s (%s)", robot_id, (unsigned long)l->value, l->what,
+                    l->counter);
 }

@@ -160,6 +160,41 @@ coslam_status_t slam_filter_merge_map(slam_filter_t *f, const map_estimate_t *in
 /** "fastslam1", "fastslam2", "ekf", or "?" (static strings). */
 const char *slam_filter_kind_name(slam_filter_kind_t kind);
 
+/** One counter of the filter that means input was lost: a capacity of the
+ *  core was hit (capacity_macro names the config.h macro that sets it), or
+ *  input was refused (capacity_macro NULL). */
+typedef struct {
+    const char *counter;         /**< the counter's name, as in metrics and status */
+    const char *what;            /**< what was lost, for a console line */
+    const char *capacity_macro;  /**< NULL: a refusal, not a capacity */
+    long capacity;               /**< the macro's value in this build (0 for refusals) */
+    uint32_t value;
+} slam_filter_limit_t;
+
+/** Number of entries slam_filter_limits can write. */
+#define SLAM_FILTER_N_LIMITS 6
+
+/**
+ * The filter's loss counters (every tool reports limits from this one
+ * table: coslam-replay, coslam-sim, coslam-robot): map full
+ * (COSLAM_MAX_LANDMARKS), sightings over COSLAM_MAX_SIGHTINGS in a frame,
+ * exported map cut (COSLAM_MAX_EXPORT_IDS), refused controls, refused
+ * sightings, numeric faults. Writes those with a non-zero value, in that
+ * order, to out (room for SLAM_FILTER_N_LIMITS); returns how many. O(1).
+ */
+int slam_filter_limits(const slam_filter_t *f, slam_filter_limit_t out[SLAM_FILTER_N_LIMITS]);
+
+/**
+ * One console line for a limit, the same in every tool:
+ *   "LIMIT robot 1: 3064 sightings not mapped: the map is full
+ *    (lm_capacity_drops; COSLAM_MAX_LANDMARKS = 256 in this build, profile
+ *    large; raise it with -DCOSLAM_MAX_LANDMARKS=N at build time)"
+ * or, for a refusal, "warning: robot 1: 2 odometry increments refused (...)
+ * (rejected_controls)". No newline. snprintf's return (the length it
+ * needed); the line is cut at cap - 1.
+ */
+int slam_filter_limit_format(const slam_filter_limit_t *l, unsigned robot_id, char *buf, size_t cap);
+
 #ifdef __cplusplus
 }
 #endif
