@@ -319,6 +319,43 @@ bool mpi_enabled()
 
 // ---------------------------------------------------------------- evaluator
 
+void parallel_for(size_t n, int threads, const std::function<void(size_t)> &task)
+{
+    std::atomic<size_t> next{0};
+    std::atomic<bool> failed{false};
+    std::string fail_msg;
+    std::mutex fail_mu;
+    auto worker = [&]() {
+        for (;;) {
+            const size_t k = next.fetch_add(1);
+            if (k >= n || failed.load()) {
+                return;
+            }
+            try {
+                task(k);
+            } catch (const std::exception &e) {
+                std::lock_guard<std::mutex> lk(fail_mu);
+                if (!failed) {
+                    fail_msg = e.what();
+                }
+                failed = true;
+            }
+        }
+    };
+    const size_t nthr = std::min<size_t>(static_cast<size_t>(std::max(1, threads)), std::max<size_t>(1, n));
+    std::vector<std::thread> pool;
+    for (size_t i = 1; i < nthr; ++i) {
+        pool.emplace_back(worker);
+    }
+    worker();
+    for (auto &th : pool) {
+        th.join();
+    }
+    if (failed) {
+        throw std::runtime_error(fail_msg);
+    }
+}
+
 Evaluator::Evaluator(const EpisodeContext &ctx, int threads) : ctx_(ctx), threads_(std::max(1, threads)) {}
 
 std::vector<std::vector<EpisodeScore>> Evaluator::evaluate(const std::vector<Weights> &cands,
@@ -337,43 +374,15 @@ std::vector<std::vector<EpisodeScore>> Evaluator::evaluate(const std::vector<Wei
             mine.push_back(t);
         }
     }
-    std::atomic<size_t> next{0};
-    std::atomic<bool> failed{false};
-    std::string fail_msg;
-    std::mutex fail_mu;
-    auto worker = [&]() {
-        for (;;) {
-            const size_t k = next.fetch_add(1);
-            if (k >= mine.size() || failed.load()) {
-                return;
-            }
-            const size_t t = mine[k];
-            try {
-                const EpisodeScore s = run_episode(ctx_, eps[t % ne], cands[t / ne]);
-                slots[kSlot * t + 0] = s.cost;
-                slots[kSlot * t + 1] = s.mean_err_m;
-                slots[kSlot * t + 2] = s.stopped_at;
-                slots[kSlot * t + 3] = s.samples;
-                slots[kSlot * t + 4] = s.cpu_s;
-            } catch (const std::exception &e) {
-                std::lock_guard<std::mutex> lk(fail_mu);
-                fail_msg = e.what();
-                failed = true;
-            }
-        }
-    };
-    const int nthr = static_cast<int>(std::min<size_t>(static_cast<size_t>(threads_), std::max<size_t>(1, mine.size())));
-    std::vector<std::thread> pool;
-    for (int i = 1; i < nthr; ++i) {
-        pool.emplace_back(worker);
-    }
-    worker();
-    for (auto &th : pool) {
-        th.join();
-    }
-    if (failed) {
-        throw std::runtime_error(fail_msg);
-    }
+    parallel_for(mine.size(), threads_, [&](size_t k) {
+        const size_t t = mine[k];
+        const EpisodeScore s = run_episode(ctx_, eps[t % ne], cands[t / ne]);
+        slots[kSlot * t + 0] = s.cost;
+        slots[kSlot * t + 1] = s.mean_err_m;
+        slots[kSlot * t + 2] = s.stopped_at;
+        slots[kSlot * t + 3] = s.samples;
+        slots[kSlot * t + 4] = s.cpu_s;
+    });
 #ifdef COSLAM_HAVE_MPI
     if (size > 1) {
         // x + 0.0 is exact: the sum over ranks is the owner's value

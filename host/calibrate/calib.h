@@ -96,6 +96,12 @@ EpisodeScore score_errors(const std::vector<double> &err_m, double stop_error_m,
 /// Run one episode with weights w. Thread-safe (no shared mutable state).
 EpisodeScore run_episode(const EpisodeContext &ctx, const Episode &ep, const Weights &w);
 
+/// Runs task(k) for every k in [0, n) once, on `threads` threads (this
+/// one included), in no fixed order: each task must write only its own
+/// output. The first exception stops the tasks not yet started and is
+/// rethrown as std::runtime_error with its message.
+void parallel_for(size_t n, int threads, const std::function<void(size_t)> &task);
+
 /// Evaluates candidates x episodes on threads of this process and, with
 /// MPI, across ranks: task t = (candidate, episode) goes to rank t mod size,
 /// then to whichever thread of that rank is free; each task writes its own

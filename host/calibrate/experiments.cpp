@@ -3,15 +3,11 @@
 
 #include <nlohmann/json.hpp>
 
-#include <atomic>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <iostream>
-#include <mutex>
 #include <sstream>
-#include <stdexcept>
-#include <thread>
 
 namespace coslam::calibrate {
 
@@ -145,30 +141,8 @@ void run_figures(const EpisodeContext &ctx, const std::vector<Episode> &eps, con
     const char *names[2] = {"hand", "calibrated"};
     const size_t ne = eps.size();
     std::vector<SynthTrace> tr(2 * ne);
-    std::atomic<size_t> next{0};
-    std::string fail;
-    std::mutex mu;
-    auto worker = [&]() {
-        for (size_t k; (k = next.fetch_add(1)) < tr.size();) {
-            try {
-                tr[k] = run_synth_episode_traced(ctx, eps[k % ne], *sets[k / ne], map_every);
-            } catch (const std::exception &e) {
-                std::lock_guard<std::mutex> lk(mu);
-                fail = e.what();
-            }
-        }
-    };
-    std::vector<std::thread> pool;
-    for (int i = 1; i < jobs; ++i) {
-        pool.emplace_back(worker);
-    }
-    worker();
-    for (auto &t : pool) {
-        t.join();
-    }
-    if (!fail.empty()) {
-        throw std::runtime_error(fail);
-    }
+    parallel_for(tr.size(), jobs,
+                 [&](size_t k) { tr[k] = run_synth_episode_traced(ctx, eps[k % ne], *sets[k / ne], map_every); });
 
     // error over time: mean over the episodes at each map checkpoint
     size_t nmap = SIZE_MAX;
