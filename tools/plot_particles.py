@@ -56,7 +56,7 @@ def main():
             x, y = int(r["particles"]), float(r["mean_pos_err_m"])
             if r["chosen"] == "1":
                 ax.plot([x], [y], "o", ms=14, mfc="none", mec=c, mew=2)
-                ax.annotate(f"chosen N={x}", (x, y), textcoords="offset points", xytext=(8, 10 + 12 * k), color=c)
+                ax.annotate(f"chosen N={x}", (x, y), textcoords="offset points", xytext=(10, 8 if k == 0 else -16), color=c)
             if r["best"] == "1":
                 ax.plot([x], [y], "*", ms=12, color=c)
         for x, y, lo in zip(n, err, lost):
