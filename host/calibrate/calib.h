@@ -1,8 +1,9 @@
 // host/calibrate/calib.h - the pieces of coslam-calibrate (docs/calibration.md):
 // the search space of the paper's eight noise weights (eq. 6), the episodes
 // a candidate is scored on, the parallel evaluator (threads, and MPI ranks
-// when built with MPI) and the three optimisers (CMA-ES, NLopt GN_ESCH,
-// NLopt GN_ISRES).
+// when built with MPI), the three optimisers (CMA-ES, NLopt GN_ESCH,
+// NLopt GN_ISRES), the particle-count rule and the traced episode of the
+// figures (experiments.h runs those two).
 //
 // Fitness of a candidate w (paper Sec. 2.3): the mean over its episodes of
 // the mean distance between the estimated and the true robot position.

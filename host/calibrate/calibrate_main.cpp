@@ -6,6 +6,8 @@
 //   coslam-calibrate [options]                 synthetic worlds (default)
 //   coslam-calibrate --source mrclam [options] MRCLAM robots, each alone
 //   mpirun -np K coslam-calibrate ...          episodes split over K ranks
+//   coslam-calibrate --sweep-particles 5,...   particle-count curve and choice (Fig. 10)
+//   coslam-calibrate --figures calibrated.ini  hand-tuned vs calibrated traces (Figs. 4, 5)
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
