@@ -5,6 +5,7 @@
 #   make bench    build and run the benchmarks (figures in out/bench/)
 #   make replay   replay MRCLAM Dataset 6 (2 and 5 robots, both filters), out/replay/
 #   make calibrate  noise calibration (coslam-calibrate, docs/calibration.md), out/calibrate/
+#   make calibrate-figures  paper Figs. 4, 5 and 10 from out/calibrate/synth_paper (after make calibrate)
 #   make bench-mrpt  install MRPT, then coslam vs MRPT EKF-SLAM on MRCLAM (out/bench/)
 #   make deps     install the Debian packages the build needs
 #   make robot    coslam-robot for the host ($(BUILD)) and for aarch64 ($(CROSS_BUILD))
@@ -39,7 +40,7 @@ CROSS_BUILD ?= build-aarch64
 # (label long) are left out unless CROSS_CTEST_ARGS= is given
 CROSS_CTEST_ARGS ?= -LE long
 
-.PHONY: calibrate
+.PHONY: calibrate calibrate-figures
 .PHONY: all deps build configure test sim bench replay bench-mrpt clean distclean robot cross package fuzz
 
 all: build
@@ -83,6 +84,18 @@ calibrate: configure
 	  --lambda 10 -o out/calibrate/synth_paper $(CAL_ARGS)
 	@$(BUILD)/host/calibrate/coslam-calibrate --source mrclam -c host/replay/mrclam6.ini --evals 301 \
 	  --lambda 10 --map-data ../shared/data/mrclam/MRCLAM_Dataset1 -o out/calibrate/mrclam6_ekf $(CAL_ARGS)
+
+# Figs. 4 and 5 (hand-tuned against calibrated on the held-out seeds) and the
+# particle-count curve (Fig. 10) with the calibrated weights; about 10 min.
+calibrate-figures: configure
+	@cmake --build $(BUILD) -j$(JOBS) --target coslam-calibrate
+	@$(BUILD)/host/calibrate/coslam-calibrate --figures out/calibrate/synth_paper/calibrated.ini \
+	  --test-seeds 101-116 -o out/calibrate/figures
+	@$(BUILD)/host/calibrate/coslam-calibrate --sweep-particles 5,10,20,50,100,200,500,1000 \
+	  --sweep-filters fs1,fs2 --test-seeds 101-116 -c out/calibrate/synth_paper/calibrated.ini \
+	  -o out/calibrate/particles
+	@/usr/bin/python3 tools/plot_calibration_figs.py out/calibrate/figures
+	@/usr/bin/python3 tools/plot_particles.py out/calibrate/particles
 
 bench-mrpt:
 	@tools/deps.sh install

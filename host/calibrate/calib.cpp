@@ -11,6 +11,7 @@
 #include <mutex>
 #include <stdexcept>
 #include <thread>
+#include <time.h>
 
 #include "cmaes.h"
 #include "replay_run.h"
@@ -117,19 +118,38 @@ EpisodeScore score_errors(const std::vector<double> &err, double stop_error_m, d
     return s;
 }
 
+namespace {
+// The world (truth noise fixed: the world's) and the filter options of a
+// synthetic episode with candidate weights w.
+void synth_setup(const EpisodeContext &ctx, const Episode &ep, const Weights &w, synth_config_t &sc, run_opts_t &o)
+{
+    sc = eval_world_config(ep.world, ep.seed);
+    if (ep.unique) {
+        sc.n_signatures = 0;
+    }
+    o = run_opts_default(ctx.synth_filter);
+    o.params = ctx.synth_base;
+    slam_noise_from_array(&o.params.noise, w.data());
+    o.n_particles = ctx.synth_particles;
+    o.filter_seed = 7919U * ep.seed + 17U; // as eval_world_run
+}
+
+double thread_cpu_s()
+{
+    timespec ts{};
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+    return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
+}
+} // namespace
+
 EpisodeScore run_episode(const EpisodeContext &ctx, const Episode &ep, const Weights &w)
 {
+    const double cpu0 = thread_cpu_s();
     std::vector<double> err;
     if (ep.kind == Episode::Synth) {
-        synth_config_t sc = eval_world_config(ep.world, ep.seed); // truth noise: the world's, fixed
-        if (ep.unique) {
-            sc.n_signatures = 0;
-        }
-        run_opts_t o = run_opts_default(ctx.synth_filter);
-        o.params = ctx.synth_base;
-        slam_noise_from_array(&o.params.noise, w.data());
-        o.n_particles = ctx.synth_particles;
-        o.filter_seed = 7919U * ep.seed + 17U; // as eval_world_run
+        synth_config_t sc;
+        run_opts_t o;
+        synth_setup(ctx, ep, w, sc, o);
         run_result_t *res = new run_result_t;
         run_trace_t tr{};
         const int rc = run_synth_traced(&sc, &o, res, &tr);
@@ -159,7 +179,109 @@ EpisodeScore run_episode(const EpisodeContext &ctx, const Episode &ep, const Wei
             }
         }
     }
-    return score_errors(err, ctx.stop_error_m, ctx.penalty_factor);
+    EpisodeScore s = score_errors(err, ctx.stop_error_m, ctx.penalty_factor);
+    s.cpu_s = thread_cpu_s() - cpu0;
+    return s;
+}
+
+SynthTrace run_synth_episode_traced(const EpisodeContext &ctx, const Episode &ep, const Weights &w, int map_every)
+{
+    if (ep.kind != Episode::Synth) {
+        throw std::invalid_argument("run_synth_episode_traced: not a synthetic episode");
+    }
+    synth_config_t sc;
+    run_opts_t o;
+    synth_setup(ctx, ep, w, sc, o);
+    o.trace_map_every = map_every;
+    std::unique_ptr<run_result_t> res(new run_result_t);
+    run_trace_t tr{};
+    if (run_synth_traced(&sc, &o, res.get(), &tr) != 0) {
+        run_trace_free(&tr);
+        throw std::runtime_error("synthetic episode " + ep.label() + " failed to start");
+    }
+    SynthTrace out;
+    for (int k = 0; k < tr.n; ++k) {
+        out.t_s.push_back(tr.t[k]);
+        out.est.push_back(tr.est[k]);
+        out.truth.push_back(tr.truth[k]);
+        out.err_m.push_back(std::hypot(tr.est[k].x - tr.truth[k].x, tr.est[k].y - tr.truth[k].y));
+    }
+    for (int k = 0; k < tr.n_map; ++k) {
+        out.map_t_s.push_back(tr.map_t[k]);
+        out.map_rmse_m.push_back(tr.map_rmse_m[k]);
+        out.map_matched.push_back(tr.map_matched[k]);
+        out.map_spurious.push_back(tr.map_spurious[k]);
+    }
+    run_trace_free(&tr);
+    for (int i = 0; i < res->estimate.n_landmarks; ++i) {
+        out.map_est.push_back(res->estimate.lm[i].mean);
+    }
+    out.final_rmse_m = res->map.rmse_m;
+    out.final_matched = res->map.n_matched;
+    out.final_spurious = res->map.n_spurious;
+    out.final_missed = res->map.n_missed;
+    // the truth: synth_init is deterministic in the configuration
+    std::unique_ptr<synth_world_t> world(new synth_world_t);
+    synth_init(world.get(), &sc);
+    out.lm_truth.assign(world->lm, world->lm + world->n_lm);
+    return out;
+}
+
+ParticleSelection select_particle_count(const std::vector<std::vector<double>> &cost, double margin, double z)
+{
+    if (cost.empty() || cost[0].empty()) {
+        throw std::invalid_argument("select_particle_count: no counts or no episodes");
+    }
+    if (!(margin >= 0.0) || !(z >= 0.0)) {
+        throw std::invalid_argument("select_particle_count: margin and z must be >= 0");
+    }
+    const size_t ne = cost[0].size();
+    ParticleSelection sel;
+    sel.counts.resize(cost.size());
+    for (size_t i = 0; i < cost.size(); ++i) {
+        if (cost[i].size() != ne) {
+            throw std::invalid_argument("select_particle_count: every count needs the same episodes");
+        }
+        double sum = 0.0;
+        for (double c : cost[i]) {
+            if (!std::isfinite(c)) {
+                throw std::invalid_argument("select_particle_count: a cost is not finite");
+            }
+            sum += c;
+        }
+        const double mean = sum / static_cast<double>(ne);
+        double ss = 0.0;
+        for (double c : cost[i]) {
+            ss += (c - mean) * (c - mean);
+        }
+        sel.counts[i].mean = mean;
+        sel.counts[i].se = ne > 1 ? std::sqrt(ss / static_cast<double>(ne - 1) / static_cast<double>(ne)) : 0.0;
+        if (mean < sel.counts[sel.best].mean) {
+            sel.best = i; // strict: the smaller count wins a tie
+        }
+    }
+    sel.bound_m = margin * sel.counts[sel.best].mean;
+    sel.chosen = sel.best;
+    for (size_t i = cost.size(); i-- > 0;) {
+        CountStats &c = sel.counts[i];
+        double dsum = 0.0;
+        for (size_t e = 0; e < ne; ++e) {
+            dsum += cost[i][e] - cost[sel.best][e];
+        }
+        c.diff_mean = dsum / static_cast<double>(ne);
+        double ss = 0.0;
+        for (size_t e = 0; e < ne; ++e) {
+            const double d = cost[i][e] - cost[sel.best][e] - c.diff_mean;
+            ss += d * d;
+        }
+        c.diff_se = ne > 1 ? std::sqrt(ss / static_cast<double>(ne - 1) / static_cast<double>(ne)) : 0.0;
+        c.upper = c.diff_mean + z * c.diff_se;
+        c.passes = i == sel.best || c.upper <= sel.bound_m;
+        if (c.passes) {
+            sel.chosen = i; // walking down: ends at the smallest count that passes
+        }
+    }
+    return sel;
 }
 
 // ---------------------------------------------------------------- MPI
@@ -197,23 +319,8 @@ bool mpi_enabled()
 
 // ---------------------------------------------------------------- evaluator
 
-Evaluator::Evaluator(const EpisodeContext &ctx, int threads) : ctx_(ctx), threads_(std::max(1, threads)) {}
-
-std::vector<std::vector<EpisodeScore>> Evaluator::evaluate(const std::vector<Weights> &cands,
-                                                           const std::vector<Episode> &eps) const
+void parallel_for(size_t n, int threads, const std::function<void(size_t)> &task)
 {
-    const size_t ne = eps.size();
-    const size_t nt = cands.size() * ne;
-    const int rank = mpi_rank();
-    const int size = mpi_size();
-    // 4 doubles per task: cost, mean error, stop index, samples
-    std::vector<double> slots(nt * 4, 0.0);
-    std::vector<size_t> mine;
-    for (size_t t = 0; t < nt; ++t) {
-        if (static_cast<int>(t % static_cast<size_t>(size)) == rank) {
-            mine.push_back(t);
-        }
-    }
     std::atomic<size_t> next{0};
     std::atomic<bool> failed{false};
     std::string fail_msg;
@@ -221,26 +328,23 @@ std::vector<std::vector<EpisodeScore>> Evaluator::evaluate(const std::vector<Wei
     auto worker = [&]() {
         for (;;) {
             const size_t k = next.fetch_add(1);
-            if (k >= mine.size() || failed.load()) {
+            if (k >= n || failed.load()) {
                 return;
             }
-            const size_t t = mine[k];
             try {
-                const EpisodeScore s = run_episode(ctx_, eps[t % ne], cands[t / ne]);
-                slots[4 * t + 0] = s.cost;
-                slots[4 * t + 1] = s.mean_err_m;
-                slots[4 * t + 2] = s.stopped_at;
-                slots[4 * t + 3] = s.samples;
+                task(k);
             } catch (const std::exception &e) {
                 std::lock_guard<std::mutex> lk(fail_mu);
-                fail_msg = e.what();
+                if (!failed) {
+                    fail_msg = e.what();
+                }
                 failed = true;
             }
         }
     };
-    const int nthr = static_cast<int>(std::min<size_t>(static_cast<size_t>(threads_), std::max<size_t>(1, mine.size())));
+    const size_t nthr = std::min<size_t>(static_cast<size_t>(std::max(1, threads)), std::max<size_t>(1, n));
     std::vector<std::thread> pool;
-    for (int i = 1; i < nthr; ++i) {
+    for (size_t i = 1; i < nthr; ++i) {
         pool.emplace_back(worker);
     }
     worker();
@@ -250,6 +354,35 @@ std::vector<std::vector<EpisodeScore>> Evaluator::evaluate(const std::vector<Wei
     if (failed) {
         throw std::runtime_error(fail_msg);
     }
+}
+
+Evaluator::Evaluator(const EpisodeContext &ctx, int threads) : ctx_(ctx), threads_(std::max(1, threads)) {}
+
+std::vector<std::vector<EpisodeScore>> Evaluator::evaluate(const std::vector<Weights> &cands,
+                                                           const std::vector<Episode> &eps) const
+{
+    const size_t ne = eps.size();
+    const size_t nt = cands.size() * ne;
+    const int rank = mpi_rank();
+    const int size = mpi_size();
+    // kSlot doubles per task: cost, mean error, stop index, samples, CPU time
+    constexpr size_t kSlot = 5;
+    std::vector<double> slots(nt * kSlot, 0.0);
+    std::vector<size_t> mine;
+    for (size_t t = 0; t < nt; ++t) {
+        if (static_cast<int>(t % static_cast<size_t>(size)) == rank) {
+            mine.push_back(t);
+        }
+    }
+    parallel_for(mine.size(), threads_, [&](size_t k) {
+        const size_t t = mine[k];
+        const EpisodeScore s = run_episode(ctx_, eps[t % ne], cands[t / ne]);
+        slots[kSlot * t + 0] = s.cost;
+        slots[kSlot * t + 1] = s.mean_err_m;
+        slots[kSlot * t + 2] = s.stopped_at;
+        slots[kSlot * t + 3] = s.samples;
+        slots[kSlot * t + 4] = s.cpu_s;
+    });
 #ifdef COSLAM_HAVE_MPI
     if (size > 1) {
         // x + 0.0 is exact: the sum over ranks is the owner's value
@@ -261,10 +394,11 @@ std::vector<std::vector<EpisodeScore>> Evaluator::evaluate(const std::vector<Wei
     std::vector<std::vector<EpisodeScore>> out(cands.size(), std::vector<EpisodeScore>(ne));
     for (size_t t = 0; t < nt; ++t) {
         EpisodeScore &s = out[t / ne][t % ne];
-        s.cost = slots[4 * t + 0];
-        s.mean_err_m = slots[4 * t + 1];
-        s.stopped_at = static_cast<int>(slots[4 * t + 2]);
-        s.samples = static_cast<int>(slots[4 * t + 3]);
+        s.cost = slots[kSlot * t + 0];
+        s.mean_err_m = slots[kSlot * t + 1];
+        s.stopped_at = static_cast<int>(slots[kSlot * t + 2]);
+        s.samples = static_cast<int>(slots[kSlot * t + 3]);
+        s.cpu_s = slots[kSlot * t + 4];
     }
     return out;
 }

@@ -1,8 +1,9 @@
 // host/calibrate/calib.h - the pieces of coslam-calibrate (docs/calibration.md):
 // the search space of the paper's eight noise weights (eq. 6), the episodes
 // a candidate is scored on, the parallel evaluator (threads, and MPI ranks
-// when built with MPI) and the three optimisers (CMA-ES, NLopt GN_ESCH,
-// NLopt GN_ISRES).
+// when built with MPI), the three optimisers (CMA-ES, NLopt GN_ESCH,
+// NLopt GN_ISRES), the particle-count rule and the traced episode of the
+// figures (experiments.h runs those two).
 //
 // Fitness of a candidate w (paper Sec. 2.3): the mean over its episodes of
 // the mean distance between the estimated and the true robot position.
@@ -72,6 +73,7 @@ struct EpisodeScore {
     double mean_err_m = 0.0; ///< mean position error over the whole episode [m]
     int stopped_at = -1;     ///< sample index of the early stop, -1: ran to the end
     int samples = 0;
+    double cpu_s = 0.0;      ///< CPU time of the episode on its thread [s] (measured, not deterministic)
 };
 
 /// Everything an episode needs besides the candidate weights.
@@ -95,6 +97,12 @@ EpisodeScore score_errors(const std::vector<double> &err_m, double stop_error_m,
 /// Run one episode with weights w. Thread-safe (no shared mutable state).
 EpisodeScore run_episode(const EpisodeContext &ctx, const Episode &ep, const Weights &w);
 
+/// Runs task(k) for every k in [0, n) once, on `threads` threads (this
+/// one included), in no fixed order: each task must write only its own
+/// output. The first exception stops the tasks not yet started and is
+/// rethrown as std::runtime_error with its message.
+void parallel_for(size_t n, int threads, const std::function<void(size_t)> &task);
+
 /// Evaluates candidates x episodes on threads of this process and, with
 /// MPI, across ranks: task t = (candidate, episode) goes to rank t mod size,
 /// then to whichever thread of that rank is free; each task writes its own
@@ -116,6 +124,50 @@ private:
     int threads_;
     mutable long episodes_run_ = 0;
 };
+
+/// Particle-count selection (issue 14 item 2, docs/calibration.md
+/// "Particle count"). cost[i][e]: episode e's cost (mean position error
+/// with the early-stop penalty) at the i-th count, counts in ascending
+/// order, the same episodes (seeds) in the same order for every count.
+/// best = the count with the lowest mean cost (the smaller on a tie).
+/// Episodes are paired by seed: d_e = cost[i][e] - cost[best][e], with
+/// mean dbar and standard error se = sd(d) / sqrt(n) (sd with n - 1; 0 for
+/// n = 1). A count passes when dbar + z * se <= margin * mean(best): with
+/// about 97.7 % one-sided confidence (z = 2) it is at most `margin` worse
+/// than the best (a non-inferiority test). chosen = the smallest count
+/// that passes; the best always passes (d = 0), so there is always one.
+struct CountStats {
+    double mean = 0.0;      ///< mean cost over the episodes [m]
+    double se = 0.0;        ///< its standard error over the episodes [m]
+    double diff_mean = 0.0; ///< dbar against the best [m]
+    double diff_se = 0.0;   ///< se of the paired difference [m]
+    double upper = 0.0;     ///< dbar + z * se [m]
+    bool passes = false;
+};
+struct ParticleSelection {
+    size_t best = 0;
+    size_t chosen = 0;
+    double bound_m = 0.0;   ///< margin * mean(best)
+    std::vector<CountStats> counts;
+};
+/// Throws std::invalid_argument for no counts, no episodes, ragged rows,
+/// a non-finite cost, margin < 0 or z < 0.
+ParticleSelection select_particle_count(const std::vector<std::vector<double>> &cost, double margin, double z);
+
+/// One synthetic episode with its traces, for the paper's Fig. 4 and 5
+/// (coslam-calibrate --figures): the position error every step, the map
+/// error every map_every steps (run_trace_t), the final map and the truth.
+struct SynthTrace {
+    std::vector<double> t_s, err_m;
+    std::vector<pose2_t> est, truth;
+    std::vector<double> map_t_s, map_rmse_m; ///< NaN: no landmark matched yet
+    std::vector<int> map_matched, map_spurious;
+    std::vector<point2_t> map_est;           ///< final exported landmark means
+    std::vector<point2_t> lm_truth;          ///< the world's landmarks
+    double final_rmse_m = 0.0;               ///< final map (run_result_t.map)
+    int final_matched = 0, final_spurious = 0, final_missed = 0;
+};
+SynthTrace run_synth_episode_traced(const EpisodeContext &ctx, const Episode &ep, const Weights &w, int map_every);
 
 /// MPI helpers (no-ops without MPI).
 int mpi_rank();

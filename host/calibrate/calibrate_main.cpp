@@ -6,6 +6,8 @@
 //   coslam-calibrate [options]                 synthetic worlds (default)
 //   coslam-calibrate --source mrclam [options] MRCLAM robots, each alone
 //   mpirun -np K coslam-calibrate ...          episodes split over K ranks
+//   coslam-calibrate --sweep-particles 5,...   particle-count curve and choice (Fig. 10)
+//   coslam-calibrate --figures calibrated.ini  hand-tuned vs calibrated traces (Figs. 4, 5)
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
@@ -21,6 +23,7 @@
 
 #include "app/slam_params_ini.h"
 #include "calib.h"
+#include "experiments.h"
 #include "replay_config.h"
 #include "replay_data.h"
 #include "replay_run.h"
@@ -213,6 +216,10 @@ int run(int argc, char **argv)
     uint64_t seed = 1;
     int jobs = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
     bool compare = false, quiet = false, profile = false;
+    std::string sweep_particles, sweep_filters, figures_ini;
+    double select_margin = 0.05, select_z = 2.0;
+    uint64_t figure_seed = 0;
+    int map_every = 10;
 
     app.add_option("--source", source, "episodes: synth (simulated worlds) | mrclam (dataset robots, each alone)")
         ->check(CLI::IsMember({"synth", "mrclam"}));
@@ -250,6 +257,18 @@ int run(int argc, char **argv)
     app.add_flag("--profile", profile,
                  "no search: fitness on the training episodes with each weight alone scaled by 1/4, 1/2, 1, 2, 4 "
                  "(identifiability)");
+    app.add_option("--sweep-particles", sweep_particles,
+                   "no search: run the held-out seeds (--test-seeds) with the start weights (-c) for each Fast-SLAM "
+                   "particle count, e.g. 5,10,20,50,100,200,500, and select a count (paper Fig. 10; sweep.csv/json/txt)");
+    app.add_option("--sweep-filters", sweep_filters, "--sweep-particles: fs1, fs2 or fs1,fs2 (default: -f if fs1/fs2, else both)");
+    app.add_option("--select-margin", select_margin,
+                   "--sweep-particles: a count is chosen when it is at most this fraction worse than the best");
+    app.add_option("--select-z", select_z, "--sweep-particles: ... with this many standard errors of the paired difference");
+    app.add_option("--figures", figures_ini,
+                   "no search: paper Figs. 4 and 5, the held-out seeds traced with the start weights (hand-tuned) and "
+                   "with those of this INI (e.g. calibrated.ini); figures_*.csv, figures.json");
+    app.add_option("--figure-seed", figure_seed, "--figures: the held-out seed whose paths and maps are drawn (default: the first)");
+    app.add_option("--map-every", map_every, "--figures: score the map every this many steps")->check(CLI::Range(1, 100000));
     app.add_option("--repeats", repeats, "--compare: optimiser seeds seed..seed+R-1");
     app.add_option("-o,--out", out_dir, "output folder (report.txt, report.json, calibrated.ini)");
     app.add_flag("-q,--quiet", quiet, "no progress lines");
@@ -372,6 +391,68 @@ int run(int argc, char **argv)
                          std::to_string(population) + " candidates)");
     }
     const Evaluator ev(ctx, jobs);
+
+    if (!sweep_particles.empty() || !figures_ini.empty()) {
+        if (source != "synth") {
+            throw UsageError("--sweep-particles and --figures run synthetic episodes (--source synth)");
+        }
+        if (!sweep_particles.empty() && !figures_ini.empty()) {
+            throw UsageError("--sweep-particles and --figures: one at a time");
+        }
+    }
+    if (!sweep_particles.empty()) {
+        require_finite_range(select_margin, 0.0, 10.0, false, "--select-margin");
+        require_finite_range(select_z, 0.0, 10.0, false, "--select-z");
+        SweepOptions so;
+        for (uint64_t n : parse_seed_list(sweep_particles, "--sweep-particles")) {
+            if (n < 1 || n > COSLAM_MAX_PARTICLES) {
+                throw UsageError("--sweep-particles: " + std::to_string(n) + " is outside [1, " +
+                                 std::to_string(COSLAM_MAX_PARTICLES) + "]");
+            }
+            so.counts.push_back(static_cast<int>(n));
+        }
+        std::sort(so.counts.begin(), so.counts.end());
+        so.counts.erase(std::unique(so.counts.begin(), so.counts.end()), so.counts.end());
+        if (sweep_filters.empty()) {
+            sweep_filters = filter == "ekf" ? "fs1,fs2" : filter;
+        }
+        std::stringstream ss(sweep_filters);
+        std::string it;
+        while (std::getline(ss, it, ',')) {
+            run_filter_t f;
+            if ((it != "fs1" && it != "fs2") || eval_filter_parse(it.c_str(), &f) != 0) {
+                throw UsageError("--sweep-filters: '" + it + "' is not fs1 or fs2");
+            }
+            so.filters.push_back(f);
+        }
+        so.margin = select_margin;
+        so.z = select_z;
+        so.out_dir = out_dir;
+        if (rank == 0) {
+            std::filesystem::create_directories(out_dir);
+            std::cout << "particle sweep on " << test.size() << " held-out episodes, counts " << sweep_particles
+                      << ", filters " << sweep_filters << "\n";
+        }
+        run_particle_sweep(ctx, test, w0, jobs, so);
+        return 0;
+    }
+    if (!figures_ini.empty()) {
+        ReplayConfig cal = cfg;
+        coslam::replay::replay_config_load(cal, figures_ini);
+        coslam::replay::replay_config_validate(cal);
+        Weights w1;
+        slam_noise_to_array(&cal.slam.noise, w1.data());
+        if (app.count("--figure-seed") == 0) {
+            figure_seed = test.front().seed;
+        } else if (std::none_of(test.begin(), test.end(), [&](const Episode &e) { return e.seed == figure_seed; })) {
+            throw UsageError("--figure-seed: " + std::to_string(figure_seed) + " is not one of --test-seeds");
+        }
+        if (rank == 0) {
+            std::filesystem::create_directories(out_dir);
+            run_figures(ctx, test, w0, w1, figure_seed, map_every, jobs, out_dir);
+        }
+        return 0;
+    }
 
     if (rank == 0) {
         std::filesystem::create_directories(out_dir);

@@ -31,6 +31,10 @@ void run_trace_free(run_trace_t *trace)
     free(trace->t);
     free(trace->est);
     free(trace->truth);
+    free(trace->map_t);
+    free(trace->map_rmse_m);
+    free(trace->map_matched);
+    free(trace->map_spurious);
     memset(trace, 0, sizeof *trace);
 }
 
@@ -46,6 +50,8 @@ int run_synth_traced(const synth_config_t *scfg, const run_opts_t *opts, run_res
     synth_step_t *st = malloc(sizeof *st);
     fastslam_t *fs = NULL;
     ekfslam_t *ekf = NULL;
+    map_estimate_t *map_est = NULL; /* map checkpoints of the trace (large: heap) */
+    map_eval_t *map_ev = NULL;
     if (w == NULL || st == NULL) {
         free(w);
         free(st);
@@ -57,6 +63,15 @@ int run_synth_traced(const synth_config_t *scfg, const run_opts_t *opts, run_res
         trace->t = malloc(sizeof(double) * (size_t)w->n_steps);
         trace->est = malloc(sizeof(pose2_t) * (size_t)w->n_steps);
         trace->truth = malloc(sizeof(pose2_t) * (size_t)w->n_steps);
+        if (opts->trace_map_every > 0) {
+            const size_t n_map = (size_t)(w->n_steps / opts->trace_map_every + 1);
+            trace->map_t = malloc(sizeof(double) * n_map);
+            trace->map_rmse_m = malloc(sizeof(double) * n_map);
+            trace->map_matched = malloc(sizeof(int) * n_map);
+            trace->map_spurious = malloc(sizeof(int) * n_map);
+            map_est = malloc(sizeof *map_est);
+            map_ev = malloc(sizeof *map_ev);
+        }
     }
     const pose2_t start = synth_start_pose(scfg);
     if (opts->filter == RUN_EKFSLAM) {
@@ -65,6 +80,8 @@ int run_synth_traced(const synth_config_t *scfg, const run_opts_t *opts, run_res
         c.slam = opts->params;
         if (ekf == NULL || ekfslam_init(ekf, &c, start) != COSLAM_OK) {
             free(ekf);
+            free(map_est);
+            free(map_ev);
             free(w);
             free(st);
             return -1;
@@ -80,6 +97,8 @@ int run_synth_traced(const synth_config_t *scfg, const run_opts_t *opts, run_res
         c.proposal = opts->filter == RUN_FASTSLAM2 ? FASTSLAM_PROPOSAL_OPTIMAL : FASTSLAM_PROPOSAL_MOTION;
         if (fs == NULL || fastslam_init(fs, &c, start, opts->filter_seed) != COSLAM_OK) {
             free(fs);
+            free(map_est);
+            free(map_ev);
             free(w);
             free(st);
             return -1;
@@ -144,6 +163,21 @@ int run_synth_traced(const synth_config_t *scfg, const run_opts_t *opts, run_res
         }
         last_truth = st->true_pose;
         res->n_steps++;
+        if (trace != NULL && map_est != NULL && map_ev != NULL && trace->map_t != NULL && trace->map_rmse_m != NULL &&
+            trace->map_matched != NULL && trace->map_spurious != NULL && res->n_steps % opts->trace_map_every == 0 &&
+            trace->n_map <= w->n_steps / opts->trace_map_every) {
+            if (ekf != NULL) {
+                (void)ekfslam_export(ekf, map_est);
+            } else {
+                (void)fastslam_export(fs, map_est);
+            }
+            eval_map(map_est, w->lm, w->n_seen, w->n_lm, opts->min_seen, opts->gate_m, map_ev);
+            trace->map_t[trace->n_map] = st->t_s;
+            trace->map_rmse_m[trace->n_map] = map_ev->n_matched > 0 ? map_ev->rmse_m : NAN;
+            trace->map_matched[trace->n_map] = map_ev->n_matched;
+            trace->map_spurious[trace->n_map] = map_ev->n_spurious;
+            trace->n_map++;
+        }
         if (res->n_steps % ckpt_every == 0 && res->n_ckpt < RUN_MAX_CKPT) {
             res->pose_nees_ckpt[res->n_ckpt++] = nees_pose(est, cov, st->true_pose);
         }
@@ -167,6 +201,8 @@ int run_synth_traced(const synth_config_t *scfg, const run_opts_t *opts, run_res
         res->ess_mean /= res->n_frames > 0 ? res->n_frames : 1;
     }
     eval_map(&res->estimate, w->lm, w->n_seen, w->n_lm, opts->min_seen, opts->gate_m, &res->map);
+    free(map_est);
+    free(map_ev);
     free(fs);
     free(ekf);
     free(w);

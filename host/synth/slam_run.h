@@ -29,6 +29,8 @@ typedef struct {
     double ess_fraction;        /**< Fast-SLAM resampling threshold (0: default) */
     int stop_after_steps;       /**< end the run early (0: run to the end) */
     int nees_every;             /**< pose NEES checkpoint period in steps (0: 50) */
+    int trace_map_every;        /**< run_synth_traced: score the map every this many steps
+                                     into the trace (0: never; costs an export and eval_map each) */
 } run_opts_t;
 
 typedef struct {
@@ -51,12 +53,21 @@ typedef struct {
     map_estimate_t estimate;    /**< final exported map */
 } run_result_t;
 
-/** Per-step trajectories of a run (heap arrays, free with run_trace_free). */
+/** Per-step trajectories of a run (heap arrays, free with run_trace_free).
+ *  With opts->trace_map_every > 0 also the map's error over time: every
+ *  trace_map_every steps the exported map is scored against the truth as
+ *  run_result_t.map is at the end (eval_map, gate_m, min_seen; landmarks
+ *  seen so far), n_map entries. */
 typedef struct {
     int n;
     double *t;
     pose2_t *est;
     pose2_t *truth;
+    int n_map;
+    double *map_t;          /**< time of the map checkpoint [s] */
+    double *map_rmse_m;     /**< landmark RMSE over matched pairs (NaN: none matched) */
+    int *map_matched;
+    int *map_spurious;
 } run_trace_t;
 
 run_opts_t run_opts_default(run_filter_t filter);
