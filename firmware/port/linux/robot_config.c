@@ -446,6 +446,12 @@ static const cfg_key_t keys[] = {
     C_("gpio", "led_lines", parse_leds, print_leds),
 
     S_("camera", "device", camera_device),
+    N_("camera", "width_px", K_U32, camera_width_px, 16, 4096),
+    N_("camera", "height_px", K_U32, camera_height_px, 16, 4096),
+    B_("camera", "mjpeg_first", camera_mjpeg_first),
+    S_("camera", "colour_table", camera_colour_table),
+    S_("camera", "range_model", camera_range_model),
+    N_("camera", "stall_timeout_s", K_US, camera_stall_us, 0.0, 60.0),
     S_("camera", "replay_log", camera_replay_log),
     B_("camera", "replay_loop", camera_replay_loop),
 
@@ -510,6 +516,7 @@ void robot_config_default(robot_config_t *c)
     memset(c, 0, sizeof *c);
     c->can_fd = -1;
     c->camera_live_fd = -1;
+    c->gpio_fd = -1;
     c->robot_id = 0U;
     c->fleet_size = 2U;
     c->step_period_us = 10000U;
@@ -521,6 +528,12 @@ void robot_config_default(robot_config_t *c)
     set_str(c->can_interface, "can0");
     set_str(c->gpio_chip, "gpiochip0");
     c->gpio_required = 1U;
+    c->camera_width_px = 320U;
+    c->camera_height_px = 240U;
+    c->camera_mjpeg_first = 0U;
+    set_str(c->camera_colour_table, "/usr/share/coslam/vision/colour_lut.bin");
+    set_str(c->camera_range_model, "/usr/share/coslam/vision/range_model.txt");
+    c->camera_stall_us = 2000000U;
     c->camera_replay_loop = 1U;
     c->link_domain = 0U;
     set_str(c->link_topic, ROBOT_CONFIG_DEFAULT_TOPIC);

@@ -6,12 +6,14 @@
  * DDS behind the authentication decorator). docs/robot.md has the details and the decisions.
  *
  *   coslam-robot [-c FILE] [--dry-run] [--once N] [--status-file PATH]
- *                [--print-config] [-v] [--can-fd N] [--sightings-fd N]
+ *                [--print-config] [-v] [--can-fd N] [--sightings-fd N] [--gpio-fd N]
  *
- * --can-fd and --sightings-fd are for end-to-end tests only (docs/e2e.md):
- * file descriptors inherited from the device server coslam-sim-devices, a
- * socketpair carrying struct can_frame in place of the SocketCAN socket and
- * the live sighting stream standing in for the camera.
+ * --can-fd, --sightings-fd and --gpio-fd are for end-to-end tests only
+ * (docs/e2e.md): file descriptors inherited from the device server
+ * coslam-sim-devices, a socketpair carrying struct can_frame in place of the
+ * SocketCAN socket, the live sighting stream standing in for the camera, and
+ * the bumper / e-stop / LED line states in place of a GPIO chip
+ * (robot_gpio_fd.h).
  *
  * Exit status: 0 after a clean stop (SIGTERM, SIGINT, --once, --dry-run);
  * 2 for a bad command line or configuration (including a configured fleet
@@ -58,6 +60,7 @@ typedef struct {
     int verbose;
     int can_fd;        /* e2e tests: inherited CAN socket (docs/e2e.md); -1 none */
     int sightings_fd;  /* e2e tests: inherited live sighting stream; -1 none */
+    int gpio_fd;       /* e2e tests: inherited GPIO line states; -1 none */
 } options_t;
 
 static void usage(FILE *out)
@@ -71,7 +74,8 @@ static void usage(FILE *out)
             "  --print-config      print the effective configuration as INI and exit\n"
             "  -v                  verbose: every snapshot and every failed device retry\n"
             "  --can-fd N          (e2e tests) CAN frames on inherited socket N instead of [can] interface\n"
-            "  --sightings-fd N    (e2e tests) live sightings on inherited socket N, a camera stand-in\n");
+            "  --sightings-fd N    (e2e tests) live sightings on inherited socket N, a camera stand-in\n"
+            "  --gpio-fd N         (e2e tests) GPIO line states on inherited socket N instead of [gpio] chip\n");
 }
 
 static int parse_args(int argc, char **argv, options_t *o)
@@ -81,6 +85,7 @@ static int parse_args(int argc, char **argv, options_t *o)
     o->once = -1;
     o->can_fd = -1;
     o->sightings_fd = -1;
+    o->gpio_fd = -1;
     for (int i = 1; i < argc; ++i) {
         const char *a = argv[i];
         if (strcmp(a, "-c") == 0 && i + 1 < argc) {
@@ -97,7 +102,8 @@ static int parse_args(int argc, char **argv, options_t *o)
                 fprintf(stderr, "coslam-robot: --once needs a step count >= 0, got '%s'\n", argv[i]);
                 return -1;
             }
-        } else if ((strcmp(a, "--can-fd") == 0 || strcmp(a, "--sightings-fd") == 0) && i + 1 < argc) {
+        } else if ((strcmp(a, "--can-fd") == 0 || strcmp(a, "--sightings-fd") == 0 || strcmp(a, "--gpio-fd") == 0) &&
+                   i + 1 < argc) {
             char *end = NULL;
             errno = 0;
             const long v = strtol(argv[++i], &end, 10);
@@ -107,6 +113,8 @@ static int parse_args(int argc, char **argv, options_t *o)
             }
             if (a[2] == 'c') {
                 o->can_fd = (int)v;
+            } else if (a[2] == 'g') {
+                o->gpio_fd = (int)v;
             } else {
                 o->sightings_fd = (int)v;
             }
@@ -300,6 +308,7 @@ int main(int argc, char **argv)
     }
     cfg.can_fd = opt.can_fd;
     cfg.camera_live_fd = opt.sightings_fd;
+    cfg.gpio_fd = opt.gpio_fd;
     if (opt.print_config) {
         robot_config_print(&cfg, stdout);
         return 0;
