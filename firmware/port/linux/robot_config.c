@@ -700,6 +700,12 @@ static int on_ini(void *user, const char *section, const char *name, const char 
             if (strlen(value) > ROBOT_CONFIG_PATH_MAX) {
                 put_text(msg, sizeof msg, "longer than %u characters", ROBOT_CONFIG_PATH_MAX);
                 s = COSLAM_E_ARG;
+            } else if (value[0] == ';' || value[0] == '#') {
+                /* "key =; text" is a value to libinih (no blank before the
+                 * ';'), but printed back it would read as a comment */
+                put_text(msg, sizeof msg, "a value cannot begin with '%c' (a comment needs a blank before it)",
+                         value[0]);
+                s = COSLAM_E_ARG;
             } else if (!fits_line(name, strlen(value))) {
                 put_text(msg, sizeof msg, "too long: '%s = <value>' must fit in one line of %d characters", name,
                          INI_MAX_LINE - 2);
