@@ -16,8 +16,8 @@
 //   sightings: a SOCK_SEQPACKET socketpair, one datagram per camera frame of
 //              the SightingOracle (robot_live_open's text format; stamps
 //              converted from simulated time to CLOCK_MONOTONIC), inherited
-//              (--sightings-fd): a stand-in for the camera until the vision
-//              pipeline is wired;
+//              (--sightings-fd): a stand-in for the camera (no V4L2
+//              device here);
 //   GPIO:      a SOCK_SEQPACKET socketpair carrying line states
 //              (firmware/port/linux/robot_gpio_fd.h: "P line level" to the
 //              robot, "O line level" back), inherited (--gpio-fd), standing

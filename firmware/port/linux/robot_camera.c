@@ -121,6 +121,9 @@ hal_status_t robot_camera_open(robot_camera_t *c, char *msg, size_t msg_cap)
         vc.inputs[0] = cfg->camera_mjpeg_first ? HAL_CAMERA_V4L2_IN_MJPEG : HAL_CAMERA_V4L2_IN_YUYV;
         vc.inputs[1] = cfg->camera_mjpeg_first ? HAL_CAMERA_V4L2_IN_YUYV : HAL_CAMERA_V4L2_IN_MJPEG;
         vc.output = HAL_CAMERA_PIX_RGB24;
+        /* a lost camera is closed and reopened by the device slot every
+         * retry period; the backend's own reopen would say the same period */
+        vc.reopen_period_us = (uint32_t)(cfg->retry_period_s * 1e6);
         vc.log = v4l2_log;
         vc.log_ctx = c;
         c->camera = hal_camera_v4l2_open(&vc, &c->v4l2);

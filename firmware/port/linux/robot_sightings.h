@@ -5,8 +5,7 @@
  * robot_open_sightings() is the one place that chooses the source:
  *  - --sightings-fd N (cfg->camera_live_fd): the live stream of the e2e
  *    device server (robot_live_open below), END-TO-END TESTS ONLY: a
- *    stand-in for the camera until the vision pipeline is wired
- *    (docs/e2e.md);
+ *    stand-in for the camera where there is no V4L2 device (docs/e2e.md);
  *  - [camera] replay_log set: the landmark-log replay below, a TEST AND
  *    BENCH SOURCE, NOT A CAMERA;
  *  - [camera] device set: the camera, V4L2 + the marker detector
@@ -98,7 +97,7 @@ hal_status_t robot_replay_open(robot_replay_t *r, const char *path, int loop, ha
 
 /**
  * The live sighting stream (END-TO-END TESTS ONLY: a stand-in for the camera
- * until the vision pipeline is wired; docs/e2e.md). `fd` is an inherited
+ * where there is no V4L2 device; docs/e2e.md). `fd` is an inherited
  * SOCK_SEQPACKET (or SOCK_DGRAM) socket; it is dup'ed, so the inherited one
  * stays open for a reopen after a failure. One datagram is one frame, text:
  *   T stamp_us                       capture time, CLOCK_MONOTONIC [us]
