@@ -12,10 +12,13 @@
 #   make cross    the aarch64 robot-side build and its tests under qemu-aarch64
 #   make package  Debian packages of coslam-robot (amd64, arm64) in out/package/
 #   make fuzz     run every libFuzzer target FUZZ_SECONDS each, corpus in out/fuzz/ (docs/fuzzing.md)
+#   make build-types  configure and build every CMake build type (BUILD_TYPES), each in
+#                 build-types/<type> (tools/check_build_types.sh; ~25 min of 2 cores per type)
 # Variables: BUILD (build dir), JOBS, PROFILE (default|large), TEST_LEVEL (ci|full),
 #   CROSS_BUILD (aarch64 build dir), CROSS_CTEST_ARGS (ctest arguments of `make cross`),
 #   SANITIZE=1 (every target with ASan+UBSan, in build-san unless BUILD is given),
-#   FUZZ_SECONDS (per target, `make fuzz`), FUZZ_TARGETS (a subset, `make fuzz`)
+#   FUZZ_SECONDS (per target, `make fuzz`), FUZZ_TARGETS (a subset, `make fuzz`),
+#   BUILD_TYPES (`make build-types`: default Debug Release RelWithDebInfo MinSizeRel)
 
 SANITIZE   ?= 0
 ifeq ($(SANITIZE),1)
@@ -39,9 +42,10 @@ CROSS_BUILD ?= build-aarch64
 # the cross tests run under qemu, ~10x slower: the long randomized ones
 # (label long) are left out unless CROSS_CTEST_ARGS= is given
 CROSS_CTEST_ARGS ?= -LE long
+BUILD_TYPES ?= default Debug Release RelWithDebInfo MinSizeRel
 
 .PHONY: calibrate calibrate-figures
-.PHONY: all deps build configure test sim bench replay bench-mrpt clean distclean robot cross package fuzz
+.PHONY: all deps build configure test sim bench replay bench-mrpt clean distclean robot cross package fuzz build-types
 
 all: build
 
@@ -56,6 +60,12 @@ build: configure
 
 test: build
 	@cd $(BUILD) && ctest --output-on-failure -j$(JOBS)
+
+# Every build type a user or packager may pick must build (warnings are
+# errors; -O3 and -Os bring warnings of their own). Not a CTest test: one
+# full build per type is far beyond a test's budget.
+build-types: deps
+	@JOBS=$(JOBS) CMAKE_ARGS="$(CMAKE_ARGS)" tools/check_build_types.sh $(BUILD_TYPES)
 
 # Each libFuzzer target for FUZZ_SECONDS with a persistent corpus under
 # $(FUZZ_OUT)/<target>; a summary table (executions, cov, ft) at the end.

@@ -16,10 +16,16 @@
 //   sightings: a SOCK_SEQPACKET socketpair, one datagram per camera frame of
 //              the SightingOracle (robot_live_open's text format; stamps
 //              converted from simulated time to CLOCK_MONOTONIC), inherited
-//              (--sightings-fd): a stand-in for the camera until the vision
-//              pipeline is wired;
-//   GPIO:      none: the robots run with [gpio] chip = "" and required =
-//              false (no libgpiod fake can be preloaded: docs/e2e.md);
+//              (--sightings-fd): a stand-in for the camera (no V4L2
+//              device here);
+//   GPIO:      a SOCK_SEQPACKET socketpair carrying line states
+//              (firmware/port/linux/robot_gpio_fd.h: "P line level" to the
+//              robot, "O line level" back), inherited (--gpio-fd), standing
+//              in for a GPIO chip ([gpio] required = true): bumper line 0
+//              released, e-stop line 1 (active low) released, except that
+//              --estop K:T0:T1 presses robot K's e-stop from T0 to T1
+//              (simulated seconds); the status LED's (line 2) edges are
+//              recorded;
 //   link:      Cyclone DDS on loopback between the two robots, authenticated
 //              with a fleet key made here (mode 0600).
 // Every sample period it records each robot's true pose (moved into its map
@@ -29,7 +35,7 @@
 // Output: OUT/result.json (and OUT/robot<k>.ini, .log, status, store).
 //
 //   coslam-sim-devices --scenario F --robot BIN --out DIR [--duration S]
-//                      [--seed N] [--domain D]
+//                      [--seed N] [--domain D] [--estop K:T0:T1]
 // Exit status: 0 the run finished (the numbers are in result.json; judging
 // them is the caller's job), 1 a failure of the server or a robot died, 2 usage.
 #include <algorithm>
@@ -118,6 +124,9 @@ struct Port {
     std::string pty_name;
     int can_srv = -1, can_robot = -1;
     int sight_srv = -1, sight_robot = -1;
+    int gpio_srv = -1, gpio_robot = -1;
+    std::vector<double> led_edges;   // simulated times of the status LED's edges [s]
+    uint64_t gpio_bad = 0;
     pid_t pid = -1;
     int exit_status = -1;
     std::vector<uint8_t> urg_out;    // bytes for the pty not yet taken
@@ -166,7 +175,9 @@ std::string robot_ini(const Scenario &sc, size_t k, uint64_t seed, const std::st
     s << "[laser]\ndevice = " << p.pty_name << "\nfov_rad = " << sc.laser.fov_deg * kDeg
       << "\nmount_x_m = " << sc.laser.mount.x << "\nmount_y_m = " << sc.laser.mount.y
       << "\nmount_theta_rad = " << sc.laser.mount.theta << "\n";
-    s << "[can]\ninterface =\n[gpio]\nchip =\nrequired = false\n[camera]\ndevice =\nreplay_log =\n";
+    // GPIO comes over --gpio-fd (no chip); the robot's default lines:
+    // bumper 0 (active high), e-stop 1 (active low), status LED 2
+    s << "[can]\ninterface =\n[gpio]\nchip =\nrequired = true\n[camera]\ndevice =\nreplay_log =\n";
     s << "[link]\ndomain = " << domain << "\npeers = 127.0.0.1\npartition = " << partition
       << "\nconfig = file://" << out << "/cyclone.xml\n";
     s << "[storage]\ndir = " << out << "/store" << k << "\n";
@@ -217,6 +228,28 @@ double num(const nlohmann::json &j, const char *key)
     return NAN;
 }
 
+void gpio_pin(Port &p, unsigned line, int level)
+{
+    const std::string d = "P " + std::to_string(line) + " " + std::to_string(level) + " " + std::to_string(mono_us());
+    if (send(p.gpio_srv, d.data(), d.size(), MSG_DONTWAIT) != static_cast<ssize_t>(d.size())) die("gpio send");
+}
+
+// Path length of a robot's true track between t0 and t1 [s] (10 ms samples).
+double path_m(const std::vector<pose2_t> &h, double t0, double t1, double step_s)
+{
+    double d = 0.0;
+    for (size_t i = static_cast<size_t>(std::max(0.0, t0) / step_s) + 1; i < h.size() && i * step_s <= t1; ++i)
+        d += std::hypot(h[i].x - h[i - 1].x, h[i].y - h[i - 1].y);
+    return d;
+}
+
+// Edges per second of the LED in [t0, t1).
+double led_rate(const std::vector<double> &edges, double t0, double t1)
+{
+    const auto k = std::count_if(edges.begin(), edges.end(), [&](double t) { return t >= t0 && t < t1; });
+    return t1 > t0 ? static_cast<double>(k) / (t1 - t0) : NAN;
+}
+
 }  // namespace
 
 int main(int argc, char **argv)
@@ -225,6 +258,8 @@ int main(int argc, char **argv)
     double duration = -1.0;
     long long seed_opt = -1;
     unsigned domain = 175;
+    long estop_robot = -1;
+    double estop_t0 = 0.0, estop_t1 = 0.0;
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
         auto next = [&]() -> std::string {
@@ -240,9 +275,16 @@ int main(int argc, char **argv)
         else if (a == "--duration") duration = std::atof(next().c_str());
         else if (a == "--seed") seed_opt = std::atoll(next().c_str());
         else if (a == "--domain") domain = static_cast<unsigned>(std::atoi(next().c_str()));
-        else {
+        else if (a == "--estop") {
+            const std::string v = next();
+            if (std::sscanf(v.c_str(), "%ld:%lf:%lf", &estop_robot, &estop_t0, &estop_t1) != 3 || estop_robot < 0 ||
+                !(estop_t1 > estop_t0) || estop_t0 < 0.0) {
+                std::fprintf(stderr, "coslam-sim-devices: --estop needs K:T0:T1 (robot, press, release [s])\n");
+                return 2;
+            }
+        } else {
             std::fprintf(stderr, "usage: coslam-sim-devices --scenario F --robot BIN --out DIR [--duration S] "
-                                 "[--seed N] [--domain D]\n");
+                                 "[--seed N] [--domain D] [--estop K:T0:T1]\n");
             return 2;
         }
     }
@@ -262,6 +304,10 @@ int main(int argc, char **argv)
     const size_t n = sc.robots.size();
     if (n < 2 || n > COSLAM_MAX_ROBOTS) {
         std::fprintf(stderr, "coslam-sim-devices: 2..%d robots needed\n", COSLAM_MAX_ROBOTS);
+        return 2;
+    }
+    if (estop_robot >= static_cast<long>(n)) {
+        std::fprintf(stderr, "coslam-sim-devices: --estop: no robot %ld\n", estop_robot);
         return 2;
     }
     mkdir(out.c_str(), 0755);
@@ -292,6 +338,9 @@ int main(int argc, char **argv)
         open_pty(p);
         open_pair(p.can_srv, p.can_robot);
         open_pair(p.sight_srv, p.sight_robot);
+        open_pair(p.gpio_srv, p.gpio_robot);
+        gpio_pin(p, 0, 0);  // bumper released (active high)
+        gpio_pin(p, 1, 1);  // e-stop released (active low: a closed loop)
     }
     {
         std::string hex;
@@ -332,20 +381,24 @@ int main(int argc, char **argv)
             // the robot's two ends survive the exec (they are CLOEXEC here)
             fcntl(p.can_robot, F_SETFD, 0);
             fcntl(p.sight_robot, F_SETFD, 0);
+            fcntl(p.gpio_robot, F_SETFD, 0);
             const int lf = open((out + "/robot" + ks + ".log").c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
             if (lf >= 0) {
                 dup2(lf, 2);
                 dup2(lf, 1);
             }
             const std::string can_fd = std::to_string(p.can_robot), s_fd = std::to_string(p.sight_robot);
+            const std::string g_fd = std::to_string(p.gpio_robot);
             const std::string ini = out + "/robot" + ks + ".ini", st = out + "/robot" + ks + ".status.json";
             execl(robot_bin.c_str(), robot_bin.c_str(), "-c", ini.c_str(), "--can-fd", can_fd.c_str(),
-                  "--sightings-fd", s_fd.c_str(), "--status-file", st.c_str(), static_cast<char *>(nullptr));
+                  "--sightings-fd", s_fd.c_str(), "--gpio-fd", g_fd.c_str(), "--status-file", st.c_str(),
+                  static_cast<char *>(nullptr));
             _exit(127);
         }
         p.pid = pid;
         close(p.can_robot);
         close(p.sight_robot);
+        close(p.gpio_robot);
     }
 
     // ---- real-time loop ----
@@ -363,6 +416,7 @@ int main(int argc, char **argv)
     std::vector<std::vector<pose2_t>> truth_hist(n);
     uint8_t buf[8192];
     bool robot_died = false;
+    int estop_state = 0;  // 0 before, 1 pressed, 2 released
     while (!g_stop && t_sim < end_us) {
         // the wires, in both directions
         for (size_t k = 0; k < n; ++k) {
@@ -386,6 +440,18 @@ int main(int argc, char **argv)
                 (void)hal_can_send(r.rig().robot_can(), &f, 0);
                 p.can_to_rig++;
             }
+            for (;;) {
+                char g[64];
+                const ssize_t m = recv(p.gpio_srv, g, sizeof g - 1, MSG_DONTWAIT);
+                if (m <= 0) break;
+                g[m] = '\0';
+                unsigned line = 0, level = 0;
+                if (std::sscanf(g, "O %u %u", &line, &level) != 2) {
+                    p.gpio_bad++;
+                } else if (line == 2) {
+                    p.led_edges.push_back(static_cast<double>(mono_us() - t0) * 1e-6);
+                }
+            }
         }
         // the physics, in real time (catching up after a late wake-up)
         const uint64_t now = mono_us() - t0;
@@ -398,6 +464,16 @@ int main(int argc, char **argv)
             steps++;
         }
         if (steps > 1) catchups++;
+        if (estop_robot >= 0) {
+            const double ts = static_cast<double>(t_sim) * 1e-6;
+            if (estop_state == 0 && ts >= estop_t0) {
+                gpio_pin(ports[static_cast<size_t>(estop_robot)], 1, 0);
+                estop_state = 1;
+            } else if (estop_state == 1 && ts >= estop_t1) {
+                gpio_pin(ports[static_cast<size_t>(estop_robot)], 1, 1);
+                estop_state = 2;
+            }
+        }
         for (size_t k = 0; k < n; ++k) {
             Port &p = ports[k];
             SimRobot &r = *robots[k];
@@ -493,11 +569,12 @@ int main(int argc, char **argv)
         const uint64_t after = mono_us() - t0;
         const uint64_t due = t_sim + dt_us;
         if (due > after) {
-            pollfd pf[3 * COSLAM_MAX_ROBOTS];
+            pollfd pf[4 * COSLAM_MAX_ROBOTS];
             nfds_t m = 0;
             for (auto &p : ports) {
                 pf[m++] = {p.pty_master, POLLIN, 0};
                 pf[m++] = {p.can_srv, POLLIN, 0};
+                pf[m++] = {p.gpio_srv, POLLIN, 0};
             }
             const int wait_ms = static_cast<int>((due - after + 999) / 1000);
             (void)poll(pf, m, wait_ms);
@@ -554,6 +631,23 @@ int main(int argc, char **argv)
                       {"can_dropped", p.can_dropped},      {"frames_sent", p.frames_sent},
                       {"frames_dropped", p.frames_dropped}, {"urg_scans_ok", num(last_status[k], "urg_scans_ok")}};
         rj["status"] = last_status[k];
+        // GPIO: the status LED (heartbeat 4 edges/s running, fast blink 8
+        // edges/s stopped) and, for the e-stopped robot, its motion
+        const double hs = static_cast<double>(hist_us) * 1e-6;
+        const double run_s = static_cast<double>(t_sim) * 1e-6;
+        rj["gpio"] = {{"bad_datagrams", p.gpio_bad}, {"led_edges", p.led_edges.size()},
+                      {"led_rate_hz", led_rate(p.led_edges, 5.0, run_s)}};
+        if (static_cast<long>(k) == estop_robot) {
+            const double len = estop_t1 - estop_t0;
+            // 0.5 s to stop: the next control step commands zero, the
+            // drives' deceleration ramp, the base's inertia
+            rj["gpio"]["estop"] = {{"t0_s", estop_t0}, {"t1_s", estop_t1},
+                                   {"moved_before_m", path_m(truth_hist[k], estop_t0 - len, estop_t0, hs)},
+                                   {"moved_during_m", path_m(truth_hist[k], estop_t0 + 0.5, estop_t1, hs)},
+                                   {"moved_after_m", path_m(truth_hist[k], estop_t1 + 0.5, estop_t1 + 0.5 + len, hs)},
+                                   {"led_rate_before_hz", led_rate(p.led_edges, estop_t0 - len, estop_t0)},
+                                   {"led_rate_during_hz", led_rate(p.led_edges, estop_t0 + 0.5, estop_t1)}};
+        }
         // pose error over the run (estimate from the status file, <= 0.5 s old)
         double se = 0.0, fin = NAN, fin_h = NAN;
         int m = 0;
@@ -602,6 +696,7 @@ int main(int argc, char **argv)
         close(p.pty_slave);
         close(p.can_srv);
         close(p.sight_srv);
+        close(p.gpio_srv);
     }
     return robot_died ? 1 : 0;
 }

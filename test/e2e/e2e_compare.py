@@ -25,6 +25,11 @@ POSE_RMSE_FACTOR = 1.5      # pose RMSE over the run
 MAP_MATCHED_MARGIN = 2      # landmarks matched in the final map
 MAP_SPURIOUS_MARGIN = 2
 MAP_RMSE_FACTOR = 1.5
+# GPIO (--gpio-fd): the e-stopped robot (docs/e2e.md, "GPIO")
+ESTOP_STILL_M = 0.02        # path length while the e-stop is held (from 0.5 s after the press)
+ESTOP_MOVING_M = 0.1        # ... and in as long a time before it / after the release
+LED_RUN_HZ = (2.0, 6.0)     # status LED edges per second: heartbeat (4/s) while running
+LED_STOP_HZ = (6.0, 10.0)   # fast blink (8/s) while stopped
 
 
 def inproc(run):
@@ -68,6 +73,21 @@ def main():
               % (w["can_to_drives"], w["can_to_robot"], w["can_dropped"], w["frames_sent"], w["frames_dropped"]))
         check(w["urg_scans_ok"] >= 8.0 * t["sim_s"],
               "laser: %d SCIP scans parsed (10 Hz: %d expected)" % (w["urg_scans_ok"], 10 * t["sim_s"]))
+        g = e["gpio"]
+        check(g["bad_datagrams"] == 0 and g["led_edges"] > 0,
+              "gpio: status LED %d edges (%.1f /s), %d bad datagrams" % (g["led_edges"], g["led_rate_hz"],
+                                                                         g["bad_datagrams"]))
+        es = g.get("estop")
+        if es is not None:
+            check(es["moved_during_m"] <= ESTOP_STILL_M and es["moved_before_m"] >= ESTOP_MOVING_M
+                  and es["moved_after_m"] >= ESTOP_MOVING_M,
+                  "e-stop %.1f .. %.1f s: moved %.3f m before, %.3f m held (bound %.2f), %.3f m after release"
+                  % (es["t0_s"], es["t1_s"], es["moved_before_m"], es["moved_during_m"], ESTOP_STILL_M,
+                     es["moved_after_m"]))
+            check(LED_RUN_HZ[0] <= es["led_rate_before_hz"] <= LED_RUN_HZ[1]
+                  and LED_STOP_HZ[0] <= es["led_rate_during_hz"] <= LED_STOP_HZ[1],
+                  "status LED: %.1f edges/s before (heartbeat), %.1f while e-stopped (fast blink)"
+                  % (es["led_rate_before_hz"], es["led_rate_during_hz"]))
         m = col("merge")
         check(e["first_merge_s"] > 0 and min(m) - MERGE_MARGIN_S <= e["first_merge_s"] <= max(m) + MERGE_MARGIN_S,
               "first merge at %.1f s [%.1f .. %.1f] +- %.0f s" % (e["first_merge_s"], min(m), max(m), MERGE_MARGIN_S))

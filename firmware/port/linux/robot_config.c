@@ -446,6 +446,12 @@ static const cfg_key_t keys[] = {
     C_("gpio", "led_lines", parse_leds, print_leds),
 
     S_("camera", "device", camera_device),
+    N_("camera", "width_px", K_U32, camera_width_px, 16, 4096),
+    N_("camera", "height_px", K_U32, camera_height_px, 16, 4096),
+    B_("camera", "mjpeg_first", camera_mjpeg_first),
+    S_("camera", "colour_table", camera_colour_table),
+    S_("camera", "range_model", camera_range_model),
+    N_("camera", "stall_timeout_s", K_US, camera_stall_us, 0.0, 60.0),
     S_("camera", "replay_log", camera_replay_log),
     B_("camera", "replay_loop", camera_replay_loop),
 
@@ -510,6 +516,7 @@ void robot_config_default(robot_config_t *c)
     memset(c, 0, sizeof *c);
     c->can_fd = -1;
     c->camera_live_fd = -1;
+    c->gpio_fd = -1;
     c->robot_id = 0U;
     c->fleet_size = 2U;
     c->step_period_us = 10000U;
@@ -521,6 +528,12 @@ void robot_config_default(robot_config_t *c)
     set_str(c->can_interface, "can0");
     set_str(c->gpio_chip, "gpiochip0");
     c->gpio_required = 1U;
+    c->camera_width_px = 320U;
+    c->camera_height_px = 240U;
+    c->camera_mjpeg_first = 0U;
+    set_str(c->camera_colour_table, "/usr/share/coslam/vision/colour_lut.bin");
+    set_str(c->camera_range_model, "/usr/share/coslam/vision/range_model.txt");
+    c->camera_stall_us = 2000000U;
     c->camera_replay_loop = 1U;
     c->link_domain = 0U;
     set_str(c->link_topic, ROBOT_CONFIG_DEFAULT_TOPIC);
@@ -686,6 +699,12 @@ static int on_ini(void *user, const char *section, const char *name, const char 
         case K_STR:
             if (strlen(value) > ROBOT_CONFIG_PATH_MAX) {
                 put_text(msg, sizeof msg, "longer than %u characters", ROBOT_CONFIG_PATH_MAX);
+                s = COSLAM_E_ARG;
+            } else if (value[0] == ';' || value[0] == '#') {
+                /* "key =; text" is a value to libinih (no blank before the
+                 * ';'), but printed back it would read as a comment */
+                put_text(msg, sizeof msg, "a value cannot begin with '%c' (a comment needs a blank before it)",
+                         value[0]);
                 s = COSLAM_E_ARG;
             } else if (!fits_line(name, strlen(value))) {
                 put_text(msg, sizeof msg, "too long: '%s = <value>' must fit in one line of %d characters", name,

@@ -68,7 +68,13 @@ typedef struct {
     char gpio_chip[ROBOT_CONFIG_PATH_MAX + 1u];     /**< libgpiod chip; "" = none */
     uint8_t gpio_required;         /**< 1: no motion while the bumper / e-stop roles are missing */
     /* [camera] */
-    char camera_device[ROBOT_CONFIG_PATH_MAX + 1u]; /**< camera device; no Linux pipeline yet */
+    char camera_device[ROBOT_CONFIG_PATH_MAX + 1u]; /**< V4L2 camera device (robot_camera.h); "" = none */
+    uint32_t camera_width_px;      /**< frame size asked of the camera and given to the detector */
+    uint32_t camera_height_px;
+    uint8_t camera_mjpeg_first;    /**< 1: ask for MJPEG before YUYV (a camera whose YUYV is slow) */
+    char camera_colour_table[ROBOT_CONFIG_PATH_MAX + 1u]; /**< colour table file (vision/vision.h) */
+    char camera_range_model[ROBOT_CONFIG_PATH_MAX + 1u];  /**< range model file; "" = pinhole model */
+    uint32_t camera_stall_us;      /**< no frame for this long while up: reopened; 0 = never */
     char camera_replay_log[ROBOT_CONFIG_PATH_MAX + 1u]; /**< test/bench source: landmark log; "" = none */
     uint8_t camera_replay_loop;    /**< 1: start the log again at its end */
     /* [link]: the Cyclone DDS link (robot_link.h has the policy) */
@@ -95,6 +101,8 @@ typedef struct {
                                         instead of a SocketCAN interface; -1 = none */
     int camera_live_fd;            /**< --sightings-fd: the live sighting stream
                                         (robot_live_open, a camera stand-in); -1 = none */
+    int gpio_fd;                   /**< --gpio-fd: line states instead of a GPIO chip
+                                        (robot_gpio_fd.h); -1 = none */
     /* everything the robot node takes; robot_id, n_robots, filter.robot_id,
      * filter_period_us, retry_period_us, the meeting's robot-sighting noise
      * and the degraded-mode flags are derived at the end of the load */
@@ -104,7 +112,9 @@ typedef struct {
 /** The defaults (robot.ini beside this file writes each one out): robot 0
  *  of 2, 10 ms step, status every 10 s, snapshot every 30 s, retry every
  *  5 s, /dev/ttyACM0 at 115200 baud, can0, gpiochip0 (bumper line 0,
- *  e-stop line 1 active low, LED line 2, required), no camera, DDS domain
+ *  e-stop line 1 active low, LED line 2, required), no camera (when one is
+ *  configured: 320x240, YUYV first, the packaged colour table and range
+ *  model in /usr/share/coslam/vision, reopened after 2 s without a frame), DDS domain
  *  0 with multicast discovery, the default partition, topic
  *  rt/coslam/map, depth 32, authenticated; /var/lib/coslam,
  *  /etc/coslam/fleet.key with key id 1 and a 30 s window, and the node defaults of

@@ -163,6 +163,9 @@ static robot_devices_t *of_gpio(hal_gpio_t *g)
 
 static hal_gpio_t *gpio_backend(robot_devices_t *d)
 {
+    if (d->cfg->gpio_fd >= 0) {
+        return &d->gpio_fd_state.dev;
+    }
 #if COSLAM_HAVE_GPIOD
     return &d->gpio_state.dev;
 #else
@@ -225,7 +228,13 @@ static hal_status_t ps_next_frame(sighting_source_t *s, sighting_frame_t *out, u
     if (!usable(d, ROBOT_DEV_CAMERA)) {
         return HAL_E_TIMEOUT; /* no camera: no frame, which is not an error */
     }
-    const hal_status_t st = sighting_source_next_frame(&d->replay.src, out, timeout_us);
+    sighting_source_t *src = &d->replay.src;
+#if COSLAM_HAVE_CAMERA
+    if (d->camera_kind == ROBOT_SIGHTINGS_CAMERA) {
+        src = &d->camera.src;
+    }
+#endif
+    const hal_status_t st = sighting_source_next_frame(src, out, timeout_us);
     return st == HAL_E_TIMEOUT || st == HAL_OK ? st : watch(d, ROBOT_DEV_CAMERA, st);
 }
 
@@ -323,6 +332,10 @@ static int try_open(robot_devices_t *d, robot_dev_t id, uint64_t now_us)
         }
         break;
     case ROBOT_DEV_GPIO:
+        if (c->gpio_fd >= 0) {
+            s = robot_gpio_fd_open(&d->gpio_fd_state, c->gpio_fd, d->clock); /* e2e tests */
+            break;
+        }
 #if COSLAM_HAVE_GPIOD
         s = hal_gpio_linux_open(&d->gpio_state, c->gpio_chip, "coslam-robot");
 #endif
@@ -332,6 +345,11 @@ static int try_open(robot_devices_t *d, robot_dev_t id, uint64_t now_us)
             robot_sightings_kind_t k = robot_open_sightings(&d->replay, c, d->clock, &s, reason, sizeof reason);
             (void)k;
         }
+#if COSLAM_HAVE_CAMERA
+        if (d->camera_kind == ROBOT_SIGHTINGS_CAMERA) {
+            s = robot_camera_open(&d->camera, reason, sizeof reason);
+        }
+#endif
         break;
     case ROBOT_DEV_STORAGE:
         s = hal_storage_linux_open(&d->storage_state, c->storage_dir);
@@ -363,12 +381,13 @@ static void close_dev(robot_devices_t *d, robot_dev_t id)
     switch (id) {
     case ROBOT_DEV_LASER: hal_serial_close(&d->laser_dev); break;
     case ROBOT_DEV_CAN: hal_can_close(&d->can_state.can); break;
-    case ROBOT_DEV_GPIO:
-#if COSLAM_HAVE_GPIOD
-        hal_gpio_close(&d->gpio_state.dev);
+    case ROBOT_DEV_GPIO: hal_gpio_close(gpio_backend(d)); break;
+    case ROBOT_DEV_CAMERA:
+        robot_replay_close(&d->replay);
+#if COSLAM_HAVE_CAMERA
+        robot_camera_close(&d->camera);
 #endif
         break;
-    case ROBOT_DEV_CAMERA: robot_replay_close(&d->replay); break;
     case ROBOT_DEV_STORAGE: hal_storage_close(&d->storage_state.dev); break;
     case ROBOT_DEV_LINK: robot_link_backend_close(&d->link); break;
     default: break;
@@ -396,6 +415,9 @@ coslam_status_t robot_devices_init(robot_devices_t *d, const robot_config_t *cfg
     d->gpio.backend = d;
     d->sightings.ops = &sightings_proxy_ops;
     d->sightings.backend = d;
+#if COSLAM_HAVE_CAMERA
+    robot_camera_init(&d->camera, cfg, clock);
+#endif
     d->link_slot.ops = &link_proxy_ops;
     d->link_slot.backend = d;
     robot_dev_status_t *st = d->dev;
@@ -407,7 +429,12 @@ coslam_status_t robot_devices_init(robot_devices_t *d, const robot_config_t *cfg
     } else {
         put_text(st[ROBOT_DEV_CAN].what, sizeof st[0].what, "CiA 402 drives on SocketCAN %s", cfg->can_interface);
     }
-    put_text(st[ROBOT_DEV_GPIO].what, sizeof st[0].what, "bumper / e-stop / LED on %s", cfg->gpio_chip);
+    if (cfg->gpio_fd >= 0) {
+        put_text(st[ROBOT_DEV_GPIO].what, sizeof st[0].what, "bumper / e-stop / LED on inherited fd %d (e2e test)",
+                 cfg->gpio_fd);
+    } else {
+        put_text(st[ROBOT_DEV_GPIO].what, sizeof st[0].what, "bumper / e-stop / LED on %s", cfg->gpio_chip);
+    }
     put_text(st[ROBOT_DEV_STORAGE].what, sizeof st[0].what, "snapshots in %s", cfg->storage_dir);
     /* the link policy and the fleet key: before anything opens */
     const coslam_status_t ls = robot_open_link(&d->link, cfg, &d->link_slot, msg, msg_cap);
@@ -419,8 +446,8 @@ void robot_devices_open_all(robot_devices_t *d, uint64_t now_us)
 {
     const robot_config_t *c = d->cfg;
     robot_dev_status_t *st = d->dev;
-    const char *names[ROBOT_DEV_COUNT] = {c->laser_device, c->can_fd >= 0 ? "fd" : c->can_interface, c->gpio_chip,
-                                          "", "", c->storage_dir};
+    const char *names[ROBOT_DEV_COUNT] = {c->laser_device, c->can_fd >= 0 ? "fd" : c->can_interface,
+                                          c->gpio_fd >= 0 ? "fd" : c->gpio_chip, "", "", c->storage_dir};
     char text[320];
     for (int i = 0; i < ROBOT_DEV_COUNT; ++i) {
         const robot_dev_t id = (robot_dev_t)i;
@@ -434,7 +461,18 @@ void robot_devices_open_all(robot_devices_t *d, uint64_t now_us)
             } else if (d->camera_kind == ROBOT_SIGHTINGS_NO_CAMERA) {
                 put_text(st[id].what, sizeof st[id].what, "%s", c->camera_device);
                 say(d, "camera", &st[id],
-                    "not available (no Linux camera pipeline in this build): localisation on odometry only");
+                    "not available (built without the V4L2 backend or firmware/vision): localisation on odometry "
+                    "only");
+            } else if (d->camera_kind == ROBOT_SIGHTINGS_CAMERA) {
+                put_text(st[id].what, sizeof st[id].what, "V4L2 %s, %ux%u, markers", c->camera_device,
+                         (unsigned)c->camera_width_px, (unsigned)c->camera_height_px);
+                if (try_open(d, id, now_us)) {
+                    say(d, "camera", &st[id], "up");
+                } else {
+                    put_text(text, sizeof text, "down: %s; localisation on odometry only; retrying every %.0f s",
+                             st[id].reason, c->retry_period_s);
+                    say(d, "camera", &st[id], text);
+                }
             } else {
                 if (d->camera_kind == ROBOT_SIGHTINGS_LIVE) {
                     put_text(st[id].what, sizeof st[id].what,
@@ -476,7 +514,7 @@ void robot_devices_open_all(robot_devices_t *d, uint64_t now_us)
             continue;
         }
 #if !COSLAM_HAVE_GPIOD
-        if (id == ROBOT_DEV_GPIO) {
+        if (id == ROBOT_DEV_GPIO && c->gpio_fd < 0) {
             say(d, "gpio", &st[id], "not available (built without libgpiod): no bumper, no e-stop");
             continue;
         }
@@ -553,6 +591,9 @@ void robot_devices_close_all(robot_devices_t *d)
         }
     }
     robot_close_link(&d->link); /* the decorator too: wipes the key */
+#if COSLAM_HAVE_CAMERA
+    robot_camera_free(&d->camera);
+#endif
 }
 
 robot_node_io_t robot_devices_io(robot_devices_t *d)

@@ -7,7 +7,9 @@
  *   can      SocketCAN (hal_can_socketcan_open), [can] interface
  *   gpio     libgpiod v1 (hal_gpio_linux_open), [gpio] chip; absent from
  *            builds without libgpiod
- *   camera   robot_open_sightings (robot_sightings.h)
+ *   camera   robot_open_sightings (robot_sightings.h) chooses; a [camera]
+ *            device is V4L2 + the marker detector (robot_camera.h), absent
+ *            from builds without them (COSLAM_HAVE_CAMERA)
  *   link     robot_open_link (robot_link.h): Cyclone DDS behind the
  *            authentication decorator; absent when the link policy turns
  *            it off (no fleet key, a build without DDS)
@@ -50,11 +52,15 @@
 #include "hal/hal_storage.h"
 #include "hal/hal_storage_linux.h"
 #include "robot_config.h"
+#include "robot_gpio_fd.h"
 #include "robot_link.h"
 #include "robot_sightings.h"
 
 #if COSLAM_HAVE_GPIOD
 #include "hal/hal_gpio_linux.h"
+#endif
+#if COSLAM_HAVE_CAMERA
+#include "robot_camera.h"
 #endif
 
 #ifdef __cplusplus
@@ -116,8 +122,12 @@ typedef struct {
 #if COSLAM_HAVE_GPIOD
     hal_gpio_linux_t gpio_state;
 #endif
+    robot_gpio_fd_t gpio_fd_state;   /**< --gpio-fd (e2e tests only) */
     robot_sightings_kind_t camera_kind;
     robot_replay_t replay;
+#if COSLAM_HAVE_CAMERA
+    robot_camera_t camera;           /**< the camera (camera_kind ROBOT_SIGHTINGS_CAMERA) */
+#endif
     hal_link_t link_slot;            /**< the link proxy (below the decorator) */
     robot_link_t link;               /**< policy, DDS instance, decorator */
     hal_storage_linux_t storage_state;
@@ -146,7 +156,8 @@ unsigned robot_devices_service(robot_devices_t *d, uint64_t now_us);
  *  claimed although the chip opened): closed, reported, retried later. */
 void robot_devices_fail(robot_devices_t *d, robot_dev_t id, hal_status_t why, const char *reason, uint64_t now_us);
 
-/** Close everything (the proxies answer HAL_E_CLOSED afterwards). */
+/** Close everything (the proxies answer HAL_E_CLOSED afterwards) and
+ *  release what the camera allocated at its first open. */
 void robot_devices_close_all(robot_devices_t *d);
 
 /** The handles for robot_node_init (proxies, the link, the clock). */

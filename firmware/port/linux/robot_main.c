@@ -6,12 +6,14 @@
  * DDS behind the authentication decorator). docs/robot.md has the details and the decisions.
  *
  *   coslam-robot [-c FILE] [--dry-run] [--once N] [--status-file PATH]
- *                [--print-config] [-v] [--can-fd N] [--sightings-fd N]
+ *                [--print-config] [-v] [--can-fd N] [--sightings-fd N] [--gpio-fd N]
  *
- * --can-fd and --sightings-fd are for end-to-end tests only (docs/e2e.md):
- * file descriptors inherited from the device server coslam-sim-devices, a
- * socketpair carrying struct can_frame in place of the SocketCAN socket and
- * the live sighting stream standing in for the camera.
+ * --can-fd, --sightings-fd and --gpio-fd are for end-to-end tests only
+ * (docs/e2e.md): file descriptors inherited from the device server
+ * coslam-sim-devices, a socketpair carrying struct can_frame in place of the
+ * SocketCAN socket, the live sighting stream standing in for the camera, and
+ * the bumper / e-stop / LED line states in place of a GPIO chip
+ * (robot_gpio_fd.h).
  *
  * Exit status: 0 after a clean stop (SIGTERM, SIGINT, --once, --dry-run);
  * 2 for a bad command line or configuration (including a configured fleet
@@ -58,6 +60,7 @@ typedef struct {
     int verbose;
     int can_fd;        /* e2e tests: inherited CAN socket (docs/e2e.md); -1 none */
     int sightings_fd;  /* e2e tests: inherited live sighting stream; -1 none */
+    int gpio_fd;       /* e2e tests: inherited GPIO line states; -1 none */
 } options_t;
 
 static void usage(FILE *out)
@@ -71,7 +74,8 @@ static void usage(FILE *out)
             "  --print-config      print the effective configuration as INI and exit\n"
             "  -v                  verbose: every snapshot and every failed device retry\n"
             "  --can-fd N          (e2e tests) CAN frames on inherited socket N instead of [can] interface\n"
-            "  --sightings-fd N    (e2e tests) live sightings on inherited socket N, a camera stand-in\n");
+            "  --sightings-fd N    (e2e tests) live sightings on inherited socket N, a camera stand-in\n"
+            "  --gpio-fd N         (e2e tests) GPIO line states on inherited socket N instead of [gpio] chip\n");
 }
 
 static int parse_args(int argc, char **argv, options_t *o)
@@ -81,6 +85,7 @@ static int parse_args(int argc, char **argv, options_t *o)
     o->once = -1;
     o->can_fd = -1;
     o->sightings_fd = -1;
+    o->gpio_fd = -1;
     for (int i = 1; i < argc; ++i) {
         const char *a = argv[i];
         if (strcmp(a, "-c") == 0 && i + 1 < argc) {
@@ -97,7 +102,8 @@ static int parse_args(int argc, char **argv, options_t *o)
                 fprintf(stderr, "coslam-robot: --once needs a step count >= 0, got '%s'\n", argv[i]);
                 return -1;
             }
-        } else if ((strcmp(a, "--can-fd") == 0 || strcmp(a, "--sightings-fd") == 0) && i + 1 < argc) {
+        } else if ((strcmp(a, "--can-fd") == 0 || strcmp(a, "--sightings-fd") == 0 || strcmp(a, "--gpio-fd") == 0) &&
+                   i + 1 < argc) {
             char *end = NULL;
             errno = 0;
             const long v = strtol(argv[++i], &end, 10);
@@ -107,6 +113,8 @@ static int parse_args(int argc, char **argv, options_t *o)
             }
             if (a[2] == 'c') {
                 o->can_fd = (int)v;
+            } else if (a[2] == 'g') {
+                o->gpio_fd = (int)v;
             } else {
                 o->sightings_fd = (int)v;
             }
@@ -259,8 +267,43 @@ static void log_meeting_events(int verbose)
     }
 }
 
+/* Limits are loud: a line (the same as coslam-replay's and coslam-sim's,
+ * slam_filter_limit_format) whenever a loss counter of the filter has grown
+ * since the last status report, and for sightings the camera source could
+ * not fit in a frame. */
+static void log_limits(void)
+{
+    static const char *seen_counter[SLAM_FILTER_N_LIMITS];
+    static uint32_t seen_value[SLAM_FILTER_N_LIMITS];
+    static uint32_t seen_dropped;
+    slam_filter_limit_t lim[SLAM_FILTER_N_LIMITS];
+    const int n = slam_filter_limits(&node.filter, lim);
+    for (int i = 0; i < n; ++i) {
+        int k = 0;
+        while (k < SLAM_FILTER_N_LIMITS && seen_counter[k] != NULL && seen_counter[k] != lim[i].counter) {
+            ++k;
+        }
+        if (k == SLAM_FILTER_N_LIMITS || (seen_counter[k] != NULL && seen_value[k] >= lim[i].value)) {
+            continue;
+        }
+        seen_counter[k] = lim[i].counter;
+        seen_value[k] = lim[i].value;
+        char line[512];
+        (void)slam_filter_limit_format(&lim[i], (unsigned)cfg.robot_id, line, sizeof line);
+        fprintf(stderr, "coslam-robot: %s\n", line);
+    }
+    if (node.ctr.sightings_dropped > seen_dropped) {
+        seen_dropped = node.ctr.sightings_dropped;
+        fprintf(stderr,
+                "coslam-robot: LIMIT robot %u: %lu sightings dropped by the camera source: more in one frame than fit "
+                "(sightings_dropped; COSLAM_MAX_SIGHTINGS = %d in this build, profile %s)\n",
+                (unsigned)cfg.robot_id, (unsigned long)seen_dropped, (int)COSLAM_MAX_SIGHTINGS, COSLAM_PROFILE_NAME);
+    }
+}
+
 static void report_status(const options_t *o, int to_stderr, const robot_loop_stats_t *loop)
 {
+    log_limits();
     robot_status_collect(&status, &node, &dev, &snaps, loop);
     if (to_stderr) {
         static char line[4096];
@@ -300,6 +343,7 @@ int main(int argc, char **argv)
     }
     cfg.can_fd = opt.can_fd;
     cfg.camera_live_fd = opt.sightings_fd;
+    cfg.gpio_fd = opt.gpio_fd;
     if (opt.print_config) {
         robot_config_print(&cfg, stdout);
         return 0;

@@ -411,9 +411,7 @@ void robot_replay_close(robot_replay_t *r)
 robot_sightings_kind_t robot_open_sightings(robot_replay_t *r, const robot_config_t *cfg, hal_clock_t *clock,
                                             hal_status_t *st, char *msg, size_t msg_cap)
 {
-    /* ---- SIGHTING SOURCE CHOICE ---------------------------------------------
-     * The Linux camera pipeline (V4L2 + firmware/vision) plugs in here for
-     * cfg->camera_device. */
+    /* ---- SIGHTING SOURCE CHOICE ------------------------------------------ */
     *st = HAL_E_UNSUPPORTED;
     if (msg != NULL && msg_cap > 0U) {
         msg[0] = '\0';
@@ -426,5 +424,8 @@ robot_sightings_kind_t robot_open_sightings(robot_replay_t *r, const robot_confi
         *st = robot_replay_open(r, cfg->camera_replay_log, cfg->camera_replay_loop, clock, msg, msg_cap);
         return ROBOT_SIGHTINGS_REPLAY;
     }
-    return cfg->camera_device[0] != '\0' ? ROBOT_SIGHTINGS_NO_CAMERA : ROBOT_SIGHTINGS_NONE;
+    if (cfg->camera_device[0] == '\0') {
+        return ROBOT_SIGHTINGS_NONE;
+    }
+    return COSLAM_HAVE_CAMERA ? ROBOT_SIGHTINGS_CAMERA : ROBOT_SIGHTINGS_NO_CAMERA;
 }

@@ -5,15 +5,14 @@
  * robot_open_sightings() is the one place that chooses the source:
  *  - --sightings-fd N (cfg->camera_live_fd): the live stream of the e2e
  *    device server (robot_live_open below), END-TO-END TESTS ONLY: a
- *    stand-in for the camera until the vision pipeline is wired
- *    (docs/e2e.md);
+ *    stand-in for the camera where there is no V4L2 device (docs/e2e.md);
  *  - [camera] replay_log set: the landmark-log replay below, a TEST AND
  *    BENCH SOURCE, NOT A CAMERA;
- *  - [camera] device set: no Linux camera pipeline exists yet (V4L2 and the
- *    vision pipeline come with a later issue), so the camera is reported
- *    "not available" once and the robot localises on odometry only;
+ *  - [camera] device set: the camera, V4L2 + the marker detector
+ *    (robot_camera.h), opened by the device slot (robot_devices.c); in a
+ *    build without the V4L2 backend or firmware/vision it is reported "not
+ *    available" once and the robot localises on odometry only;
  *  - neither: no camera configured.
- * The vision pipeline plugs in here behind the same interface.
  *
  * The replay source plays a landmark log in the format of DESIGN.md
  * ("Landmark log format"), one record per line, '#' comments:
@@ -98,7 +97,7 @@ hal_status_t robot_replay_open(robot_replay_t *r, const char *path, int loop, ha
 
 /**
  * The live sighting stream (END-TO-END TESTS ONLY: a stand-in for the camera
- * until the vision pipeline is wired; docs/e2e.md). `fd` is an inherited
+ * where there is no V4L2 device; docs/e2e.md). `fd` is an inherited
  * SOCK_SEQPACKET (or SOCK_DGRAM) socket; it is dup'ed, so the inherited one
  * stays open for a reopen after a failure. One datagram is one frame, text:
  *   T stamp_us                       capture time, CLOCK_MONOTONIC [us]
@@ -119,7 +118,8 @@ void robot_replay_close(robot_replay_t *r);
 /** What robot_open_sightings chose. */
 typedef enum {
     ROBOT_SIGHTINGS_NONE = 0,    /**< no camera configured */
-    ROBOT_SIGHTINGS_NO_CAMERA,   /**< a camera is configured, but no Linux pipeline exists */
+    ROBOT_SIGHTINGS_NO_CAMERA,   /**< a camera is configured, but this build has no camera pipeline */
+    ROBOT_SIGHTINGS_CAMERA,      /**< the camera: V4L2 + marker detector (robot_camera.h) */
     ROBOT_SIGHTINGS_REPLAY,      /**< the landmark-log replay (test / bench) */
     ROBOT_SIGHTINGS_LIVE,        /**< the live stream of the e2e device server (--sightings-fd) */
 } robot_sightings_kind_t;
@@ -128,7 +128,8 @@ typedef enum {
  * Choose and open the sighting source for cfg (header comment). Returns
  * the kind (cfg->camera_live_fd >= 0 first: the live stream); for
  * ROBOT_SIGHTINGS_REPLAY and ROBOT_SIGHTINGS_LIVE *st is the open status of the
- * replay (HAL_OK or its error, with msg), else HAL_E_UNSUPPORTED.
+ * replay (HAL_OK or its error, with msg), else HAL_E_UNSUPPORTED (the
+ * camera is opened by the caller: robot_camera_open).
  */
 robot_sightings_kind_t robot_open_sightings(robot_replay_t *r, const robot_config_t *cfg, hal_clock_t *clock,
                                             hal_status_t *st, char *msg, size_t msg_cap);

@@ -168,6 +168,21 @@ void robot_status_collect(robot_status_t *s, robot_node_t *node, const robot_dev
     u64(s, "snap_seq", snaps->newest_seq);
     u64(s, "snap_saves", snaps->saves);
     u64(s, "snap_failures", snaps->save_failures);
+#if COSLAM_HAVE_CAMERA
+    /* the camera (robot_camera.h): only when one is configured */
+    if (dev->camera_kind == ROBOT_SIGHTINGS_CAMERA) {
+        const robot_camera_counters_t cc = robot_camera_counters(&dev->camera);
+        u64(s, "cam_frames", cc.frames);
+        u64(s, "cam_landmarks", cc.landmarks);
+        u64(s, "cam_robots", cc.robots);
+        u64(s, "cam_errors", cc.errors);
+        u64(s, "cam_opens", cc.opens);
+        u64(s, "cam_open_failures", cc.open_failures);
+        u64(s, "cam_bad_format", cc.bad_format);
+        u64(s, "cam_disconnects", cc.disconnects);
+        u64(s, "cam_stalls", cc.stalls);
+    }
+#endif
 }
 
 size_t robot_status_line(const robot_status_t *s, char *buf, size_t cap)

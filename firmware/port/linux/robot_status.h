@@ -22,7 +22,9 @@
  *   auth_* the authentication decorator's (hal_link_auth_counters_t
  *     names: every refusal by its reason; auth_refused their sum);
  *   landmarks x y theta (SLAM pose, map frame [m, m, rad]);
- *   snap_seq snap_saves snap_failures.
+ *   snap_seq snap_saves snap_failures;
+ *   cam_* the camera's counters (robot_camera_counters_t names) when a
+ *     V4L2 camera is configured.
  */
 #ifndef COSLAM_PORT_ROBOT_STATUS_H
 #define COSLAM_PORT_ROBOT_STATUS_H

@@ -1,0 +1,358 @@
+// coslam-robot's camera (firmware/port/linux/robot_camera.h) through the
+// robot's device slot (robot_devices.h): the real V4L2 backend and the real
+// marker detector, with the in-memory V4L2 driver
+// (test/hal_linux/v4l2/v4l2_fake.c) linked in place of the backend's
+// system-call seam (no camera on this machine). Frames are rendered by the
+// simulator's camera renderer (host/vision/vision_scenes: random poses in
+// the paper's arena, another robot in most frames, posts, blur, lighting),
+// converted to YUYV as a webcam sends them, and pushed into the fake
+// driver; the sightings the robot node would get are compared with the
+// renderer's ground truth. Then the failures: no device, a camera that
+// only offers H.264, a camera at another size, a missing colour table,
+// unplug and replug, a stalled camera, a short frame; each reported by
+// name, counted, and recovered by the slot's reopen. And no allocation per
+// frame.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "robot_devices.h"
+#include "v4l2_fake.h"
+#include "vision_scenes.hpp"
+// last: it defines malloc and friends, after every system header declared them
+#include "alloc_counter.hpp"
+
+using namespace coslam;
+using namespace coslam::vision_host;
+
+namespace {
+
+constexpr int W = VISION_IMAGE_WIDTH_PX, H = VISION_IMAGE_HEIGHT_PX;
+constexpr double kDeg = M_PI / 180.0;
+constexpr uint64_t kFrameUs = 100000;  // 10 frames/s, the paper's camera
+
+hal_status_t fake_now(hal_clock_t *, uint64_t *now_us)
+{
+    *now_us = fake_v4l2.now_us;
+    return HAL_OK;
+}
+const hal_clock_ops_t kFakeClockOps = {&fake_now, nullptr, nullptr};
+
+// The robot's devices with only the camera configured, on the fake driver's
+// clock; the device reports go to a memory stream.
+struct Rig {
+    hal_clock_t clock{&kFakeClockOps, nullptr};
+    robot_config_t cfg{};
+    robot_devices_t dev{};
+    char *log_text = nullptr;
+    size_t log_len = 0;
+    FILE *log = nullptr;
+    explicit Rig(bool open = true)
+    {
+        fake_v4l2_reset();
+        robot_config_default(&cfg);
+        cfg.laser_device[0] = '\0';
+        cfg.can_interface[0] = '\0';
+        cfg.gpio_chip[0] = '\0';
+        cfg.storage_dir[0] = '\0';
+        cfg.fleet_key_file[0] = '\0';  // link off
+        std::snprintf(cfg.camera_device, sizeof cfg.camera_device, "/dev/video0");
+        std::snprintf(cfg.camera_colour_table, sizeof cfg.camera_colour_table, "%s/colour_lut.bin",
+                      COSLAM_VISION_DATA_DIR);
+        std::snprintf(cfg.camera_range_model, sizeof cfg.camera_range_model, "%s/range_model.txt",
+                      COSLAM_VISION_DATA_DIR);
+        log = open_memstream(&log_text, &log_len);
+        char msg[256];
+        EXPECT_EQ(robot_devices_init(&dev, &cfg, &clock, log, 1, msg, sizeof msg), COSLAM_OK) << msg;
+        if (open) robot_devices_open_all(&dev, now());
+    }
+    ~Rig()
+    {
+        robot_devices_close_all(&dev);
+        std::fclose(log);
+        std::free(log_text);
+    }
+    uint64_t now() const { return fake_v4l2.now_us; }
+    std::string log_so_far()
+    {
+        std::fflush(log);
+        return std::string(log_text, log_len);
+    }
+    robot_dev_status_t &slot() { return dev.dev[ROBOT_DEV_CAMERA]; }
+    sighting_source_t *src() { return &dev.sightings; }
+    robot_camera_counters_t ctr() const { return robot_camera_counters(&dev.camera); }
+    // one robot step's worth: the node asks for a frame, then the slot is serviced
+    hal_status_t step(sighting_frame_t *f)
+    {
+        const hal_status_t st = sighting_source_next_frame(src(), f, 0);
+        robot_devices_service(&dev, now());
+        return st;
+    }
+    void advance(uint64_t us) { fake_v4l2.now_us += us; }
+    bool push_yuyv(const std::vector<uint8_t> &yuyv) { return fake_v4l2_push(yuyv.data(), yuyv.size(), now(), 0); }
+};
+
+std::vector<uint8_t> grey_yuyv()
+{
+    std::vector<uint8_t> rgb(static_cast<size_t>(W) * H * 3, 128);
+    return rgb_to_yuyv(rgb.data(), W, H);
+}
+
+double quant(std::vector<double> v, double q) { return quantile(std::move(v), q); }
+
+}  // namespace
+
+// Rendered frames through V4L2 (YUYV, BT.601 limited range) -> RGB ->
+// detector -> the robot's sighting frames, against the renderer's truth.
+TEST(RobotCamera, RenderedFramesGiveTheTrueSightings)
+{
+    Rig r;
+    ASSERT_EQ(r.slot().state, ROBOT_DEV_UP) << r.log_so_far();
+    EXPECT_NE(r.log_so_far().find("camera (V4L2 /dev/video0, 320x240, markers): up"), std::string::npos)
+        << r.log_so_far();
+    const sim::Scenario sc = sim::load_scenario_file(paper_scenario_path());
+    const int frames = 150;
+    int clear = 0, clear_hit = 0, unmatched = 0, id_errors = 0, sightings = 0;
+    std::vector<double> er_lm, er_rb, eb_lm, eb_rb;
+    long allocs = 0;
+    for (int i = 0; i < frames; ++i) {
+        const Scene s = make_scene(sc, 7100 + static_cast<uint64_t>(i));
+        const Frame fr = render_scene(s);
+        const std::vector<uint8_t> yuyv = rgb_to_yuyv(fr.rgb.data(), W, H);
+        r.advance(kFrameUs);
+        const uint64_t stamp = r.now();
+        ASSERT_TRUE(r.push_yuyv(yuyv));
+        sighting_frame_t f;
+        hal_status_t st = HAL_E_ARG;
+        allocs += alloc_counter::during([&] { st = r.step(&f); });
+        ASSERT_EQ(st, HAL_OK) << "frame " << i;
+        EXPECT_EQ(f.stamp_us, stamp);
+        EXPECT_EQ(f.sequence, static_cast<uint32_t>(i));
+        EXPECT_EQ(f.dropped, 0);
+        // every sighting must be some marker of the frame, of its class / id
+        struct Seen {
+            bool robot;
+            int index;
+            double range_m, bearing_rad;
+            bool used;
+        };
+        std::vector<Seen> seen;
+        for (int k = 0; k < f.n_landmarks; ++k)
+            seen.push_back({false, f.landmarks[k].signature, f.landmarks[k].range_m, f.landmarks[k].bearing_rad, false});
+        for (int k = 0; k < f.n_robots; ++k)
+            seen.push_back({true, f.robots[k].robot_id, f.robots[k].range_m, f.robots[k].bearing_rad, false});
+        sightings += static_cast<int>(seen.size());
+        auto near = [](const sim::RenderedMarker &m, const Seen &z) {
+            const double tol = std::max(m.half_width_rad + 1.0 * kDeg, 3.0 * kDeg);
+            return std::fabs(z.bearing_rad - m.bearing_rad) < tol && std::fabs(z.range_m - m.range_m) < 0.3 * m.range_m;
+        };
+        for (const sim::RenderedMarker &m : fr.truth) {
+            const bool robot = m.kind == VISION_MARKER_ROBOT;
+            if (!expected(m, 0.95)) continue;
+            ++clear;
+            for (Seen &z : seen) {
+                if (z.used || z.robot != robot || z.index != m.index || !near(m, z)) continue;
+                z.used = true;
+                ++clear_hit;
+                (robot ? er_rb : er_lm).push_back(std::fabs(z.range_m - m.range_m) / m.range_m);
+                (robot ? eb_rb : eb_lm).push_back(std::fabs(z.bearing_rad - m.bearing_rad) / kDeg);
+                break;
+            }
+        }
+        for (Seen &z : seen) {
+            if (z.used) continue;
+            bool any = false, same = false;
+            for (const sim::RenderedMarker &m : fr.truth) {
+                if (m.visible <= 0.0 || !near(m, z)) continue;
+                any = true;
+                same = same || ((m.kind == VISION_MARKER_ROBOT) == z.robot && m.index == z.index);
+            }
+            if (!any) ++unmatched;
+            else if (!same) ++id_errors;
+        }
+    }
+    const robot_camera_counters_t c = r.ctr();
+    std::printf("robot camera: %d frames, %d sightings; clear markers %d, found %d (%.3f); not a marker %d, "
+                "wrong class/id %d\n",
+                frames, sightings, clear, clear_hit, clear ? double(clear_hit) / clear : 0.0, unmatched, id_errors);
+    std::printf("  landmarks (%zu): |range err|/range p50 %.4f p90 %.4f max %.4f; |bearing err| p50 %.3f p90 %.3f "
+                "max %.3f deg\n",
+                er_lm.size(), quant(er_lm, 0.5), quant(er_lm, 0.9), quant(er_lm, 1.0), quant(eb_lm, 0.5),
+                quant(eb_lm, 0.9), quant(eb_lm, 1.0));
+    std::printf("  robots (%zu): |range err|/range p50 %.4f p90 %.4f max %.4f; |bearing err| p50 %.3f p90 %.3f "
+                "max %.3f deg\n",
+                er_rb.size(), quant(er_rb, 0.5), quant(er_rb, 0.9), quant(er_rb, 1.0), quant(eb_rb, 0.5),
+                quant(eb_rb, 0.9), quant(eb_rb, 1.0));
+    std::printf("  allocations in %d robot-side frame steps: %ld\n", frames, allocs);
+    EXPECT_EQ(c.frames, static_cast<uint64_t>(frames));
+    EXPECT_EQ(c.landmarks + c.robots, static_cast<uint64_t>(sightings));
+    // Bounds (docs/robot.md "Camera"): the detector on RGB frames of the same
+    // renderer (test_vision_detect, 150 frames) finds >= 95 % of the clear
+    // markers with range p90 <= 3 %, bearing p90 <= 0.15 deg (landmarks) /
+    // 1 deg (robots). The V4L2 path adds 4:2:2 chroma subsampling and 8-bit
+    // YUV rounding, which move band edges by at most a pixel column: the
+    // same rate, range p90 and max with 1 % more, bearings 0.1 deg more.
+    ASSERT_GT(clear, 100);
+    EXPECT_GE(double(clear_hit) / clear, 0.95);
+    EXPECT_LE(unmatched, frames / 50);  // <= 0.02 false markers per frame
+    EXPECT_EQ(id_errors, 0);
+    ASSERT_FALSE(er_lm.empty());
+    ASSERT_FALSE(er_rb.empty());
+    EXPECT_LE(quant(er_lm, 0.9), 0.04);
+    EXPECT_LE(quant(er_lm, 1.0), 0.06);
+    EXPECT_LE(quant(eb_lm, 0.9), 0.25);
+    EXPECT_LE(quant(er_rb, 0.9), 0.04);
+    EXPECT_LE(quant(eb_rb, 0.9), 1.1);
+    // no allocation per frame after start-up (V4L2 dequeue, YUYV -> RGB,
+    // detection, the sighting frame, the slot)
+    EXPECT_EQ(allocs, 0);
+}
+
+TEST(RobotCamera, NoDeviceIsReportedByNameAndReopened)
+{
+    Rig r(false);  // (resets the fake)
+    fake_v4l2.present = false;
+    robot_devices_open_all(&r.dev, r.now());
+    EXPECT_EQ(r.slot().state, ROBOT_DEV_DOWN);
+    const std::string log = r.log_so_far();
+    EXPECT_NE(log.find("coslam-robot: camera (V4L2 /dev/video0, 320x240, markers): down: V4L2 open: "
+                       "HAL_E_NOT_FOUND; localisation on odometry only; retrying every 5 s"),
+              std::string::npos)
+        << log;
+    sighting_frame_t f;
+    EXPECT_EQ(r.step(&f), HAL_E_TIMEOUT);  // the node sees "no frame", never an error
+    fake_v4l2.present = true;
+    r.advance(4000000);
+    EXPECT_EQ(r.step(&f), HAL_E_TIMEOUT);
+    EXPECT_EQ(r.slot().state, ROBOT_DEV_DOWN);  // not before the retry period
+    r.advance(1000000);
+    EXPECT_EQ(r.step(&f), HAL_E_TIMEOUT);
+    EXPECT_EQ(r.slot().state, ROBOT_DEV_UP);
+    EXPECT_NE(r.log_so_far().find("camera (V4L2 /dev/video0, 320x240, markers): back up after 1 failed attempt"),
+              std::string::npos);
+    ASSERT_TRUE(r.push_yuyv(grey_yuyv()));
+    EXPECT_EQ(r.step(&f), HAL_OK);
+    EXPECT_EQ(f.n_landmarks + f.n_robots, 0);  // an empty frame is still a frame
+    EXPECT_EQ(r.ctr().open_failures, 1u);
+    EXPECT_EQ(r.ctr().opens, 1u);
+}
+
+TEST(RobotCamera, BadFormatsAreRefusedWithTheReason)
+{
+    {  // a camera that only sends H.264
+        Rig r(false);
+        fake_v4l2.formats[0] = 0x34363248u;  // V4L2_PIX_FMT_H264 'H264'
+        fake_v4l2.n_formats = 1;
+        robot_devices_open_all(&r.dev, r.now());
+        EXPECT_EQ(r.slot().state, ROBOT_DEV_DOWN);
+        EXPECT_NE(r.log_so_far().find("down: V4L2 open: HAL_E_UNSUPPORTED"), std::string::npos) << r.log_so_far();
+    }
+    {  // a webcam that gives 640x480 whatever is asked
+        Rig r(false);
+        fake_v4l2.force_width = 640;
+        fake_v4l2.force_height = 480;
+        robot_devices_open_all(&r.dev, r.now());
+        EXPECT_EQ(r.slot().state, ROBOT_DEV_DOWN);
+        EXPECT_NE(r.log_so_far().find("the camera gives 640x480, configured 320x240"), std::string::npos)
+            << r.log_so_far();
+        EXPECT_EQ(r.ctr().bad_format, 1u);
+        EXPECT_EQ(fake_v4l2.live_fd, -1);  // nothing stays open
+    }
+    {  // ... which is fine once the configuration says so
+        Rig r(false);
+        fake_v4l2.force_width = 640;
+        fake_v4l2.force_height = 480;
+        r.cfg.camera_width_px = 640;
+        r.cfg.camera_height_px = 480;
+        robot_devices_open_all(&r.dev, r.now());
+        EXPECT_EQ(r.slot().state, ROBOT_DEV_UP) << r.log_so_far();
+        EXPECT_NEAR(vision_detector_config(r.dev.camera.det)->focal_px, 2.0 * vision_config_default().focal_px, 1e-9);
+    }
+    {  // no colour table: named, the robot runs on odometry
+        Rig r(false);
+        std::snprintf(r.cfg.camera_colour_table, sizeof r.cfg.camera_colour_table, "/nonexistent/lut.bin");
+        robot_devices_open_all(&r.dev, r.now());
+        EXPECT_EQ(r.slot().state, ROBOT_DEV_DOWN);
+        EXPECT_NE(r.log_so_far().find("colour table /nonexistent/lut.bin: No such file or directory"),
+                  std::string::npos)
+            << r.log_so_far();
+        EXPECT_EQ(fake_v4l2.n_open, 0u);  // the device is not touched without a detector
+    }
+    {  // a short frame: dropped by the backend, no sighting frame, no loss
+        Rig r;
+        std::vector<uint8_t> y = grey_yuyv();
+        y.resize(y.size() / 2);
+        r.advance(kFrameUs);
+        ASSERT_TRUE(r.push_yuyv(y));
+        sighting_frame_t f;
+        EXPECT_EQ(r.step(&f), HAL_E_TIMEOUT);
+        EXPECT_EQ(r.slot().state, ROBOT_DEV_UP);
+        EXPECT_EQ(r.dev.camera.v4l2.counters.bad_size_frames, 1u);
+    }
+}
+
+TEST(RobotCamera, UnplugAndReplugAreReopenedBySlot)
+{
+    Rig r;
+    sighting_frame_t f;
+    ASSERT_TRUE(r.push_yuyv(grey_yuyv()));
+    ASSERT_EQ(r.step(&f), HAL_OK);
+    fake_v4l2_unplug();
+    r.advance(kFrameUs);
+    EXPECT_EQ(r.step(&f), HAL_E_CLOSED);  // once; then the slot is down: "no frame"
+    EXPECT_EQ(r.slot().state, ROBOT_DEV_DOWN);
+    EXPECT_EQ(r.ctr().disconnects, 1u);
+    EXPECT_NE(r.log_so_far().find("camera (V4L2 /dev/video0, 320x240, markers): lost"), std::string::npos)
+        << r.log_so_far();
+    EXPECT_EQ(fake_v4l2.live_mmaps, 0);
+    fake_v4l2_replug();
+    r.advance(5000000);
+    EXPECT_EQ(r.step(&f), HAL_E_TIMEOUT);
+    ASSERT_EQ(r.slot().state, ROBOT_DEV_UP) << r.log_so_far();
+    r.advance(kFrameUs);
+    ASSERT_TRUE(r.push_yuyv(grey_yuyv()));
+    EXPECT_EQ(r.step(&f), HAL_OK);
+    EXPECT_EQ(r.ctr().opens, 2u);
+    EXPECT_EQ(r.ctr().frames, 2u);
+}
+
+TEST(RobotCamera, StalledCameraIsReopened)
+{
+    {
+    Rig r;
+    sighting_frame_t f;
+    // silence shorter than stall_timeout_s (2 s): timeouts only
+    for (int i = 0; i < 19; ++i) {
+        r.advance(kFrameUs);
+        EXPECT_EQ(r.step(&f), HAL_E_TIMEOUT);
+    }
+    EXPECT_EQ(r.slot().state, ROBOT_DEV_UP);
+    EXPECT_EQ(r.dev.camera.vs.ctr.grab_timeouts, 19u);
+    r.advance(kFrameUs);
+    EXPECT_EQ(r.step(&f), HAL_E_CLOSED);
+    EXPECT_EQ(r.slot().state, ROBOT_DEV_DOWN);
+    EXPECT_EQ(r.ctr().stalls, 1u);
+    EXPECT_EQ(fake_v4l2.live_fd, -1);  // closed
+    r.advance(5000000);
+    EXPECT_EQ(r.step(&f), HAL_E_TIMEOUT);
+    EXPECT_EQ(r.slot().state, ROBOT_DEV_UP);
+    ASSERT_TRUE(r.push_yuyv(grey_yuyv()));
+    EXPECT_EQ(r.step(&f), HAL_OK);
+    EXPECT_EQ(r.step(&f), HAL_E_TIMEOUT);
+    }
+    // stall_timeout_s = 0: never
+    sighting_frame_t f;
+    Rig q(false);
+    q.cfg.camera_stall_us = 0;
+    robot_devices_open_all(&q.dev, q.now());
+    for (int i = 0; i < 100; ++i) {
+        q.advance(kFrameUs);
+        EXPECT_EQ(q.step(&f), HAL_E_TIMEOUT);
+    }
+    EXPECT_EQ(q.slot().state, ROBOT_DEV_UP);
+    EXPECT_EQ(q.ctr().stalls, 0u);
+}
