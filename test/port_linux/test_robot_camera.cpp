@@ -128,7 +128,8 @@ TEST(RobotCamera, RenderedFramesGiveTheTrueSightings)
         ASSERT_TRUE(r.push_yuyv(yuyv));
         sighting_frame_t f;
         hal_status_t st = HAL_E_ARG;
-        allocs += alloc_counter::during([&] { st = r.step(&f); });
+        allocs += alloc_counter::kCounting ? alloc_counter::during([&] { st = r.step(&f); })
+                                           : (st = r.step(&f), 0L);
         ASSERT_EQ(st, HAL_OK) << "frame " << i;
         EXPECT_EQ(f.stamp_us, stamp);
         EXPECT_EQ(f.sequence, static_cast<uint32_t>(i));
@@ -209,7 +210,9 @@ TEST(RobotCamera, RenderedFramesGiveTheTrueSightings)
     EXPECT_LE(quant(eb_rb, 0.9), 1.1);
     // no allocation per frame after start-up (V4L2 dequeue, YUYV -> RGB,
     // detection, the sighting frame, the slot)
-    EXPECT_EQ(allocs, 0);
+    if (alloc_counter::kCounting) {
+        EXPECT_EQ(allocs, 0);
+    }
 }
 
 TEST(RobotCamera, NoDeviceIsReportedByNameAndReopened)

@@ -219,9 +219,13 @@ TEST(DetectMemory, NoAllocationPerFrameAfterStartUp)
                 n_rgb, n_yuyv, n_ocv);
     EXPECT_GT(markers, 5u);
     EXPECT_GE(markers_yuyv + 2, markers);  // chroma at half resolution: about the same markers
-    EXPECT_EQ(n_rgb, 0);
-    EXPECT_EQ(n_yuyv, 0);
-    EXPECT_GT(n_ocv, 0);  // why VISION_BLOBS_RUNS is the default (vision.h)
+    if (alloc_counter::kCounting) {
+        EXPECT_EQ(n_rgb, 0);
+        EXPECT_EQ(n_yuyv, 0);
+        EXPECT_GT(n_ocv, 0);  // why VISION_BLOBS_RUNS is the default (vision.h)
+    } else {
+        std::printf("allocations not counted in this build (AddressSanitizer owns malloc)\n");
+    }
 }
 
 TEST(DetectDrawn, BearingAndPinholeRangeOfAnExactMarker)
