@@ -35,11 +35,11 @@ void write_tum_row(std::ostream &f, double t, pose2_t p)
 void write_map(const fs::path &p, const map_estimate_t &m)
 {
     auto f = open_out(p);
-    f << "id,x,y,cxx,cxy,cyy\n";
+    f << "id,x,y,cxx,cxy,cyy,signature,n_obs,src_mask\n";
     for (int i = 0; i < m.n_landmarks; ++i) {
         const map_landmark_t &l = m.lm[i];
         f << l.id << ',' << l.mean.x << ',' << l.mean.y << ',' << l.cov.xx << ',' << l.cov.xy << ',' << l.cov.yy
-          << '\n';
+          << ',' << unsigned(l.signature) << ',' << l.n_obs << ',' << l.src_mask << '\n';
     }
 }
 

@@ -2,7 +2,7 @@
 // replay, written into one folder:
 //   robot<k>_path.tum            estimated path, map frame (TUM: t x y z qx qy qz qw)
 //   robot<k>_truth_path.tum      true path in the same map frame
-//   robot<k>_map.csv             final map (id,x,y,cxx,cxy,cyy)
+//   robot<k>_map.csv             final map (id,x,y,cxx,cxy,cyy,signature,n_obs,src_mask)
 //   robot<k>_map_before_merge.csv, robot<k>_map_after_merge.csv
 //                                the map right before and after the merge that
 //                                added the most landmarks (metrics.json: shown_merge_t_s)
