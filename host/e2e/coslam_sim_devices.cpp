@@ -24,8 +24,10 @@
 //              in for a GPIO chip ([gpio] required = true): bumper line 0
 //              released, e-stop line 1 (active low) released, except that
 //              --estop K:T0:T1 presses robot K's e-stop from T0 to T1
-//              (simulated seconds); the status LED's (line 2) edges are
-//              recorded;
+//              (simulated seconds); the bumper line follows the simulated
+//              body's contact with walls and robots, and --bump K:T0:T1
+//              presses it from T0 to T1; the status LED's (line 2) edges
+//              are recorded;
 //   link:      Cyclone DDS on loopback between the two robots, authenticated
 //              with a fleet key made here (mode 0600).
 // Every sample period it records each robot's true pose (moved into its map
@@ -35,7 +37,7 @@
 // Output: OUT/result.json (and OUT/robot<k>.ini, .log, status, store).
 //
 //   coslam-sim-devices --scenario F --robot BIN --out DIR [--duration S]
-//                      [--seed N] [--domain D] [--estop K:T0:T1]
+//                      [--seed N] [--domain D] [--estop K:T0:T1] [--bump K:T0:T1]
 // Exit status: 0 the run finished (the numbers are in result.json; judging
 // them is the caller's job), 1 a failure of the server or a robot died, 2 usage.
 #include <algorithm>
@@ -126,6 +128,8 @@ struct Port {
     int sight_srv = -1, sight_robot = -1;
     int gpio_srv = -1, gpio_robot = -1;
     std::vector<double> led_edges;   // simulated times of the status LED's edges [s]
+    bool bumper = false;             // the bumper line's level last sent (active high)
+    uint32_t bumper_presses = 0;     // rising edges sent (contacts and --bump)
     uint64_t gpio_bad = 0;
     pid_t pid = -1;
     int exit_status = -1;
@@ -243,6 +247,16 @@ double path_m(const std::vector<pose2_t> &h, double t0, double t1, double step_s
     return d;
 }
 
+// Net heading change from t0 to t1 [deg], the turns summed (wrapped per
+// sample), so a turn of more than half a circle is not folded.
+double turned_deg(const std::vector<pose2_t> &h, double t0, double t1, double step_s)
+{
+    double d = 0.0;
+    for (size_t i = static_cast<size_t>(std::max(0.0, t0) / step_s) + 1; i < h.size() && i * step_s <= t1; ++i)
+        d += std::remainder(h[i].theta - h[i - 1].theta, 2.0 * M_PI);
+    return d * 180.0 / M_PI;
+}
+
 // Edges per second of the LED in [t0, t1).
 double led_rate(const std::vector<double> &edges, double t0, double t1)
 {
@@ -260,6 +274,8 @@ int main(int argc, char **argv)
     unsigned domain = 175;
     long estop_robot = -1;
     double estop_t0 = 0.0, estop_t1 = 0.0;
+    long bump_robot = -1;
+    double bump_t0 = 0.0, bump_t1 = 0.0;
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
         auto next = [&]() -> std::string {
@@ -282,9 +298,16 @@ int main(int argc, char **argv)
                 std::fprintf(stderr, "coslam-sim-devices: --estop needs K:T0:T1 (robot, press, release [s])\n");
                 return 2;
             }
+        } else if (a == "--bump") {
+            const std::string v = next();
+            if (std::sscanf(v.c_str(), "%ld:%lf:%lf", &bump_robot, &bump_t0, &bump_t1) != 3 || bump_robot < 0 ||
+                !(bump_t1 > bump_t0) || bump_t0 < 0.0) {
+                std::fprintf(stderr, "coslam-sim-devices: --bump needs K:T0:T1 (robot, press, release [s])\n");
+                return 2;
+            }
         } else {
             std::fprintf(stderr, "usage: coslam-sim-devices --scenario F --robot BIN --out DIR [--duration S] "
-                                 "[--seed N] [--domain D] [--estop K:T0:T1]\n");
+                                 "[--seed N] [--domain D] [--estop K:T0:T1] [--bump K:T0:T1]\n");
             return 2;
         }
     }
@@ -304,6 +327,10 @@ int main(int argc, char **argv)
     const size_t n = sc.robots.size();
     if (n < 2 || n > COSLAM_MAX_ROBOTS) {
         std::fprintf(stderr, "coslam-sim-devices: 2..%d robots needed\n", COSLAM_MAX_ROBOTS);
+        return 2;
+    }
+    if (bump_robot >= static_cast<long>(n)) {
+        std::fprintf(stderr, "coslam-sim-devices: --bump: no robot %ld\n", bump_robot);
         return 2;
     }
     if (estop_robot >= static_cast<long>(n)) {
@@ -464,6 +491,19 @@ int main(int argc, char **argv)
             steps++;
         }
         if (steps > 1) catchups++;
+        // the bumper line follows the body's contact with walls and robots
+        // (SimRobot::in_contact), or a scripted press (--bump)
+        for (size_t k = 0; k < n; ++k) {
+            const double ts = static_cast<double>(t_sim) * 1e-6;
+            const bool scripted = static_cast<long>(k) == bump_robot && ts >= bump_t0 && ts < bump_t1;
+            const bool level = robots[k]->in_contact() || scripted;
+            Port &p = ports[k];
+            if (level != p.bumper) {
+                gpio_pin(p, 0, level ? 1 : 0);
+                p.bumper = level;
+                if (level) p.bumper_presses++;
+            }
+        }
         if (estop_robot >= 0) {
             const double ts = static_cast<double>(t_sim) * 1e-6;
             if (estop_state == 0 && ts >= estop_t0) {
@@ -636,7 +676,15 @@ int main(int argc, char **argv)
         const double hs = static_cast<double>(hist_us) * 1e-6;
         const double run_s = static_cast<double>(t_sim) * 1e-6;
         rj["gpio"] = {{"bad_datagrams", p.gpio_bad}, {"led_edges", p.led_edges.size()},
-                      {"led_rate_hz", led_rate(p.led_edges, 5.0, run_s)}};
+                      {"led_rate_hz", led_rate(p.led_edges, 5.0, run_s)}, {"bumper_presses", p.bumper_presses}};
+        if (static_cast<long>(k) == bump_robot) {
+            // pressed: stopped like the e-stop; released: the latch is
+            // acknowledged and the behaviour turns a quarter right
+            rj["gpio"]["bump"] = {{"t0_s", bump_t0}, {"t1_s", bump_t1},
+                                  {"moved_during_m", path_m(truth_hist[k], bump_t0 + 0.5, bump_t1, hs)},
+                                  {"turned_after_deg", turned_deg(truth_hist[k], bump_t1, bump_t1 + 4.0, hs)},
+                                  {"moved_after_m", path_m(truth_hist[k], bump_t1 + 0.5, bump_t1 + 4.5, hs)}};
+        }
         if (static_cast<long>(k) == estop_robot) {
             const double len = estop_t1 - estop_t0;
             // 0.5 s to stop: the next control step commands zero, the
