@@ -20,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include "robot_camera_rig.hpp"
 #include "robot_devices.h"
 #include "v4l2_fake.h"
 #include "vision_scenes.hpp"
@@ -30,71 +31,6 @@ using namespace coslam;
 using namespace coslam::vision_host;
 
 namespace {
-
-constexpr int W = VISION_IMAGE_WIDTH_PX, H = VISION_IMAGE_HEIGHT_PX;
-constexpr double kDeg = M_PI / 180.0;
-constexpr uint64_t kFrameUs = 100000;  // 10 frames/s, the paper's camera
-
-hal_status_t fake_now(hal_clock_t *, uint64_t *now_us)
-{
-    *now_us = fake_v4l2.now_us;
-    return HAL_OK;
-}
-const hal_clock_ops_t kFakeClockOps = {&fake_now, nullptr, nullptr};
-
-// The robot's devices with only the camera configured, on the fake driver's
-// clock; the device reports go to a memory stream.
-struct Rig {
-    hal_clock_t clock{&kFakeClockOps, nullptr};
-    robot_config_t cfg{};
-    robot_devices_t dev{};
-    char *log_text = nullptr;
-    size_t log_len = 0;
-    FILE *log = nullptr;
-    explicit Rig(bool open = true)
-    {
-        fake_v4l2_reset();
-        robot_config_default(&cfg);
-        cfg.laser_device[0] = '\0';
-        cfg.can_interface[0] = '\0';
-        cfg.gpio_chip[0] = '\0';
-        cfg.storage_dir[0] = '\0';
-        cfg.fleet_key_file[0] = '\0';  // link off
-        std::snprintf(cfg.camera_device, sizeof cfg.camera_device, "/dev/video0");
-        std::snprintf(cfg.camera_colour_table, sizeof cfg.camera_colour_table, "%s/colour_lut.bin",
-                      COSLAM_VISION_DATA_DIR);
-        std::snprintf(cfg.camera_range_model, sizeof cfg.camera_range_model, "%s/range_model.txt",
-                      COSLAM_VISION_DATA_DIR);
-        log = open_memstream(&log_text, &log_len);
-        char msg[256];
-        EXPECT_EQ(robot_devices_init(&dev, &cfg, &clock, log, 1, msg, sizeof msg), COSLAM_OK) << msg;
-        if (open) robot_devices_open_all(&dev, now());
-    }
-    ~Rig()
-    {
-        robot_devices_close_all(&dev);
-        std::fclose(log);
-        std::free(log_text);
-    }
-    uint64_t now() const { return fake_v4l2.now_us; }
-    std::string log_so_far()
-    {
-        std::fflush(log);
-        return std::string(log_text, log_len);
-    }
-    robot_dev_status_t &slot() { return dev.dev[ROBOT_DEV_CAMERA]; }
-    sighting_source_t *src() { return &dev.sightings; }
-    robot_camera_counters_t ctr() const { return robot_camera_counters(&dev.camera); }
-    // one robot step's worth: the node asks for a frame, then the slot is serviced
-    hal_status_t step(sighting_frame_t *f)
-    {
-        const hal_status_t st = sighting_source_next_frame(src(), f, 0);
-        robot_devices_service(&dev, now());
-        return st;
-    }
-    void advance(uint64_t us) { fake_v4l2.now_us += us; }
-    bool push_yuyv(const std::vector<uint8_t> &yuyv) { return fake_v4l2_push(yuyv.data(), yuyv.size(), now(), 0); }
-};
 
 std::vector<uint8_t> grey_yuyv()
 {
@@ -111,6 +47,7 @@ double quant(std::vector<double> v, double q) { return quantile(std::move(v), q)
 TEST(RobotCamera, RenderedFramesGiveTheTrueSightings)
 {
     Rig r;
+    ASSERT_EQ(r.init_status, COSLAM_OK) << r.init_message;
     ASSERT_EQ(r.slot().state, ROBOT_DEV_UP) << r.log_so_far();
     EXPECT_NE(r.log_so_far().find("camera (V4L2 /dev/video0, 320x240, markers): up"), std::string::npos)
         << r.log_so_far();
