@@ -62,6 +62,8 @@ libgpiod-dev:arm64
 libsodium-dev:arm64
 cyclonedds-dev:arm64
 libturbojpeg0-dev:arm64
+libopencv-core-dev:arm64
+libopencv-imgproc-dev:arm64
 "
 PACKAGES_CHROOT="
 debootstrap
