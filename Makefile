@@ -101,8 +101,7 @@ sim: build
 
 # (bench and replay build only their programs in the host-profile tree)
 bench: configure
-	@cmake --build $(BUILD) -j$(JOBS) --target coslam-bench-filters coslam-bench-merge coslam-bench-fastslam \
-	  coslam-bench-odo-check
+	@cmake --build $(BUILD) -j$(JOBS) --target coslam-benches
 	@tools/run_bench.sh $(BUILD)
 
 replay: configure
