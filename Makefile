@@ -14,11 +14,16 @@
 #   make fuzz     run every libFuzzer target FUZZ_SECONDS each, corpus in out/fuzz/ (docs/fuzzing.md)
 #   make build-types  configure and build every CMake build type (BUILD_TYPES), each in
 #                 build-types/<type> (tools/check_build_types.sh; ~25 min of 2 cores per type)
-# Variables: BUILD (build dir), JOBS, PROFILE (default|large), TEST_LEVEL (ci|full),
+#   make build-profiles  configure every capacity profile (PROFILES) and build the core, app,
+#                 link, robot, replay and simulator of each in build-profiles/<profile>
+#                 (tools/check_profiles.sh)
+# Variables: BUILD (build dir), JOBS, PROFILE (default|large|host: the capacity
+#   profile of every binary of the build, README "Profiles"), TEST_LEVEL (ci|full),
 #   CROSS_BUILD (aarch64 build dir), CROSS_CTEST_ARGS (ctest arguments of `make cross`),
 #   SANITIZE=1 (every target with ASan+UBSan, in build-san unless BUILD is given),
 #   FUZZ_SECONDS (per target, `make fuzz`), FUZZ_TARGETS (a subset, `make fuzz`),
-#   BUILD_TYPES (`make build-types`: default Debug Release RelWithDebInfo MinSizeRel)
+#   BUILD_TYPES (`make build-types`: default Debug Release RelWithDebInfo MinSizeRel),
+#   PROFILES (`make build-profiles`: default large host)
 
 SANITIZE   ?= 0
 ifeq ($(SANITIZE),1)
@@ -30,6 +35,14 @@ export ASAN_OPTIONS ?= detect_leaks=1
 else
 SAN_ARGS   := -DCOSLAM_SANITIZE=OFF
 endif
+# Host tools at scale: bench, replay, calibrate, calibrate-figures and
+# bench-mrpt build with PROFILE=host (2048 landmarks, 1000 particles, 64
+# sightings per frame) in their own build directory (build-host), so that
+# `make`, `make test` and `make sim` keep the robot's default profile and
+# stay fast. PROFILE=... and BUILD=... on the command line override both.
+HOST_TARGETS := bench replay calibrate calibrate-figures bench-mrpt
+$(HOST_TARGETS): PROFILE = host
+$(HOST_TARGETS): BUILD = $(if $(filter default,$(PROFILE)),build,build-$(PROFILE))
 FUZZ_SECONDS ?= 300
 FUZZ_TARGETS ?=
 FUZZ_OUT   ?= out/fuzz
@@ -43,9 +56,11 @@ CROSS_BUILD ?= build-aarch64
 # (label long) are left out unless CROSS_CTEST_ARGS= is given
 CROSS_CTEST_ARGS ?= -LE long
 BUILD_TYPES ?= default Debug Release RelWithDebInfo MinSizeRel
+PROFILES   ?= default large host
 
 .PHONY: calibrate calibrate-figures
 .PHONY: all deps build configure test sim bench replay bench-mrpt clean distclean robot cross package fuzz build-types
+.PHONY: build-profiles
 
 all: build
 
@@ -53,6 +68,7 @@ deps:
 	@tools/deps.sh install
 
 configure: deps
+	@echo "coslam: profile $(PROFILE) in $(BUILD)"
 	@cmake -S . -B $(BUILD) -DCOSLAM_PROFILE=$(PROFILE) -DCOSLAM_TEST_LEVEL=$(TEST_LEVEL) $(SAN_ARGS) $(CMAKE_ARGS) >/dev/null
 
 build: configure
@@ -67,6 +83,11 @@ test: build
 build-types: deps
 	@JOBS=$(JOBS) CMAKE_ARGS="$(CMAKE_ARGS)" tools/check_build_types.sh $(BUILD_TYPES)
 
+# Every capacity profile must build: the compile-time assertions that tie the
+# largest map message to the link payload run in each (docs/map-message.md).
+build-profiles: deps
+	@JOBS=$(JOBS) CMAKE_ARGS="$(CMAKE_ARGS)" tools/check_profiles.sh $(PROFILES)
+
 # Each libFuzzer target for FUZZ_SECONDS with a persistent corpus under
 # $(FUZZ_OUT)/<target>; a summary table (executions, cov, ft) at the end.
 # Needs clang and libclang-rt-14-dev (the configure step skips the targets
@@ -78,10 +99,13 @@ fuzz: configure
 sim: build
 	@tools/run_sim.sh $(BUILD)
 
-bench: build
+# (bench and replay build only their programs in the host-profile tree)
+bench: configure
+	@cmake --build $(BUILD) -j$(JOBS) --target coslam-benches
 	@tools/run_bench.sh $(BUILD)
 
-replay: build
+replay: configure
+	@cmake --build $(BUILD) -j$(JOBS) --target coslam-replay
 	@tools/run_replay.sh $(BUILD)
 
 # Noise calibration (docs/calibration.md): simulated worlds (train seeds 1-16,
@@ -110,6 +134,7 @@ calibrate-figures: configure
 bench-mrpt:
 	@tools/deps.sh install
 	@tools/deps.sh install mrpt
+	@echo "coslam: profile $(PROFILE) in $(BUILD)"
 	@cmake -S . -B $(BUILD) -DCOSLAM_PROFILE=$(PROFILE) -DCOSLAM_TEST_LEVEL=$(TEST_LEVEL) $(CMAKE_ARGS) >/dev/null
 	@cmake --build $(BUILD) -j$(JOBS) --target coslam-bench-mrclam
 	@$(BUILD)/host/replay/coslam-bench-mrclam -c host/replay/mrclam6.ini --mrpt-grid --repeats 3 --out out/bench

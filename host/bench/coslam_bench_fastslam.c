@@ -19,6 +19,7 @@
 #include <sys/stat.h>
 
 #include "bench_fs.h"
+#include "profile_print.h"
 
 int bench_fs_cpu_clock = 0;
 
@@ -73,6 +74,7 @@ int main(int argc, char **argv)
     if (seeds < 1 || steps < 2) {
         return 2;
     }
+    profile_print(stdout, "coslam-bench-fastslam");
     if (mkdir(out, 0775) != 0 && errno != EEXIST) {
         fprintf(stderr, "coslam-bench-fastslam: cannot create %s: %s\n", out, strerror(errno));
         return 1;

@@ -17,6 +17,7 @@
 #include <sys/stat.h>
 
 #include "slam_run.h"
+#include "profile_print.h"
 
 typedef struct {
     const char *name;
@@ -32,6 +33,16 @@ int main(int argc, char **argv)
         if (!strcmp(argv[i], "--out") && i + 1 < argc) out = argv[++i];
         else if (!strcmp(argv[i], "--seeds") && i + 1 < argc) seeds = atoi(argv[++i]);
         else { fprintf(stderr, "usage: coslam-bench-filters [--out DIR] [--seeds N]\n"); return 2; }
+    }
+    profile_print(stdout, "coslam-bench-filters");
+    if (seeds < 1 || seeds > 100) {
+        fprintf(stderr, "coslam-bench-filters: --seeds outside [1, 100]\n");
+        return 2;
+    }
+    if (COSLAM_MAX_PARTICLES < 1000 || COSLAM_MAX_LANDMARKS < 150) {
+        fprintf(stderr, "coslam-bench-filters: needs 1000 particles and 150 landmarks, more than this build's profile "
+                        "%s has: build with PROFILE=host (make bench does)\n", COSLAM_PROFILE_NAME);
+        return 2;
     }
     if (mkdir(out, 0775) != 0 && errno != EEXIST) {
         fprintf(stderr, "coslam-bench-filters: cannot create %s: %s\n", out, strerror(errno));
@@ -85,6 +96,9 @@ int main(int argc, char **argv)
         fprintf(stderr, "coslam-bench-filters: cannot write into %s\n", out);
         return 1;
     }
+    char prof[192];
+    (void)app_profile_format(prof, sizeof prof);
+    fprintf(md, "Built with the capacity %s.\n\n", prof);
     FILE *sinks[2] = {stdout, md};
     for (int k = 0; k < 2; ++k) {
         FILE *o = sinks[k];
@@ -102,7 +116,7 @@ int main(int argc, char **argv)
             fprintf(o, "| %s | %.3f | %.3f | %.3f |\n", filters[f].name, lm_rmse[f][0], lm_rmse[f][1], lm_rmse[f][2]);
         }
     }
-    fprintf(js, "{\n  \"seeds\": %d,\n  \"landmarks\": [15, 64, 150],\n  \"filters\": [\n", seeds);
+    fprintf(js, "{\n  \"profile\": \"%s\",\n  \"seeds\": %d,\n  \"landmarks\": [15, 64, 150],\n  \"filters\": [\n", COSLAM_PROFILE_NAME, seeds);
     for (int f = 0; f < nf; ++f) {
         fprintf(js, "    {\"name\": \"%s\", \"step_us_mean\": [%.2f, %.2f, %.2f], \"step_us_max\": [%.1f, %.1f, %.1f], "
                     "\"landmark_rmse_m\": [%.4f, %.4f, %.4f]}%s\n",

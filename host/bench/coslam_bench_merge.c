@@ -19,6 +19,7 @@
 #include <time.h>
 
 #include "coslam/map_merge.h"
+#include "profile_print.h"
 
 static double now_us(void)
 {
@@ -152,6 +153,7 @@ int main(int argc, char **argv)
         else if (!strcmp(argv[i], "--reps") && i + 1 < argc) reps = atoi(argv[++i]);
         else { fprintf(stderr, "usage: coslam-bench-merge [--out DIR] [--reps N]\n"); return 2; }
     }
+    profile_print(stdout, "coslam-bench-merge");
     if (mkdir(out, 0775) != 0 && errno != EEXIST) {
         fprintf(stderr, "coslam-bench-merge: cannot create %s: %s\n", out, strerror(errno));
         return 1;

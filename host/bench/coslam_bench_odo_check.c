@@ -16,6 +16,7 @@
 
 #include "app/odo_check.h"
 #include "room_scan.h"
+#include "profile_print.h"
 
 static double cpu_us(void)
 {
@@ -42,6 +43,7 @@ int main(int argc, char **argv)
             return 2;
         }
     }
+    profile_print(stdout, "coslam-bench-odo-check");
     room_t room;
     memset(&room, 0, sizeof room);
     add_box(&room, -3.0, -2.0, 3.0, 2.0);

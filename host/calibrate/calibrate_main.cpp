@@ -25,6 +25,7 @@
 #include "calib.h"
 #include "experiments.h"
 #include "replay_config.h"
+#include "profile_json.hpp"
 #include "replay_data.h"
 #include "replay_run.h"
 
@@ -282,6 +283,10 @@ int run(int argc, char **argv)
             return rc == 0 ? 0 : 2;
         }
         return e.get_exit_code() == 0 ? 0 : 2;
+    }
+
+    if (rank == 0) {
+        std::cerr << coslam::profile_line("coslam-calibrate") << "\n";
     }
 
     // ---- validation (every rank, same result)
@@ -605,6 +610,7 @@ int run(int argc, char **argv)
     std::cout << "\n" << rep.str();
 
     json j;
+    j["profile"] = coslam::profile_json(); // the build's capacities
     j["source"] = source;
     j["world"] = world;
     j["filter"] = source == "synth" ? filter : coslam::replay::filter_kind_name(cfg.filter.type);

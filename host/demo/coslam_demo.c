@@ -14,6 +14,7 @@
 #include <math.h>
 
 #include "slam_run.h"
+#include "profile_print.h"
 
 static int mkdir_p(const char *path)
 {
@@ -64,6 +65,7 @@ int main(int argc, char **argv)
         else if (!strcmp(argv[i], "--landmarks") && i + 1 < argc) n_lm = atoi(argv[++i]);
         else { fprintf(stderr, "usage: coslam-demo [--out DIR] [--seed N] [--landmarks N]\n"); return 2; }
     }
+    profile_print(stderr, "coslam-demo");
     if (mkdir_p(out) != 0) { fprintf(stderr, "coslam-demo: cannot create %s: %s\n", out, strerror(errno)); return 1; }
     synth_config_t sc = synth_config_default(seed, n_lm);
     sc.n_signatures = 4;

@@ -23,6 +23,7 @@
 #include <sys/stat.h>
 
 #include "eval_worlds.h"
+#include "profile_print.h"
 
 static void usage(void)
 {
@@ -50,6 +51,7 @@ int main(int argc, char **argv)
         else if (!strcmp(argv[i], "--trace")) trace = 1;
         else { usage(); return 2; }
     }
+    profile_print(stderr, "coslam-eval-worlds");
     eval_world_t wk;
     run_filter_t fk;
     if (eval_world_parse(world, &wk) != 0 || eval_filter_parse(filter, &fk) != 0 || seeds < 1 || seeds > 1000 ||

@@ -38,6 +38,7 @@
 #include "replay_odometry.h"
 #include "replay_run.h"
 #include "replay_truth.h"
+#include "profile_json.hpp"
 
 using namespace coslam::replay;
 using nlohmann::json;
@@ -222,6 +223,7 @@ int main(int argc, char **argv)
     app.add_flag("--mrpt-grid", grid, "also run MRPT over a grid of its noise settings");
     app.add_option("--repeats", repeats, "run each stream this often, keep the fastest time");
     CLI11_PARSE(app, argc, argv);
+    std::cerr << coslam::profile_line("coslam-bench-mrclam") << "\n";
 
     try {
         if (!std::filesystem::is_directory(data)) {

@@ -1,14 +1,19 @@
 // host/replay/replay_filter.cpp - the core filters behind one interface.
 #include "replay_filter.h"
 
+#include <new>
+
 #include "replay_data.h"
 
 namespace coslam::replay {
 
 RobotFilter::RobotFilter(FilterKind kind, const ReplayConfig &cfg, uint8_t core_robot_id, pose2_t pose0,
                          uint64_t seed)
-    : kind_(kind), f_(std::make_unique<slam_filter_t>())
+    : kind_(kind), f_(static_cast<slam_filter_t *>(std::calloc(1, sizeof(slam_filter_t))))
 {
+    if (!f_) {
+        throw std::bad_alloc();
+    }
     slam_filter_config_t c = slam_filter_config_default();
     c.kind = kind == FilterKind::Ekf         ? SLAM_FILTER_EKF
              : kind == FilterKind::FastSlam1 ? SLAM_FILTER_FASTSLAM1

@@ -10,6 +10,7 @@
 #define COSLAM_HOST_REPLAY_FILTER_H
 
 #include <cstdint>
+#include <cstdlib>
 #include <map>
 #include <memory>
 #include <optional>
@@ -53,7 +54,15 @@ public:
 
 private:
     FilterKind kind_;
-    std::unique_ptr<slam_filter_t> f_;
+    // calloc, not make_unique: a zeroed slam_filter_t either way, but the
+    // pages of a fresh calloc are zero already and stay untouched until the
+    // filter uses them (203 MB per robot in the host profile, most of it
+    // Fast-SLAM's worst-case landmark pool: value-initialising it was 70 %
+    // of a replay's time)
+    struct Free {
+        void operator()(slam_filter_t *p) const { std::free(p); }
+    };
+    std::unique_ptr<slam_filter_t, Free> f_;
 };
 
 } // namespace coslam::replay

@@ -24,6 +24,7 @@
 #include "replay_config.h"
 #include "replay_data.h"
 #include "replay_noise.h"
+#include "profile_json.hpp"
 #include "replay_odometry.h"
 #include "replay_output.h"
 #include "replay_run.h"
@@ -249,9 +250,7 @@ int main(int argc, char **argv)
         }
         if (*run) {
             // the capacities this binary was built with (one visible choice)
-            std::cerr << "coslam-replay: core profile " << COSLAM_PROFILE_NAME << ": " << COSLAM_MAX_PARTICLES
-                      << " particles, " << COSLAM_MAX_LANDMARKS << " landmarks per map, " << COSLAM_MAX_SIGHTINGS
-                      << " sightings per frame\n";
+            std::cerr << coslam::profile_line("coslam-replay") << "\n";
         }
         const auto t_load = std::chrono::steady_clock::now();
         const Dataset ds = load_dataset(dataset, parse_format(format));

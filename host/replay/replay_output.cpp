@@ -9,6 +9,8 @@
 #include <ostream>
 #include <sstream>
 
+#include "profile_json.hpp"
+
 namespace fs = std::filesystem;
 using nlohmann::json;
 
@@ -183,6 +185,7 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
 
     json j;
     j["tool"] = "coslam-replay";
+    j["profile"] = coslam::profile_json(); // the build's capacities
     j["command"] = info.command;
     json rep;
     rep["lines_read"] = ds.report.lines_read;

@@ -13,6 +13,7 @@
 #include <unistd.h>
 
 #include "cli_checks.hpp"
+#include "profile_json.hpp"
 #include "run_output.hpp"
 #include "sim/world/scenario.hpp"
 #include "sim/world/simulation.hpp"
@@ -87,8 +88,7 @@ int main(int argc, char **argv)
         if (seed >= 0) opt.seed = static_cast<uint64_t>(seed);
         if (duration > 0.0) opt.duration_s = duration;
         // the capacities this binary was built with (one visible choice)
-        std::fprintf(stderr, "coslam-sim: core profile %s: %d particles, %d landmarks per map, %d sightings per frame\n",
-                     COSLAM_PROFILE_NAME, (int)COSLAM_MAX_PARTICLES, (int)COSLAM_MAX_LANDMARKS, (int)COSLAM_MAX_SIGHTINGS);
+        std::fprintf(stderr, "%s\n", coslam::profile_line("coslam-sim").c_str());
         coslam::sim::Simulation sim(sc, opt);
         ProgressBar bar(quiet);
         sim.run([&](const coslam::sim::SimulationProgress &p) { bar.update(p); }, 0.5);

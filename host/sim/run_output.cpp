@@ -9,6 +9,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "profile_json.hpp"
 #include "coslam/occ_grid.h"
 
 namespace coslam::sim {
@@ -126,6 +127,7 @@ nlohmann::json run_metrics(const Simulation &sim)
     const SimulationResult &r = sim.result();
     const Scenario &sc = sim.scenario();
     nlohmann::json j;
+    j["profile"] = coslam::profile_json(); // the build's capacities
     j["scenario"] = {{"name", sc.name}, {"source", sc.source}, {"seed", sim.seed()}, {"duration_s", r.sim_s},
                      {"n_landmarks", sim.world().landmarks().size()}};
     j["timing"] = {{"sim_s", r.sim_s},

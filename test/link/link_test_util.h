@@ -23,13 +23,15 @@
 extern "C" {
 #endif
 
-/* The most landmarks a message may have and still fit one datagram with a
- * 64-byte trailer: COSLAM_MAX_MSG_LANDMARKS in the default profile; fewer in
- * the large one, whose largest message exceeds HAL_LINK_MAX_PAYLOAD
- * (docs/link-dds.md, "Limits"). */
-#define LT_LINK_LANDMARKS_FIT ((HAL_LINK_MAX_PAYLOAD - MAP_MSG_MIN_BYTES - 64u) / MAP_MSG_LANDMARK_BYTES)
-#define LT_MAX_LANDMARKS                                                                                   \
-    ((uint16_t)(COSLAM_MAX_MSG_LANDMARKS < LT_LINK_LANDMARKS_FIT ? COSLAM_MAX_MSG_LANDMARKS : LT_LINK_LANDMARKS_FIT))
+/* The most landmarks a message may have: COSLAM_MAX_MSG_LANDMARKS, which
+ * config.h caps at what fits one datagram with a 64-byte trailer in every
+ * profile (docs/map-message.md "Message and link"); checked again here. */
+#define LT_MAX_LANDMARKS ((uint16_t)COSLAM_MAX_MSG_LANDMARKS)
+#ifdef __cplusplus
+static_assert(MAP_MSG_MAX_BYTES + HAL_LINK_TRAILER_RESERVE <= HAL_LINK_MAX_PAYLOAD, "largest message fits the link");
+#else
+_Static_assert(MAP_MSG_MAX_BYTES + HAL_LINK_TRAILER_RESERVE <= HAL_LINK_MAX_PAYLOAD, "largest message fits the link");
+#endif
 
 static inline double lt_uni(rng_t *r, double lo, double hi)
 {

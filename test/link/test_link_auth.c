@@ -159,6 +159,33 @@ static void test_trailer_layout_and_genuine_delivery(void **state)
     assert_int_equal(recv_b(&info), HAL_E_TIMEOUT);
 }
 
+/* The profile's largest map message (COSLAM_MAX_MSG_LANDMARKS landmarks,
+ * MAP_MSG_MAX_BYTES) is one datagram: signed, it passes the link's payload
+ * check, arrives whole and decodes to the same message (the compile-time tie
+ * of config.h, hal_link.h and hal_link_auth.c, exercised at run time). */
+static void test_largest_message_round_trips(void **state)
+{
+    (void)state;
+    const size_t len = msg_a(LT_MAX_LANDMARKS, 29);
+    assert_int_equal(len, MAP_MSG_MAX_BYTES);
+    assert_true(len + HAL_LINK_AUTH_TRAILER_BYTES <= HAL_LINK_MAX_PAYLOAD);
+    assert_int_equal(hal_link_send(g_a, ROBOT_B, g_msg, len, 0), HAL_OK);
+    assert_int_equal(g_bus.ep[1].q[g_bus.ep[1].head].len, len + HAL_LINK_AUTH_TRAILER_BYTES);
+    hal_link_rx_info_t info;
+    assert_int_equal(recv_b(&info), HAL_OK);
+    assert_int_equal(info.len, len);
+    assert_memory_equal(g_rx, g_msg, len);
+    static map_msg_t m;
+    assert_int_equal(map_msg_decode(g_rx, info.len, &m), COSLAM_OK);
+    assert_int_equal(m.map.n_landmarks, COSLAM_MAX_MSG_LANDMARKS);
+    static uint8_t again[MAP_MSG_MAX_BYTES];
+    size_t len2 = 0;
+    assert_int_equal(map_msg_encode(&m, again, sizeof again, &len2), COSLAM_OK);
+    assert_int_equal(len2, len);
+    assert_memory_equal(again, g_msg, len);
+    assert_int_equal(refused_b(), 0);
+}
+
 static void test_forged_wrong_key_and_other_fleet(void **state)
 {
     (void)state;
@@ -469,6 +496,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test_setup_teardown(test_trailer_layout_and_genuine_delivery, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_largest_message_round_trips, setup, teardown),
         cmocka_unit_test_setup_teardown(test_forged_wrong_key_and_other_fleet, setup, teardown),
         cmocka_unit_test_setup_teardown(test_every_modified_byte_region_refused, setup, teardown),
         cmocka_unit_test_setup_teardown(test_truncated_unauthenticated_malformed, setup, teardown),

@@ -161,8 +161,8 @@ probe "range -DBL_MAX (short message)" 2 "range must be positive, got -1.79769e\
 
 # capacities. The map: a 300 m corridor with a marker about every metre on
 # both sides (600 landmarks, irregular so that the corridor is not periodic,
-# up to 7 in view), exact odometry; the core's map (256 in the large
-# profile) fills at about 128 m.
+# up to 7 in view), exact odometry; the core's map (64 landmarks in the
+# default profile, 256 in the large) fills at about 32 m (128 m).
 d="$WORK/capacity"
 mkdir -p "$d"
 printf '[odometry]\nscale_v = 1\nscale_w = 1\ndelay_s = 0\n' > "$WORK/exact_odometry.ini"
@@ -192,7 +192,7 @@ for k in 1 2; do
     awk -v k="$k" 'BEGIN { for (i = 0; i <= 6000; i++) printf "%.1f %.3f 0 0\n", i * 0.1, (k == 1 ? 0.05 * i : 0.0) }' \
         > "$d/robot${k}_truth.txt"
 done
-probe "capacity: map full (600 landmarks)" 3 "LIMIT robot 1: .* COSLAM_MAX_LANDMARKS = " \
+probe "capacity: map full (600 landmarks)" 3 "LIMIT robot 1: .* COSLAM_(EKF_)?MAX_LANDMARKS = " \
     $R "$d" -c "$WORK/exact_odometry.ini" -f ekf -o "$WORK/rc"
 # the full map still localises the robot: sightings of unmapped markers are
 # not forced onto mapped ones (pose RMSE, the column after the filter)
@@ -204,9 +204,10 @@ else
     echo "ok   capacity: robot 1 pose RMSE $rmse m with a full map"
 fi
 no_nan_map "capacity" "$WORK/rc"
-probe "capacity: map full, --allow-capacity-limits" 0 "LIMIT robot 1: .* COSLAM_MAX_LANDMARKS = " \
+probe "capacity: map full, --allow-capacity-limits" 0 "LIMIT robot 1: .* COSLAM_(EKF_)?MAX_LANDMARKS = " \
     $R "$d" -c "$WORK/exact_odometry.ini" -f ekf --allow-capacity-limits -o "$WORK/rc"
-# the sighting buffer: one frame of 24 sightings (16 per frame in every profile)
+# the sighting buffer: one frame of 24 sightings (16 per frame in the default
+# and large profiles; the host profile takes 64, and this probe is for those)
 variant frame 1 '$a Z 20.5 -1 1.0 0.0'
 for i in $(seq 1 23); do echo "Z 20.5 -1 $((i / 6 + 1)).$((i % 6 + 1)) 0.0$i" >> "$d/robot1.log"; done
 probe "capacity: 24 sightings in one frame" 3 "LIMIT robot 1: .* COSLAM_MAX_SIGHTINGS = 16" $R "$d" -f ekf -o "$WORK/r"

@@ -236,16 +236,16 @@ static void test_capacity_and_bad_input(void **state)
     c.slam.exist_confirm = c.slam.exist_init;
     const pose2_t p0 = {0.0, 0.0, 0.0};
     assert_int_equal(ekfslam_init(&g_ekf, &c, p0), COSLAM_OK);
-    for (int i = 0; g_ekf.n_lm < COSLAM_MAX_LANDMARKS; ++i) {
-        const sighting_t z = {1.0 + 0.4 * (i % 10), -0.4 + 0.8 * (double)(i / 10) / (COSLAM_MAX_LANDMARKS / 10.0),
+    for (int i = 0; g_ekf.n_lm < COSLAM_EKF_MAX_LANDMARKS; ++i) {
+        const sighting_t z = {1.0 + 0.4 * (i % 10), -0.4 + 0.8 * (double)(i / 10) / (COSLAM_EKF_MAX_LANDMARKS / 10.0),
                               (uint8_t)(i % 7)};
         assert_int_equal(ekfslam_update(&g_ekf, &z, 1), COSLAM_OK);
-        assert_true(i < 4 * COSLAM_MAX_LANDMARKS);
+        assert_true(i < 4 * COSLAM_EKF_MAX_LANDMARKS);
     }
     const sighting_t extra = {0.35, 0.0, 200};
     assert_int_equal(ekfslam_update(&g_ekf, &extra, 1), COSLAM_E_CAPACITY);
     assert_int_equal(g_ekf.ctr.lm_capacity_drops, 1);
-    assert_int_equal(g_ekf.n_lm, COSLAM_MAX_LANDMARKS);
+    assert_int_equal(g_ekf.n_lm, COSLAM_EKF_MAX_LANDMARKS);
     const double x0 = g_ekf.x[0];
     const sighting_t bad[2] = {{NAN, 0.0, 0}, {1.0, -INFINITY, 0}};
     assert_int_equal(ekfslam_update(&g_ekf, bad, 2), COSLAM_E_NUMERIC);

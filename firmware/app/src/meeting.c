@@ -4,6 +4,13 @@
 #include <stddef.h>
 #include <string.h>
 
+/* One map message of this build's profile, plus what a link decorator may
+ * append (the authentication trailer), is one link datagram: a profile
+ * whose message could not be sent does not build (config.h
+ * COSLAM_LINK_MSG_LANDMARKS, docs/map-message.md). */
+_Static_assert(MAP_MSG_MAX_BYTES + HAL_LINK_TRAILER_RESERVE <= HAL_LINK_MAX_PAYLOAD,
+               "the largest map message (COSLAM_MAX_MSG_LANDMARKS) does not fit HAL_LINK_MAX_PAYLOAD");
+
 meeting_config_t meeting_config_default(void)
 {
     meeting_config_t c;

@@ -296,8 +296,10 @@ int slam_filter_limits(const slam_filter_t *f, slam_filter_limit_t out[SLAM_FILT
         {"lm_capacity_drops", "sightings not mapped: the map is full", "COSLAM_MAX_LANDMARKS", COSLAM_MAX_LANDMARKS, 0U},
         {"sighting_capacity_drops", "sightings dropped: more in one frame than fit", "COSLAM_MAX_SIGHTINGS",
          COSLAM_MAX_SIGHTINGS, 0U},
-        {"export_capacity_drops", "landmarks left out of the exported map", "COSLAM_MAX_EXPORT_IDS",
-         COSLAM_MAX_EXPORT_IDS, 0U},
+        {"export_capacity_drops",
+         "landmarks left out of the exported map (a map message carries at most what fits one link datagram; "
+         "Fast-SLAM's identity table is COSLAM_MAX_EXPORT_IDS)",
+         "COSLAM_MAX_MSG_LANDMARKS", COSLAM_MAX_MSG_LANDMARKS, 0U},
         {"rejected_controls",
          "odometry increments refused (non-finite, or faster than max_speed_mps / max_turn_radps allow)", NULL, 0L, 0U},
         {"rejected_sightings", "sightings refused (non-finite, range beyond sighting_max_range_m, |bearing| > pi)",
@@ -309,6 +311,10 @@ int slam_filter_limits(const slam_filter_t *f, slam_filter_limit_t out[SLAM_FILT
         if (v[i] > 0U) {
             out[n] = table[i];
             out[n].value = v[i];
+            if (i == 0 && f->kind == SLAM_FILTER_EKF) { /* EKF-SLAM's state has its own capacity */
+                out[n].capacity_macro = "COSLAM_EKF_MAX_LANDMARKS";
+                out[n].capacity = COSLAM_EKF_MAX_LANDMARKS;
+            }
             ++n;
         }
     }

@@ -302,7 +302,7 @@ static coslam_status_t update_one(ekfslam_t *ekf, uint16_t j, sighting_t z)
 static coslam_status_t add_landmark(ekfslam_t *ekf, point2_t m, double gr[2][3], double gt[2][3], cov2_t noise,
                                     const ekfslam_meta_t *meta)
 {
-    if (ekf->n_lm >= COSLAM_MAX_LANDMARKS) {
+    if (ekf->n_lm >= COSLAM_EKF_MAX_LANDMARKS) {
         ekf->ctr.lm_capacity_drops++;
         return COSLAM_E_CAPACITY;
     }
@@ -1156,7 +1156,24 @@ coslam_status_t ekfslam_export(ekfslam_t *ekf, map_estimate_t *out)
             order[n++] = j;
         }
     }
-    /* by identity (insertion sort: L is small and exports are rare) */
+    if (n > COSLAM_MAX_MSG_LANDMARKS) {
+        /* more than a message carries (the cap follows the link, config.h):
+         * the most observed landmarks go, state order breaking ties
+         * (insertion sort, stable: exports are rare) */
+        for (int i = 1; i < n; ++i) {
+            const uint16_t v = order[i];
+            int k = i - 1;
+            while (k >= 0 && ekf->meta[order[k]].n_obs < ekf->meta[v].n_obs) {
+                order[k + 1] = order[k];
+                --k;
+            }
+            order[k + 1] = v;
+        }
+        ekf->ctr.export_capacity_drops += (uint32_t)(n - COSLAM_MAX_MSG_LANDMARKS);
+        n = COSLAM_MAX_MSG_LANDMARKS;
+        result = COSLAM_E_CAPACITY;
+    }
+    /* by identity (insertion sort: exports are rare) */
     for (int i = 1; i < n; ++i) {
         const uint16_t v = order[i];
         int k = i - 1;
@@ -1165,11 +1182,6 @@ coslam_status_t ekfslam_export(ekfslam_t *ekf, map_estimate_t *out)
             --k;
         }
         order[k + 1] = v;
-    }
-    if (n > COSLAM_MAX_MSG_LANDMARKS) {
-        ekf->ctr.export_capacity_drops += (uint32_t)(n - COSLAM_MAX_MSG_LANDMARKS);
-        n = COSLAM_MAX_MSG_LANDMARKS;
-        result = COSLAM_E_CAPACITY;
     }
     for (int i = 0; i < n; ++i) {
         const uint16_t j = order[i];

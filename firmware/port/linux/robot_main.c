@@ -36,6 +36,7 @@
 #include <sys/resource.h>
 #include <time.h>
 
+#include "app/profile.h"
 #include "app/robot_node.h"
 #include "hal/hal_clock_linux.h"
 #include "robot_config.h"
@@ -366,6 +367,8 @@ int main(int argc, char **argv)
     fprintf(stderr, "coslam-robot: robot %u of %u, %s filter, profile %s, config %s\n", (unsigned)cfg.robot_id,
             (unsigned)cfg.fleet_size, slam_filter_kind_name(cfg.node.filter.kind), COSLAM_PROFILE_NAME,
             opt.config_path);
+    (void)app_profile_format(msg, sizeof msg);
+    fprintf(stderr, "coslam-robot: %s\n", msg);
     const coslam_status_t ds = robot_devices_init(&dev, &cfg, clock, stderr, opt.verbose, msg, sizeof msg);
     if (ds != COSLAM_OK) {
         /* the link policy refused (a configured fleet key that cannot be

@@ -38,14 +38,23 @@
 extern "C" {
 #endif
 
-/** Largest datagram payload [bytes]. At least 8 KiB so that one map message
- *  of the large profile fits in one datagram (no fragmentation layer). */
+/** Largest datagram payload [bytes]: one map message of every profile plus
+ *  HAL_LINK_TRAILER_RESERVE fits in one datagram (no fragmentation layer;
+ *  larger maps send their best COSLAM_MAX_MSG_LANDMARKS landmarks). */
 #ifndef HAL_LINK_MAX_PAYLOAD
 #define HAL_LINK_MAX_PAYLOAD 16384u
 #endif
 #if HAL_LINK_MAX_PAYLOAD < 8192u || HAL_LINK_MAX_PAYLOAD > 65000u
 #error "HAL_LINK_MAX_PAYLOAD must be in [8192, 65000]"
 #endif
+
+/** Bytes a decorator may append to a protocol's datagram (the
+ *  authentication trailer, hal_link_auth.h: 52; the DDS backend carries up
+ *  to 64). A protocol's largest datagram plus this must fit
+ *  HAL_LINK_MAX_PAYLOAD: the map message's does by a compile-time assertion
+ *  in every build (firmware/app meeting.c, hal/linux/auth, hal/linux/dds;
+ *  coslam/config.h COSLAM_LINK_MSG_LANDMARKS, docs/map-message.md). */
+#define HAL_LINK_TRAILER_RESERVE 64u
 
 /** Destination id meaning "every other robot in reach". Not a robot id. */
 #define HAL_LINK_BROADCAST 0xFFFFu

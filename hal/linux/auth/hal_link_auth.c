@@ -19,7 +19,10 @@
 
 _Static_assert(HAL_LINK_AUTH_KEY_BYTES == crypto_auth_hmacsha512256_KEYBYTES, "key size");
 _Static_assert(HAL_LINK_AUTH_MAC_BYTES == crypto_auth_hmacsha512256_BYTES, "tag size");
-_Static_assert(MAP_MSG_MIN_BYTES + HAL_LINK_AUTH_TRAILER_BYTES <= HAL_LINK_MAX_PAYLOAD, "trailer fits");
+/* the largest map message of this build's profile, signed, is one datagram */
+_Static_assert(HAL_LINK_AUTH_TRAILER_BYTES <= HAL_LINK_TRAILER_RESERVE, "trailer within the link's reserve");
+_Static_assert(MAP_MSG_MAX_BYTES + HAL_LINK_AUTH_TRAILER_BYTES <= HAL_LINK_MAX_PAYLOAD,
+               "the largest map message (COSLAM_MAX_MSG_LANDMARKS) plus the trailer exceeds HAL_LINK_MAX_PAYLOAD");
 
 /* Codec header fields the decorator reads (coslam/map_msg.h wire format). */
 #define OFF_SENDER 5u

@@ -41,7 +41,9 @@ _Static_assert(sizeof(((sample_t *)0)->landmarks) / sizeof(((sample_t *)0)->land
 _Static_assert(coslam_msgs_msg_dds__MapMessage_Constants_TRAILER_MAX_ == HAL_LINK_DDS_TRAILER_MAX &&
                    sizeof(((sample_t *)0)->trailer) == HAL_LINK_DDS_TRAILER_MAX,
                "IDL trailer bound differs from HAL_LINK_DDS_TRAILER_MAX");
-_Static_assert(MAP_MSG_MAX_BYTES + HAL_LINK_DDS_TRAILER_MAX <= UINT32_MAX, "datagram length");
+_Static_assert(HAL_LINK_DDS_TRAILER_MAX <= HAL_LINK_TRAILER_RESERVE, "trailer within the link's reserve");
+_Static_assert(HAL_LINK_DDS_MAX_DATAGRAM <= HAL_LINK_MAX_PAYLOAD,
+               "the largest map message (COSLAM_MAX_MSG_LANDMARKS) plus the trailer exceeds HAL_LINK_MAX_PAYLOAD");
 
 /* ------------------------------------------------------------------------ */
 /* the process's domains                                                    */

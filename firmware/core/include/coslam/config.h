@@ -2,10 +2,16 @@
  * coslam/config.h - the one place where the core's capacities are set.
  *
  * Every static array in firmware/core is sized by a macro from this file.
- * Two profiles exist:
- *   - default  (COSLAM_PROFILE_LARGE undefined): the paper's scale,
- *              100 particles, 64 landmarks per map.
- *   - large    (-DCOSLAM_PROFILE_LARGE=1):       1000 particles, 256 landmarks.
+ * Three profiles exist, one per build (make PROFILE=..., CMake
+ * COSLAM_PROFILE): every library and binary of a build uses the same one
+ * and prints it at start-up (app/profile.h; README "Profiles"):
+ *   - default (neither macro below): the paper's scale, the robot's
+ *             profile: 100 particles, 64 landmarks, 16 sightings per frame.
+ *   - large   (-DCOSLAM_PROFILE_LARGE=1): 1000 particles, 256 landmarks,
+ *             16 sightings; messages capped at 221 landmarks (the link).
+ *   - host    (-DCOSLAM_PROFILE_HOST=1): host tools at scale: 1000
+ *             particles, 2048 landmarks (EKF-SLAM 1024), 64 sightings;
+ *             messages capped at 221 landmarks (the link).
  * Any single macro can be overridden on the compiler command line
  * (-DCOSLAM_MAX_PARTICLES=500) or by pointing COSLAM_CONFIG_HEADER at a header
  * of your own that is included first (tests and benchmarks do this).
@@ -20,7 +26,29 @@
 #include COSLAM_CONFIG_HEADER
 #endif
 
-#if defined(COSLAM_PROFILE_LARGE) && COSLAM_PROFILE_LARGE
+#if defined(COSLAM_PROFILE_LARGE) && COSLAM_PROFILE_LARGE && defined(COSLAM_PROFILE_HOST) && COSLAM_PROFILE_HOST
+#error "choose one profile: COSLAM_PROFILE_LARGE or COSLAM_PROFILE_HOST (make PROFILE=...)"
+#endif
+
+#if defined(COSLAM_PROFILE_HOST) && COSLAM_PROFILE_HOST
+#define COSLAM_PROFILE_NAME_ "host"
+#ifndef COSLAM_MAX_PARTICLES
+#define COSLAM_MAX_PARTICLES 1000
+#endif
+#ifndef COSLAM_MAX_LANDMARKS
+#define COSLAM_MAX_LANDMARKS 2048
+#endif
+#ifndef COSLAM_MAX_SIGHTINGS
+#define COSLAM_MAX_SIGHTINGS 64
+#endif
+/* EKF-SLAM's dense covariance grows with the square of its landmarks
+ * (8 (2L + 6)^2 bytes: 134 MB at 2048, 34 MB at 1024) and its update with
+ * the square of the state: the host profile's EKF keeps 1024 (the issue-13
+ * scale, 10 ms per step), Fast-SLAM the full 2048. */
+#ifndef COSLAM_EKF_MAX_LANDMARKS
+#define COSLAM_EKF_MAX_LANDMARKS 1024
+#endif
+#elif defined(COSLAM_PROFILE_LARGE) && COSLAM_PROFILE_LARGE
 #define COSLAM_PROFILE_NAME_ "large"
 #ifndef COSLAM_MAX_PARTICLES
 #define COSLAM_MAX_PARTICLES 1000
@@ -34,23 +62,53 @@
 #ifndef COSLAM_MAX_PARTICLES
 #define COSLAM_MAX_PARTICLES 100
 #endif
-/** Landmarks in one Fast-SLAM particle's map, and in the EKF-SLAM state. */
+/** Landmarks in one Fast-SLAM particle's map (and, unless
+ *  COSLAM_EKF_MAX_LANDMARKS says otherwise, in the EKF-SLAM state). */
 #ifndef COSLAM_MAX_LANDMARKS
 #define COSLAM_MAX_LANDMARKS 64
 #endif
 #endif
 
-/** Name of the selected profile, for reports. */
+/** Name of the selected profile, for reports. A core built with capacities
+ *  of its own (a benchmark's) names itself with -DCOSLAM_PROFILE_NAME=... */
+#ifndef COSLAM_PROFILE_NAME
 #define COSLAM_PROFILE_NAME COSLAM_PROFILE_NAME_
+#endif
 
 /** Sightings (landmark observations) accepted in one filter update. */
 #ifndef COSLAM_MAX_SIGHTINGS
 #define COSLAM_MAX_SIGHTINGS 16
 #endif
 
-/** Landmarks carried by one map estimate / map message. */
+/** Landmarks in the EKF-SLAM state: its own capacity, because its memory
+ *  (the dense covariance) grows with the square of it. At most
+ *  COSLAM_MAX_LANDMARKS; running out is counted and reported like the
+ *  Fast-SLAM map's (lm_capacity_drops, naming this macro). */
+#ifndef COSLAM_EKF_MAX_LANDMARKS
+#define COSLAM_EKF_MAX_LANDMARKS COSLAM_MAX_LANDMARKS
+#endif
+
+/**
+ * Landmarks that fit one map message in one link datagram: the largest n
+ * with map_msg.h's MAP_MSG_BYTES(n) = 142 + 73 n plus the 64 bytes a link
+ * decorator may append (the authentication trailer, HAL_LINK_TRAILER_RESERVE)
+ * within HAL_LINK_MAX_PAYLOAD = 16384: n = 221 (16,275 B + 64). The core
+ * does not include the HAL; the link code and the robot app hold this number
+ * to the link with compile-time assertions (hal_link_auth.c, hal_link_dds.c,
+ * meeting.c), so a build whose message cannot fit does not compile.
+ */
+#define COSLAM_LINK_MSG_LANDMARKS 221
+
+/** Landmarks carried by one map estimate / map message: the map capacity,
+ *  capped at what fits the link (COSLAM_LINK_MSG_LANDMARKS). A larger map
+ *  sends its best landmarks (the filters' export chooses, docs/map-message.md)
+ *  and counts the rest (export_capacity_drops, a LIMIT line). */
 #ifndef COSLAM_MAX_MSG_LANDMARKS
+#if COSLAM_MAX_LANDMARKS < COSLAM_LINK_MSG_LANDMARKS
 #define COSLAM_MAX_MSG_LANDMARKS COSLAM_MAX_LANDMARKS
+#else
+#define COSLAM_MAX_MSG_LANDMARKS COSLAM_LINK_MSG_LANDMARKS
+#endif
 #endif
 
 /** Distinct landmark identities the Fast-SLAM export can combine over the
@@ -111,6 +169,9 @@
 #endif
 #if COSLAM_MAX_SIGHTINGS < 1 || COSLAM_MAX_SIGHTINGS > 255
 #error "COSLAM_MAX_SIGHTINGS must be in [1, 255]"
+#endif
+#if COSLAM_EKF_MAX_LANDMARKS < 1 || COSLAM_EKF_MAX_LANDMARKS > COSLAM_MAX_LANDMARKS
+#error "COSLAM_EKF_MAX_LANDMARKS must be in [1, COSLAM_MAX_LANDMARKS]"
 #endif
 #if COSLAM_MAX_MSG_LANDMARKS < 1 || COSLAM_MAX_MSG_LANDMARKS > 65535
 #error "COSLAM_MAX_MSG_LANDMARKS must be in [1, 65535]"

@@ -37,7 +37,8 @@
  *      G_z Q G_z^T + w8 I, P_m* = G_r P_r*.
  *
  * Memory: sizeof(ekfslam_t) ~ 8 * EKFSLAM_DIM^2 bytes (137 KB for 64
- * landmarks, 2.1 MB for 256). Never allocates.
+ * landmarks, 2.1 MB for 256, 34 MB for 1024: the capacity is its own,
+ * COSLAM_EKF_MAX_LANDMARKS, config.h). Never allocates.
  * Time: predict O(L); update O(L + S * L_near + S * L^2) for S sightings.
  */
 #ifndef COSLAM_EKFSLAM_H
@@ -57,8 +58,8 @@
 extern "C" {
 #endif
 
-/** Largest state: pose and COSLAM_MAX_LANDMARKS landmarks. */
-#define EKFSLAM_STATE_MAX (3 + 2 * COSLAM_MAX_LANDMARKS)
+/** Largest state: pose and COSLAM_EKF_MAX_LANDMARKS landmarks. */
+#define EKFSLAM_STATE_MAX (3 + 2 * COSLAM_EKF_MAX_LANDMARKS)
 /** Fixed stride of x and P: the state plus 3 entries reserved for the
  *  transform error a map merge carries while it runs (ekfslam_merge_*). */
 #define EKFSLAM_DIM (EKFSLAM_STATE_MAX + 3)
@@ -136,11 +137,11 @@ typedef struct {
 #define EKFSLAM_JCBB_DIM (2 * COSLAM_MAX_SIGHTINGS)
 
 typedef struct {
-    lm_expect_t expect[COSLAM_MAX_LANDMARKS];
-    uint8_t near[COSLAM_MAX_LANDMARKS];
-    uint8_t matched[COSLAM_MAX_LANDMARKS];
-    uint8_t closure[COSLAM_MAX_LANDMARKS];      /**< candidate is loop-closing (valid for paired landmarks) */
-    assoc_pair_t pairs[COSLAM_MAX_SIGHTINGS * COSLAM_MAX_LANDMARKS];
+    lm_expect_t expect[COSLAM_EKF_MAX_LANDMARKS];
+    uint8_t near[COSLAM_EKF_MAX_LANDMARKS];
+    uint8_t matched[COSLAM_EKF_MAX_LANDMARKS];
+    uint8_t closure[COSLAM_EKF_MAX_LANDMARKS];      /**< candidate is loop-closing (valid for paired landmarks) */
+    assoc_pair_t pairs[COSLAM_MAX_SIGHTINGS * COSLAM_EKF_MAX_LANDMARKS];
     uint8_t n_near[COSLAM_MAX_SIGHTINGS];
     int32_t assign[COSLAM_MAX_SIGHTINGS];
     /* JCBB search state */
@@ -165,7 +166,7 @@ typedef struct {
     uint32_t nodes;
     double pht[EKFSLAM_DIM][2];
     double k[EKFSLAM_DIM][2];
-    uint16_t order[COSLAM_MAX_LANDMARKS];
+    uint16_t order[COSLAM_EKF_MAX_LANDMARKS];
 } ekfslam_scratch_t;
 
 typedef struct {
@@ -174,15 +175,15 @@ typedef struct {
     uint32_t next_id;
     ekfslam_counters_t ctr;
     double x[EKFSLAM_DIM];
-    point2_t lm_first[COSLAM_MAX_LANDMARKS]; /**< first estimate of each landmark (FEJ) */
+    point2_t lm_first[COSLAM_EKF_MAX_LANDMARKS]; /**< first estimate of each landmark (FEJ) */
     uint8_t merging;                         /**< 1 between ekfslam_merge_begin and _end */
     pose2_t pose_prior;                      /**< pose after the last prediction (FEJ) */
     double p[EKFSLAM_DIM * EKFSLAM_DIM];   /**< row-major, stride EKFSLAM_DIM */
-    ekfslam_meta_t meta[COSLAM_MAX_LANDMARKS];
+    ekfslam_meta_t meta[COSLAM_EKF_MAX_LANDMARKS];
     /** 1 once landmark j's evidence was seen at or above exist_confirm
      *  (exist_miss(); like landmark_t.confirmed_once, kept beside meta so
      *  that callers filling an ekfslam_meta_t need not know it) */
-    uint8_t lm_confirmed_once[COSLAM_MAX_LANDMARKS];
+    uint8_t lm_confirmed_once[COSLAM_EKF_MAX_LANDMARKS];
     ekfslam_scratch_t scratch;
 } ekfslam_t;
 
@@ -209,8 +210,10 @@ double ekfslam_p(const ekfslam_t *ekf, int r, int c);
 
 /**
  * Export the map estimate: the pose with P_rr and every confirmed landmark
- * with its marginal covariance, ordered by identity. E_CAPACITY (counted)
- * if more confirmed landmarks than COSLAM_MAX_MSG_LANDMARKS. O(L log L).
+ * with its marginal covariance, ordered by identity. E_CAPACITY (counted
+ * in export_capacity_drops) if more confirmed landmarks than
+ * COSLAM_MAX_MSG_LANDMARKS: the most observed ones (n_obs) are exported.
+ * O(L^2) (insertion sorts; exports are rare).
  */
 coslam_status_t ekfslam_export(ekfslam_t *ekf, map_estimate_t *out);
 
