@@ -5,9 +5,11 @@
 # landmark truth (Dataset 1 has no robot truth: pose "n/a"). Parameters:
 # host/replay/mrclam6.ini, chosen on Dataset 6 only (docs/replay.md).
 #   tools/merge_table.sh [BUILD] [OUT]     -> OUT/merge_table.md
+# BUILD: a host-profile build (default build-host, as `make replay` makes:
+# 300 particles need more than the default profile's 100).
 # Environment: COSLAM_DATA_DIR (folder holding mrclam/), PARTICLES.
 set -eu
-build=${1:-build}
+build=${1:-build-host}
 out=${2:-out/merge_table}
 data=${COSLAM_DATA_DIR:-../shared/data}/mrclam
 particles=${PARTICLES:-300}
