@@ -26,7 +26,11 @@ MAP_MATCHED_MARGIN = 2      # landmarks matched in the final map
 MAP_SPURIOUS_MARGIN = 2
 MAP_RMSE_FACTOR = 1.5
 # GPIO (--gpio-fd): the e-stopped robot (docs/e2e.md, "GPIO")
-BUMP_TURN_DEG = (-135.0, -45.0)  # the bumper's quarter turn right (heading - 90 deg), net, 4 s after release
+# the bumper's quarter turn right (heading - 90 deg) after release: the net
+# turn in the 4 s after it is at least 60 deg to the right; the obstacle
+# behaviour may turn on once the quarter is done (CI saw -137 and -168 deg
+# where the turned robot faced a wall), so there is no bound on more
+BUMP_TURN_MAX_DEG = -60.0
 ESTOP_STILL_M = 0.02        # path length while the e-stop is held (from 0.5 s after the press)
 ESTOP_MOVING_M = 0.1        # ... and in as long a time before it / after the release
 LED_RUN_HZ = (2.0, 6.0)     # status LED edges per second: heartbeat (4/s) while running
@@ -91,10 +95,13 @@ def main():
                   % (es["led_rate_before_hz"], es["led_rate_during_hz"]))
         bp = g.get("bump")
         if bp is not None:
-            check(bp["moved_during_m"] <= ESTOP_STILL_M and BUMP_TURN_DEG[0] <= bp["turned_after_deg"] <= BUMP_TURN_DEG[1],
+            acks = e["status"].get("bumper_acks", -1)
+            check(bp["moved_during_m"] <= ESTOP_STILL_M and bp["turned_after_deg"] <= BUMP_TURN_MAX_DEG
+                  and 1 <= acks <= g["bumper_presses"],
                   "bumper %.1f .. %.1f s: moved %.3f m pressed (bound %.2f), turned %.0f deg in the 4 s after "
-                  "release (a quarter right: %d .. %d), moved %.2f m" % (bp["t0_s"], bp["t1_s"], bp["moved_during_m"],
-                  ESTOP_STILL_M, bp["turned_after_deg"], BUMP_TURN_DEG[0], BUMP_TURN_DEG[1], bp["moved_after_m"]))
+                  "release (a quarter right: <= %.0f), moved %.2f m; presses %d, acknowledged %d"
+                  % (bp["t0_s"], bp["t1_s"], bp["moved_during_m"], ESTOP_STILL_M, bp["turned_after_deg"],
+                     BUMP_TURN_MAX_DEG, bp["moved_after_m"], g["bumper_presses"], acks))
         m = col("merge")
         check(e["first_merge_s"] > 0 and min(m) - MERGE_MARGIN_S <= e["first_merge_s"] <= max(m) + MERGE_MARGIN_S,
               "first merge at %.1f s [%.1f .. %.1f] +- %.0f s" % (e["first_merge_s"], min(m), max(m), MERGE_MARGIN_S))
