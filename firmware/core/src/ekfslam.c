@@ -1144,6 +1144,31 @@ coslam_status_t ekfslam_merge_add(ekfslam_t *ekf, pose2_t t_hat, point2_t rel_ot
     return add_landmark(ekf, pose2_apply(pose, b), gr, gt, cov2_congruence(rr, noise_other), meta);
 }
 
+/* Stable insertion sort of state indices by `before` (exports are rare). */
+static void sort_order(const ekfslam_t *ekf, uint16_t *order, int n,
+                       int (*before)(const ekfslam_t *, uint16_t, uint16_t))
+{
+    for (int i = 1; i < n; ++i) {
+        const uint16_t v = order[i];
+        int k = i - 1;
+        while (k >= 0 && before(ekf, v, order[k])) {
+            order[k + 1] = order[k];
+            --k;
+        }
+        order[k + 1] = v;
+    }
+}
+
+static int more_observed(const ekfslam_t *ekf, uint16_t a, uint16_t b)
+{
+    return ekf->meta[a].n_obs > ekf->meta[b].n_obs;
+}
+
+static int smaller_id(const ekfslam_t *ekf, uint16_t a, uint16_t b)
+{
+    return ekf->meta[a].id < ekf->meta[b].id;
+}
+
 coslam_status_t ekfslam_export(ekfslam_t *ekf, map_estimate_t *out)
 {
     const slam_params_t *sp = &ekf->cfg.slam;
@@ -1158,31 +1183,13 @@ coslam_status_t ekfslam_export(ekfslam_t *ekf, map_estimate_t *out)
     }
     if (n > COSLAM_MAX_MSG_LANDMARKS) {
         /* more than a message carries (the cap follows the link, config.h):
-         * the most observed landmarks go, state order breaking ties
-         * (insertion sort, stable: exports are rare) */
-        for (int i = 1; i < n; ++i) {
-            const uint16_t v = order[i];
-            int k = i - 1;
-            while (k >= 0 && ekf->meta[order[k]].n_obs < ekf->meta[v].n_obs) {
-                order[k + 1] = order[k];
-                --k;
-            }
-            order[k + 1] = v;
-        }
+         * the most observed landmarks go, state order breaking ties */
+        sort_order(ekf, order, n, more_observed);
         ekf->ctr.export_capacity_drops += (uint32_t)(n - COSLAM_MAX_MSG_LANDMARKS);
         n = COSLAM_MAX_MSG_LANDMARKS;
         result = COSLAM_E_CAPACITY;
     }
-    /* by identity (insertion sort: exports are rare) */
-    for (int i = 1; i < n; ++i) {
-        const uint16_t v = order[i];
-        int k = i - 1;
-        while (k >= 0 && ekf->meta[order[k]].id > ekf->meta[v].id) {
-            order[k + 1] = order[k];
-            --k;
-        }
-        order[k + 1] = v;
-    }
+    sort_order(ekf, order, n, smaller_id);
     for (int i = 0; i < n; ++i) {
         const uint16_t j = order[i];
         map_landmark_t *o = &out->lm[i];
