@@ -5,7 +5,7 @@
  * of docs/consistency.md; the CI tests (test/slam/test_worlds.c) run the
  * same worlds through the same runner.
  *
- *   coslam-eval-worlds [--world paper|loop] [--filter ekf|fs1|fs2]
+ *   coslam-eval-worlds [--world paper|loop|large] [--filter ekf|fs1|fs2]
  *                      [-p N] [--seeds N] [--seed0 S] [--out DIR]
  *
  * Worlds (eval_worlds.h): "paper" is the paper's scale (20 m loop among 64
@@ -27,7 +27,7 @@
 
 static void usage(void)
 {
-    fprintf(stderr, "usage: coslam-eval-worlds [--world paper|loop] [--filter ekf|fs1|fs2] [-p N] [--seeds N] "
+    fprintf(stderr, "usage: coslam-eval-worlds [--world paper|loop|large] [--filter ekf|fs1|fs2] [-p N] [--seeds N] "
                     "[--seed0 S] [--out DIR] [--trace]\n");
 }
 
@@ -56,7 +56,7 @@ int main(int argc, char **argv)
     run_filter_t fk;
     if (eval_world_parse(world, &wk) != 0 || eval_filter_parse(filter, &fk) != 0 || seeds < 1 || seeds > 1000 ||
         seed0 < 0 || particles < 1 || particles > COSLAM_MAX_PARTICLES) {
-        fprintf(stderr, "coslam-eval-worlds: bad argument (world paper|loop, filter ekf|fs1|fs2, 1 <= p <= %d, "
+        fprintf(stderr, "coslam-eval-worlds: bad argument (world paper|loop|large, filter ekf|fs1|fs2, 1 <= p <= %d, "
                         "1 <= seeds <= 1000, seed0 >= 0)\n", COSLAM_MAX_PARTICLES);
         usage();
         return 2;
@@ -83,7 +83,8 @@ int main(int argc, char **argv)
     eval_summary_init(&sum);
     char line[512];
     snprintf(line, sizeof line, "| seed | final err m | pose RMSE m | odo RMSE m | lm RMSE m | landmarks | spurious | "
-                                "lm sd m | lm NEES | pose NEES | closed |\n|---|---|---|---|---|---|---|---|---|---|---|\n");
+                                "missed | lm sd m | lm NEES | pose NEES | step ms mean / max | closed |\n"
+                                "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
     fputs(line, stdout);
     if (md) fputs(line, md);
     for (int s = 0; s < seeds; ++s) {
@@ -118,9 +119,10 @@ int main(int argc, char **argv)
             sd += r->estimate.lm[i].cov.xx + r->estimate.lm[i].cov.yy;
         }
         sd = r->estimate.n_landmarks > 0 ? sqrt(sd / r->estimate.n_landmarks) : 0.0;
-        snprintf(line, sizeof line, "| %llu | %.3f | %.3f | %.3f | %.3f | %d | %d | %.3f | %.2f | %.2f | %s |\n",
+        snprintf(line, sizeof line, "| %llu | %.3f | %.3f | %.3f | %.3f | %d | %d | %d | %.3f | %.2f | %.2f | %.2f / %.1f | %s |\n",
                  (unsigned long long)seed, r->final_pos_err_m, r->pose_rmse_m, r->odo_rmse_m, r->map.rmse_m,
-                 r->map.n_estimated, r->map.n_spurious, sd, r->map.nees_mean, r->pose_nees_mean,
+                 r->map.n_estimated, r->map.n_spurious, r->map.n_missed, sd, r->map.nees_mean, r->pose_nees_mean,
+                 1e-3 * r->step_us_mean, 1e-3 * r->step_us_max,
                  eval_closed(r) ? "yes" : "no");
         fputs(line, stdout);
         if (md) fputs(line, md);

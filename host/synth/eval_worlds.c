@@ -11,6 +11,14 @@ synth_config_t eval_world_config(eval_world_t world, uint64_t seed)
         sc = synth_config_default(seed, 64);
         sc.loop_radius_m = 2.5;
         sc.ring_half_width_m = 2.0;
+    } else if (world == EVAL_WORLD_LARGE) {
+        /* Issue 13: a loop through a field of 1,024 landmarks, 2 per m^2
+         * (about 20 sightings per frame): a ring of radius 16 m, 5 m wide,
+         * 1.1 turns (111 m, 370 s). */
+        sc = synth_config_default(seed, 1024);
+        sc.loop_radius_m = 16.0;
+        sc.ring_half_width_m = 2.5;
+        sc.loops = 1.1;
     } else {
         sc = synth_config_default(seed, 160);
         sc.loop_radius_m = 8.0;
@@ -27,6 +35,8 @@ int eval_world_parse(const char *name, eval_world_t *out)
         *out = EVAL_WORLD_PAPER;
     } else if (!strcmp(name, "loop")) {
         *out = EVAL_WORLD_LOOP;
+    } else if (!strcmp(name, "large")) {
+        *out = EVAL_WORLD_LARGE;
     } else {
         return -1;
     }

@@ -8,7 +8,10 @@
  *  - EVAL_WORLD_LOOP: one large loop. 1.15 turns of an 8 m circle (58 m)
  *    among 160 landmarks of 4 classes in a 3 m wide ring; the robot comes
  *    back to its start after 50 m of dead reckoning and must recognise it.
- * Both with the default ("paper") noise of slam_params_default(), the
+ *  - EVAL_WORLD_LARGE: scale (issue 13). 1.1 turns of a 16 m circle (111 m)
+ *    among 1,024 landmarks of 4 classes in a 5 m wide ring (2 per m^2,
+ *    about 20 sightings per frame).
+ * All with the default ("paper") noise of slam_params_default(), the
  * filter given the truth's model.
  */
 #ifndef COSLAM_EVAL_WORLDS_H
@@ -20,7 +23,7 @@
 extern "C" {
 #endif
 
-typedef enum { EVAL_WORLD_PAPER = 1, EVAL_WORLD_LOOP = 2 } eval_world_t;
+typedef enum { EVAL_WORLD_PAPER = 1, EVAL_WORLD_LOOP = 2, EVAL_WORLD_LARGE = 3 } eval_world_t;
 
 /** World configuration for a seed. */
 synth_config_t eval_world_config(eval_world_t world, uint64_t seed);

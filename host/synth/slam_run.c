@@ -26,6 +26,49 @@ static double now_us(void)
     return (double)ts.tv_sec * 1e6 + (double)ts.tv_nsec * 1e-3;
 }
 
+/* Append every page of an export into `out`. */
+static coslam_status_t export_full(void *filter, int is_ekf, map_full_t *out)
+{
+    map_estimate_t *page = malloc(sizeof *page);
+    if (page == NULL) {
+        return COSLAM_E_CAPACITY;
+    }
+    coslam_status_t result = COSLAM_OK;
+    out->n_landmarks = 0;
+    for (uint16_t k = 0;; ++k) {
+        uint16_t total = 0;
+        const coslam_status_t st = is_ekf ? ekfslam_export_page((ekfslam_t *)filter, page, k, &total)
+                                          : fastslam_export_page((fastslam_t *)filter, page, k, &total);
+        if (st != COSLAM_OK) {
+            result = st;
+        }
+        if (k == 0) {
+            out->pose = page->pose;
+            out->pose_cov = page->pose_cov;
+        }
+        for (int i = 0; i < page->n_landmarks && out->n_landmarks < COSLAM_MAX_EXPORT_IDS; ++i) {
+            out->lm[out->n_landmarks++] = page->lm[i];
+        }
+        if (page->n_landmarks < COSLAM_MAX_MSG_LANDMARKS || out->n_landmarks >= total) {
+            break;
+        }
+    }
+    free(page);
+    return result;
+}
+
+coslam_status_t run_export_full_ekf(ekfslam_t *ekf, map_full_t *out) { return export_full(ekf, 1, out); }
+coslam_status_t run_export_full_fs(fastslam_t *fs, map_full_t *out) { return export_full(fs, 0, out); }
+
+static int size_bin(int n_lm)
+{
+    int k = 0;
+    while (k + 1 < RUN_SIZE_BINS && (double)n_lm >= 1.41421356237 * (double)(1 << k)) {
+        ++k;
+    }
+    return k;
+}
+
 void run_trace_free(run_trace_t *trace)
 {
     free(trace->t);
@@ -135,6 +178,9 @@ int run_synth_traced(const synth_config_t *scfg, const run_opts_t *opts, run_res
         }
         const double dt = now_us() - t0;
         t_sum += dt;
+        const int bin = size_bin(ekf != NULL ? ekf->n_lm : fs->particles[0].n_lm);
+        res->size_bin_us[bin] += dt;
+        res->size_bin_steps[bin]++;
         if (dt > res->step_us_max) {
             res->step_us_max = dt;
         }
@@ -193,14 +239,31 @@ int run_synth_traced(const synth_config_t *scfg, const run_opts_t *opts, run_res
     res->heading_rmse_rad = sqrt(se_h / res->n_steps);
     res->odo_rmse_m = sqrt(se_odo / res->n_steps);
     res->step_us_mean = t_sum / res->n_steps;
+    for (int k = 0; k < RUN_SIZE_BINS; ++k) {
+        res->size_bin_us[k] = res->size_bin_steps[k] > 0 ? res->size_bin_us[k] / res->size_bin_steps[k] : 0.0;
+    }
+    map_full_t *full = malloc(sizeof *full);
     if (ekf != NULL) {
         (void)ekfslam_export(ekf, &res->estimate);
+        res->n_final_landmarks = ekf->n_lm;
+        if (full != NULL) {
+            (void)run_export_full_ekf(ekf, full);
+        }
     } else {
         (void)fastslam_export(fs, &res->estimate);
+        res->n_final_landmarks = fs->particles[0].n_lm;
+        if (full != NULL) {
+            (void)run_export_full_fs(fs, full);
+        }
         res->resamples = fs->ctr.resamples;
         res->ess_mean /= res->n_frames > 0 ? res->n_frames : 1;
     }
-    eval_map(&res->estimate, w->lm, w->n_seen, w->n_lm, opts->min_seen, opts->gate_m, &res->map);
+    if (full != NULL) {
+        eval_map_full(full, w->lm, w->n_seen, w->n_lm, opts->min_seen, opts->gate_m, &res->map);
+    } else {
+        eval_map(&res->estimate, w->lm, w->n_seen, w->n_lm, opts->min_seen, opts->gate_m, &res->map);
+    }
+    free(full);
     free(map_est);
     free(map_ev);
     free(fs);

@@ -16,6 +16,7 @@ extern "C" {
 #endif
 
 #define RUN_MAX_CKPT 128
+#define RUN_SIZE_BINS 16
 
 typedef enum { RUN_FASTSLAM1 = 1, RUN_FASTSLAM2 = 2, RUN_EKFSLAM = 3 } run_filter_t;
 
@@ -50,8 +51,19 @@ typedef struct {
     uint32_t capacity_errors;
     uint32_t resamples;         /**< Fast-SLAM resampling events */
     double ess_mean;            /**< Fast-SLAM mean ESS fraction after updates */
-    map_estimate_t estimate;    /**< final exported map */
+    map_estimate_t estimate;    /**< final exported map (what a message carries) */
+    int n_final_landmarks;      /**< landmarks in the filter at the end (EKF-SLAM state, Fast-SLAM particle 0) */
+    /** Wall time per control step by the filter's map size L at that step:
+     *  bin k holds the steps with round(log2 L) = k (L within a factor
+     *  sqrt 2 of 2^k; bin 0 also L = 0). */
+    double size_bin_us[RUN_SIZE_BINS];
+    int size_bin_steps[RUN_SIZE_BINS];
 } run_result_t;
+
+/** The whole map of a filter, every page of *_export_page (run_result_t.map
+ *  scores this one, not the message-sized `estimate`). */
+coslam_status_t run_export_full_ekf(ekfslam_t *ekf, map_full_t *out);
+coslam_status_t run_export_full_fs(fastslam_t *fs, map_full_t *out);
 
 /** Per-step trajectories of a run (heap arrays, free with run_trace_free).
  *  With opts->trace_map_every > 0 also the map's error over time: every

@@ -405,11 +405,25 @@ void eval_map(const map_estimate_t *est, const point2_t *truth, const int *n_see
     eval_map_signed(est, truth, NULL, n_seen, n_truth, min_seen, gate_m, out);
 }
 
+static void eval_map_lm(const map_landmark_t *lm, int n, const point2_t *truth, const uint8_t *truth_sig,
+                        const int *n_seen, int n_truth, int min_seen, double gate_m, map_eval_t *out);
+
 void eval_map_signed(const map_estimate_t *est, const point2_t *truth, const uint8_t *truth_sig, const int *n_seen,
                      int n_truth, int min_seen, double gate_m, map_eval_t *out)
 {
+    eval_map_lm(est->lm, est->n_landmarks, truth, truth_sig, n_seen, n_truth, min_seen, gate_m, out);
+}
+
+void eval_map_full(const map_full_t *est, const point2_t *truth, const int *n_seen, int n_truth, int min_seen,
+                   double gate_m, map_eval_t *out)
+{
+    eval_map_lm(est->lm, est->n_landmarks, truth, NULL, n_seen, n_truth, min_seen, gate_m, out);
+}
+
+static void eval_map_lm(const map_landmark_t *lm, int n, const point2_t *truth, const uint8_t *truth_sig,
+                        const int *n_seen, int n_truth, int min_seen, double gate_m, map_eval_t *out)
+{
     memset(out, 0, sizeof *out);
-    const int n = est->n_landmarks;
     out->n_estimated = n;
     for (int i = 0; i < n; ++i) {
         out->match[i] = -1;
@@ -422,8 +436,8 @@ void eval_map_signed(const map_estimate_t *est, const point2_t *truth, const uin
     int *r2c = (int *)calloc((size_t)(n > 0 ? n : 1), sizeof(int));
     uint8_t *sig = (uint8_t *)calloc((size_t)(n > 0 ? n : 1), sizeof(uint8_t));
     for (int i = 0; i < n; ++i) {
-        mean[i] = est->lm[i].mean;
-        sig[i] = est->lm[i].signature;
+        mean[i] = lm[i].mean;
+        sig[i] = lm[i].signature;
     }
     (void)assign_gated(mean, truth_sig != NULL ? sig : NULL, n, truth, truth_sig, n_truth, gate_m, r2c);
     free(sig);
@@ -435,14 +449,14 @@ void eval_map_signed(const map_estimate_t *est, const point2_t *truth, const uin
         if (j >= 0) {
             out->match[i] = j;
             truth_matched[j] = 1;
-            const double dx = est->lm[i].mean.x - truth[j].x;
-            const double dy = est->lm[i].mean.y - truth[j].y;
+            const double dx = lm[i].mean.x - truth[j].x;
+            const double dy = lm[i].mean.y - truth[j].y;
             const double e2 = dx * dx + dy * dy;
             se += e2;
             if (sqrt(e2) > out->max_err_m) {
                 out->max_err_m = sqrt(e2);
             }
-            nees += nees_point(est->lm[i].mean, est->lm[i].cov, truth[j]);
+            nees += nees_point(lm[i].mean, lm[i].cov, truth[j]);
             out->n_matched++;
         } else {
             out->n_spurious++;

@@ -36,7 +36,7 @@ typedef struct {
     double rmse_m;       /**< over matched pairs */
     double max_err_m;
     double nees_mean;    /**< mean landmark NEES over matched pairs */
-    int match[COSLAM_MAX_MSG_LANDMARKS]; /**< true index matched to estimate i, or -1 */
+    int match[COSLAM_MAX_EXPORT_IDS]; /**< true index matched to estimate i, or -1 */
 } map_eval_t;
 
 /**
@@ -47,6 +47,22 @@ typedef struct {
  */
 void eval_map(const map_estimate_t *est, const point2_t *truth, const int *n_seen, int n_truth, int min_seen,
               double gate_m, map_eval_t *out);
+
+/**
+ * The whole exported map, every page of the core's *_export_page (a
+ * message carries at most COSLAM_MAX_MSG_LANDMARKS; the evaluation of a
+ * large map must see all of it). About 80 bytes per landmark: allocate it.
+ */
+typedef struct {
+    pose2_t pose;
+    cov3_t pose_cov;
+    int n_landmarks;
+    map_landmark_t lm[COSLAM_MAX_EXPORT_IDS];
+} map_full_t;
+
+/** eval_map on a whole map. */
+void eval_map_full(const map_full_t *est, const point2_t *truth, const int *n_seen, int n_truth, int min_seen,
+                   double gate_m, map_eval_t *out);
 
 /** eval_map where an estimate may pair only with a true landmark of its
  *  own signature (truth_sig[j]; NULL: any), the simulator's marker classes. */

@@ -1169,27 +1169,22 @@ static int smaller_id(const ekfslam_t *ekf, uint16_t a, uint16_t b)
     return ekf->meta[a].id < ekf->meta[b].id;
 }
 
-coslam_status_t ekfslam_export(ekfslam_t *ekf, map_estimate_t *out)
+/* Confirmed landmarks in state order into `order`; their count. */
+static int confirmed_order(const ekfslam_t *ekf, uint16_t *order)
 {
-    const slam_params_t *sp = &ekf->cfg.slam;
-    uint16_t *order = ekf->scratch.order;
-    coslam_status_t result = COSLAM_OK;
-    ekfslam_pose(ekf, &out->pose, &out->pose_cov);
     int n = 0;
     for (uint16_t j = 0; j < ekf->n_lm; ++j) {
-        if (ekf->meta[j].exist >= sp->exist_confirm) {
+        if (ekf->meta[j].exist >= ekf->cfg.slam.exist_confirm) {
             order[n++] = j;
         }
     }
-    if (n > COSLAM_MAX_MSG_LANDMARKS) {
-        /* more than a message carries (the cap follows the link, config.h):
-         * the most observed landmarks go, state order breaking ties */
-        sort_order(ekf, order, n, more_observed);
-        ekf->ctr.export_capacity_drops += (uint32_t)(n - COSLAM_MAX_MSG_LANDMARKS);
-        n = COSLAM_MAX_MSG_LANDMARKS;
-        result = COSLAM_E_CAPACITY;
-    }
-    sort_order(ekf, order, n, smaller_id);
+    return n;
+}
+
+/* The pose and landmarks order[0..n) into `out`. */
+static void export_fill(const ekfslam_t *ekf, map_estimate_t *out, const uint16_t *order, int n)
+{
+    ekfslam_pose(ekf, &out->pose, &out->pose_cov);
     for (int i = 0; i < n; ++i) {
         const uint16_t j = order[i];
         map_landmark_t *o = &out->lm[i];
@@ -1205,5 +1200,37 @@ coslam_status_t ekfslam_export(ekfslam_t *ekf, map_estimate_t *out)
         o->signature = ekf->meta[j].signature;
     }
     out->n_landmarks = (uint16_t)n;
+}
+
+coslam_status_t ekfslam_export(ekfslam_t *ekf, map_estimate_t *out)
+{
+    uint16_t *order = ekf->scratch.order;
+    coslam_status_t result = COSLAM_OK;
+    int n = confirmed_order(ekf, order);
+    if (n > COSLAM_MAX_MSG_LANDMARKS) {
+        /* more than a message carries (the cap follows the link, config.h):
+         * the most observed landmarks go, state order breaking ties */
+        sort_order(ekf, order, n, more_observed);
+        ekf->ctr.export_capacity_drops += (uint32_t)(n - COSLAM_MAX_MSG_LANDMARKS);
+        n = COSLAM_MAX_MSG_LANDMARKS;
+        result = COSLAM_E_CAPACITY;
+    }
+    sort_order(ekf, order, n, smaller_id);
+    export_fill(ekf, out, order, n);
     return result;
+}
+
+coslam_status_t ekfslam_export_page(ekfslam_t *ekf, map_estimate_t *out, uint16_t page, uint16_t *n_total)
+{
+    uint16_t *order = ekf->scratch.order;
+    const int n = confirmed_order(ekf, order);
+    sort_order(ekf, order, n, smaller_id);
+    const int first = (int)page * COSLAM_MAX_MSG_LANDMARKS;
+    int count = n - first;
+    count = count < 0 ? 0 : (count > COSLAM_MAX_MSG_LANDMARKS ? COSLAM_MAX_MSG_LANDMARKS : count);
+    export_fill(ekf, out, order + (count > 0 ? first : 0), count);
+    if (n_total != NULL) {
+        *n_total = (uint16_t)n;
+    }
+    return COSLAM_OK;
 }

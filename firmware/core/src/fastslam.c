@@ -740,7 +740,9 @@ static void sort_u32_by_key(uint32_t *v, int n, const fastslam_export_scratch_t 
     }
 }
 
-coslam_status_t fastslam_export(fastslam_t *fs, map_estimate_t *out)
+/* Both passes of the export: per identity, weight, mean and covariance
+ * (map and relative) into the export table; the pose into `out`. */
+static coslam_status_t export_accumulate(fastslam_t *fs, map_estimate_t *out)
 {
     const uint16_t n = fs->cfg.n_particles;
     const slam_params_t *sp = &fs->cfg.slam;
@@ -822,22 +824,27 @@ coslam_status_t fastslam_export(fastslam_t *fs, map_estimate_t *out)
             t->ryy[s] += w[k] * (cr.yy + ey * ey);
         }
     }
-    /* select: weight >= export_min_weight; keep the heaviest if too many */
-    uint32_t *sel = t->sel;
+    return result;
+}
+
+/* Identities exported: weight >= export_min_weight, into t->sel; their count. */
+static int export_select(fastslam_t *fs)
+{
+    const fastslam_export_scratch_t *t = &fs->export_scratch;
+    uint32_t *sel = fs->export_scratch.sel;
     int n_sel = 0;
     for (int s = 0; s < COSLAM_MAX_EXPORT_IDS; ++s) {
         if (t->id[s] != 0U && t->w[s] >= fs->cfg.export_min_weight - 1e-12) {
             sel[n_sel++] = (uint32_t)s;
         }
     }
-    if (n_sel > COSLAM_MAX_MSG_LANDMARKS) {
-        sort_u32_by_key(sel, n_sel, t, 1);
-        fs->ctr.export_capacity_drops += (uint32_t)(n_sel - COSLAM_MAX_MSG_LANDMARKS);
-        n_sel = COSLAM_MAX_MSG_LANDMARKS;
-        result = COSLAM_E_CAPACITY;
-    }
-    sort_u32_by_key(sel, n_sel, t, 0);
-    for (int i = 0; i < n_sel; ++i) {
+    return n_sel;
+}
+
+/* Table slots sel[0..n) into out->lm, normalised. */
+static void export_fill(const fastslam_export_scratch_t *t, const uint32_t *sel, int n, map_estimate_t *out)
+{
+    for (int i = 0; i < n; ++i) {
         const uint32_t s = sel[i];
         map_landmark_t *o = &out->lm[i];
         const double inv_w = 1.0 / t->w[s];
@@ -851,6 +858,40 @@ coslam_status_t fastslam_export(fastslam_t *fs, map_estimate_t *out)
         o->src_mask = t->src_mask[s];
         o->signature = t->signature[s];
     }
-    out->n_landmarks = (uint16_t)n_sel;
+    out->n_landmarks = (uint16_t)n;
+}
+
+coslam_status_t fastslam_export(fastslam_t *fs, map_estimate_t *out)
+{
+    fastslam_export_scratch_t *t = &fs->export_scratch;
+    coslam_status_t result = export_accumulate(fs, out);
+    /* keep the heaviest if more than a message carries */
+    int n_sel = export_select(fs);
+    if (n_sel > COSLAM_MAX_MSG_LANDMARKS) {
+        sort_u32_by_key(t->sel, n_sel, t, 1);
+        fs->ctr.export_capacity_drops += (uint32_t)(n_sel - COSLAM_MAX_MSG_LANDMARKS);
+        n_sel = COSLAM_MAX_MSG_LANDMARKS;
+        result = COSLAM_E_CAPACITY;
+    }
+    sort_u32_by_key(t->sel, n_sel, t, 0);
+    export_fill(t, t->sel, n_sel, out);
+    return result;
+}
+
+coslam_status_t fastslam_export_page(fastslam_t *fs, map_estimate_t *out, uint16_t page, uint16_t *n_total)
+{
+    fastslam_export_scratch_t *t = &fs->export_scratch;
+    const uint32_t drops = fs->ctr.export_capacity_drops;
+    const coslam_status_t result = export_accumulate(fs, out);
+    fs->ctr.export_capacity_drops = drops; /* counted by the exports that send */
+    const int n_sel = export_select(fs);
+    sort_u32_by_key(t->sel, n_sel, t, 0);
+    const int first = (int)page * COSLAM_MAX_MSG_LANDMARKS;
+    int count = n_sel - first;
+    count = count < 0 ? 0 : (count > COSLAM_MAX_MSG_LANDMARKS ? COSLAM_MAX_MSG_LANDMARKS : count);
+    export_fill(t, t->sel + (count > 0 ? first : 0), count, out);
+    if (n_total != NULL) {
+        *n_total = (uint16_t)n_sel;
+    }
     return result;
 }

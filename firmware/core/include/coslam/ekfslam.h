@@ -218,6 +218,16 @@ double ekfslam_p(const ekfslam_t *ekf, int r, int c);
 coslam_status_t ekfslam_export(ekfslam_t *ekf, map_estimate_t *out);
 
 /**
+ * The whole map, a message's worth at a time (for evaluation, logs and map
+ * files; a message carries ekfslam_export's selection): page k holds the
+ * confirmed landmarks of ranks [k C, (k + 1) C) in identity order, C =
+ * COSLAM_MAX_MSG_LANDMARKS, as ekfslam_export would write them (a page
+ * past the end holds none); *n_total (may be NULL) is the number of
+ * confirmed landmarks. Never E_CAPACITY, counts nothing. O(L^2) per page.
+ */
+coslam_status_t ekfslam_export_page(ekfslam_t *ekf, map_estimate_t *out, uint16_t page, uint16_t *n_total);
+
+/**
  * Add a landmark at `mean` whose error relative to the robot is Gaussian:
  * mean = pose (+) m_body with m_body having covariance cov_body (robot
  * frame). Cross-covariances with the state follow from the pose part, like

@@ -220,6 +220,17 @@ void fastslam_pose_estimate(const fastslam_t *fs, pose2_t *mean, cov3_t *cov);
  */
 coslam_status_t fastslam_export(fastslam_t *fs, map_estimate_t *out);
 
+/**
+ * The whole map, a message's worth at a time (for evaluation, logs and map
+ * files): page k holds the exported landmarks of ranks [k C, (k + 1) C) in
+ * identity order, C = COSLAM_MAX_MSG_LANDMARKS, as fastslam_export would
+ * write them (a page past the end holds none); *n_total (may be NULL) is
+ * the number of landmarks exported in all. E_CAPACITY only if the identity
+ * table overflowed (not counted here: the sending export counts it).
+ * O(N * M) per page.
+ */
+coslam_status_t fastslam_export_page(fastslam_t *fs, map_estimate_t *out, uint16_t page, uint16_t *n_total);
+
 /** Index of the particle with the largest weight. O(N). */
 uint16_t fastslam_best_particle(const fastslam_t *fs);
 
