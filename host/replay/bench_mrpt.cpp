@@ -16,6 +16,8 @@
 
 #include <algorithm>
 
+#include <iostream>
+
 #include "bench_slam.h"
 
 namespace coslam::replay {
@@ -96,7 +98,7 @@ public:
         return {p.mean.x(), p.mean.y(), p.mean.phi()};
     }
 
-    void export_map(map_estimate_t *out) override
+    void export_map(map_full_t *out) override
     {
         mrpt::poses::CPosePDFGaussian p;
         std::vector<mrpt::math::TPoint2D> lms;
@@ -106,8 +108,8 @@ public:
         slam_.getCurrentState(p, lms, ids, x, cov);
         out->pose = {p.mean.x(), p.mean.y(), p.mean.phi()};
         out->pose_cov = cov3_zero();
-        const size_t n = std::min(lms.size(), static_cast<size_t>(COSLAM_MAX_MSG_LANDMARKS));
-        out->n_landmarks = static_cast<uint16_t>(n);
+        const size_t n = std::min(lms.size(), static_cast<size_t>(COSLAM_MAX_EXPORT_IDS));
+        out->n_landmarks = static_cast<int>(n);
         for (size_t i = 0; i < n; ++i) {
             map_landmark_t &l = out->lm[i];
             const int r = static_cast<int>(3 + 2 * i);
@@ -120,6 +122,10 @@ public:
             l.src_mask = 1;
         }
         dropped_ = lms.size() - n;
+        if (dropped_ > 0) {
+            std::cerr << "coslam-bench-mrclam: MRPT's map has " << lms.size() << " landmarks, " << dropped_
+                      << " beyond COSLAM_MAX_EXPORT_IDS are not scored\n";
+        }
     }
 
 private:

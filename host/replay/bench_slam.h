@@ -16,6 +16,7 @@
 #include "coslam/map_estimate.h"
 #include "coslam/motion.h"
 #include "coslam/observe.h"
+#include "stats.h"
 
 namespace coslam::replay {
 
@@ -40,7 +41,7 @@ public:
     virtual void step(const StreamStep &s) = 0;
     virtual pose2_t pose() const = 0;
     /// Every landmark of the final map (confirmed ones for coslam).
-    virtual void export_map(map_estimate_t *out) = 0;
+    virtual void export_map(map_full_t *out) = 0;
 };
 
 /// MRPT's EKF-SLAM settings (CRangeBearingKFSLAM2D::TOptions).

@@ -21,6 +21,7 @@
 #include "coslam/fastslam.h"
 #include "coslam/map_merge.h"
 #include "replay_config.h"
+#include "stats.h"
 
 namespace coslam::replay {
 
@@ -40,6 +41,9 @@ public:
     void pose(pose2_t *mean, cov3_t *cov) const;
     /// Exports the map estimate (non-const: the core uses scratch in the state).
     coslam_status_t export_map(map_estimate_t *out);
+    /// The whole map (every page; for scoring and map files): a message
+    /// carries at most COSLAM_MAX_MSG_LANDMARKS, the map may hold more.
+    coslam_status_t export_full(map_full_t *out);
     /// The robot app's filter (the meeting protocol drives it).
     slam_filter_t *app() { return f_.get(); }
     /// Mean of the landmark of signature `sig` (known-ids mode: at most one

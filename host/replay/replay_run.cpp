@@ -108,7 +108,7 @@ template <typename Score> Score fill_score(Score s, const map_eval_t &ev, map_ev
 
 } // namespace
 
-MapScore score_map(const map_estimate_t &est, const std::vector<point2_t> &truth, const std::vector<int> &n_seen,
+MapScore score_map(const map_full_t &est, const std::vector<point2_t> &truth, const std::vector<int> &n_seen,
                    const EvalConfig &ec, map_eval_t *detail)
 {
     MapScore s;
@@ -117,13 +117,13 @@ MapScore score_map(const map_estimate_t &est, const std::vector<point2_t> &truth
         return s;
     }
     auto ev = std::make_unique<map_eval_t>();
-    eval_map(&est, truth.data(), n_seen.empty() ? nullptr : n_seen.data(), static_cast<int>(truth.size()),
-             ec.min_seen, ec.gate_m, ev.get());
+    eval_map_full(&est, truth.data(), n_seen.empty() ? nullptr : n_seen.data(), static_cast<int>(truth.size()),
+                  ec.min_seen, ec.gate_m, ev.get());
     s.n_estimated = ev->n_estimated;
     return fill_score(s, *ev, detail);
 }
 
-FitScore score_map_fit(const map_estimate_t &est, const std::vector<point2_t> &truth_world,
+FitScore score_map_fit(const map_full_t &est, const std::vector<point2_t> &truth_world,
                        const std::vector<int> &n_seen, const EvalConfig &ec, map_eval_t *detail)
 {
     FitScore s;
@@ -132,7 +132,7 @@ FitScore score_map_fit(const map_estimate_t &est, const std::vector<point2_t> &t
     }
     auto ev = std::make_unique<map_eval_t>();
     const bool seen = n_seen.size() == truth_world.size();
-    if (eval_map_rigid(&est, truth_world.data(), seen ? n_seen.data() : nullptr, static_cast<int>(truth_world.size()),
+    if (eval_map_rigid_full(&est, truth_world.data(), seen ? n_seen.data() : nullptr, static_cast<int>(truth_world.size()),
                        ec.min_seen, ec.gate_m, &s.transform, ev.get()) != COSLAM_OK) {
         return s;
     }
@@ -167,10 +167,10 @@ private:
     void on_robot_sighting(Robot &r, const RobotSighting &s);
     void poll_meeting(Robot &r);
     void record_event(Robot &recv, const meeting_event_t &e, const MapScore *before,
-                      const std::shared_ptr<map_estimate_t> &before_map, double merge_us);
+                      const std::shared_ptr<map_full_t> &before_map, double merge_us);
     uint64_t stamp_us(double t_s) const;
     double time_s(uint64_t stamp) const;
-    MapScore score_now(Robot &r, map_estimate_t *keep = nullptr);
+    MapScore score_now(Robot &r, std::shared_ptr<map_full_t> *keep = nullptr);
     std::optional<pose2_t> truth_in_map(const Robot &r, double t) const;
 
     const Dataset &ds_;
@@ -336,13 +336,15 @@ std::optional<pose2_t> Replay::truth_in_map(const Robot &r, double t) const
     return r.res.frame.pose_in_map(*p);
 }
 
-MapScore Replay::score_now(Robot &r, map_estimate_t *keep)
+MapScore Replay::score_now(Robot &r, std::shared_ptr<map_full_t> *keep)
 {
-    auto est = std::make_unique<map_estimate_t>();
-    r.filter->export_map(est.get());
+    // the whole map, every page: a message holds at most
+    // COSLAM_MAX_MSG_LANDMARKS, and scoring only those would hide the rest
+    auto est = std::make_shared<map_full_t>();
+    r.filter->export_full(est.get());
     const MapScore s = score_map(*est, r.res.truth_landmarks, r.res.n_seen, cfg_.eval);
     if (keep != nullptr) {
-        *keep = *est;
+        *keep = std::move(est);
     }
     return s;
 }
@@ -521,11 +523,10 @@ void Replay::poll_meeting(Robot &r)
     clock_->advance_to(now);
     (void)meeting_poll_link(m, r.link);
     MapScore before;
-    std::shared_ptr<map_estimate_t> before_map;
+    std::shared_ptr<map_full_t> before_map;
     const bool pending = m->have_pending != 0U;
     if (pending) {
-        before_map = std::make_shared<map_estimate_t>();
-        before = score_now(r, before_map.get());
+        before = score_now(r, &before_map);
     }
     const auto t0 = Clock::now();
     (void)meeting_poll(m, r.filter->app(), now, r.odo_pose, r.travel_m);
@@ -539,7 +540,7 @@ void Replay::poll_meeting(Robot &r)
 }
 
 void Replay::record_event(Robot &recv, const meeting_event_t &e, const MapScore *before,
-                          const std::shared_ptr<map_estimate_t> &before_map, double merge_us)
+                          const std::shared_ptr<map_full_t> &before_map, double merge_us)
 {
     if (e.peer >= robots_.size()) {
         out_.merges_failed++; // undecodable datagram: cannot happen on this link
@@ -600,8 +601,8 @@ void Replay::record_event(Robot &recv, const meeting_event_t &e, const MapScore 
     for (size_t j = 0; j < recv.res.n_seen.size(); ++j) {
         recv.res.n_seen[j] += send.res.n_seen[j];
     }
-    auto after = std::make_shared<map_estimate_t>();
-    ev.after = score_now(recv, after.get());
+    std::shared_ptr<map_full_t> after;
+    ev.after = score_now(recv, &after);
     if (recv.res.t_first_merge_s < 0.0) {
         recv.res.t_first_merge_s = ev.t_s;
     }
@@ -656,8 +657,7 @@ ReplayResult Replay::run()
         Robot &r = *rp;
         advance(r, out_.t_end_s);
         RobotResult &res = r.res;
-        res.final_map = std::make_shared<map_estimate_t>();
-        res.final_score = score_now(r, res.final_map.get());
+        res.final_score = score_now(r, &res.final_map);
         res.final_score.fit = score_map_fit(*res.final_map, truth_world, res.n_seen, cfg_.eval);
         if (opt_.record_history && (res.map_series.empty() || res.map_series.back().t_s < r.t_filter)) {
             res.map_series.push_back({r.t_filter, res.final_score});

@@ -12,19 +12,25 @@ synth_config_t eval_world_config(eval_world_t world, uint64_t seed)
         sc.loop_radius_m = 2.5;
         sc.ring_half_width_m = 2.0;
     } else if (world == EVAL_WORLD_LARGE) {
-        /* Issue 13: a loop through a field of 1,024 landmarks, 2 per m^2
-         * (about 20 sightings per frame): a ring of radius 16 m, 5 m wide,
-         * 1.1 turns (111 m, 370 s). */
-        sc = synth_config_default(seed, 1024);
-        sc.loop_radius_m = 16.0;
-        sc.ring_half_width_m = 2.5;
-        sc.loops = 1.1;
+        return eval_world_large_config(seed, 1024);
     } else {
         sc = synth_config_default(seed, 160);
         sc.loop_radius_m = 8.0;
         sc.ring_half_width_m = 1.5;
         sc.loops = 1.15;
     }
+    sc.n_signatures = 4;
+    return sc;
+}
+
+synth_config_t eval_world_large_config(uint64_t seed, int n_landmarks)
+{
+    /* a ring 5 m wide at 2 landmarks per m^2 (about 20 sightings per
+     * frame), its radius from the count: 1,024 landmarks, 16.3 m */
+    synth_config_t sc = synth_config_default(seed, n_landmarks);
+    sc.ring_half_width_m = 2.5;
+    sc.loop_radius_m = (double)n_landmarks / (2.0 * 2.0 * 3.14159265358979323846 * 2.0 * sc.ring_half_width_m);
+    sc.loops = 1.1;
     sc.n_signatures = 4;
     return sc;
 }

@@ -8,9 +8,10 @@
  *  - EVAL_WORLD_LOOP: one large loop. 1.15 turns of an 8 m circle (58 m)
  *    among 160 landmarks of 4 classes in a 3 m wide ring; the robot comes
  *    back to its start after 50 m of dead reckoning and must recognise it.
- *  - EVAL_WORLD_LARGE: scale (issue 13). 1.1 turns of a 16 m circle (111 m)
- *    among 1,024 landmarks of 4 classes in a 5 m wide ring (2 per m^2,
- *    about 20 sightings per frame).
+ *  - EVAL_WORLD_LARGE: scale (issue 13). 1.1 turns of a 16.3 m circle
+ *    (113 m) among 1,024 landmarks of 4 classes in a 5 m wide ring (2 per
+ *    m^2, about 20 sightings per frame); eval_world_large_config gives the
+ *    same field with another landmark count.
  * All with the default ("paper") noise of slam_params_default(), the
  * filter given the truth's model.
  */
@@ -27,6 +28,10 @@ typedef enum { EVAL_WORLD_PAPER = 1, EVAL_WORLD_LOOP = 2, EVAL_WORLD_LARGE = 3 }
 
 /** World configuration for a seed. */
 synth_config_t eval_world_config(eval_world_t world, uint64_t seed);
+
+/** The large world's field (2 landmarks per m^2 in a ring 5 m wide, 1.1
+ *  turns) with n_landmarks landmarks: the ring's radius grows with them. */
+synth_config_t eval_world_large_config(uint64_t seed, int n_landmarks);
 
 int eval_world_parse(const char *name, eval_world_t *out);
 int eval_filter_parse(const char *name, run_filter_t *out);

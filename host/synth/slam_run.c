@@ -26,39 +26,18 @@ static double now_us(void)
     return (double)ts.tv_sec * 1e6 + (double)ts.tv_nsec * 1e-3;
 }
 
-/* Append every page of an export into `out`. */
-static coslam_status_t export_full(void *filter, int is_ekf, map_full_t *out)
+static coslam_status_t ekf_page(void *f, map_estimate_t *out, uint16_t page, uint16_t *n_total)
 {
-    map_estimate_t *page = malloc(sizeof *page);
-    if (page == NULL) {
-        return COSLAM_E_CAPACITY;
-    }
-    coslam_status_t result = COSLAM_OK;
-    out->n_landmarks = 0;
-    for (uint16_t k = 0;; ++k) {
-        uint16_t total = 0;
-        const coslam_status_t st = is_ekf ? ekfslam_export_page((ekfslam_t *)filter, page, k, &total)
-                                          : fastslam_export_page((fastslam_t *)filter, page, k, &total);
-        if (st != COSLAM_OK) {
-            result = st;
-        }
-        if (k == 0) {
-            out->pose = page->pose;
-            out->pose_cov = page->pose_cov;
-        }
-        for (int i = 0; i < page->n_landmarks && out->n_landmarks < COSLAM_MAX_EXPORT_IDS; ++i) {
-            out->lm[out->n_landmarks++] = page->lm[i];
-        }
-        if (page->n_landmarks < COSLAM_MAX_MSG_LANDMARKS || out->n_landmarks >= total) {
-            break;
-        }
-    }
-    free(page);
-    return result;
+    return ekfslam_export_page((ekfslam_t *)f, out, page, n_total);
 }
 
-coslam_status_t run_export_full_ekf(ekfslam_t *ekf, map_full_t *out) { return export_full(ekf, 1, out); }
-coslam_status_t run_export_full_fs(fastslam_t *fs, map_full_t *out) { return export_full(fs, 0, out); }
+static coslam_status_t fs_page(void *f, map_estimate_t *out, uint16_t page, uint16_t *n_total)
+{
+    return fastslam_export_page((fastslam_t *)f, out, page, n_total);
+}
+
+coslam_status_t run_export_full_ekf(ekfslam_t *ekf, map_full_t *out) { return map_full_collect(ekf_page, ekf, out); }
+coslam_status_t run_export_full_fs(fastslam_t *fs, map_full_t *out) { return map_full_collect(fs_page, fs, out); }
 
 static int size_bin(int n_lm)
 {

@@ -414,6 +414,39 @@ void eval_map_signed(const map_estimate_t *est, const point2_t *truth, const uin
     eval_map_lm(est->lm, est->n_landmarks, truth, truth_sig, n_seen, n_truth, min_seen, gate_m, out);
 }
 
+coslam_status_t map_full_collect(map_page_fn page_fn, void *filter, map_full_t *out)
+{
+    map_estimate_t *page = (map_estimate_t *)malloc(sizeof *page);
+    out->n_landmarks = 0;
+    if (page == NULL) {
+        return COSLAM_E_CAPACITY;
+    }
+    coslam_status_t result = COSLAM_OK;
+    for (uint16_t k = 0;; ++k) {
+        uint16_t total = 0;
+        const coslam_status_t st = page_fn(filter, page, k, &total);
+        if (st != COSLAM_OK && result == COSLAM_OK) {
+            result = st;
+        }
+        if (k == 0) {
+            out->pose = page->pose;
+            out->pose_cov = page->pose_cov;
+        }
+        for (int i = 0; i < page->n_landmarks; ++i) {
+            if (out->n_landmarks >= COSLAM_MAX_EXPORT_IDS) {
+                result = COSLAM_E_CAPACITY;
+                break;
+            }
+            out->lm[out->n_landmarks++] = page->lm[i];
+        }
+        if (page->n_landmarks < COSLAM_MAX_MSG_LANDMARKS || out->n_landmarks >= total || k == UINT16_MAX) {
+            break;
+        }
+    }
+    free(page);
+    return result;
+}
+
 void eval_map_full(const map_full_t *est, const point2_t *truth, const int *n_seen, int n_truth, int min_seen,
                    double gate_m, map_eval_t *out)
 {
@@ -1033,8 +1066,9 @@ static void rigid_vote_step(rigid_votes_t *v, const point2_t *qh, int nq, const 
     memset(v->count, 0, sizeof(uint16_t) * (size_t)v->nx * (size_t)v->ny);
 }
 
-coslam_status_t eval_map_rigid(const map_estimate_t *est, const point2_t *truth, const int *n_seen, int n_truth,
-                               int min_seen, double gate_m, pose2_t *fit, map_eval_t *out)
+static coslam_status_t rigid_fit_lm(const map_landmark_t *lm, int n, pose2_t pose, const point2_t *truth,
+                                    const int *n_seen, int n_truth, int min_seen, double gate_m, pose2_t *fit,
+                                    map_eval_t *out)
 {
     const pose2_t identity = {0.0, 0.0, 0.0};
     if (fit != NULL) {
@@ -1043,11 +1077,10 @@ coslam_status_t eval_map_rigid(const map_estimate_t *est, const point2_t *truth,
     if (out != NULL) {
         memset(out, 0, sizeof *out);
     }
-    if (est == NULL || out == NULL || n_truth < 0 || (truth == NULL && n_truth > 0) || !isfinite(gate_m) ||
-        !(gate_m > 0.0) || est->n_landmarks > COSLAM_MAX_MSG_LANDMARKS) {
+    if ((lm == NULL && n > 0) || out == NULL || n_truth < 0 || (truth == NULL && n_truth > 0) ||
+        !isfinite(gate_m) || !(gate_m > 0.0) || n < 0 || n > COSLAM_MAX_EXPORT_IDS) {
         return COSLAM_E_ARG;
     }
-    const int n = est->n_landmarks;
     const double gate2 = gate_m * gate_m;
     if (n < 2 || n_truth < 2) {
         rigid_unmatched(n, n_seen, n_truth, min_seen, out);
@@ -1073,7 +1106,7 @@ coslam_status_t eval_map_rigid(const map_estimate_t *est, const point2_t *truth,
     int *c_item = (int *)malloc(sizeof(int) * (size_t)n * (size_t)n_truth);
     int *pe = (int *)malloc(sizeof(int) * (size_t)n);
     int *pt = (int *)malloc(sizeof(int) * (size_t)n);
-    map_estimate_t *moved = (map_estimate_t *)malloc(sizeof *moved);
+    map_full_t *moved = (map_full_t *)malloc(sizeof *moved);
     if (e == NULL || pc == NULL || q == NULL || rad == NULL || vt == NULL || cand == NULL || used_e == NULL ||
         t_of == NULL || match_e == NULL || uf == NULL || comp == NULL || loc == NULL || c_start == NULL ||
         c_item == NULL || pe == NULL || pt == NULL || moved == NULL ||
@@ -1087,7 +1120,7 @@ coslam_status_t eval_map_rigid(const map_estimate_t *est, const point2_t *truth,
     point2_t ce = {0.0, 0.0};
     int n_fin = 0;
     for (int i = 0; i < n; ++i) {
-        e[i] = est->lm[i].mean;
+        e[i] = lm[i].mean;
         if (isfinite(e[i].x) && isfinite(e[i].y)) {
             ce.x += e[i].x;
             ce.y += e[i].y;
@@ -1234,14 +1267,15 @@ coslam_status_t eval_map_rigid(const map_estimate_t *est, const point2_t *truth,
     }
 
     /* 5. eval_map on the estimate moved by the fit */
-    *moved = *est;
-    moved->pose = pose2_compose(best_t, est->pose);
+    moved->n_landmarks = n;
+    moved->pose = pose2_compose(best_t, pose);
     double rot[2][2] = {{cos(best_t.theta), -sin(best_t.theta)}, {sin(best_t.theta), cos(best_t.theta)}};
     for (int i = 0; i < n; ++i) {
-        moved->lm[i].mean = pose2_apply(best_t, est->lm[i].mean);
-        moved->lm[i].cov = cov2_congruence(rot, est->lm[i].cov);
+        moved->lm[i] = lm[i];
+        moved->lm[i].mean = pose2_apply(best_t, lm[i].mean);
+        moved->lm[i].cov = cov2_congruence(rot, lm[i].cov);
     }
-    eval_map(moved, truth, n_seen, n_truth, min_seen, gate_m, out);
+    eval_map_full(moved, truth, n_seen, n_truth, min_seen, gate_m, out);
     if (fit != NULL) {
         *fit = best_t;
     }
@@ -1269,4 +1303,35 @@ done:
     free(pt);
     free(moved);
     return st;
+}
+
+
+coslam_status_t eval_map_rigid(const map_estimate_t *est, const point2_t *truth, const int *n_seen, int n_truth,
+                               int min_seen, double gate_m, pose2_t *fit, map_eval_t *out)
+{
+    if (est == NULL || est->n_landmarks > COSLAM_MAX_MSG_LANDMARKS) {
+        if (fit != NULL) {
+            *fit = (pose2_t){0.0, 0.0, 0.0};
+        }
+        if (out != NULL) {
+            memset(out, 0, sizeof *out);
+        }
+        return COSLAM_E_ARG;
+    }
+    return rigid_fit_lm(est->lm, est->n_landmarks, est->pose, truth, n_seen, n_truth, min_seen, gate_m, fit, out);
+}
+
+coslam_status_t eval_map_rigid_full(const map_full_t *est, const point2_t *truth, const int *n_seen, int n_truth,
+                                    int min_seen, double gate_m, pose2_t *fit, map_eval_t *out)
+{
+    if (est == NULL) {
+        if (fit != NULL) {
+            *fit = (pose2_t){0.0, 0.0, 0.0};
+        }
+        if (out != NULL) {
+            memset(out, 0, sizeof *out);
+        }
+        return COSLAM_E_ARG;
+    }
+    return rigid_fit_lm(est->lm, est->n_landmarks, est->pose, truth, n_seen, n_truth, min_seen, gate_m, fit, out);
 }

@@ -60,6 +60,15 @@ typedef struct {
     map_landmark_t lm[COSLAM_MAX_EXPORT_IDS];
 } map_full_t;
 
+/** One page of a filter's whole-map export (the core's *_export_page). */
+typedef coslam_status_t (*map_page_fn)(void *filter, map_estimate_t *out, uint16_t page, uint16_t *n_total);
+
+/** Collect every page into `out` (a page buffer on the heap). The first
+ *  error a page returned, else COSLAM_OK; E_CAPACITY also if the map did
+ *  not fit map_full_t (cannot happen: the export holds at most
+ *  COSLAM_MAX_EXPORT_IDS). */
+coslam_status_t map_full_collect(map_page_fn page_fn, void *filter, map_full_t *out);
+
 /** eval_map on a whole map. */
 void eval_map_full(const map_full_t *est, const point2_t *truth, const int *n_seen, int n_truth, int min_seen,
                    double gate_m, map_eval_t *out);
@@ -175,6 +184,11 @@ void eval_map_signed(const map_estimate_t *est, const point2_t *truth, const uin
  */
 coslam_status_t eval_map_rigid(const map_estimate_t *est, const point2_t *truth, const int *n_seen, int n_truth,
                                int min_seen, double gate_m, pose2_t *fit, map_eval_t *out);
+
+/** eval_map_rigid on a whole map (map_full_t: more landmarks than a
+ *  message; E_ARG above COSLAM_MAX_EXPORT_IDS). */
+coslam_status_t eval_map_rigid_full(const map_full_t *est, const point2_t *truth, const int *n_seen, int n_truth,
+                                    int min_seen, double gate_m, pose2_t *fit, map_eval_t *out);
 
 /**
  * Minimum-cost assignment for an n x m cost matrix (row-major), n <= m:

@@ -74,6 +74,10 @@ static void test_ekf_pages_hold_the_whole_map(void **state)
     }
     assert_int_equal(next_id, 11);
     assert_int_equal(g_ekf.ctr.export_capacity_drops, 0);
+    /* pages k > 0 reuse page 0's order; an export in between takes it over */
+    assert_int_equal(ekfslam_export(&g_ekf, &g_out), COSLAM_E_CAPACITY);
+    assert_int_equal(ekfslam_export_page(&g_ekf, &g_out, 1, NULL), COSLAM_OK);
+    assert_int_equal(g_out.n_landmarks, 0);
 }
 
 static void test_fastslam_pages_hold_the_whole_map(void **state)
@@ -115,6 +119,10 @@ static void test_fastslam_pages_hold_the_whole_map(void **state)
     }
     assert_int_equal(next_id, 8);
     assert_int_equal(g_fs.ctr.export_capacity_drops, 3); /* the pages counted nothing */
+    /* pages k > 0 reuse page 0's table; an export in between takes it over */
+    assert_int_equal(fastslam_export(&g_fs, &g_out), COSLAM_E_CAPACITY);
+    assert_int_equal(fastslam_export_page(&g_fs, &g_out, 1, NULL), COSLAM_OK);
+    assert_int_equal(g_out.n_landmarks, 0);
 }
 
 int main(void)

@@ -213,6 +213,12 @@ coslam_status_t slam_filter_export(slam_filter_t *f, map_estimate_t *out)
     return f->kind == SLAM_FILTER_EKF ? ekfslam_export(&f->u.ekf, out) : fastslam_export(&f->u.fs, out);
 }
 
+coslam_status_t slam_filter_export_page(slam_filter_t *f, map_estimate_t *out, uint16_t page, uint16_t *n_total)
+{
+    return f->kind == SLAM_FILTER_EKF ? ekfslam_export_page(&f->u.ekf, out, page, n_total)
+                                      : fastslam_export_page(&f->u.fs, out, page, n_total);
+}
+
 coslam_status_t slam_filter_merge(slam_filter_t *f, const merge_body_map_t *bm, const merge_config_t *cfg,
                                   merge_scratch_t *scratch, merge_stats_t *stats)
 {

@@ -64,6 +64,7 @@ coslam_status_t ekfslam_init(ekfslam_t *ekf, const ekfslam_config_t *cfg, pose2_
     ekf->merging = 0U;
     ekf->next_id = 1U;
     memset(&ekf->ctr, 0, sizeof ekf->ctr);
+    ekf->scratch.n_page_order = 0;
     ekf->x[0] = pose0.x;
     ekf->x[1] = pose0.y;
     ekf->x[2] = angle_wrap(pose0.theta);
@@ -1217,14 +1218,18 @@ coslam_status_t ekfslam_export(ekfslam_t *ekf, map_estimate_t *out)
     }
     sort_order(ekf, order, n, smaller_id);
     export_fill(ekf, out, order, n);
+    ekf->scratch.n_page_order = 0; /* the order is this export's now */
     return result;
 }
 
 coslam_status_t ekfslam_export_page(ekfslam_t *ekf, map_estimate_t *out, uint16_t page, uint16_t *n_total)
 {
     uint16_t *order = ekf->scratch.order;
-    const int n = confirmed_order(ekf, order);
-    sort_order(ekf, order, n, smaller_id);
+    if (page == 0U) {
+        ekf->scratch.n_page_order = confirmed_order(ekf, order);
+        sort_order(ekf, order, ekf->scratch.n_page_order, smaller_id);
+    }
+    const int n = ekf->scratch.n_page_order;
     const int first = (int)page * COSLAM_MAX_MSG_LANDMARKS;
     int count = n - first;
     count = count < 0 ? 0 : (count > COSLAM_MAX_MSG_LANDMARKS ? COSLAM_MAX_MSG_LANDMARKS : count);

@@ -80,6 +80,7 @@ coslam_status_t fastslam_init(fastslam_t *fs, const fastslam_config_t *cfg, pose
         return COSLAM_E_ARG;
     }
     memset(&fs->ctr, 0, sizeof fs->ctr);
+    fs->export_scratch.n_page_sel = 0;
     fs->cfg = *cfg;
     rng_seed(&fs->rng, seed);
     fs->next_id = 1U;
@@ -875,17 +876,24 @@ coslam_status_t fastslam_export(fastslam_t *fs, map_estimate_t *out)
     }
     sort_u32_by_key(t->sel, n_sel, t, 0);
     export_fill(t, t->sel, n_sel, out);
+    t->n_page_sel = 0; /* the table is this export's now */
     return result;
 }
 
 coslam_status_t fastslam_export_page(fastslam_t *fs, map_estimate_t *out, uint16_t page, uint16_t *n_total)
 {
     fastslam_export_scratch_t *t = &fs->export_scratch;
-    const uint32_t drops = fs->ctr.export_capacity_drops;
-    const coslam_status_t result = export_accumulate(fs, out);
-    fs->ctr.export_capacity_drops = drops; /* counted by the exports that send */
-    const int n_sel = export_select(fs);
-    sort_u32_by_key(t->sel, n_sel, t, 0);
+    coslam_status_t result = COSLAM_OK;
+    if (page == 0U) {
+        const uint32_t drops = fs->ctr.export_capacity_drops;
+        result = export_accumulate(fs, out);
+        fs->ctr.export_capacity_drops = drops; /* counted by the exports that send */
+        t->n_page_sel = export_select(fs);
+        sort_u32_by_key(t->sel, t->n_page_sel, t, 0);
+    } else {
+        fastslam_pose_estimate(fs, &out->pose, &out->pose_cov);
+    }
+    const int n_sel = t->n_page_sel;
     const int first = (int)page * COSLAM_MAX_MSG_LANDMARKS;
     int count = n_sel - first;
     count = count < 0 ? 0 : (count > COSLAM_MAX_MSG_LANDMARKS ? COSLAM_MAX_MSG_LANDMARKS : count);

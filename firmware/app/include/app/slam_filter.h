@@ -121,6 +121,10 @@ void slam_filter_pose(const slam_filter_t *f, pose2_t *pose, cov3_t *cov);
 /** The map estimate (confirmed landmarks, pose, covariances incl. cov_rel). */
 coslam_status_t slam_filter_export(slam_filter_t *f, map_estimate_t *out);
 
+/** The whole map a message's worth at a time (ekfslam_export_page,
+ *  fastslam_export_page): for map files and evaluation, not for messages. */
+coslam_status_t slam_filter_export_page(slam_filter_t *f, map_estimate_t *out, uint16_t page, uint16_t *n_total);
+
 /** merge_into_fastslam / merge_into_ekfslam of an incoming map already in
  *  this robot's body frame (merge_transform_map), unchecked. Prefer
  *  slam_filter_merge_map. */

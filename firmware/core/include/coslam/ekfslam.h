@@ -167,6 +167,7 @@ typedef struct {
     double pht[EKFSLAM_DIM][2];
     double k[EKFSLAM_DIM][2];
     uint16_t order[COSLAM_EKF_MAX_LANDMARKS];
+    int32_t n_page_order;                         /**< ekfslam_export_page: landmarks ordered by page 0 */
 } ekfslam_scratch_t;
 
 typedef struct {
@@ -223,7 +224,10 @@ coslam_status_t ekfslam_export(ekfslam_t *ekf, map_estimate_t *out);
  * confirmed landmarks of ranks [k C, (k + 1) C) in identity order, C =
  * COSLAM_MAX_MSG_LANDMARKS, as ekfslam_export would write them (a page
  * past the end holds none); *n_total (may be NULL) is the number of
- * confirmed landmarks. Never E_CAPACITY, counts nothing. O(L^2) per page.
+ * confirmed landmarks. Never E_CAPACITY, counts nothing. Page 0 orders
+ * the landmarks, O(L^2); pages k > 0 reuse that order, O(C): call them in
+ * order after page 0, the filter unchanged in between (a page k > 0
+ * without a page 0 since the last export holds none).
  */
 coslam_status_t ekfslam_export_page(ekfslam_t *ekf, map_estimate_t *out, uint16_t page, uint16_t *n_total);
 

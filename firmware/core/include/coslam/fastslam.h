@@ -148,6 +148,7 @@ typedef struct {
     uint16_t src_mask[COSLAM_MAX_EXPORT_IDS];
     uint8_t signature[COSLAM_MAX_EXPORT_IDS];
     uint32_t sel[COSLAM_MAX_EXPORT_IDS];    /**< selected slots */
+    int32_t n_page_sel;                     /**< fastslam_export_page: slots selected by page 0 */
 } fastslam_export_scratch_t;
 
 typedef struct {
@@ -227,7 +228,9 @@ coslam_status_t fastslam_export(fastslam_t *fs, map_estimate_t *out);
  * write them (a page past the end holds none); *n_total (may be NULL) is
  * the number of landmarks exported in all. E_CAPACITY only if the identity
  * table overflowed (not counted here: the sending export counts it).
- * O(N * M) per page.
+ * Page 0 combines the particles, O(N * M); pages k > 0 reuse what page 0
+ * combined, O(C): call them in order after page 0, the filter unchanged in
+ * between (a page k > 0 without a page 0 since the last export holds none).
  */
 coslam_status_t fastslam_export_page(fastslam_t *fs, map_estimate_t *out, uint16_t page, uint16_t *n_total);
 

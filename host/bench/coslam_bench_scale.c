@@ -1,0 +1,157 @@
+/*
+ * coslam-bench-scale - time per filter step against the size of the map
+ * (issue 13): the large world's field (host/synth/eval_worlds.h, 2
+ * landmarks per m^2 of 4 classes, about 20 sightings per frame) with 1,024
+ * and 2,048 landmarks, one seeded run per filter; every control step
+ * (predict at 10 Hz, update at 5 Hz) is timed and binned by the number of
+ * landmarks in the filter's map at that step (run_result_t.size_bin_us:
+ * within a factor sqrt 2 of 64, 256, 1,024, 2,048). The sightings per frame
+ * stay the same as the map grows, so the table isolates the map size.
+ * EKF-SLAM runs the 1,024-landmark field (its state holds at most
+ * COSLAM_EKF_MAX_LANDMARKS), Fast-SLAM 2.0 the 2,048-landmark one. Also the
+ * run's accuracy (final position error, pose RMSE, spurious landmarks).
+ * Writes <out>/scale_step_time.{md,json}.
+ *   coslam-bench-scale [--out DIR] [--seed S] [--quick]
+ * --quick: Fast-SLAM 2.0 with 100 particles only.
+ */
+#define _POSIX_C_SOURCE 200809L
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include "app/profile.h"
+#include "eval_worlds.h"
+#include "profile_print.h"
+
+typedef struct {
+    const char *name;
+    run_filter_t filter;
+    int n_particles;
+    int n_landmarks; /* of the world */
+} scale_case_t;
+
+static const int k_bins[4] = {6, 8, 10, 11}; /* 64, 256, 1024, 2048 */
+
+int main(int argc, char **argv)
+{
+    const char *out = "out/bench";
+    long seed = 1;
+    int quick = 0;
+    for (int i = 1; i < argc; ++i) {
+        if (!strcmp(argv[i], "--out") && i + 1 < argc) out = argv[++i];
+        else if (!strcmp(argv[i], "--seed") && i + 1 < argc) seed = atol(argv[++i]);
+        else if (!strcmp(argv[i], "--quick")) quick = 1;
+        else { fprintf(stderr, "usage: coslam-bench-scale [--out DIR] [--seed S] [--quick]\n"); return 2; }
+    }
+    profile_print(stdout, "coslam-bench-scale");
+    if (COSLAM_MAX_PARTICLES < 1000 || COSLAM_MAX_LANDMARKS < 2048 || COSLAM_EKF_MAX_LANDMARKS < 1024 ||
+        COSLAM_MAX_SIGHTINGS < 40) {
+        fprintf(stderr, "coslam-bench-scale: needs 1000 particles, 2048 landmarks (EKF-SLAM 1024) and 40 sightings "
+                        "per frame, more than this build's profile %s has: build with PROFILE=host (make bench does)\n",
+                COSLAM_PROFILE_NAME);
+        return 2;
+    }
+    if (mkdir(out, 0775) != 0 && errno != EEXIST) {
+        fprintf(stderr, "coslam-bench-scale: cannot create %s: %s\n", out, strerror(errno));
+        return 1;
+    }
+    const scale_case_t all[] = {
+        {"EKF-SLAM", RUN_EKFSLAM, 1, 1024},
+        {"Fast-SLAM 2.0, 100 particles", RUN_FASTSLAM2, 100, 2048},
+        {"Fast-SLAM 2.0, 1000 particles", RUN_FASTSLAM2, 1000, 2048},
+    };
+    const scale_case_t *cases = quick ? &all[1] : all;
+    const int nc = quick ? 1 : 3;
+    run_result_t *r = malloc(sizeof *r);
+    double bin_us[3][4];
+    int bin_n[3][4];
+    double final_err[3], pose_rmse[3];
+    int spurious[3], estimated[3], n_lm[3];
+    if (r == NULL) {
+        return 1;
+    }
+    for (int c = 0; c < nc; ++c) {
+        const synth_config_t sc = eval_world_large_config((uint64_t)seed, cases[c].n_landmarks);
+        run_opts_t o = run_opts_default(cases[c].filter);
+        o.params = sc.truth;
+        o.n_particles = cases[c].n_particles;
+        o.filter_seed = 7919U * (uint64_t)seed + 17U;
+        if (run_synth(&sc, &o, r) != 0) {
+            fprintf(stderr, "coslam-bench-scale: run failed (%s)\n", cases[c].name);
+            free(r);
+            return 1;
+        }
+        for (int b = 0; b < 4; ++b) {
+            bin_us[c][b] = r->size_bin_us[k_bins[b]];
+            bin_n[c][b] = r->size_bin_steps[k_bins[b]];
+        }
+        final_err[c] = r->final_pos_err_m;
+        pose_rmse[c] = r->pose_rmse_m;
+        spurious[c] = r->map.n_spurious;
+        estimated[c] = r->map.n_estimated;
+        n_lm[c] = r->n_final_landmarks;
+        fprintf(stderr, "coslam-bench-scale: %s done (%d steps, %u capacity errors)\n", cases[c].name, r->n_steps,
+                r->capacity_errors);
+    }
+    char path[1024];
+    snprintf(path, sizeof path, "%s/scale_step_time.md", out);
+    FILE *md = fopen(path, "w");
+    snprintf(path, sizeof path, "%s/scale_step_time.json", out);
+    FILE *js = fopen(path, "w");
+    if (!md || !js) {
+        fprintf(stderr, "coslam-bench-scale: cannot write into %s\n", out);
+        free(r);
+        return 1;
+    }
+    char prof[192];
+    (void)app_profile_format(prof, sizeof prof);
+    fprintf(md, "Built with the capacity %s.\n\n", prof);
+    FILE *sinks[2] = {stdout, md};
+    for (int k = 0; k < 2; ++k) {
+        FILE *f = sinks[k];
+        fprintf(f, "Time per control step [ms] (predict at 10 Hz + update at 5 Hz, about 20 sightings per frame) "
+                   "by the map's size at that step (within a factor sqrt 2; steps in brackets); growth exponent b "
+                   "of t ~ L^b between the first and the last bin measured. Seed %ld.\n\n", seed);
+        fprintf(f, "| filter | 64 | 256 | 1,024 | 2,048 | b | final error m | pose RMSE m | spurious / exported | "
+                   "landmarks at the end |\n|---|---|---|---|---|---|---|---|---|---|\n");
+        for (int c = 0; c < nc; ++c) {
+            fprintf(f, "| %s |", cases[c].name);
+            int first = -1, last = -1;
+            for (int b = 0; b < 4; ++b) {
+                if (bin_n[c][b] > 0) {
+                    fprintf(f, " %.3f (%d) |", 1e-3 * bin_us[c][b], bin_n[c][b]);
+                    first = first < 0 ? b : first;
+                    last = b;
+                } else {
+                    fprintf(f, " n/a |");
+                }
+            }
+            const double lf = pow(4.0, (double)first) * 64.0, ll = (last == 3 ? 2048.0 : pow(4.0, (double)last) * 64.0);
+            if (first >= 0 && last > first) {
+                fprintf(f, " %.2f |", log(bin_us[c][last] / bin_us[c][first]) / log(ll / lf));
+            } else {
+                fprintf(f, " n/a |");
+            }
+            fprintf(f, " %.3f | %.3f | %d / %d | %d |\n", final_err[c], pose_rmse[c], spurious[c], estimated[c],
+                    n_lm[c]);
+        }
+    }
+    fprintf(js, "{\n  \"profile\": \"%s\",\n  \"seed\": %ld,\n  \"bins_landmarks\": [64, 256, 1024, 2048],\n"
+                "  \"filters\": [\n", COSLAM_PROFILE_NAME, seed);
+    for (int c = 0; c < nc; ++c) {
+        fprintf(js, "    {\"name\": \"%s\", \"world_landmarks\": %d, \"step_ms\": [%.4f, %.4f, %.4f, %.4f], "
+                    "\"steps\": [%d, %d, %d, %d], \"final_error_m\": %.4f, \"pose_rmse_m\": %.4f, \"spurious\": %d, "
+                    "\"exported\": %d}%s\n",
+                cases[c].name, cases[c].n_landmarks, 1e-3 * bin_us[c][0], 1e-3 * bin_us[c][1], 1e-3 * bin_us[c][2],
+                1e-3 * bin_us[c][3], bin_n[c][0], bin_n[c][1], bin_n[c][2], bin_n[c][3], final_err[c], pose_rmse[c],
+                spurious[c], estimated[c], c + 1 < nc ? "," : "");
+    }
+    fprintf(js, "  ]\n}\n");
+    fclose(md);
+    fclose(js);
+    free(r);
+    return 0;
+}
