@@ -3,7 +3,8 @@
  * check before trust against the own map, fusion) into Fast-SLAM for
  * (particles N, landmarks M) = (100, 64), (1000, 256), (1000, 1024), and
  * into EKF-SLAM for M = 64, 256. Own maps hold M landmarks; the incoming
- * map holds M landmarks, half of them duplicates of own ones. Also times a
+ * map holds M landmarks, half of them duplicates of own ones; and (1000,
+ * 1024) receiving one message as the link carries it (221 landmarks). Also times a
  * naive all-pairs duplicate search (O(N M^2), the paper's complexity) for
  * comparison. Built against a core with 2048 landmarks per map and 1024
  * per message. Writes <out>/merge_time.{md,json}.
@@ -33,7 +34,7 @@ static ekfslam_t g_ekf;
 static merge_scratch_t g_sc;
 static merge_body_map_t g_bm;
 static map_estimate_t g_in;
-static map_estimate_t g_own;
+static map_whole_t g_own;
 static merge_coverage_t g_cov;
 
 /* M landmarks on a jittered grid 0.7 m apart (distinct, 4 classes). */
@@ -44,7 +45,9 @@ static point2_t site(int i, rng_t *r)
     return p;
 }
 
-static void build_incoming(int m, rng_t *r)
+/* m incoming landmarks: even i a duplicate of own landmark i, odd i a new
+ * one beyond the m_own own sites. */
+static void build_incoming(int m, int m_own, rng_t *r)
 {
     memset(&g_in, 0, sizeof g_in);
     g_in.pose.x = 0.0;
@@ -55,7 +58,7 @@ static void build_incoming(int m, rng_t *r)
     for (int i = 0; i < m; ++i) {
         map_landmark_t *l = &g_in.lm[i];
         /* even: a duplicate of own landmark i; odd: a new one beyond the own grid */
-        l->mean = site(i % 2 == 0 ? i : m + i, r);
+        l->mean = site(i % 2 == 0 ? i : m_own + i, r);
         l->cov = cov2_make(0.01, 0.0, 0.01);
         l->cov_rel = l->cov;
         l->id = (uint32_t)(i + 1);
@@ -63,7 +66,7 @@ static void build_incoming(int m, rng_t *r)
         l->src_mask = 2;
         l->signature = (uint8_t)(i % 4);
         if (i % 2 == 1) {
-            l->signature = (uint8_t)((m + i) % 4);
+            l->signature = (uint8_t)((m_own + i) % 4);
         }
     }
 }
@@ -158,22 +161,25 @@ int main(int argc, char **argv)
         fprintf(stderr, "coslam-bench-merge: cannot create %s: %s\n", out, strerror(errno));
         return 1;
     }
-    const int cases[3][2] = {{100, 64}, {1000, 256}, {1000, 1024}};
-    double fs_us[3];
-    double naive_us[3];
+    /* (particles, own landmarks, incoming landmarks); the last: a merge as the
+     * link carries it, one message of COSLAM_LINK_MSG_LANDMARKS */
+    const int cases[4][3] = {{100, 64, 64}, {1000, 256, 256}, {1000, 1024, 1024}, {1000, 1024, COSLAM_LINK_MSG_LANDMARKS}};
+    double fs_us[4];
+    double naive_us[4];
     rng_t r;
     rng_seed(&r, 1U);
     const merge_config_t mc = merge_config_default();
-    for (int c = 0; c < 3; ++c) {
+    for (int c = 0; c < 4; ++c) {
         const int n = cases[c][0];
         const int m = cases[c][1];
+        const int m_in = cases[c][2];
         double best = INFINITY;
         for (int rep = 0; rep < reps; ++rep) {
             build_own_maps(n, m, &r);
             rng_seed(&r, 7U);
             build_own_export(m, &r);
             rng_seed(&r, 7U);
-            build_incoming(m, &r);
+            build_incoming(m_in, m, &r);
             const pose2_t t = {0.0, 0.0, 0.0};
             const cov3_t tc = cov3_diag(1e-4, 1e-4, 1e-5);
             merge_stats_t st;
@@ -184,11 +190,12 @@ int main(int argc, char **argv)
             merge_into_fastslam(&g_fs, &g_bm, &mc, &g_sc, &st);
             const double dt = now_us() - t0;
             best = dt < best ? dt : best;
-            if (rep == 0 && (st.fused != (uint32_t)(n * (m / 2)) || st.added != (uint32_t)(n * (m / 2)))) {
+            const int dups = (m_in + 1) / 2;
+            if (rep == 0 && (st.fused != (uint32_t)(n * dups) || st.added != (uint32_t)(n * (m_in - dups)))) {
                 fprintf(stderr,
-                        "coslam-bench-merge: N=%d M=%d fused %u added %u (expected %d each; the check left out %u "
-                        "ambiguous, %u vetoed)\n",
-                        n, m, st.fused, st.added, n * (m / 2), st.ambiguous, st.vetoed);
+                        "coslam-bench-merge: N=%d M=%d in %d fused %u added %u (expected %d and %d; the check left "
+                        "out %u ambiguous, %u vetoed)\n",
+                        n, m, m_in, st.fused, st.added, n * dups, n * (m_in - dups), st.ambiguous, st.vetoed);
             }
         }
         fs_us[c] = best;
@@ -213,7 +220,7 @@ int main(int argc, char **argv)
         rng_seed(&r, 7U);
         build_own_export(m, &r);
         rng_seed(&r, 7U);
-        build_incoming(m, &r);
+        build_incoming(m, m, &r);
         const pose2_t t = {0.0, 0.0, 0.0};
         const cov3_t tc = cov3_diag(1e-4, 1e-4, 1e-5);
         merge_stats_t st;
@@ -239,12 +246,14 @@ int main(int argc, char **argv)
     for (int k = 0; k < 2; ++k) {
         FILE *o = sinks[k];
         fprintf(o, "Map merge time (transform + check before trust + duplicates + fusion), best of %d runs; M own "
-                   "landmarks per particle, M incoming (half duplicates), 64 keyframes of coverage.\n\n", reps);
-        fprintf(o, "| Fast-SLAM (N, M) | merge [ms] | per particle and landmark [ns] | naive all-pairs duplicate search "
-                   "alone [ms] |\n|---|---|---|---|\n");
-        for (int c = 0; c < 3; ++c) {
-            fprintf(o, "| (%d, %d) | %.2f | %.1f | %.1f |\n", cases[c][0], cases[c][1], fs_us[c] / 1000.0,
-                    1000.0 * fs_us[c] / ((double)cases[c][0] * cases[c][1]), naive_us[c] / 1000.0);
+                   "landmarks per particle, M_in incoming (half duplicates), 64 keyframes of coverage. The last row is "
+                   "a merge as the link carries it: one message holds at most %d landmarks.\n\n", reps,
+                COSLAM_LINK_MSG_LANDMARKS);
+        fprintf(o, "| Fast-SLAM (N, M, M_in) | merge [ms] | per particle and incoming landmark [ns] | naive all-pairs "
+                   "duplicate search alone [ms] |\n|---|---|---|---|\n");
+        for (int c = 0; c < 4; ++c) {
+            fprintf(o, "| (%d, %d, %d) | %.2f | %.1f | %.1f |\n", cases[c][0], cases[c][1], cases[c][2],
+                    fs_us[c] / 1000.0, 1000.0 * fs_us[c] / ((double)cases[c][0] * cases[c][2]), naive_us[c] / 1000.0);
         }
         fprintf(o, "\n| EKF-SLAM M | merge [ms] |\n|---|---|\n");
         for (int c = 0; c < 2; ++c) {
@@ -252,9 +261,10 @@ int main(int argc, char **argv)
         }
     }
     fprintf(js, "{\"fastslam\": [");
-    for (int c = 0; c < 3; ++c) {
-        fprintf(js, "%s{\"particles\": %d, \"landmarks\": %d, \"merge_us\": %.1f, \"naive_search_us\": %.1f}",
-                c ? ", " : "", cases[c][0], cases[c][1], fs_us[c], naive_us[c]);
+    for (int c = 0; c < 4; ++c) {
+        fprintf(js, "%s{\"particles\": %d, \"landmarks\": %d, \"incoming\": %d, \"merge_us\": %.1f, "
+                    "\"naive_search_us\": %.1f}",
+                c ? ", " : "", cases[c][0], cases[c][1], cases[c][2], fs_us[c], naive_us[c]);
     }
     fprintf(js, "], \"ekfslam\": [{\"landmarks\": 64, \"merge_us\": %.1f}, {\"landmarks\": 256, \"merge_us\": %.1f}]}\n",
             ekf_us[0], ekf_us[1]);

@@ -7,6 +7,8 @@
  *
  *   coslam-eval-worlds [--world paper|loop|large] [--filter ekf|fs1|fs2]
  *                      [-p N] [--seeds N] [--seed0 S] [--out DIR]
+ *                      [--write-log DIR]   (the world of seed0 as a landmark
+ *                                           log for coslam-replay, no runs)
  *
  * Worlds (eval_worlds.h): "paper" is the paper's scale (20 m loop among 64
  * landmarks of 4 classes), "loop" one large loop (radius 8 m, 160 landmarks
@@ -25,10 +27,69 @@
 #include "eval_worlds.h"
 #include "profile_print.h"
 
+/* The world of `seed` as a landmark log (docs/replay.md: robot1.log with
+ * O and Z records, robot1_truth.txt, landmarks_truth.txt, t0.txt), for
+ * coslam-replay: odometry increments per control step as measured (noisy),
+ * sightings with the true landmark index as id. Returns 0 on success. */
+static int write_log(eval_world_t wk, uint64_t seed, const char *dir)
+{
+    if (mkdir(dir, 0775) != 0 && errno != EEXIST) {
+        fprintf(stderr, "coslam-eval-worlds: cannot create %s: %s\n", dir, strerror(errno));
+        return 1;
+    }
+    const synth_config_t sc = eval_world_config(wk, seed);
+    synth_world_t *w = malloc(sizeof *w);
+    synth_step_t *st = malloc(sizeof *st);
+    char path[4096];
+    FILE *f[4] = {NULL, NULL, NULL, NULL};
+    const char *names[4] = {"robot1.log", "robot1_truth.txt", "landmarks_truth.txt", "t0.txt"};
+    int rc = 0;
+    for (int k = 0; k < 4; ++k) {
+        snprintf(path, sizeof path, "%s/%s", dir, names[k]);
+        f[k] = fopen(path, "w");
+        if (f[k] == NULL) {
+            fprintf(stderr, "coslam-eval-worlds: cannot write %s: %s\n", path, strerror(errno));
+            rc = 1;
+        }
+    }
+    if (w == NULL || st == NULL || rc != 0) {
+        rc = 1;
+        goto out;
+    }
+    synth_init(w, &sc);
+    const pose2_t p0 = synth_start_pose(&sc);
+    fprintf(f[1], "%.17g %.17g %.17g %.17g\n", 0.0, p0.x, p0.y, p0.theta);
+    int n_z = 0;
+    while (synth_next(w, st)) {
+        fprintf(f[0], "O %.17g %.17g %.17g %.17g\n", st->t_s, st->u.dx, st->u.dy, st->u.dtheta);
+        fprintf(f[1], "%.17g %.17g %.17g %.17g\n", st->t_s, st->true_pose.x, st->true_pose.y, st->true_pose.theta);
+        for (int i = 0; st->is_frame && i < st->n_z; ++i) {
+            fprintf(f[0], "Z %.17g %d %.17g %.17g\n", st->t_s, (int)st->true_id[i], st->z[i].range_m,
+                    st->z[i].bearing_rad);
+            n_z++;
+        }
+    }
+    for (int j = 0; j < w->n_lm; ++j) {
+        fprintf(f[2], "%d %.17g %.17g\n", j, w->lm[j].x, w->lm[j].y);
+    }
+    fprintf(f[3], "0\n");
+    fprintf(stderr, "coslam-eval-worlds: wrote %s (%d steps, %d sightings, %d landmarks)\n", dir, w->n_steps, n_z,
+            w->n_lm);
+out:
+    for (int k = 0; k < 4; ++k) {
+        if (f[k] != NULL && fclose(f[k]) != 0) {
+            rc = 1;
+        }
+    }
+    free(w);
+    free(st);
+    return rc;
+}
+
 static void usage(void)
 {
     fprintf(stderr, "usage: coslam-eval-worlds [--world paper|loop|large] [--filter ekf|fs1|fs2] [-p N] [--seeds N] "
-                    "[--seed0 S] [--out DIR] [--trace]\n");
+                    "[--seed0 S] [--out DIR] [--trace] [--write-log DIR]\n");
 }
 
 int main(int argc, char **argv)
@@ -38,6 +99,7 @@ int main(int argc, char **argv)
     const char *out = NULL;
     int particles = 100;
     int trace = 0;
+    const char *log_dir = NULL;
     int seeds = 10;
     long seed0 = 1;
     for (int i = 1; i < argc; ++i) {
@@ -49,6 +111,7 @@ int main(int argc, char **argv)
         else if (!strcmp(argv[i], "--seed0") && more) seed0 = atol(argv[++i]);
         else if (!strcmp(argv[i], "--out") && more) out = argv[++i];
         else if (!strcmp(argv[i], "--trace")) trace = 1;
+        else if (!strcmp(argv[i], "--write-log") && more) log_dir = argv[++i];
         else { usage(); return 2; }
     }
     profile_print(stderr, "coslam-eval-worlds");
@@ -60,6 +123,10 @@ int main(int argc, char **argv)
                         "1 <= seeds <= 1000, seed0 >= 0)\n", COSLAM_MAX_PARTICLES);
         usage();
         return 2;
+    }
+    if (log_dir != NULL) {
+        /* the world of seed0 as a landmark log for coslam-replay, no runs */
+        return write_log(wk, (uint64_t)seed0, log_dir);
     }
     FILE *md = NULL;
     if (out != NULL) {

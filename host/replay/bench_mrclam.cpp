@@ -77,7 +77,7 @@ public:
         f_.pose(&p, &c);
         return p;
     }
-    void export_map(map_full_t *out) override { f_.export_full(out); }
+    void export_map(map_whole_t *out) override { f_.export_whole(out); }
 
 private:
     FilterKind kind_;
@@ -195,7 +195,7 @@ Row run_one(SlamUnderTest &slam, const Stream &s, const EvalConfig &ec)
     r.steps = static_cast<long>(s.steps.size());
     r.pose_rmse_m = n > 0 ? std::sqrt(se / static_cast<double>(n)) : 0.0;
     r.step_us_mean = r.steps > 0 ? sum_us / static_cast<double>(r.steps) : 0.0;
-    auto est = std::make_unique<map_full_t>();
+    auto est = std::make_unique<map_whole_t>();
     slam.export_map(est.get());
     r.map = score_map(*est, s.truth_lm, s.n_seen, ec);
     return r;

@@ -98,7 +98,7 @@ public:
         return {p.mean.x(), p.mean.y(), p.mean.phi()};
     }
 
-    void export_map(map_full_t *out) override
+    void export_map(map_whole_t *out) override
     {
         mrpt::poses::CPosePDFGaussian p;
         std::vector<mrpt::math::TPoint2D> lms;
@@ -108,7 +108,7 @@ public:
         slam_.getCurrentState(p, lms, ids, x, cov);
         out->pose = {p.mean.x(), p.mean.y(), p.mean.phi()};
         out->pose_cov = cov3_zero();
-        const size_t n = std::min(lms.size(), static_cast<size_t>(COSLAM_MAX_EXPORT_IDS));
+        const size_t n = std::min(lms.size(), static_cast<size_t>(COSLAM_MAX_LANDMARKS));
         out->n_landmarks = static_cast<int>(n);
         for (size_t i = 0; i < n; ++i) {
             map_landmark_t &l = out->lm[i];
@@ -124,7 +124,7 @@ public:
         dropped_ = lms.size() - n;
         if (dropped_ > 0) {
             std::cerr << "coslam-bench-mrclam: MRPT's map has " << lms.size() << " landmarks, " << dropped_
-                      << " beyond COSLAM_MAX_EXPORT_IDS are not scored\n";
+                      << " beyond COSLAM_MAX_LANDMARKS are not scored\n";
         }
     }
 

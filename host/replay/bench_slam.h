@@ -41,7 +41,7 @@ public:
     virtual void step(const StreamStep &s) = 0;
     virtual pose2_t pose() const = 0;
     /// Every landmark of the final map (confirmed ones for coslam).
-    virtual void export_map(map_full_t *out) = 0;
+    virtual void export_map(map_whole_t *out) = 0;
 };
 
 /// MRPT's EKF-SLAM settings (CRangeBearingKFSLAM2D::TOptions).

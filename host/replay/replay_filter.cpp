@@ -54,12 +54,9 @@ coslam_status_t RobotFilter::export_map(map_estimate_t *out)
     return slam_filter_export(f_.get(), out);
 }
 
-coslam_status_t RobotFilter::export_full(map_full_t *out)
+coslam_status_t RobotFilter::export_whole(map_whole_t *out)
 {
-    const auto page = [](void *f, map_estimate_t *o, uint16_t k, uint16_t *n) {
-        return slam_filter_export_page(static_cast<slam_filter_t *>(f), o, k, n);
-    };
-    return map_full_collect(page, f_.get(), out);
+    return slam_filter_export_whole(f_.get(), out);
 }
 
 std::optional<point2_t> RobotFilter::landmark_of_signature(uint8_t sig) const

@@ -41,9 +41,9 @@ public:
     void pose(pose2_t *mean, cov3_t *cov) const;
     /// Exports the map estimate (non-const: the core uses scratch in the state).
     coslam_status_t export_map(map_estimate_t *out);
-    /// The whole map (every page; for scoring and map files): a message
-    /// carries at most COSLAM_MAX_MSG_LANDMARKS, the map may hold more.
-    coslam_status_t export_full(map_full_t *out);
+    /// The whole map (for scoring and map files): a message carries at most
+    /// COSLAM_MAX_MSG_LANDMARKS, the map may hold more.
+    coslam_status_t export_whole(map_whole_t *out);
     /// The robot app's filter (the meeting protocol drives it).
     slam_filter_t *app() { return f_.get(); }
     /// Mean of the landmark of signature `sig` (known-ids mode: at most one

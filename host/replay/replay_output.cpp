@@ -34,7 +34,7 @@ void write_tum_row(std::ostream &f, double t, pose2_t p)
       << '\n';
 }
 
-void write_map(const fs::path &p, const map_full_t &m)
+void write_map(const fs::path &p, const map_whole_t &m)
 {
     auto f = open_out(p);
     f << "id,x,y,cxx,cxy,cyy,signature,n_obs,src_mask\n";

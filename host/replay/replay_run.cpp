@@ -108,7 +108,7 @@ template <typename Score> Score fill_score(Score s, const map_eval_t &ev, map_ev
 
 } // namespace
 
-MapScore score_map(const map_full_t &est, const std::vector<point2_t> &truth, const std::vector<int> &n_seen,
+MapScore score_map(const map_whole_t &est, const std::vector<point2_t> &truth, const std::vector<int> &n_seen,
                    const EvalConfig &ec, map_eval_t *detail)
 {
     MapScore s;
@@ -117,13 +117,13 @@ MapScore score_map(const map_full_t &est, const std::vector<point2_t> &truth, co
         return s;
     }
     auto ev = std::make_unique<map_eval_t>();
-    eval_map_full(&est, truth.data(), n_seen.empty() ? nullptr : n_seen.data(), static_cast<int>(truth.size()),
+    eval_map_whole(&est, truth.data(), n_seen.empty() ? nullptr : n_seen.data(), static_cast<int>(truth.size()),
                   ec.min_seen, ec.gate_m, ev.get());
     s.n_estimated = ev->n_estimated;
     return fill_score(s, *ev, detail);
 }
 
-FitScore score_map_fit(const map_full_t &est, const std::vector<point2_t> &truth_world,
+FitScore score_map_fit(const map_whole_t &est, const std::vector<point2_t> &truth_world,
                        const std::vector<int> &n_seen, const EvalConfig &ec, map_eval_t *detail)
 {
     FitScore s;
@@ -132,7 +132,7 @@ FitScore score_map_fit(const map_full_t &est, const std::vector<point2_t> &truth
     }
     auto ev = std::make_unique<map_eval_t>();
     const bool seen = n_seen.size() == truth_world.size();
-    if (eval_map_rigid_full(&est, truth_world.data(), seen ? n_seen.data() : nullptr, static_cast<int>(truth_world.size()),
+    if (eval_map_rigid_whole(&est, truth_world.data(), seen ? n_seen.data() : nullptr, static_cast<int>(truth_world.size()),
                        ec.min_seen, ec.gate_m, &s.transform, ev.get()) != COSLAM_OK) {
         return s;
     }
@@ -167,10 +167,10 @@ private:
     void on_robot_sighting(Robot &r, const RobotSighting &s);
     void poll_meeting(Robot &r);
     void record_event(Robot &recv, const meeting_event_t &e, const MapScore *before,
-                      const std::shared_ptr<map_full_t> &before_map, double merge_us);
+                      const std::shared_ptr<map_whole_t> &before_map, double merge_us);
     uint64_t stamp_us(double t_s) const;
     double time_s(uint64_t stamp) const;
-    MapScore score_now(Robot &r, std::shared_ptr<map_full_t> *keep = nullptr);
+    MapScore score_now(Robot &r, std::shared_ptr<map_whole_t> *keep = nullptr);
     std::optional<pose2_t> truth_in_map(const Robot &r, double t) const;
 
     const Dataset &ds_;
@@ -336,12 +336,12 @@ std::optional<pose2_t> Replay::truth_in_map(const Robot &r, double t) const
     return r.res.frame.pose_in_map(*p);
 }
 
-MapScore Replay::score_now(Robot &r, std::shared_ptr<map_full_t> *keep)
+MapScore Replay::score_now(Robot &r, std::shared_ptr<map_whole_t> *keep)
 {
-    // the whole map, every page: a message holds at most
-    // COSLAM_MAX_MSG_LANDMARKS, and scoring only those would hide the rest
-    auto est = std::make_shared<map_full_t>();
-    r.filter->export_full(est.get());
+    // the whole map: a message holds at most COSLAM_MAX_MSG_LANDMARKS, and
+    // scoring only those would hide the rest
+    auto est = std::make_shared<map_whole_t>();
+    r.filter->export_whole(est.get());
     const MapScore s = score_map(*est, r.res.truth_landmarks, r.res.n_seen, cfg_.eval);
     if (keep != nullptr) {
         *keep = std::move(est);
@@ -523,7 +523,7 @@ void Replay::poll_meeting(Robot &r)
     clock_->advance_to(now);
     (void)meeting_poll_link(m, r.link);
     MapScore before;
-    std::shared_ptr<map_full_t> before_map;
+    std::shared_ptr<map_whole_t> before_map;
     const bool pending = m->have_pending != 0U;
     if (pending) {
         before = score_now(r, &before_map);
@@ -540,7 +540,7 @@ void Replay::poll_meeting(Robot &r)
 }
 
 void Replay::record_event(Robot &recv, const meeting_event_t &e, const MapScore *before,
-                          const std::shared_ptr<map_full_t> &before_map, double merge_us)
+                          const std::shared_ptr<map_whole_t> &before_map, double merge_us)
 {
     if (e.peer >= robots_.size()) {
         out_.merges_failed++; // undecodable datagram: cannot happen on this link
@@ -601,7 +601,7 @@ void Replay::record_event(Robot &recv, const meeting_event_t &e, const MapScore 
     for (size_t j = 0; j < recv.res.n_seen.size(); ++j) {
         recv.res.n_seen[j] += send.res.n_seen[j];
     }
-    std::shared_ptr<map_full_t> after;
+    std::shared_ptr<map_whole_t> after;
     ev.after = score_now(recv, &after);
     if (recv.res.t_first_merge_s < 0.0) {
         recv.res.t_first_merge_s = ev.t_s;

@@ -124,11 +124,11 @@ struct RobotResult {
     double t_start_s = 0.0;
     std::vector<PoseSample> path;   ///< at pose_period_s
     std::vector<MapSample> map_series;
-    std::shared_ptr<map_full_t> final_map; ///< the whole map, not the message-sized export
+    std::shared_ptr<map_whole_t> final_map; ///< the whole map, not the message-sized export
     /// The map right before and after the merge that added the most
     /// landmarks to it (the figures show this one); null if never merged.
-    std::shared_ptr<map_full_t> map_before_merge;
-    std::shared_ptr<map_full_t> map_after_merge;
+    std::shared_ptr<map_whole_t> map_before_merge;
+    std::shared_ptr<map_whole_t> map_after_merge;
     double t_shown_merge_s = -1.0;
     double t_first_merge_s = -1.0;
     int shown_merge_gain = -1;      ///< landmarks it added
@@ -180,13 +180,13 @@ struct ReplayResult {
 ReplayResult run_replay(const Dataset &ds, const ReplayConfig &cfg, const ReplayOptions &opt);
 
 /// Evaluate `est` against true landmarks (map frame), stats.h eval_map.
-MapScore score_map(const map_full_t &est, const std::vector<point2_t> &truth, const std::vector<int> &n_seen,
+MapScore score_map(const map_whole_t &est, const std::vector<point2_t> &truth, const std::vector<int> &n_seen,
                    const EvalConfig &ec, map_eval_t *detail = nullptr);
 
 /// Score `est` after its best rigid fit onto the true landmarks given in the
 /// world frame (stats.h eval_map_rigid, gate and min_seen of `ec`): works
 /// without robot ground truth. Not valid if `truth_world` is empty.
-FitScore score_map_fit(const map_full_t &est, const std::vector<point2_t> &truth_world,
+FitScore score_map_fit(const map_whole_t &est, const std::vector<point2_t> &truth_world,
                        const std::vector<int> &n_seen, const EvalConfig &ec, map_eval_t *detail = nullptr);
 
 } // namespace coslam::replay

@@ -26,19 +26,6 @@ static double now_us(void)
     return (double)ts.tv_sec * 1e6 + (double)ts.tv_nsec * 1e-3;
 }
 
-static coslam_status_t ekf_page(void *f, map_estimate_t *out, uint16_t page, uint16_t *n_total)
-{
-    return ekfslam_export_page((ekfslam_t *)f, out, page, n_total);
-}
-
-static coslam_status_t fs_page(void *f, map_estimate_t *out, uint16_t page, uint16_t *n_total)
-{
-    return fastslam_export_page((fastslam_t *)f, out, page, n_total);
-}
-
-coslam_status_t run_export_full_ekf(ekfslam_t *ekf, map_full_t *out) { return map_full_collect(ekf_page, ekf, out); }
-coslam_status_t run_export_full_fs(fastslam_t *fs, map_full_t *out) { return map_full_collect(fs_page, fs, out); }
-
 static int size_bin(int n_lm)
 {
     int k = 0;
@@ -221,24 +208,24 @@ int run_synth_traced(const synth_config_t *scfg, const run_opts_t *opts, run_res
     for (int k = 0; k < RUN_SIZE_BINS; ++k) {
         res->size_bin_us[k] = res->size_bin_steps[k] > 0 ? res->size_bin_us[k] / res->size_bin_steps[k] : 0.0;
     }
-    map_full_t *full = malloc(sizeof *full);
+    map_whole_t *full = malloc(sizeof *full);
     if (ekf != NULL) {
         (void)ekfslam_export(ekf, &res->estimate);
         res->n_final_landmarks = ekf->n_lm;
         if (full != NULL) {
-            (void)run_export_full_ekf(ekf, full);
+            (void)ekfslam_export_whole(ekf, full);
         }
     } else {
         (void)fastslam_export(fs, &res->estimate);
         res->n_final_landmarks = fs->particles[0].n_lm;
         if (full != NULL) {
-            (void)run_export_full_fs(fs, full);
+            (void)fastslam_export_whole(fs, full);
         }
         res->resamples = fs->ctr.resamples;
         res->ess_mean /= res->n_frames > 0 ? res->n_frames : 1;
     }
     if (full != NULL) {
-        eval_map_full(full, w->lm, w->n_seen, w->n_lm, opts->min_seen, opts->gate_m, &res->map);
+        eval_map_whole(full, w->lm, w->n_seen, w->n_lm, opts->min_seen, opts->gate_m, &res->map);
     } else {
         eval_map(&res->estimate, w->lm, w->n_seen, w->n_lm, opts->min_seen, opts->gate_m, &res->map);
     }

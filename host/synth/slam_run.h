@@ -51,7 +51,7 @@ typedef struct {
     uint32_t capacity_errors;
     uint32_t resamples;         /**< Fast-SLAM resampling events */
     double ess_mean;            /**< Fast-SLAM mean ESS fraction after updates */
-    map_estimate_t estimate;    /**< final exported map (what a message carries) */
+    map_estimate_t estimate;    /**< final exported map (what a message carries; `map` scores the whole map) */
     int n_final_landmarks;      /**< landmarks in the filter at the end (EKF-SLAM state, Fast-SLAM particle 0) */
     /** Wall time per control step by the filter's map size L at that step:
      *  bin k holds the steps with round(log2 L) = k (L within a factor
@@ -60,10 +60,6 @@ typedef struct {
     int size_bin_steps[RUN_SIZE_BINS];
 } run_result_t;
 
-/** The whole map of a filter, every page of *_export_page (run_result_t.map
- *  scores this one, not the message-sized `estimate`). */
-coslam_status_t run_export_full_ekf(ekfslam_t *ekf, map_full_t *out);
-coslam_status_t run_export_full_fs(fastslam_t *fs, map_full_t *out);
 
 /** Per-step trajectories of a run (heap arrays, free with run_trace_free).
  *  With opts->trace_map_every > 0 also the map's error over time: every

@@ -414,40 +414,7 @@ void eval_map_signed(const map_estimate_t *est, const point2_t *truth, const uin
     eval_map_lm(est->lm, est->n_landmarks, truth, truth_sig, n_seen, n_truth, min_seen, gate_m, out);
 }
 
-coslam_status_t map_full_collect(map_page_fn page_fn, void *filter, map_full_t *out)
-{
-    map_estimate_t *page = (map_estimate_t *)malloc(sizeof *page);
-    out->n_landmarks = 0;
-    if (page == NULL) {
-        return COSLAM_E_CAPACITY;
-    }
-    coslam_status_t result = COSLAM_OK;
-    for (uint16_t k = 0;; ++k) {
-        uint16_t total = 0;
-        const coslam_status_t st = page_fn(filter, page, k, &total);
-        if (st != COSLAM_OK && result == COSLAM_OK) {
-            result = st;
-        }
-        if (k == 0) {
-            out->pose = page->pose;
-            out->pose_cov = page->pose_cov;
-        }
-        for (int i = 0; i < page->n_landmarks; ++i) {
-            if (out->n_landmarks >= COSLAM_MAX_EXPORT_IDS) {
-                result = COSLAM_E_CAPACITY;
-                break;
-            }
-            out->lm[out->n_landmarks++] = page->lm[i];
-        }
-        if (page->n_landmarks < COSLAM_MAX_MSG_LANDMARKS || out->n_landmarks >= total || k == UINT16_MAX) {
-            break;
-        }
-    }
-    free(page);
-    return result;
-}
-
-void eval_map_full(const map_full_t *est, const point2_t *truth, const int *n_seen, int n_truth, int min_seen,
+void eval_map_whole(const map_whole_t *est, const point2_t *truth, const int *n_seen, int n_truth, int min_seen,
                    double gate_m, map_eval_t *out)
 {
     eval_map_lm(est->lm, est->n_landmarks, truth, NULL, n_seen, n_truth, min_seen, gate_m, out);
@@ -1078,7 +1045,7 @@ static coslam_status_t rigid_fit_lm(const map_landmark_t *lm, int n, pose2_t pos
         memset(out, 0, sizeof *out);
     }
     if ((lm == NULL && n > 0) || out == NULL || n_truth < 0 || (truth == NULL && n_truth > 0) ||
-        !isfinite(gate_m) || !(gate_m > 0.0) || n < 0 || n > COSLAM_MAX_EXPORT_IDS) {
+        !isfinite(gate_m) || !(gate_m > 0.0) || n < 0 || n > COSLAM_MAX_LANDMARKS) {
         return COSLAM_E_ARG;
     }
     const double gate2 = gate_m * gate_m;
@@ -1106,7 +1073,7 @@ static coslam_status_t rigid_fit_lm(const map_landmark_t *lm, int n, pose2_t pos
     int *c_item = (int *)malloc(sizeof(int) * (size_t)n * (size_t)n_truth);
     int *pe = (int *)malloc(sizeof(int) * (size_t)n);
     int *pt = (int *)malloc(sizeof(int) * (size_t)n);
-    map_full_t *moved = (map_full_t *)malloc(sizeof *moved);
+    map_whole_t *moved = (map_whole_t *)malloc(sizeof *moved);
     if (e == NULL || pc == NULL || q == NULL || rad == NULL || vt == NULL || cand == NULL || used_e == NULL ||
         t_of == NULL || match_e == NULL || uf == NULL || comp == NULL || loc == NULL || c_start == NULL ||
         c_item == NULL || pe == NULL || pt == NULL || moved == NULL ||
@@ -1267,7 +1234,7 @@ static coslam_status_t rigid_fit_lm(const map_landmark_t *lm, int n, pose2_t pos
     }
 
     /* 5. eval_map on the estimate moved by the fit */
-    moved->n_landmarks = n;
+    moved->n_landmarks = (uint16_t)n;
     moved->pose = pose2_compose(best_t, pose);
     double rot[2][2] = {{cos(best_t.theta), -sin(best_t.theta)}, {sin(best_t.theta), cos(best_t.theta)}};
     for (int i = 0; i < n; ++i) {
@@ -1275,7 +1242,7 @@ static coslam_status_t rigid_fit_lm(const map_landmark_t *lm, int n, pose2_t pos
         moved->lm[i].mean = pose2_apply(best_t, lm[i].mean);
         moved->lm[i].cov = cov2_congruence(rot, lm[i].cov);
     }
-    eval_map_full(moved, truth, n_seen, n_truth, min_seen, gate_m, out);
+    eval_map_whole(moved, truth, n_seen, n_truth, min_seen, gate_m, out);
     if (fit != NULL) {
         *fit = best_t;
     }
@@ -1321,7 +1288,7 @@ coslam_status_t eval_map_rigid(const map_estimate_t *est, const point2_t *truth,
     return rigid_fit_lm(est->lm, est->n_landmarks, est->pose, truth, n_seen, n_truth, min_seen, gate_m, fit, out);
 }
 
-coslam_status_t eval_map_rigid_full(const map_full_t *est, const point2_t *truth, const int *n_seen, int n_truth,
+coslam_status_t eval_map_rigid_whole(const map_whole_t *est, const point2_t *truth, const int *n_seen, int n_truth,
                                     int min_seen, double gate_m, pose2_t *fit, map_eval_t *out)
 {
     if (est == NULL) {

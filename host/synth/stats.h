@@ -36,7 +36,7 @@ typedef struct {
     double rmse_m;       /**< over matched pairs */
     double max_err_m;
     double nees_mean;    /**< mean landmark NEES over matched pairs */
-    int match[COSLAM_MAX_EXPORT_IDS]; /**< true index matched to estimate i, or -1 */
+    int match[COSLAM_MAX_LANDMARKS]; /**< true index matched to estimate i, or -1 */
 } map_eval_t;
 
 /**
@@ -48,29 +48,8 @@ typedef struct {
 void eval_map(const map_estimate_t *est, const point2_t *truth, const int *n_seen, int n_truth, int min_seen,
               double gate_m, map_eval_t *out);
 
-/**
- * The whole exported map, every page of the core's *_export_page (a
- * message carries at most COSLAM_MAX_MSG_LANDMARKS; the evaluation of a
- * large map must see all of it). About 80 bytes per landmark: allocate it.
- */
-typedef struct {
-    pose2_t pose;
-    cov3_t pose_cov;
-    int n_landmarks;
-    map_landmark_t lm[COSLAM_MAX_EXPORT_IDS];
-} map_full_t;
-
-/** One page of a filter's whole-map export (the core's *_export_page). */
-typedef coslam_status_t (*map_page_fn)(void *filter, map_estimate_t *out, uint16_t page, uint16_t *n_total);
-
-/** Collect every page into `out` (a page buffer on the heap). The first
- *  error a page returned, else COSLAM_OK; E_CAPACITY also if the map did
- *  not fit map_full_t (cannot happen: the export holds at most
- *  COSLAM_MAX_EXPORT_IDS). */
-coslam_status_t map_full_collect(map_page_fn page_fn, void *filter, map_full_t *out);
-
-/** eval_map on a whole map. */
-void eval_map_full(const map_full_t *est, const point2_t *truth, const int *n_seen, int n_truth, int min_seen,
+/** eval_map on a whole map (*_export_whole: more landmarks than a message). */
+void eval_map_whole(const map_whole_t *est, const point2_t *truth, const int *n_seen, int n_truth, int min_seen,
                    double gate_m, map_eval_t *out);
 
 /** eval_map where an estimate may pair only with a true landmark of its
@@ -185,9 +164,9 @@ void eval_map_signed(const map_estimate_t *est, const point2_t *truth, const uin
 coslam_status_t eval_map_rigid(const map_estimate_t *est, const point2_t *truth, const int *n_seen, int n_truth,
                                int min_seen, double gate_m, pose2_t *fit, map_eval_t *out);
 
-/** eval_map_rigid on a whole map (map_full_t: more landmarks than a
- *  message; E_ARG above COSLAM_MAX_EXPORT_IDS). */
-coslam_status_t eval_map_rigid_full(const map_full_t *est, const point2_t *truth, const int *n_seen, int n_truth,
+/** eval_map_rigid on a whole map (map_whole_t: more landmarks than a
+ *  message). */
+coslam_status_t eval_map_rigid_whole(const map_whole_t *est, const point2_t *truth, const int *n_seen, int n_truth,
                                     int min_seen, double gate_m, pose2_t *fit, map_eval_t *out);
 
 /**

@@ -8,8 +8,8 @@
 //    perfectly either way;
 //  - empty, single-landmark and degenerate inputs, argument errors;
 //  - the cost bound with a full large-profile map;
-//  - a whole map of more landmarks than one message, collected page by
-//    page (map_full_collect) and scored whole (eval_map_rigid_full);
+//  - a whole map (map_whole_t) fitted and scored whole
+//    (eval_map_rigid_whole);
 //  - MRCLAM Dataset 1 (no robot ground truth) replayed with EKF-SLAM: the
 //    fit score exists, the pose and map-frame figures print n/a and are
 //    null in metrics.json (skipped with a message when the data is absent).
@@ -393,42 +393,17 @@ TEST(EvalMapRigid, FullMapStaysWithinItsCostBound)
     EXPECT_LT(ms, 250.0);
 }
 
-// A map larger than a message (the replay scores every landmark, not the
-// message-sized export): 3 pages of COSLAM_MAX_MSG_LANDMARKS plus a few,
-// collected by map_full_collect from a page function like the core's, then
-// fitted and scored whole. Every landmark must be matched, none twice.
-namespace {
-
-struct PagedMap {
-    std::vector<map_landmark_t> lm;
-    int calls = 0;
-};
-
-coslam_status_t paged_export(void *ctx, map_estimate_t *out, uint16_t page, uint16_t *n_total)
-{
-    auto *m = static_cast<PagedMap *>(ctx);
-    m->calls++;
-    out->pose = {0.0, 0.0, 0.0};
-    out->pose_cov = cov3_zero();
-    const size_t first = static_cast<size_t>(page) * COSLAM_MAX_MSG_LANDMARKS;
-    size_t n = 0;
-    for (size_t i = first; i < m->lm.size() && n < COSLAM_MAX_MSG_LANDMARKS; ++i, ++n) {
-        out->lm[n] = m->lm[i];
-    }
-    out->n_landmarks = static_cast<uint16_t>(n);
-    *n_total = static_cast<uint16_t>(m->lm.size());
-    return COSLAM_OK;
-}
-
-} // namespace
-
-TEST(ReplayFit, WholeMapBeyondOneMessageIsScored)
+// A whole map (map_whole_t: the map's capacity, more than a message in
+// the large and host profiles) fitted and scored whole: every landmark
+// matched, none twice.
+TEST(ReplayFit, WholeMapIsScored)
 {
     std::mt19937 rng(41);
-    const int n = 3 * COSLAM_MAX_MSG_LANDMARKS + 7;
+    const int n = COSLAM_MAX_LANDMARKS;
     const pose2_t map_in_world = {3.0, -2.0, 35.0 * kDeg};
     std::vector<point2_t> truth;
-    PagedMap pm;
+    auto full = std::make_unique<map_whole_t>();
+    full->n_landmarks = static_cast<uint16_t>(n);
     // a jittered grid (no symmetry the fit could confuse), 1 m apart
     const int cols = 40;
     for (int i = 0; i < n; ++i) {
@@ -442,19 +417,12 @@ TEST(ReplayFit, WholeMapBeyondOneMessageIsScored)
         l.cov_rel = l.cov;
         l.id = static_cast<uint32_t>(i + 1);
         l.n_obs = 10;
-        pm.lm.push_back(l);
-    }
-    auto full = std::make_unique<map_full_t>();
-    ASSERT_EQ(map_full_collect(paged_export, &pm, full.get()), COSLAM_OK);
-    ASSERT_EQ(full->n_landmarks, n);
-    EXPECT_EQ(pm.calls, 4);
-    for (int i = 0; i < n; ++i) {
-        ASSERT_EQ(full->lm[i].id, static_cast<uint32_t>(i + 1));
+        full->lm[i] = l;
     }
     const std::vector<int> seen(static_cast<size_t>(n), 10);
     auto ev = std::make_unique<map_eval_t>();
     pose2_t fit;
-    ASSERT_EQ(eval_map_rigid_full(full.get(), truth.data(), seen.data(), n, 5, 0.3, &fit, ev.get()), COSLAM_OK);
+    ASSERT_EQ(eval_map_rigid_whole(full.get(), truth.data(), seen.data(), n, 5, 0.3, &fit, ev.get()), COSLAM_OK);
     EXPECT_EQ(ev->n_estimated, n);
     EXPECT_EQ(ev->n_matched, n);
     EXPECT_EQ(ev->n_spurious, 0);
@@ -465,7 +433,7 @@ TEST(ReplayFit, WholeMapBeyondOneMessageIsScored)
     }
     EXPECT_NEAR(angle_wrap(fit.theta - map_in_world.theta), 0.0, 0.5 * kDeg);
     // a NULL map is an argument error, the outputs reset
-    EXPECT_EQ(eval_map_rigid_full(nullptr, truth.data(), seen.data(), n, 5, 0.3, &fit, ev.get()), COSLAM_E_ARG);
+    EXPECT_EQ(eval_map_rigid_whole(nullptr, truth.data(), seen.data(), n, 5, 0.3, &fit, ev.get()), COSLAM_E_ARG);
 }
 
 namespace {

@@ -213,10 +213,9 @@ coslam_status_t slam_filter_export(slam_filter_t *f, map_estimate_t *out)
     return f->kind == SLAM_FILTER_EKF ? ekfslam_export(&f->u.ekf, out) : fastslam_export(&f->u.fs, out);
 }
 
-coslam_status_t slam_filter_export_page(slam_filter_t *f, map_estimate_t *out, uint16_t page, uint16_t *n_total)
+coslam_status_t slam_filter_export_whole(slam_filter_t *f, map_whole_t *out)
 {
-    return f->kind == SLAM_FILTER_EKF ? ekfslam_export_page(&f->u.ekf, out, page, n_total)
-                                      : fastslam_export_page(&f->u.fs, out, page, n_total);
+    return f->kind == SLAM_FILTER_EKF ? ekfslam_export_whole(&f->u.ekf, out) : fastslam_export_whole(&f->u.fs, out);
 }
 
 coslam_status_t slam_filter_merge(slam_filter_t *f, const merge_body_map_t *bm, const merge_config_t *cfg,
@@ -260,7 +259,7 @@ coslam_status_t slam_filter_merge_map(slam_filter_t *f, const map_estimate_t *in
         *t_cov_out = w->body.t_cov;
     }
     if (cfg->check) {
-        st = slam_filter_export(f, &w->own);
+        st = slam_filter_export_whole(f, &w->own);
         if (st != COSLAM_OK && st != COSLAM_E_CAPACITY) {
             return st;
         }

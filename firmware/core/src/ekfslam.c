@@ -64,7 +64,6 @@ coslam_status_t ekfslam_init(ekfslam_t *ekf, const ekfslam_config_t *cfg, pose2_
     ekf->merging = 0U;
     ekf->next_id = 1U;
     memset(&ekf->ctr, 0, sizeof ekf->ctr);
-    ekf->scratch.n_page_order = 0;
     ekf->x[0] = pose0.x;
     ekf->x[1] = pose0.y;
     ekf->x[2] = angle_wrap(pose0.theta);
@@ -1182,13 +1181,12 @@ static int confirmed_order(const ekfslam_t *ekf, uint16_t *order)
     return n;
 }
 
-/* The pose and landmarks order[0..n) into `out`. */
-static void export_fill(const ekfslam_t *ekf, map_estimate_t *out, const uint16_t *order, int n)
+/* Landmarks order[0..n) into lm[0..n). */
+static void export_fill(const ekfslam_t *ekf, map_landmark_t *lm, const uint16_t *order, int n)
 {
-    ekfslam_pose(ekf, &out->pose, &out->pose_cov);
     for (int i = 0; i < n; ++i) {
         const uint16_t j = order[i];
-        map_landmark_t *o = &out->lm[i];
+        map_landmark_t *o = &lm[i];
         ekfslam_landmark(ekf, j, &o->mean, &o->cov);
         o->cov_rel = landmark_relative_cov(ekf, j);
         /* rounding must not make an exported covariance indefinite: the
@@ -1200,42 +1198,37 @@ static void export_fill(const ekfslam_t *ekf, map_estimate_t *out, const uint16_
         o->src_mask = ekf->meta[j].src_mask;
         o->signature = ekf->meta[j].signature;
     }
-    out->n_landmarks = (uint16_t)n;
 }
 
-coslam_status_t ekfslam_export(ekfslam_t *ekf, map_estimate_t *out)
+/* The confirmed landmarks, at most `cap` (the most observed, state order
+ * breaking ties; the rest counted), by identity into lm; their number. */
+static coslam_status_t export_capped(ekfslam_t *ekf, map_landmark_t *lm, int cap, uint16_t *n_out)
 {
     uint16_t *order = ekf->scratch.order;
     coslam_status_t result = COSLAM_OK;
     int n = confirmed_order(ekf, order);
-    if (n > COSLAM_MAX_MSG_LANDMARKS) {
-        /* more than a message carries (the cap follows the link, config.h):
-         * the most observed landmarks go, state order breaking ties */
+    if (n > cap) {
         sort_order(ekf, order, n, more_observed);
-        ekf->ctr.export_capacity_drops += (uint32_t)(n - COSLAM_MAX_MSG_LANDMARKS);
-        n = COSLAM_MAX_MSG_LANDMARKS;
+        ekf->ctr.export_capacity_drops += (uint32_t)(n - cap);
+        n = cap;
         result = COSLAM_E_CAPACITY;
     }
     sort_order(ekf, order, n, smaller_id);
-    export_fill(ekf, out, order, n);
-    ekf->scratch.n_page_order = 0; /* the order is this export's now */
+    export_fill(ekf, lm, order, n);
+    *n_out = (uint16_t)n;
     return result;
 }
 
-coslam_status_t ekfslam_export_page(ekfslam_t *ekf, map_estimate_t *out, uint16_t page, uint16_t *n_total)
+coslam_status_t ekfslam_export(ekfslam_t *ekf, map_estimate_t *out)
 {
-    uint16_t *order = ekf->scratch.order;
-    if (page == 0U) {
-        ekf->scratch.n_page_order = confirmed_order(ekf, order);
-        sort_order(ekf, order, ekf->scratch.n_page_order, smaller_id);
-    }
-    const int n = ekf->scratch.n_page_order;
-    const int first = (int)page * COSLAM_MAX_MSG_LANDMARKS;
-    int count = n - first;
-    count = count < 0 ? 0 : (count > COSLAM_MAX_MSG_LANDMARKS ? COSLAM_MAX_MSG_LANDMARKS : count);
-    export_fill(ekf, out, order + (count > 0 ? first : 0), count);
-    if (n_total != NULL) {
-        *n_total = (uint16_t)n;
-    }
-    return COSLAM_OK;
+    /* more than a message carries (the cap follows the link, config.h):
+     * the most observed landmarks go */
+    ekfslam_pose(ekf, &out->pose, &out->pose_cov);
+    return export_capped(ekf, out->lm, COSLAM_MAX_MSG_LANDMARKS, &out->n_landmarks);
+}
+
+coslam_status_t ekfslam_export_whole(ekfslam_t *ekf, map_whole_t *out)
+{
+    ekfslam_pose(ekf, &out->pose, &out->pose_cov);
+    return export_capped(ekf, out->lm, COSLAM_MAX_LANDMARKS, &out->n_landmarks);
 }

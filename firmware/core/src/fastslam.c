@@ -80,7 +80,6 @@ coslam_status_t fastslam_init(fastslam_t *fs, const fastslam_config_t *cfg, pose
         return COSLAM_E_ARG;
     }
     memset(&fs->ctr, 0, sizeof fs->ctr);
-    fs->export_scratch.n_page_sel = 0;
     fs->cfg = *cfg;
     rng_seed(&fs->rng, seed);
     fs->next_id = 1U;
@@ -742,8 +741,8 @@ static void sort_u32_by_key(uint32_t *v, int n, const fastslam_export_scratch_t 
 }
 
 /* Both passes of the export: per identity, weight, mean and covariance
- * (map and relative) into the export table; the pose into `out`. */
-static coslam_status_t export_accumulate(fastslam_t *fs, map_estimate_t *out)
+ * (map and relative) into the export table; the pose estimate. */
+static coslam_status_t export_accumulate(fastslam_t *fs, pose2_t *pose, cov3_t *pose_cov)
 {
     const uint16_t n = fs->cfg.n_particles;
     const slam_params_t *sp = &fs->cfg.slam;
@@ -751,7 +750,7 @@ static coslam_status_t export_accumulate(fastslam_t *fs, map_estimate_t *out)
     double *w = fs->scratch.weights;
     coslam_status_t result = COSLAM_OK;
     fastslam_weights(fs, w);
-    fastslam_pose_estimate(fs, &out->pose, &out->pose_cov);
+    fastslam_pose_estimate(fs, pose, pose_cov);
 
     memset(t->id, 0, sizeof t->id);
     /* pass 1: total weight and weighted mean per identity */
@@ -842,12 +841,12 @@ static int export_select(fastslam_t *fs)
     return n_sel;
 }
 
-/* Table slots sel[0..n) into out->lm, normalised. */
-static void export_fill(const fastslam_export_scratch_t *t, const uint32_t *sel, int n, map_estimate_t *out)
+/* Table slots sel[0..n) into lm, normalised. */
+static void export_fill(const fastslam_export_scratch_t *t, const uint32_t *sel, int n, map_landmark_t *lm)
 {
     for (int i = 0; i < n; ++i) {
         const uint32_t s = sel[i];
-        map_landmark_t *o = &out->lm[i];
+        map_landmark_t *o = &lm[i];
         const double inv_w = 1.0 / t->w[s];
         o->mean.x = t->mx[s];
         o->mean.y = t->my[s];
@@ -859,47 +858,35 @@ static void export_fill(const fastslam_export_scratch_t *t, const uint32_t *sel,
         o->src_mask = t->src_mask[s];
         o->signature = t->signature[s];
     }
-    out->n_landmarks = (uint16_t)n;
+}
+
+/* Combine, select, keep the heaviest `cap` (the rest counted), fill lm by
+ * identity; the pose estimate into pose and cov. */
+static coslam_status_t export_capped(fastslam_t *fs, pose2_t *pose, cov3_t *cov, map_landmark_t *lm, int cap,
+                                     uint16_t *n_out)
+{
+    fastslam_export_scratch_t *t = &fs->export_scratch;
+    coslam_status_t result = export_accumulate(fs, pose, cov);
+    int n_sel = export_select(fs);
+    if (n_sel > cap) {
+        sort_u32_by_key(t->sel, n_sel, t, 1);
+        fs->ctr.export_capacity_drops += (uint32_t)(n_sel - cap);
+        n_sel = cap;
+        result = COSLAM_E_CAPACITY;
+    }
+    sort_u32_by_key(t->sel, n_sel, t, 0);
+    export_fill(t, t->sel, n_sel, lm);
+    *n_out = (uint16_t)n_sel;
+    return result;
 }
 
 coslam_status_t fastslam_export(fastslam_t *fs, map_estimate_t *out)
 {
-    fastslam_export_scratch_t *t = &fs->export_scratch;
-    coslam_status_t result = export_accumulate(fs, out);
-    /* keep the heaviest if more than a message carries */
-    int n_sel = export_select(fs);
-    if (n_sel > COSLAM_MAX_MSG_LANDMARKS) {
-        sort_u32_by_key(t->sel, n_sel, t, 1);
-        fs->ctr.export_capacity_drops += (uint32_t)(n_sel - COSLAM_MAX_MSG_LANDMARKS);
-        n_sel = COSLAM_MAX_MSG_LANDMARKS;
-        result = COSLAM_E_CAPACITY;
-    }
-    sort_u32_by_key(t->sel, n_sel, t, 0);
-    export_fill(t, t->sel, n_sel, out);
-    t->n_page_sel = 0; /* the table is this export's now */
-    return result;
+    /* more than a message carries: the heaviest landmarks go */
+    return export_capped(fs, &out->pose, &out->pose_cov, out->lm, COSLAM_MAX_MSG_LANDMARKS, &out->n_landmarks);
 }
 
-coslam_status_t fastslam_export_page(fastslam_t *fs, map_estimate_t *out, uint16_t page, uint16_t *n_total)
+coslam_status_t fastslam_export_whole(fastslam_t *fs, map_whole_t *out)
 {
-    fastslam_export_scratch_t *t = &fs->export_scratch;
-    coslam_status_t result = COSLAM_OK;
-    if (page == 0U) {
-        const uint32_t drops = fs->ctr.export_capacity_drops;
-        result = export_accumulate(fs, out);
-        fs->ctr.export_capacity_drops = drops; /* counted by the exports that send */
-        t->n_page_sel = export_select(fs);
-        sort_u32_by_key(t->sel, t->n_page_sel, t, 0);
-    } else {
-        fastslam_pose_estimate(fs, &out->pose, &out->pose_cov);
-    }
-    const int n_sel = t->n_page_sel;
-    const int first = (int)page * COSLAM_MAX_MSG_LANDMARKS;
-    int count = n_sel - first;
-    count = count < 0 ? 0 : (count > COSLAM_MAX_MSG_LANDMARKS ? COSLAM_MAX_MSG_LANDMARKS : count);
-    export_fill(t, t->sel + (count > 0 ? first : 0), count, out);
-    if (n_total != NULL) {
-        *n_total = (uint16_t)n_sel;
-    }
-    return result;
+    return export_capped(fs, &out->pose, &out->pose_cov, out->lm, COSLAM_MAX_LANDMARKS, &out->n_landmarks);
 }

@@ -931,7 +931,7 @@ static void keep_landmark(merge_body_map_t *bm, uint16_t from, uint16_t to)
     bm->rel_cov[to] = bm->rel_cov[from];
 }
 
-coslam_status_t merge_check(const map_estimate_t *own, const merge_coverage_t *coverage, const occ_grid_t *grid,
+coslam_status_t merge_check(const map_whole_t *own, const merge_coverage_t *coverage, const occ_grid_t *grid,
                             const slam_params_t *own_params, uint8_t own_id, const merge_config_t *cfg, merge_body_map_t *bm, merge_scratch_t *sc,
                             merge_stats_t *stats)
 {
@@ -943,7 +943,7 @@ coslam_status_t merge_check(const map_estimate_t *own, const merge_coverage_t *c
     if (!cfg->check) {
         return COSLAM_OK;
     }
-    const int n_own = own->n_landmarks < COSLAM_MAX_LANDMARKS ? own->n_landmarks : COSLAM_MAX_LANDMARKS;
+    const int n_own = own->n_landmarks; /* <= COSLAM_MAX_LANDMARKS by its type */
     for (int j = 0; j < n_own; ++j) {
         sc->own_body[j] = pose2_apply_inverse(own->pose, own->lm[j].mean);
         sc->own_cov[j] = own->lm[j].cov_rel;

@@ -28,7 +28,7 @@ static map_msg_t g_in;
 static uint8_t g_wire[MAP_MSG_MAX_BYTES];
 static merge_body_map_t g_body;
 static merge_scratch_t g_merge_scratch;
-static map_estimate_t g_own;
+static map_whole_t g_own;
 static merge_coverage_t g_coverage;
 
 int main(void)
@@ -51,6 +51,7 @@ int main(void)
     (void)fastslam_update(&g_filter, &z, 1);
     map_msg_init(&g_out);
     (void)fastslam_export(&g_filter, &g_out.map);
+    (void)fastslam_export_whole(&g_filter, &g_own);
 #else
     const ekfslam_config_t cfg = ekfslam_config_default();
     if (ekfslam_init(&g_filter, &cfg, start) != COSLAM_OK) {
@@ -60,6 +61,7 @@ int main(void)
     (void)ekfslam_update(&g_filter, &z, 1);
     map_msg_init(&g_out);
     (void)ekfslam_export(&g_filter, &g_out.map);
+    (void)ekfslam_export_whole(&g_filter, &g_own);
 #endif
     (void)map_msg_encode(&g_out, g_wire, sizeof g_wire, &len);
     if (map_msg_decode(g_wire, len, &g_in) == COSLAM_OK) {
@@ -71,7 +73,7 @@ int main(void)
         g.own_travel_m = 0.01;
         g.sighting_dt_s = 0.1;
         if (merge_prepare(&g_in.map, &g, &cfg.slam, &mcfg, &g_body, &stats) == COSLAM_OK &&
-            merge_check(&g_out.map, &g_coverage, NULL, &cfg.slam, 0U, &mcfg, &g_body, &g_merge_scratch, &stats) ==
+            merge_check(&g_own, &g_coverage, NULL, &cfg.slam, 0U, &mcfg, &g_body, &g_merge_scratch, &stats) ==
                 COSLAM_OK) {
 #if defined(FOOTPRINT_FASTSLAM)
             (void)merge_into_fastslam(&g_filter, &g_body, &mcfg, &g_merge_scratch, &stats);
@@ -80,6 +82,5 @@ int main(void)
 #endif
         }
     }
-    (void)g_own;
     return (int)stats.added;
 }

@@ -121,9 +121,9 @@ void slam_filter_pose(const slam_filter_t *f, pose2_t *pose, cov3_t *cov);
 /** The map estimate (confirmed landmarks, pose, covariances incl. cov_rel). */
 coslam_status_t slam_filter_export(slam_filter_t *f, map_estimate_t *out);
 
-/** The whole map a message's worth at a time (ekfslam_export_page,
- *  fastslam_export_page): for map files and evaluation, not for messages. */
-coslam_status_t slam_filter_export_page(slam_filter_t *f, map_estimate_t *out, uint16_t page, uint16_t *n_total);
+/** The whole map (ekfslam_export_whole, fastslam_export_whole): what the
+ *  merge check compares with, and what map files and evaluations hold. */
+coslam_status_t slam_filter_export_whole(slam_filter_t *f, map_whole_t *out);
 
 /** merge_into_fastslam / merge_into_ekfslam of an incoming map already in
  *  this robot's body frame (merge_transform_map), unchecked. Prefer
@@ -139,7 +139,7 @@ const slam_params_t *slam_filter_params(const slam_filter_t *f);
 typedef struct {
     merge_body_map_t body;      /**< the incoming map in the own body frame */
     merge_scratch_t scratch;
-    map_estimate_t own;         /**< the own map, exported for the check */
+    map_whole_t own;            /**< the own whole map, exported for the check */
 } slam_merge_work_t;
 
 /**

@@ -167,7 +167,6 @@ typedef struct {
     double pht[EKFSLAM_DIM][2];
     double k[EKFSLAM_DIM][2];
     uint16_t order[COSLAM_EKF_MAX_LANDMARKS];
-    int32_t n_page_order;                         /**< ekfslam_export_page: landmarks ordered by page 0 */
 } ekfslam_scratch_t;
 
 typedef struct {
@@ -219,17 +218,11 @@ double ekfslam_p(const ekfslam_t *ekf, int r, int c);
 coslam_status_t ekfslam_export(ekfslam_t *ekf, map_estimate_t *out);
 
 /**
- * The whole map, a message's worth at a time (for evaluation, logs and map
- * files; a message carries ekfslam_export's selection): page k holds the
- * confirmed landmarks of ranks [k C, (k + 1) C) in identity order, C =
- * COSLAM_MAX_MSG_LANDMARKS, as ekfslam_export would write them (a page
- * past the end holds none); *n_total (may be NULL) is the number of
- * confirmed landmarks. Never E_CAPACITY, counts nothing. Page 0 orders
- * the landmarks, O(L^2); pages k > 0 reuse that order, O(C): call them in
- * order after page 0, the filter unchanged in between (a page k > 0
- * without a page 0 since the last export holds none).
+ * ekfslam_export into a map_whole_t: every confirmed landmark (the state
+ * holds at most COSLAM_EKF_MAX_LANDMARKS <= COSLAM_MAX_LANDMARKS), for the
+ * merge check and the tools. O(L^2).
  */
-coslam_status_t ekfslam_export_page(ekfslam_t *ekf, map_estimate_t *out, uint16_t page, uint16_t *n_total);
+coslam_status_t ekfslam_export_whole(ekfslam_t *ekf, map_whole_t *out);
 
 /**
  * Add a landmark at `mean` whose error relative to the robot is Gaussian:

@@ -148,7 +148,6 @@ typedef struct {
     uint16_t src_mask[COSLAM_MAX_EXPORT_IDS];
     uint8_t signature[COSLAM_MAX_EXPORT_IDS];
     uint32_t sel[COSLAM_MAX_EXPORT_IDS];    /**< selected slots */
-    int32_t n_page_sel;                     /**< fastslam_export_page: slots selected by page 0 */
 } fastslam_export_scratch_t;
 
 typedef struct {
@@ -222,17 +221,12 @@ void fastslam_pose_estimate(const fastslam_t *fs, pose2_t *mean, cov3_t *cov);
 coslam_status_t fastslam_export(fastslam_t *fs, map_estimate_t *out);
 
 /**
- * The whole map, a message's worth at a time (for evaluation, logs and map
- * files): page k holds the exported landmarks of ranks [k C, (k + 1) C) in
- * identity order, C = COSLAM_MAX_MSG_LANDMARKS, as fastslam_export would
- * write them (a page past the end holds none); *n_total (may be NULL) is
- * the number of landmarks exported in all. E_CAPACITY only if the identity
- * table overflowed (not counted here: the sending export counts it).
- * Page 0 combines the particles, O(N * M); pages k > 0 reuse what page 0
- * combined, O(C): call them in order after page 0, the filter unchanged in
- * between (a page k > 0 without a page 0 since the last export holds none).
+ * fastslam_export into a map_whole_t: up to COSLAM_MAX_LANDMARKS landmarks
+ * (the combined map can hold more identities than one particle's map: then
+ * the heaviest, the rest counted and COSLAM_E_CAPACITY), for the merge
+ * check and the tools. O(N * M).
  */
-coslam_status_t fastslam_export_page(fastslam_t *fs, map_estimate_t *out, uint16_t page, uint16_t *n_total);
+coslam_status_t fastslam_export_whole(fastslam_t *fs, map_whole_t *out);
 
 /** Index of the particle with the largest weight. O(N). */
 uint16_t fastslam_best_particle(const fastslam_t *fs);

@@ -49,6 +49,19 @@ typedef struct {
     map_landmark_t lm[COSLAM_MAX_MSG_LANDMARKS];
 } map_estimate_t;
 
+/**
+ * The whole map: what a map_estimate_t holds, up to the map capacity
+ * COSLAM_MAX_LANDMARKS instead of a message's COSLAM_MAX_MSG_LANDMARKS
+ * (*_export_whole). What the merge check compares with the incoming map
+ * and what the tools score; a message carries a map_estimate_t.
+ */
+typedef struct {
+    pose2_t pose;
+    cov3_t pose_cov;
+    uint16_t n_landmarks;
+    map_landmark_t lm[COSLAM_MAX_LANDMARKS];
+} map_whole_t;
+
 #ifdef __cplusplus
 }
 #endif

@@ -399,9 +399,12 @@ uint16_t merge_coverage_looks(const merge_coverage_t *c, const slam_params_t *p,
  * correlations), so their information on the transform is overcounted and
  * the refinement's posterior is overconfident; the prior is the
  * conservative choice. On COSLAM_E_MERGE_DISAGREE nothing may be merged. Figures in stats.
+ * `own` is the receiver's whole map (*_export_whole), not the message-sized
+ * export: an own landmark left out of the message must still pair, or its
+ * incoming duplicate would be taken as new or vetoed.
  * O((M_own + M_in) * refine_iters + M_in * K).
  */
-coslam_status_t merge_check(const map_estimate_t *own, const merge_coverage_t *coverage, const occ_grid_t *grid,
+coslam_status_t merge_check(const map_whole_t *own, const merge_coverage_t *coverage, const occ_grid_t *grid,
                             const slam_params_t *own_params, uint8_t own_id, const merge_config_t *cfg, merge_body_map_t *bm, merge_scratch_t *scratch,
                             merge_stats_t *stats);
 
