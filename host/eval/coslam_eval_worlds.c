@@ -136,7 +136,8 @@ int main(int argc, char **argv)
         fputs(line, stdout);
         if (md) fputs(line, md);
         fflush(stdout);
-        fprintf(stderr, "seed %llu step ms by map size:", (unsigned long long)seed);
+        fprintf(stderr, "seed %llu: %u global updates; step ms by map size (steps):", (unsigned long long)seed,
+                (unsigned)r->ekf_global_updates);
         for (int k = 0; k < RUN_SIZE_BINS; ++k) {
             if (r->size_bin_steps[k] > 0) {
                 fprintf(stderr, " %d: %.2f (%d)", 1 << k, 1e-3 * r->size_bin_us[k],

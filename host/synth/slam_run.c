@@ -250,6 +250,7 @@ int run_synth_traced(const synth_config_t *scfg, const run_opts_t *opts, run_res
     if (ekf != NULL) {
         (void)ekfslam_export(ekf, &res->estimate);
         res->n_final_landmarks = ekf->n_lm;
+        res->ekf_global_updates = ekf->ctr.cekf_global_updates;
         if (full != NULL) {
             (void)run_export_full_ekf(ekf, full);
         }

@@ -19,7 +19,7 @@ ekfslam_config_t ekfslam_config_default(void)
     c.jcbb_closure_max_spread = 0.7;
     c.fej = 1U;
 #if COSLAM_EKF_MAX_ACTIVE >= 128
-    c.active_radius_m = 1.5;
+    c.active_radius_m = 3.0;
 #else
     c.active_radius_m = 0.0;
 #endif
@@ -96,6 +96,13 @@ static pose2_t robot_pose(const ekfslam_t *ekf);
 #define PHI_(e, k, i) ((e)->cekf.phi[(long)(k) * ADIM_ + (i)])
 #define PSI_(e, i, k) ((e)->cekf.psi[(long)(i) * ADIM_ + (k)])
 
+/* In a local phase (never where COSLAM_EKF_MAX_ACTIVE is 0: the compiler
+ * then drops the compressed paths). */
+static int in_local(const ekfslam_t *ekf)
+{
+    return COSLAM_EKF_MAX_ACTIVE > 0 && ekf->cekf.local;
+}
+
 /* Active position of state r in a local phase, -1 if passive. */
 static int act_pos(const ekfslam_t *ekf, int r)
 {
@@ -108,7 +115,7 @@ static int act_pos(const ekfslam_t *ekf, int r)
 
 static int is_current(const ekfslam_t *ekf, int r)
 {
-    return !ekf->cekf.local || act_pos(ekf, r) >= 0;
+    return !in_local(ekf) || act_pos(ekf, r) >= 0;
 }
 
 /* x_r now, (3) for a passive state. */
@@ -129,7 +136,7 @@ static double x_now(const ekfslam_t *ekf, int r)
 static double p_now(const ekfslam_t *ekf, int r, int c)
 {
     const ekfslam_cekf_t *ck = &ekf->cekf;
-    if (!ck->local) {
+    if (!in_local(ekf)) {
         return P_(ekf, r, c);
     }
     const int kr = act_pos(ekf, r);
@@ -157,70 +164,108 @@ static double p_now(const ekfslam_t *ekf, int r, int c)
     return P_(ekf, r, c) - acc + (r == c ? ck->w5_sum : 0.0);
 }
 
+/* The passive states from r on, at most EKFSLAM_SYNC_BLOCK of them, into
+ * blk; their count, and *next = where the next block starts. */
+static int passive_block(const ekfslam_t *ekf, int r, int d, int *blk, int *next)
+{
+    int n = 0;
+    for (; r < d && n < EKFSLAM_SYNC_BLOCK; ++r) {
+        if (act_pos(ekf, r) < 0) {
+            blk[n++] = r;
+        }
+    }
+    *next = r;
+    return n;
+}
+
+/* u = P_A0,blk (stored values), zero beyond the block's nb columns */
+static void gather_block(ekfslam_t *ekf, const int *blk, int nb)
+{
+    ekfslam_cekf_t *ck = &ekf->cekf;
+    for (int i = 0; i < ck->na0; ++i) {
+        const double *row = &ekf->p[(long)ck->idx[i] * D_];
+        for (int q = 0; q < EKFSLAM_SYNC_BLOCK; ++q) {
+            ck->u[i][q] = q < nb ? row[blk[q]] : 0.0;
+        }
+    }
+}
+
 void ekfslam_sync(ekfslam_t *ekf)
 {
     ekfslam_cekf_t *ck = &ekf->cekf;
-    if (!ck->local) {
+    if (!in_local(ekf)) {
         return;
     }
     const int d = dim(ekf);
     const int n0 = ck->na0;
     const int na = ck->na;
     const int32_t *idx = ck->idx;
+    int blk[EKFSLAM_SYNC_BLOCK];
     /* (3): x_B += P_BA0 theta */
     for (int r = 3; r < d; ++r) {
         if (act_pos(ekf, r) < 0) {
             ekf->x[r] = x_now(ekf, r);
         }
     }
-    /* (2): P_BB -= P_BA0 psi P_A0B, + w5_sum on the diagonal. Row r's upper
-     * part as axpys with the (contiguous) rows of A0, mirrored below; the
-     * axpys also write garbage into row r's active columns, which (1)
-     * overwrites next. Rows of A0 are only read. */
-    for (int r = 3; r < d; ++r) {
-        if (act_pos(ekf, r) >= 0) {
-            continue;
-        }
-        double *row = &ekf->p[(long)r * D_];
+    /* (2): P_BB -= P_BA0 psi P_A0B, + w5_sum on the diagonal. Each row's
+     * upper part as axpys with the (contiguous) rows of A0, a block of rows
+     * at a time, mirrored below; the axpys also write garbage into the
+     * rows' active columns, which (1) overwrites next. Rows of A0 are only
+     * read. */
+    for (int r = 3, next; r < d; r = next) {
+        const int nb = passive_block(ekf, r, d, blk, &next);
+        gather_block(ekf, blk, nb);
         for (int i = 0; i < n0; ++i) {
-            ck->u[i] = row[idx[i]];
-        }
-        for (int i = 0; i < n0; ++i) {
-            double acc = 0.0;
+            double acc[EKFSLAM_SYNC_BLOCK] = {0.0};
+            const double *ps = &ck->psi[(long)i * ADIM_];
             for (int i2 = 0; i2 < n0; ++i2) {
-                acc += PSI_(ekf, i, i2) * ck->u[i2];
+                for (int q = 0; q < EKFSLAM_SYNC_BLOCK; ++q) {
+                    acc[q] += ps[i2] * ck->u[i2][q];
+                }
             }
-            ck->w[i] = acc;
+            for (int q = 0; q < nb; ++q) {
+                ck->w[q][i] = acc[q];
+            }
         }
         for (int i = 0; i < n0; ++i) {
-            const double wi = ck->w[i];
             const double *ua = &ekf->p[(long)idx[i] * D_];
-            for (int c = r; c < d; ++c) {
-                row[c] -= wi * ua[c];
+            for (int q = 0; q < nb; ++q) {
+                const double wi = ck->w[q][i];
+                double *row = &ekf->p[(long)blk[q] * D_];
+                for (int c = blk[q]; c < d; ++c) {
+                    row[c] -= wi * ua[c];
+                }
             }
         }
-        row[r] += ck->w5_sum;
-        for (int c = r + 1; c < d; ++c) {
-            if (act_pos(ekf, c) < 0) {
-                P_(ekf, c, r) = row[c];
+        for (int q = 0; q < nb; ++q) {
+            P_(ekf, blk[q], blk[q]) += ck->w5_sum;
+        }
+        for (int c = blk[0] + 1; c < d; ++c) {
+            if (act_pos(ekf, c) >= 0) {
+                continue;
+            }
+            for (int q = 0; q < nb && blk[q] < c; ++q) {
+                P_(ekf, c, blk[q]) = P_(ekf, blk[q], c);
             }
         }
     }
-    /* (1): P_AB = phi P_A0B, column by column (all of A0's column read first) */
-    for (int b = 3; b < d; ++b) {
-        if (act_pos(ekf, b) >= 0) {
-            continue;
-        }
-        for (int i = 0; i < n0; ++i) {
-            ck->u[i] = P_(ekf, idx[i], b);
-        }
+    /* (1): P_AB = phi P_A0B, a block of columns at a time (A0's part of
+     * them read first) */
+    for (int b = 3, next; b < d; b = next) {
+        const int nb = passive_block(ekf, b, d, blk, &next);
+        gather_block(ekf, blk, nb);
         for (int k = 0; k < na; ++k) {
-            double acc = 0.0;
+            double acc[EKFSLAM_SYNC_BLOCK] = {0.0};
+            const double *ph = &ck->phi[(long)k * ADIM_];
             for (int i = 0; i < n0; ++i) {
-                acc += PHI_(ekf, k, i) * ck->u[i];
+                for (int q = 0; q < EKFSLAM_SYNC_BLOCK; ++q) {
+                    acc[q] += ph[i] * ck->u[i][q];
+                }
             }
-            P_(ekf, idx[k], b) = acc;
-            P_(ekf, b, idx[k]) = acc;
+            for (int q = 0; q < nb; ++q) {
+                P_(ekf, idx[k], blk[q]) = acc[q];
+                P_(ekf, blk[q], idx[k]) = acc[q];
+            }
         }
     }
     ck->local = 0U;
@@ -305,7 +350,7 @@ static void cekf_select(ekfslam_t *ekf, double max_range_m)
 static void cekf_prepare(ekfslam_t *ekf, double max_range_m)
 {
     ekfslam_cekf_t *ck = &ekf->cekf;
-    if (ck->local) {
+    if (in_local(ekf)) {
         const pose2_t pose = robot_pose(ekf);
         int leave = hypot(pose.x - ck->centre.x, pose.y - ck->centre.y) > ekf->cfg.active_radius_m;
         const double var_r = P_(ekf, 0, 0) + P_(ekf, 1, 1);
@@ -330,7 +375,7 @@ static void cekf_prepare(ekfslam_t *ekf, double max_range_m)
             ekfslam_sync(ekf);
         }
     }
-    if (!ck->local) {
+    if (!in_local(ekf)) {
         cekf_select(ekf, max_range_m);
     }
 }
@@ -470,7 +515,7 @@ coslam_status_t ekfslam_predict(ekfslam_t *ekf, odo_increment_t u)
     ekf->x[1] = np.y;
     ekf->x[2] = np.theta;
     /* the landmarks: all, or the active ones in a local phase */
-    const int local = ekf->cekf.local;
+    const int local = in_local(ekf);
     const int n = local ? ekf->cekf.na : dim(ekf);
     const int32_t *ix = ekf->cekf.idx;
     /* P_rr = G P_rr G^T + V R V^T */
@@ -609,7 +654,7 @@ static coslam_status_t update_one(ekfslam_t *ekf, uint16_t j, sighting_t z)
         return st;
     }
     /* the whole state, or the active part in a local phase */
-    const int local = ekf->cekf.local;
+    const int local = in_local(ekf);
     const int d = local ? ekf->cekf.na : dim(ekf);
     const int32_t *ix = ekf->cekf.idx;
     const int a = 3 + 2 * j;
@@ -671,11 +716,11 @@ static coslam_status_t add_landmark(ekfslam_t *ekf, point2_t m, double gr[2][3],
         ekf->ctr.numeric_faults++;
         return COSLAM_E_NUMERIC;
     }
-    if (ekf->cekf.local && ekf->cekf.na + 2 > ADIM_) {
+    if (in_local(ekf) && ekf->cekf.na + 2 > ADIM_) {
         ekfslam_sync(ekf); /* the active part is full */
     }
-    COSLAM_ASSERT(!(ekf->cekf.local && ekf->merging));
-    const int local = ekf->cekf.local;
+    COSLAM_ASSERT(!(in_local(ekf) && ekf->merging));
+    const int local = in_local(ekf);
     const int n_act = local ? ekf->cekf.na : n_active(ekf);
     const int a = dim(ekf); /* new rows/columns a, a+1 */
     /* the sources: pose (0..2) and, if given, tau */
@@ -1184,7 +1229,7 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
     for (uint16_t j = 0; j < ekf->n_lm; ++j) {
         sc->near[j] = 0;
         sc->matched[j] = 0;
-        if (ekf->cekf.local && ekf->cekf.slot[j] < 0) {
+        if (in_local(ekf) && ekf->cekf.slot[j] < 0) {
             continue; /* passive: out of reach (cekf_prepare) */
         }
         const int a = 3 + 2 * j;

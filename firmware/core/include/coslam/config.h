@@ -62,7 +62,7 @@
 #define COSLAM_MAX_LANDMARKS 256
 #endif
 #ifndef COSLAM_EKF_MAX_ACTIVE
-#define COSLAM_EKF_MAX_ACTIVE 96
+#define COSLAM_EKF_MAX_ACTIVE 64
 #endif
 #else
 #define COSLAM_PROFILE_NAME_ "default"

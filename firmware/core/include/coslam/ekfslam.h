@@ -119,7 +119,7 @@ typedef struct {
      *  global update, exact, brings the rest up to date when the robot
      *  leaves, or when something needs the whole state. 0: off, the full
      *  EKF bit for bit. > 0 needs COSLAM_EKF_MAX_ACTIVE > 0 (config.h).
-     *  Default 0, except 1.5 m in a profile with COSLAM_EKF_MAX_ACTIVE >=
+     *  Default 0, except 3 m in a profile with COSLAM_EKF_MAX_ACTIVE >=
      *  128 (the host profile; docs/core-slam.md "Compressed EKF"). */
     double active_radius_m;
     /** The compression starts only with at least this many landmarks in
@@ -195,6 +195,7 @@ typedef struct {
 
 /** Active states of the compressed EKF at most: the pose and COSLAM_EKF_MAX_ACTIVE landmarks. */
 #define EKFSLAM_ACTIVE_DIM (3 + 2 * COSLAM_EKF_MAX_ACTIVE)
+#define EKFSLAM_SYNC_BLOCK 8
 
 /**
  * Compressed EKF bookkeeping (ekfslam.c "Compressed EKF"). In a local
@@ -219,8 +220,10 @@ typedef struct {
     double theta[EKFSLAM_ACTIVE_DIM];
     double hphi[2][EKFSLAM_ACTIVE_DIM];       /**< scratch: H phi */
     double shphi[2][EKFSLAM_ACTIVE_DIM];      /**< scratch: S^-1 H phi */
-    double u[EKFSLAM_ACTIVE_DIM];             /**< scratch of the global update */
-    double w[EKFSLAM_ACTIVE_DIM];
+    /* scratch of the global update, in blocks of EKFSLAM_SYNC_BLOCK rows or
+     * columns of B (each block reads the rows of A0 once) */
+    double u[EKFSLAM_ACTIVE_DIM][EKFSLAM_SYNC_BLOCK];
+    double w[EKFSLAM_SYNC_BLOCK][EKFSLAM_ACTIVE_DIM];
 } ekfslam_cekf_t;
 
 typedef struct {
