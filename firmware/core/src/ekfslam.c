@@ -164,20 +164,6 @@ static double p_now(const ekfslam_t *ekf, int r, int c)
     return P_(ekf, r, c) - acc + (r == c ? ck->w5_sum : 0.0);
 }
 
-/* The passive states from r on, at most EKFSLAM_SYNC_BLOCK of them, into
- * blk; their count, and *next = where the next block starts. */
-static int passive_block(const ekfslam_t *ekf, int r, int d, int *blk, int *next)
-{
-    int n = 0;
-    for (; r < d && n < EKFSLAM_SYNC_BLOCK; ++r) {
-        if (act_pos(ekf, r) < 0) {
-            blk[n++] = r;
-        }
-    }
-    *next = r;
-    return n;
-}
-
 /* u = P_A0,blk (stored values), zero beyond the block's nb columns */
 static void gather_block(ekfslam_t *ekf, const int *blk, int nb)
 {
@@ -186,6 +172,41 @@ static void gather_block(ekfslam_t *ekf, const int *blk, int nb)
         const double *row = &ekf->p[(long)ck->idx[i] * D_];
         for (int q = 0; q < EKFSLAM_SYNC_BLOCK; ++q) {
             ck->u[i][q] = q < nb ? row[blk[q]] : 0.0;
+        }
+    }
+}
+
+/* The passive states from r on, at most EKFSLAM_SYNC_BLOCK of them, into
+ * blk, and their columns of A0's rows into u (gather_block); their count,
+ * and *next = where the next block starts. */
+static int passive_block(ekfslam_t *ekf, int r, int d, int *blk, int *next)
+{
+    int n = 0;
+    for (; r < d && n < EKFSLAM_SYNC_BLOCK; ++r) {
+        if (act_pos(ekf, r) < 0) {
+            blk[n++] = r;
+        }
+    }
+    *next = r;
+    gather_block(ekf, blk, n);
+    return n;
+}
+
+/* w[q][k] = (m u)[k][q] for the first n rows of m (phi or psi, na0
+ * columns) and the gathered block u */
+static void block_products(ekfslam_t *ekf, const double *m, int n)
+{
+    ekfslam_cekf_t *ck = &ekf->cekf;
+    for (int k = 0; k < n; ++k) {
+        const double *mk = &m[(long)k * ADIM_];
+        double acc[EKFSLAM_SYNC_BLOCK] = {0.0};
+        for (int i = 0; i < ck->na0; ++i) {
+            for (int q = 0; q < EKFSLAM_SYNC_BLOCK; ++q) {
+                acc[q] += mk[i] * ck->u[i][q];
+            }
+        }
+        for (int q = 0; q < EKFSLAM_SYNC_BLOCK; ++q) {
+            ck->w[q][k] = acc[q];
         }
     }
 }
@@ -214,19 +235,7 @@ void ekfslam_sync(ekfslam_t *ekf)
      * read. */
     for (int r = 3, next; r < d; r = next) {
         const int nb = passive_block(ekf, r, d, blk, &next);
-        gather_block(ekf, blk, nb);
-        for (int i = 0; i < n0; ++i) {
-            double acc[EKFSLAM_SYNC_BLOCK] = {0.0};
-            const double *ps = &ck->psi[(long)i * ADIM_];
-            for (int i2 = 0; i2 < n0; ++i2) {
-                for (int q = 0; q < EKFSLAM_SYNC_BLOCK; ++q) {
-                    acc[q] += ps[i2] * ck->u[i2][q];
-                }
-            }
-            for (int q = 0; q < nb; ++q) {
-                ck->w[q][i] = acc[q];
-            }
-        }
+        block_products(ekf, ck->psi, n0); /* w = (psi P_A0,blk)^T */
         for (int i = 0; i < n0; ++i) {
             const double *ua = &ekf->p[(long)idx[i] * D_];
             for (int q = 0; q < nb; ++q) {
@@ -253,18 +262,11 @@ void ekfslam_sync(ekfslam_t *ekf)
      * them read first) */
     for (int b = 3, next; b < d; b = next) {
         const int nb = passive_block(ekf, b, d, blk, &next);
-        gather_block(ekf, blk, nb);
+        block_products(ekf, ck->phi, na); /* w = (phi P_A0,blk)^T */
         for (int k = 0; k < na; ++k) {
-            double acc[EKFSLAM_SYNC_BLOCK] = {0.0};
-            const double *ph = &ck->phi[(long)k * ADIM_];
-            for (int i = 0; i < n0; ++i) {
-                for (int q = 0; q < EKFSLAM_SYNC_BLOCK; ++q) {
-                    acc[q] += ph[i] * ck->u[i][q];
-                }
-            }
             for (int q = 0; q < nb; ++q) {
-                P_(ekf, idx[k], blk[q]) = acc[q];
-                P_(ekf, blk[q], idx[k]) = acc[q];
+                P_(ekf, idx[k], blk[q]) = ck->w[q][k];
+                P_(ekf, blk[q], idx[k]) = ck->w[q][k];
             }
         }
     }
