@@ -53,8 +53,8 @@ typedef struct {
     uint32_t resamples;         /**< Fast-SLAM resampling events */
     double ess_mean;            /**< Fast-SLAM mean ESS fraction after updates */
     map_estimate_t estimate;    /**< final exported map (what a message carries) */
-    int n_final_landmarks;
-    uint32_t ekf_global_updates; /**< EKF-SLAM: compressed EKF global updates (ctr.cekf_global_updates) */      /**< landmarks in the filter at the end (EKF-SLAM state, Fast-SLAM particle 0) */
+    int n_final_landmarks;      /**< landmarks in the filter at the end (EKF-SLAM state, Fast-SLAM particle 0) */
+    uint32_t ekf_global_updates; /**< EKF-SLAM: compressed EKF global updates (ctr.cekf_global_updates) */
     /** Wall time per control step by the filter's map size L at that step:
      *  bin k holds the steps with round(log2 L) = k (L within a factor
      *  sqrt 2 of 2^k; bin 0 also L = 0). */

@@ -260,7 +260,8 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z, int n);
 /** Robot pose and its covariance. O(1). */
 void ekfslam_pose(const ekfslam_t *ekf, pose2_t *pose, cov3_t *cov);
 
-/** Landmark j (0 <= j < n_lm): mean and marginal covariance. O(1). */
+/** Landmark j (0 <= j < n_lm): mean and marginal covariance. O(1); O(N_A^2)
+ *  for a passive landmark in a local phase of the compressed EKF. */
 void ekfslam_landmark(const ekfslam_t *ekf, uint16_t j, point2_t *mean, cov2_t *cov);
 
 /** Mean of landmark j (0 <= j < n_lm). O(1); O(N_A) for a passive landmark
@@ -285,7 +286,7 @@ void ekfslam_sync(ekfslam_t *ekf);
  * with its marginal covariance, ordered by identity. E_CAPACITY (counted
  * in export_capacity_drops) if more confirmed landmarks than
  * COSLAM_MAX_MSG_LANDMARKS: the most observed ones (n_obs) are exported.
- * O(L^2) (insertion sorts; exports are rare).
+ * O(L^2) (insertion sorts; exports are rare), after ekfslam_sync.
  */
 coslam_status_t ekfslam_export(ekfslam_t *ekf, map_estimate_t *out);
 
@@ -311,7 +312,7 @@ coslam_status_t ekfslam_add_landmark_body(ekfslam_t *ekf, point2_t m_body, cov2_
 /**
  * Landmark j relative to the robot, in the robot's body frame:
  * R(theta)^T (m_j - p) and its covariance including the pose-landmark
- * cross-covariance. O(1).
+ * cross-covariance. O(1); O(N_A^2) for a passive landmark in a local phase.
  */
 void ekfslam_landmark_relative(const ekfslam_t *ekf, uint16_t j, point2_t *mean_body, cov2_t *cov_body);
 
@@ -342,7 +343,7 @@ coslam_status_t ekfslam_merge_add(ekfslam_t *ekf, pose2_t t_hat, point2_t rel_ot
                                   const ekfslam_meta_t *meta);
 void ekfslam_merge_end(ekfslam_t *ekf);
 
-/** Remove landmark j, deleting its rows and columns. O(L). */
+/** Remove landmark j, deleting its rows and columns. O(L), after ekfslam_sync. */
 void ekfslam_remove_landmark(ekfslam_t *ekf, uint16_t j);
 
 /** A fresh landmark identity (never 0). */
