@@ -7,8 +7,14 @@
  *
  *   coslam-eval-worlds [--world paper|loop|large] [--filter ekf|fs1|fs2]
  *                      [-p N] [--seeds N] [--seed0 S] [--out DIR]
+ *                      [--active-radius R]
  *                      [--write-log DIR]   (the world of seed0 as a landmark
  *                                           log for coslam-replay, no runs)
+ *
+ * --active-radius R sets EKF-SLAM's active_radius_m (0: the full EKF; the
+ * default is the profile's, ekfslam_config_default()). The step time by
+ * map size (run_result_t.size_bin_us, bins of 2^k landmarks) goes to
+ * stderr, one line per seed.
  *
  * Worlds (eval_worlds.h): "paper" is the paper's scale (20 m loop among 64
  * landmarks of 4 classes), "loop" one large loop (radius 8 m, 160 landmarks
@@ -89,7 +95,7 @@ out:
 static void usage(void)
 {
     fprintf(stderr, "usage: coslam-eval-worlds [--world paper|loop|large] [--filter ekf|fs1|fs2] [-p N] [--seeds N] "
-                    "[--seed0 S] [--out DIR] [--trace] [--write-log DIR]\n");
+                    "[--seed0 S] [--out DIR] [--trace] [--active-radius R] [--write-log DIR]\n");
 }
 
 int main(int argc, char **argv)
@@ -102,6 +108,7 @@ int main(int argc, char **argv)
     const char *log_dir = NULL;
     int seeds = 10;
     long seed0 = 1;
+    double active_radius_m = -1.0;
     for (int i = 1; i < argc; ++i) {
         const int more = i + 1 < argc;
         if (!strcmp(argv[i], "--world") && more) world = argv[++i];
@@ -112,6 +119,7 @@ int main(int argc, char **argv)
         else if (!strcmp(argv[i], "--out") && more) out = argv[++i];
         else if (!strcmp(argv[i], "--trace")) trace = 1;
         else if (!strcmp(argv[i], "--write-log") && more) log_dir = argv[++i];
+        else if (!strcmp(argv[i], "--active-radius") && more) active_radius_m = atof(argv[++i]);
         else { usage(); return 2; }
     }
     profile_print(stderr, "coslam-eval-worlds");
@@ -156,7 +164,7 @@ int main(int argc, char **argv)
     if (md) fputs(line, md);
     for (int s = 0; s < seeds; ++s) {
         const uint64_t seed = (uint64_t)seed0 + (uint64_t)s;
-        if (eval_world_run(wk, fk, particles, seed, r) != 0) {
+        if (eval_world_run_ekf_radius(wk, fk, particles, seed, active_radius_m, r) != 0) {
             fprintf(stderr, "coslam-eval-worlds: run failed (seed %llu)\n", (unsigned long long)seed);
             free(r);
             return 1;
@@ -169,6 +177,7 @@ int main(int argc, char **argv)
             o.params = sc.truth;
             o.n_particles = particles;
             o.filter_seed = 7919U * seed + 17U;
+            o.ekf_active_radius_m = active_radius_m;
             run_trace_t tr;
             run_result_t *r2 = malloc(sizeof *r2);
             if (r2 != NULL && run_synth_traced(&sc, &o, r2, &tr) == 0) {
@@ -194,6 +203,15 @@ int main(int argc, char **argv)
         fputs(line, stdout);
         if (md) fputs(line, md);
         fflush(stdout);
+        fprintf(stderr, "seed %llu: %u global updates; step ms by map size (steps):", (unsigned long long)seed,
+                (unsigned)r->ekf_global_updates);
+        for (int k = 0; k < RUN_SIZE_BINS; ++k) {
+            if (r->size_bin_steps[k] > 0) {
+                fprintf(stderr, " %d: %.2f (%d)", 1 << k, 1e-3 * r->size_bin_us[k],
+                        r->size_bin_steps[k]);
+            }
+        }
+        fprintf(stderr, "\n");
     }
     snprintf(line, sizeof line,
              "\n%s, %s, %d particles: closed %d/%d; mean pose RMSE %.3f m; median landmark NEES %.2f (mean of "

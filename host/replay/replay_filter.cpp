@@ -67,7 +67,7 @@ std::optional<point2_t> RobotFilter::landmark_of_signature(uint8_t sig) const
         for (uint16_t j = 0; j < ekf->n_lm; ++j) {
             if (ekf->meta[j].signature == sig && ekf->meta[j].n_obs > best_obs) {
                 best_obs = ekf->meta[j].n_obs;
-                best = point2_t{ekf->x[3 + 2 * j], ekf->x[4 + 2 * j]};
+                best = ekfslam_landmark_mean(ekf, j);
             }
         }
         return best;

@@ -65,8 +65,15 @@ int eval_filter_parse(const char *name, run_filter_t *out)
 
 int eval_world_run(eval_world_t world, run_filter_t filter, int n_particles, uint64_t seed, run_result_t *r)
 {
+    return eval_world_run_ekf_radius(world, filter, n_particles, seed, -1.0, r);
+}
+
+int eval_world_run_ekf_radius(eval_world_t world, run_filter_t filter, int n_particles, uint64_t seed,
+                              double ekf_active_radius_m, run_result_t *r)
+{
     const synth_config_t sc = eval_world_config(world, seed);
     run_opts_t o = run_opts_default(filter);
+    o.ekf_active_radius_m = ekf_active_radius_m;
     o.params = sc.truth;
     o.n_particles = n_particles;
     o.filter_seed = 7919U * seed + 17U;

@@ -38,6 +38,9 @@ int eval_filter_parse(const char *name, run_filter_t *out);
 
 /** One run: world seed `seed`, filter seed derived from it. Returns 0 on success. */
 int eval_world_run(eval_world_t world, run_filter_t filter, int n_particles, uint64_t seed, run_result_t *r);
+/** eval_world_run with EKF-SLAM's active_radius_m (< 0: the profile's default; 0: the full EKF). */
+int eval_world_run_ekf_radius(eval_world_t world, run_filter_t filter, int n_particles, uint64_t seed,
+                              double ekf_active_radius_m, run_result_t *r);
 
 /** The loop-closure criterion of issue 9: final position error < 0.5 m and at
  *  most 2 % of the exported landmarks spurious. */

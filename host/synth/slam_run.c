@@ -16,6 +16,7 @@ run_opts_t run_opts_default(run_filter_t filter)
     o.filter_seed = 12345U;
     o.gate_m = 1.0;
     o.min_seen = 5;
+    o.ekf_active_radius_m = -1.0;
     return o;
 }
 
@@ -87,6 +88,9 @@ int run_synth_traced(const synth_config_t *scfg, const run_opts_t *opts, run_res
         ekf = malloc(sizeof *ekf);
         ekfslam_config_t c = ekfslam_config_default();
         c.slam = opts->params;
+        if (opts->ekf_active_radius_m >= 0.0) {
+            c.active_radius_m = opts->ekf_active_radius_m;
+        }
         if (ekf == NULL || ekfslam_init(ekf, &c, start) != COSLAM_OK) {
             free(ekf);
             free(map_est);
@@ -212,6 +216,7 @@ int run_synth_traced(const synth_config_t *scfg, const run_opts_t *opts, run_res
     if (ekf != NULL) {
         (void)ekfslam_export(ekf, &res->estimate);
         res->n_final_landmarks = ekf->n_lm;
+        res->ekf_global_updates = ekf->ctr.cekf_global_updates;
         if (full != NULL) {
             (void)ekfslam_export_whole(ekf, full);
         }

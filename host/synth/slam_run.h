@@ -30,6 +30,7 @@ typedef struct {
     double ess_fraction;        /**< Fast-SLAM resampling threshold (0: default) */
     int stop_after_steps;       /**< end the run early (0: run to the end) */
     int nees_every;             /**< pose NEES checkpoint period in steps (0: 50) */
+    double ekf_active_radius_m; /**< EKF-SLAM: ekfslam_config_t.active_radius_m (< 0: the default) */
     int trace_map_every;        /**< run_synth_traced: score the map every this many steps
                                      into the trace (0: never; costs an export and eval_map each) */
 } run_opts_t;
@@ -53,6 +54,7 @@ typedef struct {
     double ess_mean;            /**< Fast-SLAM mean ESS fraction after updates */
     map_estimate_t estimate;    /**< final exported map (what a message carries; `map` scores the whole map) */
     int n_final_landmarks;      /**< landmarks in the filter at the end (EKF-SLAM state, Fast-SLAM particle 0) */
+    uint32_t ekf_global_updates; /**< EKF-SLAM: compressed EKF global updates (ctr.cekf_global_updates) */
     /** Wall time per control step by the filter's map size L at that step:
      *  bin k holds the steps with round(log2 L) = k (L within a factor
      *  sqrt 2 of 2^k; bin 0 also L = 0). */

@@ -156,7 +156,7 @@ void health_before_update(health_t *h, const slam_filter_t *f)
         const ekfslam_t *e = &f->u.ekf;
         const pose2_t p = {e->x[0], e->x[1], e->x[2]};
         for (uint16_t j = 0; j < e->n_lm; ++j) {
-            const point2_t m = {e->x[3 + 2 * j], e->x[4 + 2 * j]};
+            const point2_t m = ekfslam_landmark_mean(e, j);
             if (in_view(sp, p, m)) {
                 mark(h, e->meta[j].signature);
                 h->in_view[h->n_in_view++] = j;

@@ -65,6 +65,7 @@ static int seed_landmark_ok(const map_landmark_t *l)
 
 static coslam_status_t seed_ekf(ekfslam_t *ekf, const map_estimate_t *map)
 {
+    ekfslam_sync(ekf); /* p is written directly below */
     for (int r = 0; r < 3; ++r) {
         for (int c = 0; c < 3; ++c) {
             ekf->p[r * EKFSLAM_DIM + c] = map->pose_cov.m[r][c];

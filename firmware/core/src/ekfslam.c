@@ -18,6 +18,12 @@ ekfslam_config_t ekfslam_config_default(void)
     c.jcbb_closure_gap = 25U;
     c.jcbb_closure_max_spread = 0.7;
     c.fej = 1U;
+#if COSLAM_EKF_MAX_ACTIVE >= 128
+    c.active_radius_m = 3.0;
+#else
+    c.active_radius_m = 0.0;
+#endif
+    c.active_min_landmarks = 128U;
     return c;
 }
 
@@ -50,18 +56,389 @@ static int active_idx(const ekfslam_t *ekf, int k)
     return k < d ? k : TAU_ + (k - d);
 }
 
+/* ---- Compressed EKF (Guivant and Nebot 2001) -----------------------------
+ *
+ * A local phase starts (cekf_select) with the whole state current: A0 =
+ * the pose and every landmark that can come within reach of the sensor
+ * while the robot stays within active_radius_m of where it is, B = the
+ * rest; phi = I, psi = 0, theta = 0. Write P_AB(k) etc. for the values the
+ * full EKF would hold after k steps, P_A0B = P_A0B(0) for the stored ones.
+ * Invariants (A grows by the landmarks added in the phase, rows of phi):
+ *   P_AB(k) = phi(k) P_A0B                                        (1)
+ *   P_BB(k) = P_BB(0) - P_BA0 psi(k) P_A0B + w5_sum(k) I           (2)
+ *   x_B(k)  = x_B(0) + P_BA0 theta(k)                              (3)
+ * Prediction, x_A' = f(x_A), F = blockdiag(F_A, I): P_AB' = F_A P_AB, so
+ * phi' = F_A phi (only the pose rows change); P_BB' = P_BB + w5 I on the
+ * landmarks (lm_process_var_m2_per_m, O(1) through w5_sum, exact: no step
+ * of the local phase reads P_BB). Update with H = [H_A 0], S = H_A P_AA
+ * H_A^T + Q (only P_AA: S is exact), K_A = P_AA H_A^T S^-1, K_B = P_BA H_A^T
+ * S^-1 = P_BA0 phi^T H_A^T S^-1 by (1):
+ *   x_B' = x_B + K_B nu          => theta' = theta + (H_A phi)^T S^-1 nu
+ *   P_AB' = (I - K_A H_A) P_AB   => phi'   = phi - K_A (H_A phi)
+ *   P_BB' = P_BB - K_B S K_B^T   => psi'   = psi + (H_A phi)^T S^-1 (H_A phi)
+ * (the Joseph form's AB and BB blocks reduce to these for the optimal
+ * gain: -K_A PHt_B^T - PHt_A K_B^T + K_A S K_B^T = -K_A H P_AB). x_A and
+ * P_AA are updated in place as by the full EKF. Each step is O(N_A^2)
+ * (N_A = |A|, phi is N_A x N_A0). A landmark m = g(x_r, z) added in the
+ * phase has P_mB = G_r P_rB = G_r phi_r P_A0B: its phi rows are G_r
+ * times the pose's. The global update (ekfslam_sync) applies (3), (2), (1)
+ * in that order (each reads the stored P_A0B before (1) overwrites it),
+ * O(N_B^2 N_A0), after which every entry is what the full EKF holds up to
+ * rounding. Between, readers of a passive entry evaluate (1)-(3) for it
+ * (x_now, p_now). The full EKF's association reads the landmarks within
+ * reach (max range + 3 sigma + 0.5 m) only; cekf_prepare forces a global
+ * update before an update that could have a passive landmark within reach,
+ * so the same landmarks are seen, with the same numbers. */
+
+static pose2_t robot_pose(const ekfslam_t *ekf);
+
+#define ADIM_ EKFSLAM_ACTIVE_DIM
+#define PHI_(e, k, i) ((e)->cekf.phi[(long)(k) * ADIM_ + (i)])
+#define PSI_(e, i, k) ((e)->cekf.psi[(long)(i) * ADIM_ + (k)])
+
+/* In a local phase (never where COSLAM_EKF_MAX_ACTIVE is 0: the compiler
+ * then drops the compressed paths). */
+static int in_local(const ekfslam_t *ekf)
+{
+    return COSLAM_EKF_MAX_ACTIVE > 0 && ekf->cekf.local;
+}
+
+/* Active position of state r in a local phase, -1 if passive. */
+static int act_pos(const ekfslam_t *ekf, int r)
+{
+    if (r < 3) {
+        return r;
+    }
+    const int32_t s = ekf->cekf.slot[(r - 3) / 2];
+    return s < 0 ? -1 : (int)s + ((r - 3) & 1);
+}
+
+static int is_current(const ekfslam_t *ekf, int r)
+{
+    return !in_local(ekf) || act_pos(ekf, r) >= 0;
+}
+
+/* x_r now, (3) for a passive state. */
+static double x_now(const ekfslam_t *ekf, int r)
+{
+    if (is_current(ekf, r)) {
+        return ekf->x[r];
+    }
+    const ekfslam_cekf_t *ck = &ekf->cekf;
+    double acc = 0.0;
+    for (int i = 0; i < ck->na0; ++i) {
+        acc += P_(ekf, ck->idx[i], r) * ck->theta[i];
+    }
+    return ekf->x[r] + acc;
+}
+
+/* P(r, c) now, (1) or (2) where passive states are involved. */
+static double p_now(const ekfslam_t *ekf, int r, int c)
+{
+    const ekfslam_cekf_t *ck = &ekf->cekf;
+    if (!in_local(ekf)) {
+        return P_(ekf, r, c);
+    }
+    const int kr = act_pos(ekf, r);
+    const int kc = act_pos(ekf, c);
+    if (kr >= 0 && kc >= 0) {
+        return P_(ekf, r, c);
+    }
+    if (kr >= 0 || kc >= 0) {
+        const int k = kr >= 0 ? kr : kc;
+        const int b = kr >= 0 ? c : r;
+        double acc = 0.0;
+        for (int i = 0; i < ck->na0; ++i) {
+            acc += PHI_(ekf, k, i) * P_(ekf, ck->idx[i], b);
+        }
+        return acc;
+    }
+    double acc = 0.0;
+    for (int i = 0; i < ck->na0; ++i) {
+        double wi = 0.0;
+        for (int i2 = 0; i2 < ck->na0; ++i2) {
+            wi += PSI_(ekf, i, i2) * P_(ekf, ck->idx[i2], c);
+        }
+        acc += P_(ekf, ck->idx[i], r) * wi;
+    }
+    return P_(ekf, r, c) - acc + (r == c ? ck->w5_sum : 0.0);
+}
+
+/* u = P_A0,blk (stored values), zero beyond the block's nb columns */
+static void gather_block(ekfslam_t *ekf, const int *blk, int nb)
+{
+    ekfslam_cekf_t *ck = &ekf->cekf;
+    for (int i = 0; i < ck->na0; ++i) {
+        const double *row = &ekf->p[(long)ck->idx[i] * D_];
+        for (int q = 0; q < EKFSLAM_SYNC_BLOCK; ++q) {
+            ck->u[i][q] = q < nb ? row[blk[q]] : 0.0;
+        }
+    }
+}
+
+/* The passive states from r on, at most EKFSLAM_SYNC_BLOCK of them, into
+ * blk, and their columns of A0's rows into u (gather_block); their count,
+ * and *next = where the next block starts. */
+static int passive_block(ekfslam_t *ekf, int r, int d, int *blk, int *next)
+{
+    int n = 0;
+    for (; r < d && n < EKFSLAM_SYNC_BLOCK; ++r) {
+        if (act_pos(ekf, r) < 0) {
+            blk[n++] = r;
+        }
+    }
+    *next = r;
+    gather_block(ekf, blk, n);
+    return n;
+}
+
+/* w[q][k] = (m u)[k][q] for the first n rows of m (phi or psi, na0
+ * columns) and the gathered block u */
+static void block_products(ekfslam_t *ekf, const double *m, int n)
+{
+    ekfslam_cekf_t *ck = &ekf->cekf;
+    for (int k = 0; k < n; ++k) {
+        const double *mk = &m[(long)k * ADIM_];
+        double acc[EKFSLAM_SYNC_BLOCK] = {0.0};
+        for (int i = 0; i < ck->na0; ++i) {
+            for (int q = 0; q < EKFSLAM_SYNC_BLOCK; ++q) {
+                acc[q] += mk[i] * ck->u[i][q];
+            }
+        }
+        for (int q = 0; q < EKFSLAM_SYNC_BLOCK; ++q) {
+            ck->w[q][k] = acc[q];
+        }
+    }
+}
+
+void ekfslam_sync(ekfslam_t *ekf)
+{
+    ekfslam_cekf_t *ck = &ekf->cekf;
+    if (!in_local(ekf)) {
+        return;
+    }
+    const int d = dim(ekf);
+    const int n0 = ck->na0;
+    const int na = ck->na;
+    const int32_t *idx = ck->idx;
+    int blk[EKFSLAM_SYNC_BLOCK];
+    /* (3): x_B += P_BA0 theta */
+    for (int r = 3; r < d; ++r) {
+        if (act_pos(ekf, r) < 0) {
+            ekf->x[r] = x_now(ekf, r);
+        }
+    }
+    /* (2): P_BB -= P_BA0 psi P_A0B, + w5_sum on the diagonal. Each row's
+     * upper part as axpys with the (contiguous) rows of A0, a block of rows
+     * at a time, mirrored below; the axpys also write garbage into the
+     * rows' active columns, which (1) overwrites next. Rows of A0 are only
+     * read. */
+    for (int r = 3, next; r < d; r = next) {
+        const int nb = passive_block(ekf, r, d, blk, &next);
+        block_products(ekf, ck->psi, n0); /* w = (psi P_A0,blk)^T */
+        for (int i = 0; i < n0; ++i) {
+            const double *ua = &ekf->p[(long)idx[i] * D_];
+            for (int q = 0; q < nb; ++q) {
+                const double wi = ck->w[q][i];
+                double *row = &ekf->p[(long)blk[q] * D_];
+                for (int c = blk[q]; c < d; ++c) {
+                    row[c] -= wi * ua[c];
+                }
+            }
+        }
+        for (int q = 0; q < nb; ++q) {
+            P_(ekf, blk[q], blk[q]) += ck->w5_sum;
+        }
+        for (int c = blk[0] + 1; c < d; ++c) {
+            if (act_pos(ekf, c) >= 0) {
+                continue;
+            }
+            for (int q = 0; q < nb && blk[q] < c; ++q) {
+                P_(ekf, c, blk[q]) = P_(ekf, blk[q], c);
+            }
+        }
+    }
+    /* (1): P_AB = phi P_A0B, a block of columns at a time (A0's part of
+     * them read first) */
+    for (int b = 3, next; b < d; b = next) {
+        const int nb = passive_block(ekf, b, d, blk, &next);
+        block_products(ekf, ck->phi, na); /* w = (phi P_A0,blk)^T */
+        for (int k = 0; k < na; ++k) {
+            for (int q = 0; q < nb; ++q) {
+                P_(ekf, idx[k], blk[q]) = ck->w[q][k];
+                P_(ekf, blk[q], idx[k]) = ck->w[q][k];
+            }
+        }
+    }
+    ck->local = 0U;
+    ekf->ctr.cekf_global_updates++;
+}
+
+/* Reach of the association's near test (ekfslam_update) for landmark state
+ * a with landmark variance trace var_m (plus the pose's, var_r). */
+static double near_reach(double max_range_m, double var_m, double var_r)
+{
+    return max_range_m + 3.0 * sqrt(var_m + var_r) + 0.5 + 1e-6; /* + rounding */
+}
+
+/* Start a local phase around the robot if the compression is on and the
+ * active part fits; else the full EKF runs this frame. O(L N_A). */
+static void cekf_select(ekfslam_t *ekf, double max_range_m)
+{
+    ekfslam_cekf_t *ck = &ekf->cekf;
+    const double radius = ekf->cfg.active_radius_m;
+    if (COSLAM_EKF_MAX_ACTIVE == 0 || !(radius > 0.0) || ekf->merging || ekf->n_lm < ekf->cfg.active_min_landmarks) {
+        return;
+    }
+    const pose2_t pose = robot_pose(ekf);
+    const double var_r = P_(ekf, 0, 0) + P_(ekf, 1, 1);
+    int n = 0;
+    for (uint16_t j = 0; j < ekf->n_lm; ++j) {
+        const int a = 3 + 2 * j;
+        const double reach = radius + near_reach(max_range_m, P_(ekf, a, a) + P_(ekf, a + 1, a + 1), var_r);
+        const int in = hypot(ekf->x[a] - pose.x, ekf->x[a + 1] - pose.y) <= reach;
+        ck->slot[j] = in ? 0 : -1;
+        n += in;
+    }
+    if (n > COSLAM_EKF_MAX_ACTIVE) {
+        ekf->ctr.cekf_active_overflows++;
+        return;
+    }
+    int k = 3;
+    for (int q = 0; q < 3; ++q) {
+        ck->idx[q] = q;
+    }
+    for (uint16_t j = 0; j < ekf->n_lm; ++j) {
+        if (ck->slot[j] == 0) {
+            ck->slot[j] = k;
+            ck->idx[k] = 3 + 2 * j;
+            ck->idx[k + 1] = 4 + 2 * j;
+            k += 2;
+        }
+    }
+    ck->na = k;
+    ck->na0 = k;
+    ck->local = 1U; /* act_pos below needs the slots */
+    /* |P_bA0| bounds how far theta moves passive landmark b, (3) */
+    for (uint16_t j = 0; j < ekf->n_lm; ++j) {
+        if (ck->slot[j] >= 0) {
+            continue;
+        }
+        const double *rx = &ekf->p[(long)(3 + 2 * j) * D_];
+        const double *ry = rx + D_;
+        double acc = 0.0;
+        for (int i = 0; i < k; ++i) {
+            acc += rx[ck->idx[i]] * rx[ck->idx[i]] + ry[ck->idx[i]] * ry[ck->idx[i]];
+        }
+        ck->drift_gain[j] = sqrt(acc);
+    }
+    for (int r = 0; r < k; ++r) {
+        for (int c = 0; c < k; ++c) {
+            PHI_(ekf, r, c) = r == c ? 1.0 : 0.0;
+            PSI_(ekf, r, c) = 0.0;
+        }
+        ck->theta[r] = 0.0;
+    }
+    ck->w5_sum = 0.0;
+    ck->centre.x = pose.x;
+    ck->centre.y = pose.y;
+}
+
+/* Before an update: end the local phase if the robot left its region or a
+ * passive landmark may be within reach (bounds first: the stale position
+ * moved by at most drift_gain |theta|, the stale variance plus w5_sum is an
+ * upper bound; then the exact position, O(N_A), for the few that pass);
+ * then start one if none runs. */
+static void cekf_prepare(ekfslam_t *ekf, double max_range_m)
+{
+    ekfslam_cekf_t *ck = &ekf->cekf;
+    if (in_local(ekf)) {
+        const pose2_t pose = robot_pose(ekf);
+        int leave = hypot(pose.x - ck->centre.x, pose.y - ck->centre.y) > ekf->cfg.active_radius_m;
+        const double var_r = P_(ekf, 0, 0) + P_(ekf, 1, 1);
+        double tn = 0.0;
+        for (int i = 0; i < ck->na0; ++i) {
+            tn += ck->theta[i] * ck->theta[i];
+        }
+        tn = sqrt(tn);
+        for (uint16_t j = 0; j < ekf->n_lm && !leave; ++j) {
+            if (ck->slot[j] >= 0) {
+                continue;
+            }
+            const int a = 3 + 2 * j;
+            const double reach =
+                near_reach(max_range_m, P_(ekf, a, a) + P_(ekf, a + 1, a + 1) + 2.0 * ck->w5_sum, var_r);
+            if (hypot(ekf->x[a] - pose.x, ekf->x[a + 1] - pose.y) - ck->drift_gain[j] * tn > reach) {
+                continue;
+            }
+            leave = hypot(x_now(ekf, a) - pose.x, x_now(ekf, a + 1) - pose.y) <= reach;
+        }
+        if (leave) {
+            ekfslam_sync(ekf);
+        }
+    }
+    if (!in_local(ekf)) {
+        cekf_select(ekf, max_range_m);
+    }
+}
+
+/* Auxiliaries after a sighting of active landmark j (derivation above):
+ * theta += (H phi)^T S^-1 nu, psi += (H phi)^T S^-1 (H phi), phi -= K (H
+ * phi), K over the active rows. O(N_A N_A0). */
+static void cekf_update_aux(ekfslam_t *ekf, uint16_t j, const lm_expect_t *e, const double nu[2],
+                            const double (*k)[2])
+{
+    ekfslam_cekf_t *ck = &ekf->cekf;
+    const int n0 = ck->na0;
+    const int s = ck->slot[j];
+    const cov2_t si = e->s_inv;
+    const double sinu0 = si.xx * nu[0] + si.xy * nu[1];
+    const double sinu1 = si.xy * nu[0] + si.yy * nu[1];
+    for (int i = 0; i < n0; ++i) {
+        double h[2];
+        for (int q = 0; q < 2; ++q) {
+            h[q] = e->h_pose[q][0] * PHI_(ekf, 0, i) + e->h_pose[q][1] * PHI_(ekf, 1, i) +
+                   e->h_pose[q][2] * PHI_(ekf, 2, i) + e->h_lm[q][0] * PHI_(ekf, s, i) +
+                   e->h_lm[q][1] * PHI_(ekf, s + 1, i);
+            ck->hphi[q][i] = h[q];
+        }
+        ck->shphi[0][i] = si.xx * h[0] + si.xy * h[1];
+        ck->shphi[1][i] = si.xy * h[0] + si.yy * h[1];
+        ck->theta[i] += h[0] * sinu0 + h[1] * sinu1;
+    }
+    for (int i = 0; i < n0; ++i) {
+        for (int i2 = i; i2 < n0; ++i2) {
+            const double v = ck->hphi[0][i] * ck->shphi[0][i2] + ck->hphi[1][i] * ck->shphi[1][i2];
+            PSI_(ekf, i, i2) += v;
+            if (i2 != i) {
+                PSI_(ekf, i2, i) += v;
+            }
+        }
+    }
+    for (int r = 0; r < ck->na; ++r) {
+        const double k0 = k[r][0];
+        const double k1 = k[r][1];
+        double *row = &ck->phi[(long)r * ADIM_];
+        for (int i = 0; i < n0; ++i) {
+            row[i] -= k0 * ck->hphi[0][i] + k1 * ck->hphi[1][i];
+        }
+    }
+}
+
 coslam_status_t ekfslam_init(ekfslam_t *ekf, const ekfslam_config_t *cfg, pose2_t pose0)
 {
     COSLAM_ASSERT(ekf != 0 && cfg != 0);
     if (slam_params_validate(&cfg->slam) != COSLAM_OK || cfg->robot_id >= COSLAM_MAX_ROBOTS || cfg->fej > 1U ||
         (cfg->assoc != EKFSLAM_ASSOC_NN && cfg->assoc != EKFSLAM_ASSOC_JCBB) || cfg->jcbb_max_nodes < 1U ||
         !(cfg->jcbb_ambiguity_d2 >= 0.0 && cfg->jcbb_ambiguity_d2 < 1e6) || cfg->jcbb_min_closure_pairs < 1U ||
-        !(cfg->jcbb_closure_max_spread > 0.0) || !pose2_is_finite(pose0)) {
+        !(cfg->jcbb_closure_max_spread > 0.0) || !(cfg->active_radius_m >= 0.0 && cfg->active_radius_m < 1e6) ||
+        (cfg->active_radius_m > 0.0 && COSLAM_EKF_MAX_ACTIVE == 0) || !pose2_is_finite(pose0)) {
         return COSLAM_E_ARG;
     }
     ekf->cfg = *cfg;
     ekf->n_lm = 0;
     ekf->merging = 0U;
+    ekf->cekf.local = 0U;
     ekf->next_id = 1U;
     memset(&ekf->ctr, 0, sizeof ekf->ctr);
     ekf->x[0] = pose0.x;
@@ -101,14 +478,20 @@ void ekfslam_landmark(const ekfslam_t *ekf, uint16_t j, point2_t *mean, cov2_t *
 {
     COSLAM_ASSERT(j < ekf->n_lm);
     const int a = 3 + 2 * j;
-    mean->x = ekf->x[a];
-    mean->y = ekf->x[a + 1];
-    *cov = cov2_make(P_(ekf, a, a), 0.5 * (P_(ekf, a, a + 1) + P_(ekf, a + 1, a)), P_(ekf, a + 1, a + 1));
+    *mean = ekfslam_landmark_mean(ekf, j);
+    *cov = cov2_make(p_now(ekf, a, a), 0.5 * (p_now(ekf, a, a + 1) + p_now(ekf, a + 1, a)), p_now(ekf, a + 1, a + 1));
+}
+
+point2_t ekfslam_landmark_mean(const ekfslam_t *ekf, uint16_t j)
+{
+    COSLAM_ASSERT(j < ekf->n_lm);
+    const point2_t m = {x_now(ekf, 3 + 2 * j), x_now(ekf, 4 + 2 * j)};
+    return m;
 }
 
 double ekfslam_p(const ekfslam_t *ekf, int r, int c)
 {
-    return P_(ekf, r, c);
+    return p_now(ekf, r, c);
 }
 
 coslam_status_t ekfslam_predict(ekfslam_t *ekf, odo_increment_t u)
@@ -133,7 +516,10 @@ coslam_status_t ekfslam_predict(ekfslam_t *ekf, odo_increment_t u)
     ekf->x[0] = np.x;
     ekf->x[1] = np.y;
     ekf->x[2] = np.theta;
-    const int d = dim(ekf);
+    /* the landmarks: all, or the active ones in a local phase */
+    const int local = in_local(ekf);
+    const int n = local ? ekf->cekf.na : dim(ekf);
+    const int32_t *ix = ekf->cekf.idx;
     /* P_rr = G P_rr G^T + V R V^T */
     cov3_t prr;
     for (int r = 0; r < 3; ++r) {
@@ -148,7 +534,8 @@ coslam_status_t ekfslam_predict(ekfslam_t *ekf, odo_increment_t u)
         }
     }
     /* P_rm = G P_rm, P_mr = P_rm^T */
-    for (int c = 3; c < d; ++c) {
+    for (int kk = 3; kk < n; ++kk) {
+        const int c = local ? ix[kk] : kk;
         const double a0 = P_(ekf, 0, c);
         const double a1 = P_(ekf, 1, c);
         const double a2 = P_(ekf, 2, c);
@@ -161,8 +548,21 @@ coslam_status_t ekfslam_predict(ekfslam_t *ekf, odo_increment_t u)
     const double w5 = sp->noise.lm_process_var_m2_per_m;
     if (w5 > 0.0) {
         const double add = w5 * motion_travel_m(u, sp->base_radius_m);
-        for (int c = 3; c < d; ++c) {
+        for (int kk = 3; kk < n; ++kk) {
+            const int c = local ? ix[kk] : kk;
             P_(ekf, c, c) += add;
+        }
+        ekf->cekf.w5_sum += add; /* the passive landmarks' share, (2) */
+    }
+    if (local) {
+        /* phi' = F_A phi: the pose rows */
+        for (int i = 0; i < ekf->cekf.na0; ++i) {
+            const double a0 = PHI_(ekf, 0, i);
+            const double a1 = PHI_(ekf, 1, i);
+            const double a2 = PHI_(ekf, 2, i);
+            for (int r = 0; r < 3; ++r) {
+                PHI_(ekf, r, i) = g[r][0] * a0 + g[r][1] * a1 + g[r][2] * a2;
+            }
         }
     }
     ekf->ctr.predictions++;
@@ -255,12 +655,15 @@ static coslam_status_t update_one(ekfslam_t *ekf, uint16_t j, sighting_t z)
         ekf->ctr.numeric_faults++;
         return st;
     }
-    const int d = dim(ekf);
+    /* the whole state, or the active part in a local phase */
+    const int local = in_local(ekf);
+    const int d = local ? ekf->cekf.na : dim(ekf);
+    const int32_t *ix = ekf->cekf.idx;
     const int a = 3 + 2 * j;
     double(*pht)[2] = ekf->scratch.pht;
     double(*k)[2] = ekf->scratch.k;
     for (int r = 0; r < d; ++r) {
-        const double *row = &ekf->p[(long)r * D_];
+        const double *row = &ekf->p[(long)(local ? ix[r] : r) * D_];
         for (int q = 0; q < 2; ++q) {
             pht[r][q] = row[0] * e.h_pose[q][0] + row[1] * e.h_pose[q][1] + row[2] * e.h_pose[q][2] +
                         row[a] * e.h_lm[q][0] + row[a + 1] * e.h_lm[q][1];
@@ -274,7 +677,7 @@ static coslam_status_t update_one(ekfslam_t *ekf, uint16_t j, sighting_t z)
     double nu[2];
     observe_innovation(z, e.zhat, nu);
     for (int r = 0; r < d; ++r) {
-        ekf->x[r] += k[r][0] * nu[0] + k[r][1] * nu[1];
+        ekf->x[local ? ix[r] : r] += k[r][0] * nu[0] + k[r][1] * nu[1];
     }
     ekf->x[2] = angle_wrap(ekf->x[2]);
     const cov2_t s = e.s;
@@ -282,13 +685,18 @@ static coslam_status_t update_one(ekfslam_t *ekf, uint16_t j, sighting_t z)
         /* ks = K_r S */
         const double ks0 = k[r][0] * s.xx + k[r][1] * s.xy;
         const double ks1 = k[r][0] * s.xy + k[r][1] * s.yy;
+        const int pr = local ? ix[r] : r;
         for (int c = r; c < d; ++c) {
             const double delta = k[r][0] * pht[c][0] + k[r][1] * pht[c][1] + pht[r][0] * k[c][0] +
                                  pht[r][1] * k[c][1] - (ks0 * k[c][0] + ks1 * k[c][1]);
-            const double val = P_(ekf, r, c) - delta;
-            P_(ekf, r, c) = val;
-            P_(ekf, c, r) = val;
+            const int pc = local ? ix[c] : c;
+            const double val = P_(ekf, pr, pc) - delta;
+            P_(ekf, pr, pc) = val;
+            P_(ekf, pc, pr) = val;
         }
+    }
+    if (local) {
+        cekf_update_aux(ekf, j, &e, nu, (const double(*)[2])k);
     }
     return COSLAM_OK;
 }
@@ -310,7 +718,12 @@ static coslam_status_t add_landmark(ekfslam_t *ekf, point2_t m, double gr[2][3],
         ekf->ctr.numeric_faults++;
         return COSLAM_E_NUMERIC;
     }
-    const int n_act = n_active(ekf);
+    if (in_local(ekf) && ekf->cekf.na + 2 > ADIM_) {
+        ekfslam_sync(ekf); /* the active part is full */
+    }
+    COSLAM_ASSERT(!(in_local(ekf) && ekf->merging));
+    const int local = in_local(ekf);
+    const int n_act = local ? ekf->cekf.na : n_active(ekf);
     const int a = dim(ekf); /* new rows/columns a, a+1 */
     /* the sources: pose (0..2) and, if given, tau */
     int src[6] = {0, 1, 2, TAU_, TAU_ + 1, TAU_ + 2};
@@ -323,7 +736,7 @@ static coslam_status_t add_landmark(ekfslam_t *ekf, point2_t m, double gr[2][3],
     }
     const int n_src = gt != 0 && ekf->merging ? 6 : 3;
     for (int k = 0; k < n_act; ++k) {
-        const int col = active_idx(ekf, k);
+        const int col = local ? ekf->cekf.idx[k] : active_idx(ekf, k);
         for (int q = 0; q < 2; ++q) {
             double val = 0.0;
             for (int r = 0; r < n_src; ++r) {
@@ -350,6 +763,20 @@ static coslam_status_t add_landmark(ekfslam_t *ekf, point2_t m, double gr[2][3],
     P_(ekf, a + 1, a + 1) = pmm[1][1];
     ekf->x[a] = m.x;
     ekf->x[a + 1] = m.y;
+    if (local) {
+        /* active from now on; P_mB = G_r phi_r P_A0B: phi rows G_r phi_r */
+        ekfslam_cekf_t *ck = &ekf->cekf;
+        const int kn = ck->na;
+        ck->slot[ekf->n_lm] = kn;
+        ck->idx[kn] = a;
+        ck->idx[kn + 1] = a + 1;
+        for (int i = 0; i < ck->na0; ++i) {
+            for (int q = 0; q < 2; ++q) {
+                PHI_(ekf, kn + q, i) = gr[q][0] * PHI_(ekf, 0, i) + gr[q][1] * PHI_(ekf, 1, i) + gr[q][2] * PHI_(ekf, 2, i);
+            }
+        }
+        ck->na = kn + 2;
+    }
     ekf->lm_first[ekf->n_lm] = m;
     ekf->meta[ekf->n_lm] = *meta;
     ekf->meta[ekf->n_lm].last_seen = ekf->ctr.updates;
@@ -375,6 +802,7 @@ coslam_status_t ekfslam_add_landmark_body(ekfslam_t *ekf, point2_t m_body, cov2_
 void ekfslam_remove_landmark(ekfslam_t *ekf, uint16_t j)
 {
     COSLAM_ASSERT(j < ekf->n_lm);
+    ekfslam_sync(ekf);
     const uint16_t last = (uint16_t)(ekf->n_lm - 1);
     if (j != last) {
         const int d = dim(ekf);
@@ -795,18 +1223,22 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
         ++ns;
     }
     ekf->ctr.updates++;
+    cekf_prepare(ekf, max_range_m);
 
     /* 1-2. expectations and gated, likelihood-ranked candidate pairs */
     const pose2_t pose = robot_pose(ekf);
     int n_pairs = 0;
     for (uint16_t j = 0; j < ekf->n_lm; ++j) {
+        sc->near[j] = 0;
+        sc->matched[j] = 0;
+        if (in_local(ekf) && ekf->cekf.slot[j] < 0) {
+            continue; /* passive: out of reach (cekf_prepare) */
+        }
         const int a = 3 + 2 * j;
         const double dx = ekf->x[a] - pose.x;
         const double dy = ekf->x[a + 1] - pose.y;
         const double reach = max_range_m + 3.0 * sqrt(P_(ekf, a, a) + P_(ekf, a + 1, a + 1) + P_(ekf, 0, 0) +
                                                       P_(ekf, 1, 1)) + 0.5;
-        sc->near[j] = 0;
-        sc->matched[j] = 0;
         if (dx * dx + dy * dy > reach * reach) {
             continue;
         }
@@ -909,11 +1341,11 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
 static void relative_jacobian(const ekfslam_t *ekf, uint16_t j, double jac[2][5], point2_t *rel)
 {
     const pose2_t pose = robot_pose(ekf);
-    const int a = 3 + 2 * j;
+    const point2_t m = ekfslam_landmark_mean(ekf, j);
     const double c = cos(pose.theta);
     const double s = sin(pose.theta);
-    const double dx = ekf->x[a] - pose.x;
-    const double dy = ekf->x[a + 1] - pose.y;
+    const double dx = m.x - pose.x;
+    const double dy = m.y - pose.y;
     jac[0][0] = -c;
     jac[0][1] = -s;
     jac[0][2] = -s * dx + c * dy;
@@ -941,7 +1373,7 @@ static cov2_t landmark_relative_cov(const ekfslam_t *ekf, uint16_t j)
     double o[2][2] = {{0.0, 0.0}, {0.0, 0.0}};
     for (int r1 = 0; r1 < 5; ++r1) {
         for (int r2 = 0; r2 < 5; ++r2) {
-            const double pv = P_(ekf, idx[r1], idx[r2]);
+            const double pv = p_now(ekf, idx[r1], idx[r2]);
             for (int q1 = 0; q1 < 2; ++q1) {
                 for (int q2 = 0; q2 < 2; ++q2) {
                     o[q1][q2] += jac[q1][r1] * pv * jac[q2][r2];
@@ -1036,6 +1468,7 @@ coslam_status_t ekfslam_merge_begin(ekfslam_t *ekf, const cov3_t *t_cov)
     if (t_cov != 0 && !cov3_is_finite(*t_cov)) {
         return COSLAM_E_NUMERIC;
     }
+    ekfslam_sync(ekf); /* the merge runs on the whole state */
     const int d = dim(ekf);
     for (int q = 0; q < 3; ++q) {
         ekf->x[TAU_ + q] = 0.0;
@@ -1204,6 +1637,7 @@ static void export_fill(const ekfslam_t *ekf, map_landmark_t *lm, const uint16_t
  * breaking ties; the rest counted), by identity into lm; their number. */
 static coslam_status_t export_capped(ekfslam_t *ekf, map_landmark_t *lm, int cap, uint16_t *n_out)
 {
+    ekfslam_sync(ekf);
     uint16_t *order = ekf->scratch.order;
     coslam_status_t result = COSLAM_OK;
     int n = confirmed_order(ekf, order);

@@ -607,6 +607,7 @@ coslam_status_t merge_into_ekfslam(ekfslam_t *ekf, const merge_body_map_t *bm, c
     stats = begin_merge(sc, bm, cfg, stats, &local);
     const slam_params_t *sp = &ekf->cfg.slam;
     coslam_status_t result = COSLAM_OK;
+    ekfslam_sync(ekf); /* compressed EKF: the whole state, once, before reading it all */
     const uint16_t n_own = ekf->n_lm;
     for (uint16_t j = 0; j < n_own; ++j) {
         ekfslam_landmark_relative(ekf, j, &sc->own_body[j], &sc->own_cov[j]);

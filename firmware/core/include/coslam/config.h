@@ -48,6 +48,11 @@
 #ifndef COSLAM_EKF_MAX_LANDMARKS
 #define COSLAM_EKF_MAX_LANDMARKS 1024
 #endif
+/* The compressed EKF's active part (ekfslam.h): at 2 landmarks per m^2
+ * the region around the sensor holds 100-200 of them (docs/core-slam.md). */
+#ifndef COSLAM_EKF_MAX_ACTIVE
+#define COSLAM_EKF_MAX_ACTIVE 256
+#endif
 #elif defined(COSLAM_PROFILE_LARGE) && COSLAM_PROFILE_LARGE
 #define COSLAM_PROFILE_NAME_ "large"
 #ifndef COSLAM_MAX_PARTICLES
@@ -55,6 +60,9 @@
 #endif
 #ifndef COSLAM_MAX_LANDMARKS
 #define COSLAM_MAX_LANDMARKS 256
+#endif
+#ifndef COSLAM_EKF_MAX_ACTIVE
+#define COSLAM_EKF_MAX_ACTIVE 64
 #endif
 #else
 #define COSLAM_PROFILE_NAME_ "default"
@@ -86,6 +94,14 @@
  *  Fast-SLAM map's (lm_capacity_drops, naming this macro). */
 #ifndef COSLAM_EKF_MAX_LANDMARKS
 #define COSLAM_EKF_MAX_LANDMARKS COSLAM_MAX_LANDMARKS
+#endif
+
+/** Landmarks in the compressed EKF's active part (ekfslam_config_t.
+ *  active_radius_m): its auxiliary matrices take 16 (3 + 2 N)^2 bytes. 0
+ *  (the default profile, at most 64 landmarks, where the full update is
+ *  cheap) leaves the compression out: active_radius_m must then be 0. */
+#ifndef COSLAM_EKF_MAX_ACTIVE
+#define COSLAM_EKF_MAX_ACTIVE 0
 #endif
 
 /**
@@ -172,6 +188,9 @@
 #endif
 #if COSLAM_EKF_MAX_LANDMARKS < 1 || COSLAM_EKF_MAX_LANDMARKS > COSLAM_MAX_LANDMARKS
 #error "COSLAM_EKF_MAX_LANDMARKS must be in [1, COSLAM_MAX_LANDMARKS]"
+#endif
+#if COSLAM_EKF_MAX_ACTIVE < 0 || COSLAM_EKF_MAX_ACTIVE > COSLAM_EKF_MAX_LANDMARKS
+#error "COSLAM_EKF_MAX_ACTIVE must be in [0, COSLAM_EKF_MAX_LANDMARKS]"
 #endif
 #if COSLAM_MAX_MSG_LANDMARKS < 1 || COSLAM_MAX_MSG_LANDMARKS > 65535
 #error "COSLAM_MAX_MSG_LANDMARKS must be in [1, 65535]"

@@ -36,10 +36,17 @@
  *      with its cross-covariances to the whole state: P_mm = G_r P_rr G_r^T +
  *      G_z Q G_z^T + w8 I, P_m* = G_r P_r*.
  *
+ * Compressed EKF (active_radius_m > 0, Guivant and Nebot 2001): steps 1-5
+ * run on the active part around the robot only, O(N_A^2) per sighting;
+ * a global update, O(N_B^2 N_A), brings the rest up to date when the
+ * robot leaves its region or a function needs the whole state. Results
+ * equal the full EKF's up to rounding (test_cekf).
+ *
  * Memory: sizeof(ekfslam_t) ~ 8 * EKFSLAM_DIM^2 bytes (137 KB for 64
  * landmarks, 2.1 MB for 256, 34 MB for 1024: the capacity is its own,
  * COSLAM_EKF_MAX_LANDMARKS, config.h). Never allocates.
- * Time: predict O(L); update O(L + S * L_near + S * L^2) for S sightings.
+ * Time: predict O(L); update O(L + S * L_near + S * L^2) for S sightings
+ * (compressed: O(L + S * L_near + S * N_A^2) plus the global updates).
  */
 #ifndef COSLAM_EKFSLAM_H
 #define COSLAM_EKFSLAM_H
@@ -104,6 +111,20 @@ typedef struct {
      *  standard EKF gains spurious heading information and becomes
      *  overconfident over a loop; FEJ removes most of that. */
     uint8_t fej;
+    /** Compressed EKF (Guivant and Nebot 2001; ekfslam.c "Compressed
+     *  EKF"): while the robot stays within this distance of where its
+     *  local region was chosen, predictions and updates touch only the
+     *  active part (pose and the landmarks that can come into reach) and
+     *  auxiliary matrices, O(N_A^2) per sighting whatever the map size; a
+     *  global update, exact, brings the rest up to date when the robot
+     *  leaves, or when something needs the whole state. 0: off, the full
+     *  EKF bit for bit. > 0 needs COSLAM_EKF_MAX_ACTIVE > 0 (config.h).
+     *  Default 0, except 3 m in a profile with COSLAM_EKF_MAX_ACTIVE >=
+     *  128 (the host profile; docs/core-slam.md "Compressed EKF"). */
+    double active_radius_m;
+    /** The compression starts only with at least this many landmarks in
+     *  the state (below, the full update is as cheap). Default 128. */
+    uint16_t active_min_landmarks;
 } ekfslam_config_t;
 
 /** Per-landmark bookkeeping beside the state (same meaning as in landmark_t). */
@@ -131,6 +152,9 @@ typedef struct {
     uint32_t jcbb_ambiguous;          /**< frames whose best hypothesis was ambiguous */
     uint32_t jcbb_closures_held;      /**< frames with a loop closure of too few pairings */
     uint32_t jcbb_closures_nonlinear; /**< frames with a loop closure held back as too nonlinear */
+    uint32_t cekf_global_updates;     /**< compressed EKF: local phases ended by a global update */
+    uint32_t cekf_active_overflows;   /**< compressed EKF: regions with more than COSLAM_EKF_MAX_ACTIVE
+                                           landmarks in reach (that frame used the full update) */
 } ekfslam_counters_t;
 
 /** Largest joint innovation handled by JCBB (2 rows per sighting). */
@@ -169,6 +193,39 @@ typedef struct {
     uint16_t order[COSLAM_EKF_MAX_LANDMARKS];
 } ekfslam_scratch_t;
 
+/** Active states of the compressed EKF at most: the pose and COSLAM_EKF_MAX_ACTIVE landmarks. */
+#define EKFSLAM_ACTIVE_DIM (3 + 2 * COSLAM_EKF_MAX_ACTIVE)
+#define EKFSLAM_SYNC_BLOCK 8
+
+/**
+ * Compressed EKF bookkeeping (ekfslam.c "Compressed EKF"). In a local
+ * phase the state splits into the active part A (states idx[0 .. na)) and
+ * the passive rest B. A0 = idx[0 .. na0) is A at the phase start (landmarks
+ * added since are appended). x_A and P_AA are current in x and p; x_B,
+ * P_AB and P_BB hold their values at the phase start, and the current ones
+ * are P_AB = phi P_A0B, P_BB = P_BB - P_BA0 psi P_A0B + w5_sum I, x_B = x_B
+ * + P_BA0 theta.
+ */
+typedef struct {
+    uint8_t local;                            /**< 1 in a local phase */
+    int32_t na;                               /**< active states now */
+    int32_t na0;                              /**< active states at the phase start */
+    point2_t centre;                          /**< robot position at the phase start */
+    double w5_sum;                            /**< landmark process noise added since (lm_process_var_m2_per_m) */
+    int32_t idx[EKFSLAM_ACTIVE_DIM];          /**< state index of active state k */
+    int32_t slot[COSLAM_EKF_MAX_LANDMARKS];   /**< active position of landmark j's x, -1 passive */
+    double drift_gain[COSLAM_EKF_MAX_LANDMARKS]; /**< |P_bA0| of passive landmark b (x and y rows) */
+    double phi[EKFSLAM_ACTIVE_DIM * EKFSLAM_ACTIVE_DIM]; /**< na x na0, stride EKFSLAM_ACTIVE_DIM */
+    double psi[EKFSLAM_ACTIVE_DIM * EKFSLAM_ACTIVE_DIM]; /**< na0 x na0 */
+    double theta[EKFSLAM_ACTIVE_DIM];
+    double hphi[2][EKFSLAM_ACTIVE_DIM];       /**< scratch: H phi */
+    double shphi[2][EKFSLAM_ACTIVE_DIM];      /**< scratch: S^-1 H phi */
+    /* scratch of the global update, in blocks of EKFSLAM_SYNC_BLOCK rows or
+     * columns of B (each block reads the rows of A0 once) */
+    double u[EKFSLAM_ACTIVE_DIM][EKFSLAM_SYNC_BLOCK];
+    double w[EKFSLAM_SYNC_BLOCK][EKFSLAM_ACTIVE_DIM];
+} ekfslam_cekf_t;
+
 typedef struct {
     ekfslam_config_t cfg;
     uint16_t n_lm;
@@ -184,6 +241,7 @@ typedef struct {
      *  (exist_miss(); like landmark_t.confirmed_once, kept beside meta so
      *  that callers filling an ekfslam_meta_t need not know it) */
     uint8_t lm_confirmed_once[COSLAM_EKF_MAX_LANDMARKS];
+    ekfslam_cekf_t cekf;
     ekfslam_scratch_t scratch;
 } ekfslam_t;
 
@@ -202,18 +260,33 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z, int n);
 /** Robot pose and its covariance. O(1). */
 void ekfslam_pose(const ekfslam_t *ekf, pose2_t *pose, cov3_t *cov);
 
-/** Landmark j (0 <= j < n_lm): mean and marginal covariance. O(1). */
+/** Landmark j (0 <= j < n_lm): mean and marginal covariance. O(1); O(N_A^2)
+ *  for a passive landmark in a local phase of the compressed EKF. */
 void ekfslam_landmark(const ekfslam_t *ekf, uint16_t j, point2_t *mean, cov2_t *cov);
 
-/** P entry (r, c) of the current state. */
+/** Mean of landmark j (0 <= j < n_lm). O(1); O(N_A) for a passive landmark
+ *  of the compressed EKF. */
+point2_t ekfslam_landmark_mean(const ekfslam_t *ekf, uint16_t j);
+
+/** P entry (r, c) of the current state. O(1); in a local phase of the
+ *  compressed EKF O(N_A) for an active-passive entry, O(N_A^2) for a
+ *  passive-passive one. */
 double ekfslam_p(const ekfslam_t *ekf, int r, int c);
+
+/**
+ * Compressed EKF: end the local phase with the global update, so that x
+ * and p hold the whole current state (needed before reading or writing them
+ * directly). No-op outside a local phase. O(N_B^2 N_A) time, no memory.
+ * ekfslam_export, _export_whole, _merge_begin, _remove_landmark call it.
+ */
+void ekfslam_sync(ekfslam_t *ekf);
 
 /**
  * Export the map estimate: the pose with P_rr and every confirmed landmark
  * with its marginal covariance, ordered by identity. E_CAPACITY (counted
  * in export_capacity_drops) if more confirmed landmarks than
  * COSLAM_MAX_MSG_LANDMARKS: the most observed ones (n_obs) are exported.
- * O(L^2) (insertion sorts; exports are rare).
+ * O(L^2) (insertion sorts; exports are rare), after ekfslam_sync.
  */
 coslam_status_t ekfslam_export(ekfslam_t *ekf, map_estimate_t *out);
 
@@ -236,7 +309,7 @@ coslam_status_t ekfslam_add_landmark_body(ekfslam_t *ekf, point2_t m_body, cov2_
 /**
  * Landmark j relative to the robot, in the robot's body frame:
  * R(theta)^T (m_j - p) and its covariance including the pose-landmark
- * cross-covariance. O(1).
+ * cross-covariance. O(1); O(N_A^2) for a passive landmark in a local phase.
  */
 void ekfslam_landmark_relative(const ekfslam_t *ekf, uint16_t j, point2_t *mean_body, cov2_t *cov_body);
 
@@ -267,7 +340,7 @@ coslam_status_t ekfslam_merge_add(ekfslam_t *ekf, pose2_t t_hat, point2_t rel_ot
                                   const ekfslam_meta_t *meta);
 void ekfslam_merge_end(ekfslam_t *ekf);
 
-/** Remove landmark j, deleting its rows and columns. O(L). */
+/** Remove landmark j, deleting its rows and columns. O(L), after ekfslam_sync. */
 void ekfslam_remove_landmark(ekfslam_t *ekf, uint16_t j);
 
 /** A fresh landmark identity (never 0). */
