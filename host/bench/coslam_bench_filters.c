@@ -17,6 +17,7 @@
 #include <sys/stat.h>
 
 #include "slam_run.h"
+#include "bench_report.h"
 #include "profile_print.h"
 
 typedef struct {
@@ -87,18 +88,11 @@ int main(int argc, char **argv)
         }
     }
     fprintf(stderr, "\n");
-    char path[1024];
-    snprintf(path, sizeof path, "%s/core_step_time.md", out);
-    FILE *md = fopen(path, "w");
-    snprintf(path, sizeof path, "%s/core_step_time.json", out);
-    FILE *js = fopen(path, "w");
-    if (!md || !js) {
-        fprintf(stderr, "coslam-bench-filters: cannot write into %s\n", out);
+    FILE *md = NULL;
+    FILE *js = NULL;
+    if (bench_report_open("coslam-bench-filters", out, "core_step_time", &md, &js) != 0) {
         return 1;
     }
-    char prof[192];
-    (void)app_profile_format(prof, sizeof prof);
-    fprintf(md, "Built with the capacity %s.\n\n", prof);
     FILE *sinks[2] = {stdout, md};
     for (int k = 0; k < 2; ++k) {
         FILE *o = sinks[k];

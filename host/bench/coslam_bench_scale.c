@@ -22,7 +22,7 @@
 #include <string.h>
 #include <sys/stat.h>
 
-#include "app/profile.h"
+#include "bench_report.h"
 #include "eval_worlds.h"
 #include "profile_print.h"
 
@@ -96,19 +96,12 @@ int main(int argc, char **argv)
         fprintf(stderr, "coslam-bench-scale: %s done (%d steps, %u capacity errors)\n", cases[c].name, r->n_steps,
                 r->capacity_errors);
     }
-    char path[1024];
-    snprintf(path, sizeof path, "%s/scale_step_time.md", out);
-    FILE *md = fopen(path, "w");
-    snprintf(path, sizeof path, "%s/scale_step_time.json", out);
-    FILE *js = fopen(path, "w");
-    if (!md || !js) {
-        fprintf(stderr, "coslam-bench-scale: cannot write into %s\n", out);
+    FILE *md = NULL;
+    FILE *js = NULL;
+    if (bench_report_open("coslam-bench-scale", out, "scale_step_time", &md, &js) != 0) {
         free(r);
         return 1;
     }
-    char prof[192];
-    (void)app_profile_format(prof, sizeof prof);
-    fprintf(md, "Built with the capacity %s.\n\n", prof);
     FILE *sinks[2] = {stdout, md};
     for (int k = 0; k < 2; ++k) {
         FILE *f = sinks[k];
