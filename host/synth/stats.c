@@ -1276,29 +1276,16 @@ done:
 coslam_status_t eval_map_rigid(const map_estimate_t *est, const point2_t *truth, const int *n_seen, int n_truth,
                                int min_seen, double gate_m, pose2_t *fit, map_eval_t *out)
 {
-    if (est == NULL || est->n_landmarks > COSLAM_MAX_MSG_LANDMARKS) {
-        if (fit != NULL) {
-            *fit = (pose2_t){0.0, 0.0, 0.0};
-        }
-        if (out != NULL) {
-            memset(out, 0, sizeof *out);
-        }
-        return COSLAM_E_ARG;
-    }
-    return rigid_fit_lm(est->lm, est->n_landmarks, est->pose, truth, n_seen, n_truth, min_seen, gate_m, fit, out);
+    /* n = -1: rigid_fit_lm resets the outputs and refuses */
+    const int n = est != NULL && est->n_landmarks <= COSLAM_MAX_MSG_LANDMARKS ? est->n_landmarks : -1;
+    return rigid_fit_lm(est != NULL ? est->lm : NULL, n, est != NULL ? est->pose : (pose2_t){0.0, 0.0, 0.0}, truth,
+                        n_seen, n_truth, min_seen, gate_m, fit, out);
 }
 
 coslam_status_t eval_map_rigid_whole(const map_whole_t *est, const point2_t *truth, const int *n_seen, int n_truth,
                                     int min_seen, double gate_m, pose2_t *fit, map_eval_t *out)
 {
-    if (est == NULL) {
-        if (fit != NULL) {
-            *fit = (pose2_t){0.0, 0.0, 0.0};
-        }
-        if (out != NULL) {
-            memset(out, 0, sizeof *out);
-        }
-        return COSLAM_E_ARG;
-    }
-    return rigid_fit_lm(est->lm, est->n_landmarks, est->pose, truth, n_seen, n_truth, min_seen, gate_m, fit, out);
+    return rigid_fit_lm(est != NULL ? est->lm : NULL, est != NULL ? est->n_landmarks : -1,
+                        est != NULL ? est->pose : (pose2_t){0.0, 0.0, 0.0}, truth, n_seen, n_truth, min_seen, gate_m,
+                        fit, out);
 }
