@@ -4,6 +4,8 @@
 #include <string.h>
 
 #include "coslam/landmark.h"
+#include "coslam/observe.h"
+#include "coslam/rng.h"
 
 static slam_params_t params(void)
 {
@@ -13,6 +15,58 @@ static slam_params_t params(void)
     p.noise.bearing_var_rad2 = 0.0025;
     p.noise.lm_init_var_m2 = 0.0;
     return p;
+}
+
+/* landmark_d2_lower_bound never exceeds the exact distance (random poses,
+ * landmarks, covariances and sightings, with and without a pose
+ * covariance), and is tight enough to be useful: a sighting on the other
+ * side of the robot is far beyond the new-landmark band */
+static void test_d2_lower_bound(void **state)
+{
+    (void)state;
+    slam_params_t p = slam_params_default();
+    rng_t rng;
+    rng_seed(&rng, 31U);
+    int useful = 0;
+    for (int t = 0; t < 20000; ++t) {
+        landmark_t lm;
+        memset(&lm, 0, sizeof lm);
+        lm.mean = (point2_t){rng_uniform(&rng) * 12.0 - 6.0, rng_uniform(&rng) * 12.0 - 6.0};
+        const double a = 0.001 + rng_uniform(&rng) * 0.3;
+        const double b = 0.001 + rng_uniform(&rng) * 0.3;
+        const double c = (rng_uniform(&rng) * 2.0 - 1.0) * 0.9 * sqrt(a * b);
+        lm.cov = cov2_make(a, c, b);
+        const pose2_t pose = {rng_uniform(&rng) * 2.0 - 1.0, rng_uniform(&rng) * 2.0 - 1.0,
+                              (rng_uniform(&rng) * 2.0 - 1.0) * COSLAM_PI};
+        double g[3][3];
+        for (int i = 0; i < 3; ++i) {
+            for (int j = 0; j < 3; ++j) {
+                g[i][j] = rng_gauss(&rng) * 0.2;
+            }
+        }
+        const cov3_t pc = cov3_congruence(g, cov3_diag(1.0, 1.0, 1.0));
+        const cov3_t *pcp = (t % 2 == 0) ? &pc : NULL;
+        const sighting_t z = {0.3 + rng_uniform(&rng) * 6.0, (rng_uniform(&rng) * 2.0 - 1.0) * COSLAM_PI, 0};
+        lm_expect_t e;
+        if (landmark_expect(&lm, &p, pose, pcp, &e) != COSLAM_OK) {
+            continue;
+        }
+        const double d2 = landmark_mahalanobis2(&e, z);
+        const sighting_t zhat = observe_predict(pose, lm.mean);
+        const double lb = landmark_d2_lower_bound(&lm, &p, pcp, zhat, z);
+        assert_true(lb >= 0.0);
+        assert_true(lb <= d2 * (1.0 + 1e-9) + 1e-12);
+        useful += lb > p.new_landmark_chi2;
+    }
+    /* most random pairs are far apart: the bound must say so for many */
+    assert_true(useful > 5000);
+    /* no bound from a NaN covariance */
+    landmark_t lm;
+    memset(&lm, 0, sizeof lm);
+    lm.mean = (point2_t){2.0, 0.0};
+    lm.cov = cov2_make(NAN, 0.0, 0.01);
+    const sighting_t zhat = observe_predict((pose2_t){0.0, 0.0, 0.0}, lm.mean);
+    assert_true(landmark_d2_lower_bound(&lm, &p, NULL, zhat, (sighting_t){2.0, 3.0, 0}) == 0.0);
 }
 
 static void test_init_hand_computed(void **state)
@@ -304,6 +358,7 @@ int main(void)
         cmocka_unit_test(test_should_be_seen),
         cmocka_unit_test(test_greedy_mutual_exclusion),
         cmocka_unit_test(test_classify_and_new),
+        cmocka_unit_test(test_d2_lower_bound),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -330,6 +330,24 @@ static coslam_status_t update_particle(fastslam_t *fs, uint16_t k, const sightin
         if (dx * dx + dy * dy > reach * reach) {
             continue;
         }
+        /* outside the camera's view no miss is counted, so the landmark
+         * matters only if some sighting can come near it: skip it when a
+         * cheap lower bound on every same-class sighting's distance is
+         * beyond the new-landmark band (the decisions are unchanged; most
+         * landmarks within reach are outside the field of view) */
+        {
+            const sighting_t zhat = observe_predict(p->pose, lm->mean);
+            if (!landmark_should_be_seen(sp, zhat)) {
+                int reachable = 0;
+                for (int i = 0; i < ns && !reachable; ++i) {
+                    reachable = z[i].signature == lm->signature &&
+                                landmark_d2_lower_bound(lm, sp, pose_cov, zhat, z[i]) < sp->new_landmark_chi2;
+                }
+                if (!reachable) {
+                    continue;
+                }
+            }
+        }
         if (landmark_expect(lm, sp, p->pose, pose_cov, &sc->expect[j]) != COSLAM_OK) {
             fs->ctr.numeric_faults++;
             continue;

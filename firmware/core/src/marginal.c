@@ -88,37 +88,60 @@ static double det3_mix(const cov3_t *a, const cov3_t *b, double w)
            m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
 }
 
-/* w in [0, 1] maximising det(w ia + (1 - w) ib): golden section, end points included */
+/* w in [0, 1] maximising f(w) = det(w ia + (1 - w) ib). f is a cubic in w
+ * (det(ib + w (ia - ib)), 3x3): its coefficients from four values, then the
+ * end points and the stationary points inside (0, 1) compared. log f is
+ * concave on [0, 1] for PD ia, ib, so the best of these is the maximum.
+ * Ties go to 1, then to 0 (keep a bound whole rather than mix). */
 static double ci_weight(const cov3_t *ia, const cov3_t *ib)
 {
-    const double g = 0.6180339887498949;
-    double lo = 0.0;
-    double hi = 1.0;
-    double x1 = hi - g * (hi - lo);
-    double x2 = lo + g * (hi - lo);
-    double f1 = det3_mix(ia, ib, x1);
-    double f2 = det3_mix(ia, ib, x2);
-    for (int it = 0; it < 24; ++it) {
-        if (f1 >= f2) {
-            hi = x2;
-            x2 = x1;
-            f2 = f1;
-            x1 = hi - g * (hi - lo);
-            f1 = det3_mix(ia, ib, x1);
-        } else {
-            lo = x1;
-            x1 = x2;
-            f1 = f2;
-            x2 = lo + g * (hi - lo);
-            f2 = det3_mix(ia, ib, x2);
+    const double f0 = det3_mix(ia, ib, 0.0);
+    const double f1 = det3_mix(ia, ib, 1.0);
+    const double fm = det3_mix(ia, ib, -1.0);
+    const double f2 = det3_mix(ia, ib, 2.0);
+    /* f(w) = c0 + c1 w + c2 w^2 + c3 w^3 */
+    const double c2 = 0.5 * (f1 + fm) - f0;
+    const double c13 = 0.5 * (f1 - fm); /* c1 + c3 */
+    const double c3 = (f2 - f0 - 4.0 * c2 - 2.0 * c13) / 6.0;
+    const double c1 = c13 - c3;
+    double best_w = 1.0;
+    double best_f = f1;
+    if (f0 > best_f) {
+        best_w = 0.0;
+        best_f = f0;
+    }
+    /* f'(w) = c1 + 2 c2 w + 3 c3 w^2 = 0 */
+    double roots[2];
+    int n_roots = 0;
+    const double a = 3.0 * c3;
+    const double b = 2.0 * c2;
+    const double scale = fabs(a) + fabs(b) + fabs(c1);
+    if (fabs(a) <= 1e-12 * scale) {
+        if (b != 0.0) {
+            roots[n_roots++] = -c1 / b;
+        }
+    } else {
+        const double disc = b * b - 4.0 * a * c1;
+        if (disc >= 0.0) {
+            /* the stable pair of formulas (no cancellation) */
+            const double q = -0.5 * (b + (b >= 0.0 ? sqrt(disc) : -sqrt(disc)));
+            roots[n_roots++] = q / a;
+            if (q != 0.0) {
+                roots[n_roots++] = c1 / q;
+            }
         }
     }
-    const double w = 0.5 * (lo + hi);
-    const double fw = det3_mix(ia, ib, w);
-    if (det3_mix(ia, ib, 1.0) >= fw) {
-        return 1.0;
+    for (int k = 0; k < n_roots; ++k) {
+        const double w = roots[k];
+        if (w > 0.0 && w < 1.0) {
+            const double fw = det3_mix(ia, ib, w);
+            if (fw > best_f) {
+                best_w = w;
+                best_f = fw;
+            }
+        }
     }
-    return det3_mix(ia, ib, 0.0) >= fw ? 0.0 : w;
+    return best_w;
 }
 
 cov3_t cov3_ci(cov3_t a, cov3_t b)
