@@ -53,7 +53,8 @@ static void test_d2_lower_bound(void **state)
         }
         const double d2 = landmark_mahalanobis2(&e, z);
         const sighting_t zhat = observe_predict(pose, lm.mean);
-        const double lb = landmark_d2_lower_bound(&lm, &p, pcp, zhat, z);
+        const lm_d2_bound_t bound = landmark_d2_bound_prepare(&lm, &p, pcp, zhat);
+        const double lb = landmark_d2_lower_bound(&bound, z);
         assert_true(lb >= 0.0);
         assert_true(lb <= d2 * (1.0 + 1e-9) + 1e-12);
         useful += lb > p.new_landmark_chi2;
@@ -66,7 +67,8 @@ static void test_d2_lower_bound(void **state)
     lm.mean = (point2_t){2.0, 0.0};
     lm.cov = cov2_make(NAN, 0.0, 0.01);
     const sighting_t zhat = observe_predict((pose2_t){0.0, 0.0, 0.0}, lm.mean);
-    assert_true(landmark_d2_lower_bound(&lm, &p, NULL, zhat, (sighting_t){2.0, 3.0, 0}) == 0.0);
+    const lm_d2_bound_t bound = landmark_d2_bound_prepare(&lm, &p, NULL, zhat);
+    assert_true(landmark_d2_lower_bound(&bound, (sighting_t){2.0, 3.0, 0}) == 0.0);
 }
 
 static void test_init_hand_computed(void **state)

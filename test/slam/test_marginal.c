@@ -73,6 +73,57 @@ static void test_eigen_reconstructs(void **state)
     }
 }
 
+/* the closed-form clamp agrees with the Jacobi one: random rotations and
+ * eigenvalues of every sign pattern, spread over six decades, near-double
+ * eigenvalues (its fallback) and exact ones */
+static void test_clamp_psd_matches_jacobi(void **state)
+{
+    (void)state;
+    rng_t rng;
+    rng_seed(&rng, 12U);
+    for (int t = 0; t < 20000; ++t) {
+        double lam_v[3][3];
+        double lam[3];
+        cov3_eigen(random_spd3(&rng), lam, lam_v); /* a random rotation */
+        const double s = pow(10.0, rng_uniform(&rng) * 6.0 - 4.0);
+        for (int k = 0; k < 3; ++k) {
+            lam[k] = (rng_uniform(&rng) * 2.0 - 1.0) * s;
+        }
+        switch (t % 5) {
+        case 1:
+            lam[1] = lam[0] * (1.0 + 1e-9); /* near double */
+            break;
+        case 2:
+            lam[1] = lam[0]; /* exact double */
+            break;
+        case 3:
+            lam[1] = lam[2] = lam[0]; /* a multiple of I */
+            break;
+        default:
+            break;
+        }
+        cov3_t a;
+        for (int i = 0; i < 3; ++i) {
+            for (int j = 0; j < 3; ++j) {
+                double r = 0.0;
+                for (int k = 0; k < 3; ++k) {
+                    r += lam_v[i][k] * lam[k] * lam_v[j][k];
+                }
+                a.m[i][j] = r;
+            }
+        }
+        const cov3_t fast = cov3_clamp_psd(a);
+        const cov3_t ref = cov3_clamp_eigen(a, 0.0);
+        const double scale = fabs(lam[0]) + fabs(lam[1]) + fabs(lam[2]);
+        for (int i = 0; i < 3; ++i) {
+            for (int j = 0; j < 3; ++j) {
+                ASSERT_NEAR(fast.m[i][j], ref.m[i][j], 1e-9 * scale);
+                ASSERT_NEAR(fast.m[i][j], fast.m[j][i], 1e-12 * scale);
+            }
+        }
+    }
+}
+
 static void test_loewner_max(void **state)
 {
     (void)state;
@@ -282,6 +333,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_eigen_reconstructs),
+        cmocka_unit_test(test_clamp_psd_matches_jacobi),
         cmocka_unit_test(test_loewner_max),
         cmocka_unit_test(test_covariance_intersection),
         cmocka_unit_test(test_landmark_marginal_from_anchor),

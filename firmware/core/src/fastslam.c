@@ -338,10 +338,11 @@ static coslam_status_t update_particle(fastslam_t *fs, uint16_t k, const sightin
         {
             const sighting_t zhat = observe_predict(p->pose, lm->mean);
             if (!landmark_should_be_seen(sp, zhat)) {
+                const lm_d2_bound_t bound = landmark_d2_bound_prepare(lm, sp, pose_cov, zhat);
                 int reachable = 0;
                 for (int i = 0; i < ns && !reachable; ++i) {
                     reachable = z[i].signature == lm->signature &&
-                                landmark_d2_lower_bound(lm, sp, pose_cov, zhat, z[i]) < sp->new_landmark_chi2;
+                                landmark_d2_lower_bound(&bound, z[i]) < sp->new_landmark_chi2;
                 }
                 if (!reachable) {
                     continue;

@@ -89,39 +89,45 @@ coslam_status_t landmark_expect(const landmark_t *lm, const slam_params_t *param
     return COSLAM_OK;
 }
 
-double landmark_d2_lower_bound(const landmark_t *lm, const slam_params_t *params, const cov3_t *pose_cov,
-                               sighting_t zhat, sighting_t z)
+lm_d2_bound_t landmark_d2_bound_prepare(const landmark_t *lm, const slam_params_t *params, const cov3_t *pose_cov,
+                                        sighting_t zhat)
 {
+    lm_d2_bound_t b = {zhat, 0.0, 0.0};
     const double r = zhat.range_m;
     if (!(r > 0.0)) {
-        return 0.0;
+        return b;
     }
     const double inv_r2 = 1.0 / (r * r);
     const cov2_t q = observe_noise(params, r);
     const double lm_tr = (double)lm->cov.xx + (double)lm->cov.yy;
     if (!(lm_tr >= 0.0)) {
-        return 0.0;
+        return b;
     }
     double s_rr = q.xx + lm_tr;
     double s_bb = q.yy + lm_tr * inv_r2;
     if (pose_cov != 0) {
         const double xy_tr = pose_cov->m[0][0] + pose_cov->m[1][1];
         if (!(xy_tr >= 0.0) || !(pose_cov->m[2][2] >= 0.0)) {
-            return 0.0;
+            return b;
         }
         s_rr += xy_tr;
         s_bb += (inv_r2 + 1.0) * (xy_tr + pose_cov->m[2][2]);
     }
-    if (!(s_rr > 0.0) || !(s_bb > 0.0)) {
-        return 0.0;
+    if (!(s_rr > 0.0) || !(s_bb > 0.0) || !isfinite(s_rr) || !isfinite(s_bb)) {
+        return b;
     }
     /* a little slack for rounding in the exact computation */
-    s_rr *= 1.0 + 1e-9;
-    s_bb *= 1.0 + 1e-9;
+    b.inv_s_rr = 1.0 / (s_rr * (1.0 + 1e-9));
+    b.inv_s_bb = 1.0 / (s_bb * (1.0 + 1e-9));
+    return b;
+}
+
+double landmark_d2_lower_bound(const lm_d2_bound_t *b, sighting_t z)
+{
     double nu[2];
-    observe_innovation(z, zhat, nu);
-    const double br = nu[0] * nu[0] / s_rr;
-    const double bb = nu[1] * nu[1] / s_bb;
+    observe_innovation(z, b->zhat, nu);
+    const double br = nu[0] * nu[0] * b->inv_s_rr;
+    const double bb = nu[1] * nu[1] * b->inv_s_bb;
     const double lb = br > bb ? br : bb;
     return isfinite(lb) ? lb : 0.0; /* NaN or inf: no bound */
 }

@@ -20,7 +20,7 @@ static cov3_t drift_since(const cov3_t *p, pose2_t pose, const cov3_t *anchor, p
     /* clip only if q is not positive definite (the common case is) */
     double chol[3][3];
     *clipped = cov3_cholesky(q, chol) != COSLAM_OK;
-    return *clipped ? cov3_clamp_eigen(q, 0.0) : q;
+    return *clipped ? cov3_clamp_psd(q) : q;
 }
 
 cov2_t marginal_relative_drift(const cov3_t *p, pose2_t pose, const cov3_t *anchor, point2_t anchor_xy, point2_t rel)
@@ -254,6 +254,100 @@ cov3_t cov3_clamp_eigen(cov3_t a, double min_eig)
         }
     }
     return out;
+}
+
+/* unit eigenvector of the symmetric m for its simple eigenvalue lam: the
+ * largest cross product of two rows of m - lam I; 0 if all vanish */
+static int sym3_eigenvector(double m[3][3], double lam, double v[3])
+{
+    double r[3][3];
+    for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) {
+            r[i][j] = m[i][j] - (i == j ? lam : 0.0);
+        }
+    }
+    double best = 0.0;
+    for (int a = 0; a < 2; ++a) {
+        for (int b = a + 1; b < 3; ++b) {
+            const double c[3] = {r[a][1] * r[b][2] - r[a][2] * r[b][1], r[a][2] * r[b][0] - r[a][0] * r[b][2],
+                                 r[a][0] * r[b][1] - r[a][1] * r[b][0]};
+            const double n2 = c[0] * c[0] + c[1] * c[1] + c[2] * c[2];
+            if (n2 > best) {
+                best = n2;
+                const double inv = 1.0 / sqrt(n2);
+                v[0] = c[0] * inv;
+                v[1] = c[1] * inv;
+                v[2] = c[2] * inv;
+            }
+        }
+    }
+    return best > 0.0 && isfinite(best);
+}
+
+cov3_t cov3_clamp_psd(cov3_t a)
+{
+    double m[3][3];
+    for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) {
+            m[i][j] = 0.5 * (a.m[i][j] + a.m[j][i]);
+        }
+    }
+    /* eigenvalues: a = q I + p B, det(lam I - B) = lam^3 - 3 lam - 2 r,
+     * lam = 2 cos(phi + 2 pi k / 3), phi = acos(r) / 3 (Smith 1961) */
+    const double off = m[0][1] * m[0][1] + m[0][2] * m[0][2] + m[1][2] * m[1][2];
+    const double q = (m[0][0] + m[1][1] + m[2][2]) / 3.0;
+    const double d0 = m[0][0] - q;
+    const double d1 = m[1][1] - q;
+    const double d2 = m[2][2] - q;
+    const double p = sqrt((d0 * d0 + d1 * d1 + d2 * d2 + 2.0 * off) / 6.0);
+    if (!(p > 0.0) || !isfinite(p)) {
+        return cov3_clamp_eigen(a, 0.0); /* a multiple of I, or not finite */
+    }
+    const double ip = 1.0 / p;
+    const double b00 = d0 * ip, b11 = d1 * ip, b22 = d2 * ip;
+    const double b01 = m[0][1] * ip, b02 = m[0][2] * ip, b12 = m[1][2] * ip;
+    double r = 0.5 * (b00 * (b11 * b22 - b12 * b12) - b01 * (b01 * b22 - b12 * b02) + b02 * (b01 * b12 - b11 * b02));
+    r = r < -1.0 ? -1.0 : (r > 1.0 ? 1.0 : r);
+    const double phi = acos(r) / 3.0;
+    const double l2 = q + 2.0 * p * cos(phi);                       /* largest */
+    const double l0 = q + 2.0 * p * cos(phi + 2.0 * COSLAM_PI / 3.0); /* smallest */
+    const double l1 = 3.0 * q - l0 - l2;
+    const double scale = fabs(l0) + fabs(l2);
+    cov3_t out;
+    double v[3];
+    if (l0 >= 0.0) {
+        for (int i = 0; i < 3; ++i) {
+            for (int j = 0; j < 3; ++j) {
+                out.m[i][j] = m[i][j];
+            }
+        }
+        return out;
+    }
+    if (l1 >= 0.0) {
+        /* one negative: remove it, a - l0 v0 v0^T */
+        if (l1 - l0 <= 1e-6 * scale || !sym3_eigenvector(m, l0, v)) {
+            return cov3_clamp_eigen(a, 0.0);
+        }
+        for (int i = 0; i < 3; ++i) {
+            for (int j = 0; j < 3; ++j) {
+                out.m[i][j] = m[i][j] - l0 * v[i] * v[j];
+            }
+        }
+        return out;
+    }
+    if (l2 > 0.0) {
+        /* two negative: what is left is the positive one, l2 v2 v2^T */
+        if (l2 - l1 <= 1e-6 * scale || !sym3_eigenvector(m, l2, v)) {
+            return cov3_clamp_eigen(a, 0.0);
+        }
+        for (int i = 0; i < 3; ++i) {
+            for (int j = 0; j < 3; ++j) {
+                out.m[i][j] = l2 * v[i] * v[j];
+            }
+        }
+        return out;
+    }
+    return cov3_zero();
 }
 
 cov3_t cov3_loewner_max(cov3_t a, cov3_t b)

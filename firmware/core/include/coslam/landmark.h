@@ -80,17 +80,25 @@ coslam_status_t landmark_expect(const landmark_t *lm, const slam_params_t *param
 
 /**
  * A cheap lower bound on the squared Mahalanobis distance that
- * landmark_expect() + landmark_mahalanobis2() would give for sighting z of
+ * landmark_expect() + landmark_mahalanobis2() would give for a sighting of
  * landmark lm from `pose` (pose_cov as there, may be NULL), from the
  * predicted sighting `zhat` (observe_predict(pose, lm->mean)) alone: no
  * Jacobian, no inverse. For any PD S, nu^T S^-1 nu >= nu_k^2 / S_kk, and
  * S_kk is bounded by traces (the Jacobians' rows have norm 1 for the range
  * and 1/r, sqrt(1/r^2 + 1) for the bearing). Used to skip landmarks that
  * no sighting of the frame can come near (Fast-SLAM's association at
- * scale, issue 13). Returns 0 (no bound) for a non-finite input.
+ * scale, issue 13). landmark_d2_bound_prepare once per landmark, then
+ * landmark_d2_lower_bound per sighting; a non-finite or degenerate input
+ * gives no bound (0).
  */
-double landmark_d2_lower_bound(const landmark_t *lm, const slam_params_t *params, const cov3_t *pose_cov,
-                               sighting_t zhat, sighting_t z);
+typedef struct {
+    sighting_t zhat;
+    double inv_s_rr; /**< 1 / (upper bound of S_rr); 0: no bound */
+    double inv_s_bb; /**< 1 / (upper bound of S_bb) */
+} lm_d2_bound_t;
+lm_d2_bound_t landmark_d2_bound_prepare(const landmark_t *lm, const slam_params_t *params, const cov3_t *pose_cov,
+                                        sighting_t zhat);
+double landmark_d2_lower_bound(const lm_d2_bound_t *b, sighting_t z);
 
 /** Squared Mahalanobis distance and log-likelihood of z under e. */
 double landmark_mahalanobis2(const lm_expect_t *e, sighting_t z);

@@ -87,6 +87,16 @@ void cov3_eigen(cov3_t a, double lam[3], double v[3][3]);
 /** V diag(max(lam, min_eig)) V^T: the eigenvalues below min_eig raised to it. */
 cov3_t cov3_clamp_eigen(cov3_t a, double min_eig);
 
+/**
+ * cov3_clamp_eigen(a, 0): the negative eigenvalues set to zero, in closed
+ * form (the characteristic cubic's trigonometric roots, the one eigenvector
+ * needed from a cross product of two rows of a - lam I); Jacobi when that
+ * eigenvalue is within 1e-6 (relative) of another, where the cross product
+ * loses its direction. The Fast-SLAM pose marginal clips on most sightings
+ * (issue 13's step time).
+ */
+cov3_t cov3_clamp_psd(cov3_t a);
+
 #ifdef __cplusplus
 }
 #endif
