@@ -15,18 +15,29 @@
 //
 //   coslam-bench-mrclam [--data DIR] [--config F] [--robots 1,2] [--particles N]
 //                       [--out DIR] [--mrpt-grid] [--repeats K]
+//                       [--methods ekf,fs2,fs1,mrpt] [--report NAME]
+//                       [--mrpt-sd-range M] [--mrpt-sd-bearing RAD] [--mrpt-assoc nn,jcbb]
 // The data folder defaults to $COSLAM_DATA_DIR/mrclam/MRCLAM_Dataset6 (the
 // build's COSLAM_DATA_DIR if the variable is unset); without it the
-// benchmark prints SKIPPED and exits 0.
+// benchmark prints SKIPPED and exits 0. Any folder coslam-replay reads
+// works (an MRCLAM dataset or a landmark log, e.g. the large world of
+// `coslam-eval-worlds --world large --write-log DIR`: issue 13's stream for
+// MRPT, `make bench-mrpt`). --methods picks the methods (mrpt: its NN and
+// JCBB variants, plus the grid with --mrpt-grid); the report goes to
+// <out>/<NAME>.{md,json} (default mrclam_bench) and ends with the time
+// ratios of MRPT's EKF-SLAM to coslam's, measured in this run.
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iomanip>
 #include <iostream>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <sstream>
 
@@ -92,6 +103,17 @@ struct Stream {
     std::vector<point2_t> truth_lm;            // map frame
     std::vector<int> n_seen;
 };
+
+/// The data folder's name for the report ("MRCLAM_Dataset6"), trailing
+/// separators ignored.
+std::string dataset_label(const std::string &dir)
+{
+    std::filesystem::path p(dir);
+    if (!p.has_filename()) {
+        p = p.parent_path();
+    }
+    return p.filename().string();
+}
 
 Stream build_stream(const Dataset &ds, const RobotLog &log, const ReplayConfig &cfg)
 {
@@ -215,6 +237,10 @@ int main(int argc, char **argv)
     std::string out = "out/bench";
     bool grid = false;
     int repeats = 1;
+    std::vector<std::string> method_names = {"ekf", "fs2", "fs1", "mrpt"};
+    std::string report = "mrclam_bench";
+    MrptSlamOptions mrpt_base;
+    std::vector<std::string> mrpt_assoc = {"nn", "jcbb"};
     app.add_option("--data", data, "MRCLAM dataset folder");
     app.add_option("-c,--config", config, "replay INI (noise, odometry model, gates)");
     app.add_option("-r,--robots", robots, "robots (default: all)")->delimiter(',');
@@ -222,6 +248,15 @@ int main(int argc, char **argv)
     app.add_option("-o,--out", out, "report folder");
     app.add_flag("--mrpt-grid", grid, "also run MRPT over a grid of its noise settings");
     app.add_option("--repeats", repeats, "run each stream this often, keep the fastest time");
+    app.add_option("--methods", method_names, "methods to run: ekf, fs2, fs1, mrpt")
+        ->delimiter(',')
+        ->check(CLI::IsMember({"ekf", "fs2", "fs1", "mrpt"}));
+    app.add_option("--report", report, "report file name in the out folder, without extension");
+    app.add_option("--mrpt-sd-range", mrpt_base.std_range_m, "MRPT's range noise sd [m] (it has no range-dependent model)");
+    app.add_option("--mrpt-sd-bearing", mrpt_base.std_bearing_rad, "MRPT's bearing noise sd [rad]");
+    app.add_option("--mrpt-assoc", mrpt_assoc, "MRPT's data associations to run: nn, jcbb")
+        ->delimiter(',')
+        ->check(CLI::IsMember({"nn", "jcbb"}));
     CLI11_PARSE(app, argc, argv);
     std::cerr << coslam::profile_line("coslam-bench-mrclam") << "\n";
 
@@ -235,7 +270,7 @@ int main(int argc, char **argv)
             replay_config_load(cfg, config);
         }
         cfg.filter.particles = particles;
-        const Dataset ds = load_mrclam(data);
+        const Dataset ds = load_dataset(data);
         if (robots.empty()) {
             for (const auto &r : ds.robots) {
                 robots.push_back(r.id);
@@ -249,21 +284,30 @@ int main(int argc, char **argv)
             }
             streams.push_back(build_stream(ds, *log, cfg));
         }
+        const auto wanted = [&](const char *m) {
+            return std::find(method_names.begin(), method_names.end(), m) != method_names.end();
+        };
         struct Method {
             std::function<std::unique_ptr<SlamUnderTest>()> make;
+            const MrptSlamOptions *mrpt = nullptr; ///< set for MRPT's methods
         };
-        std::vector<Method> methods = {
-            {[&] { return std::make_unique<CoslamSlam>(FilterKind::Ekf, cfg, 0); }},
-            {[&] { return std::make_unique<CoslamSlam>(FilterKind::FastSlam2, cfg, particles); }},
-            {[&] { return std::make_unique<CoslamSlam>(FilterKind::FastSlam1, cfg, particles); }},
-        };
+        std::vector<Method> methods;
+        if (wanted("ekf")) {
+            methods.push_back({[&] { return std::make_unique<CoslamSlam>(FilterKind::Ekf, cfg, 0); }});
+        }
+        if (wanted("fs2")) {
+            methods.push_back({[&] { return std::make_unique<CoslamSlam>(FilterKind::FastSlam2, cfg, particles); }});
+        }
+        if (wanted("fs1")) {
+            methods.push_back({[&] { return std::make_unique<CoslamSlam>(FilterKind::FastSlam1, cfg, particles); }});
+        }
         std::vector<MrptSlamOptions> mrpt_opts;
-        if (mrpt_available()) {
-            MrptSlamOptions nn;
-            mrpt_opts.push_back(nn);
-            MrptSlamOptions jc;
-            jc.jcbb = true;
-            mrpt_opts.push_back(jc);
+        if (wanted("mrpt") && mrpt_available()) {
+            for (const auto &a : mrpt_assoc) {
+                MrptSlamOptions o = mrpt_base;
+                o.jcbb = a == "jcbb";
+                mrpt_opts.push_back(o);
+            }
             if (grid) {
                 MrptSlamOptions own;
                 own.own_motion_model = true;
@@ -280,15 +324,16 @@ int main(int argc, char **argv)
                     }
                 }
             }
-            for (const auto &o : mrpt_opts) {
-                methods.push_back({[o] { return make_mrpt_slam(o); }});
+            for (const auto &o : mrpt_opts) { // mrpt_opts is not resized below: the pointers stay valid
+                methods.push_back({[o] { return make_mrpt_slam(o); }, &o});
             }
-        } else {
+        } else if (wanted("mrpt")) {
             std::cout << "MRPT: not built (CMake did not find mrpt-slam; run `make bench-mrpt` to install "
                          "libmrpt-slam-dev and rebuild)\n";
         }
 
         std::vector<Row> rows;
+        std::vector<std::string> ratio_mrpt; // MRPT's base methods, for the ratios
         for (size_t m = 0; m < methods.size(); ++m) {
             for (const auto &s : streams) {
                 Row best;
@@ -299,11 +344,16 @@ int main(int argc, char **argv)
                         best = r;
                     }
                 }
-                if (m >= 3) {
-                    const MrptSlamOptions &o = mrpt_opts[m - 3];
+                if (methods[m].mrpt != nullptr) {
+                    const MrptSlamOptions &o = *methods[m].mrpt;
                     std::ostringstream os;
                     os << best.method << " sd " << o.std_range_m << " m, " << o.std_bearing_rad << " rad";
                     best.method = os.str();
+                    // the first mrpt_assoc.size() options are the base settings, the rest the grid
+                    const bool base = methods[m].mrpt - mrpt_opts.data() < static_cast<std::ptrdiff_t>(mrpt_assoc.size());
+                    if (base && std::find(ratio_mrpt.begin(), ratio_mrpt.end(), best.method) == ratio_mrpt.end()) {
+                        ratio_mrpt.push_back(best.method);
+                    }
                 }
                 std::cerr << "  " << best.method << " robot " << best.robot << ": pose " << best.pose_rmse_m
                           << " m, landmarks " << best.map.rmse_m << " m (" << best.map.n_estimated << "), "
@@ -314,7 +364,7 @@ int main(int argc, char **argv)
 
         // table: mean over robots per method
         std::ostringstream md;
-        md << "MRCLAM Dataset 6, each robot alone (" << streams.size()
+        md << dataset_label(data) << ", each robot alone (" << streams.size()
            << " robots), unknown identities, filters started at identity = true start pose frame; "
               "landmark gate "
            << cfg.eval.gate_m << " m; " << ds.landmarks.size()
@@ -339,6 +389,7 @@ int main(int argc, char **argv)
                              {"step_us_max", r.step_us_max},
                              {"steps", r.steps}});
         }
+        std::map<std::string, double> mean_us;
         for (const auto &name : order) {
             double p = 0, se = 0, nm = 0, n = 0, sp = 0, mi = 0, us = 0, mx = 0;
             int k = 0;
@@ -356,6 +407,7 @@ int main(int argc, char **argv)
                 mx = std::max(mx, r.step_us_max);
                 k++;
             }
+            mean_us[name] = us / k;
             md << std::fixed << "| " << name << " | " << std::setprecision(2) << p / k << " | "
                << (nm > 0 ? std::sqrt(se / nm) : 0.0) << " | " << std::setprecision(1) << n / k << " | " << nm / k
                << " | " << sp / k << " | " << mi / k << " | " << std::setprecision(0) << us / k << " | " << mx
@@ -380,11 +432,27 @@ int main(int argc, char **argv)
             }
             md << "\n";
         }
+        // the ratios the comparison is about (MRPT's base settings, not the
+        // grid, over each coslam filter), from this run's own timings
+        bool ratio_head = false;
+        for (const auto &mname : ratio_mrpt) {
+            for (const auto &name : order) {
+                if (name.rfind("coslam", 0) != 0 || !(mean_us[name] > 0.0)) {
+                    continue;
+                }
+                if (!ratio_head) {
+                    md << "\nTime per step, MRPT over coslam (same streams, same run):\n\n";
+                    ratio_head = true;
+                }
+                md << "- " << mname << " / " << name << ": " << std::setprecision(1) << mean_us[mname] / mean_us[name]
+                   << "x\n";
+            }
+        }
         std::cout << md.str();
         std::filesystem::create_directories(out);
-        std::ofstream(out + "/mrclam_bench.md") << md.str();
-        std::ofstream(out + "/mrclam_bench.json") << std::setw(2) << json{{"rows", jrows}} << "\n";
-        std::cout << "report: " << out << "/mrclam_bench.md\n";
+        std::ofstream(out + "/" + report + ".md") << md.str();
+        std::ofstream(out + "/" + report + ".json") << std::setw(2) << json{{"rows", jrows}, {"data", data}} << "\n";
+        std::cout << "report: " << out << "/" << report << ".md\n";
         return 0;
     } catch (const std::exception &e) {
         std::cerr << "coslam-bench-mrclam: " << e.what() << "\n";
