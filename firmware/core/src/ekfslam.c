@@ -24,6 +24,7 @@ ekfslam_config_t ekfslam_config_default(void)
     c.active_radius_m = 0.0;
 #endif
     c.active_min_landmarks = 128U;
+    c.active_spread_madds = 8000000U;
     return c;
 }
 
@@ -84,8 +85,9 @@ static int active_idx(const ekfslam_t *ekf, int k)
  * times the pose's. The global update (ekfslam_sync) applies (3), (2), (1)
  * in that order (each reads the stored P_A0B before (1) overwrites it),
  * O(N_B^2 N_A0), after which every entry is what the full EKF holds up to
- * rounding. Between, readers of a passive entry evaluate (1)-(3) for it
- * (x_now, p_now). The full EKF's association reads the landmarks within
+ * rounding; the periodic one leaves most of (2) for later steps ("The
+ * deferred part of a global update" below). Between, readers of a passive
+ * entry evaluate (1)-(3) for it (x_now, p_now). The full EKF's association reads the landmarks within
  * reach (max range + 3 sigma + 0.5 m) only; cekf_prepare forces a global
  * update before an update that could have a passive landmark within reach,
  * so the same landmarks are seen, with the same numbers. */
@@ -132,12 +134,171 @@ static double x_now(const ekfslam_t *ekf, int r)
     return ekf->x[r] + acc;
 }
 
+/* ---- The deferred part of a global update ---------------------------------
+ *
+ * The global update's (2), P_BB -= P_BA0 psi P_A0B, costs O(N_B^2 N_A0),
+ * 300 ms at 800 landmarks (N_A0 ~ 340 states, N_B ~ 1200), while the local
+ * phase that follows reads of P_BB only the rows of its own active part A'
+ * (P_A'A', P_A'B', and, through drift_gain and (1)-(3), P_A0'B') and, in
+ * the reach tests, each landmark's variance. So the periodic global update
+ * (cekf_prepare, active_spread_madds > 0) does (3), (1) and P_BB's w5_sum I
+ * at once (sync_spread, O(N_B N_A N_A0)), keeps u_r = P_A0,r (the stored
+ * columns of A0, which (1) overwrites) and psi, and leaves the rest of (2)
+ * pending: entry (r, c) of P_BB is pending while the landmarks of r and c
+ * are both flagged (the same landmark included), and its value is P(r, c) -
+ * u_r^T psi u_c. The reach tests read the stored variance instead: larger
+ * than the value (psi is positive semi-definite), so they stay safe bounds
+ * (cekf_prepare's test must never miss a passive landmark within reach;
+ * cekf_select's only picks A', and any A' gives the same numbers). Doing
+ * the landmarks' 2x2 blocks at once too, O(N_B N_A0^2), cost as much as
+ * (1). cekf_select completes the rows (and columns) of the new active
+ * landmarks before it reads them, O(|A'| N_B N_A0); each predict and update
+ * completes whole landmark rows for about active_spread_madds multiply-adds
+ * (cekf_spread); everything that reads or rewrites pending entries
+ * completes them all first (cekf_finish): ekfslam_sync (so the next global
+ * update, exports, merges, a full active part), a frame that runs the full
+ * EKF (cekf_prepare). A removal ends a local phase the same way and moves
+ * the last landmark's pending rows with it (ekfslam_remove_landmark). Const
+ * readers (p_now) add the correction themselves. Pending entries are only
+ * those of landmarks passive in both phases, which no local phase reads or
+ * writes (predict's w5 on the diagonal adds, so it commutes): the results
+ * equal the undeferred ones up to rounding. */
+
+#define PSIP_(e, i, k) ((e)->cekf.pend_psi[(long)(i) * ADIM_ + (k)])
+
+/* Entry (r, c) is pending (r, c < dim). */
+static int is_pending(const ekfslam_t *ekf, int r, int c)
+{
+    const ekfslam_cekf_t *ck = &ekf->cekf;
+    if (COSLAM_EKF_MAX_ACTIVE == 0 || ck->pend_n == 0 || r < 3 || c < 3 || r >= dim(ekf) || c >= dim(ekf)) {
+        return 0;
+    }
+    return ck->pend[(r - 3) / 2] && ck->pend[(c - 3) / 2];
+}
+
+/* P(r, c) with the pending correction: the value the local phase sees. */
+static double p_final(const ekfslam_t *ekf, int r, int c)
+{
+    if (!is_pending(ekf, r, c)) {
+        return P_(ekf, r, c);
+    }
+    const ekfslam_cekf_t *ck = &ekf->cekf;
+    const int n0 = ck->pend_n0;
+    const double *ur = ck->pend_u[r - 3];
+    const double *uc = ck->pend_u[c - 3];
+    double acc = 0.0;
+    for (int i = 0; i < n0; ++i) {
+        double wi = 0.0;
+        for (int k = 0; k < n0; ++k) {
+            wi += PSIP_(ekf, i, k) * uc[k];
+        }
+        acc += ur[i] * wi;
+    }
+    return P_(ekf, r, c) - acc;
+}
+
+/* pend_w[q] = psi u_(2j+q) */
+static void pend_weights(ekfslam_t *ekf, int j)
+{
+    ekfslam_cekf_t *ck = &ekf->cekf;
+    const int n0 = ck->pend_n0;
+    for (int q = 0; q < 2; ++q) {
+        const double *u = ck->pend_u[2 * j + q];
+        for (int i = 0; i < n0; ++i) {
+            const double *pr = &ck->pend_psi[(long)i * ADIM_];
+            double acc = 0.0;
+            for (int k = 0; k < n0; ++k) {
+                acc += pr[k] * u[k];
+            }
+            ck->pend_w[q][i] = acc;
+        }
+    }
+}
+
+/* Multiply-adds of completing one landmark's rows with n pending. */
+static double pend_cost(const ekfslam_t *ekf, int n)
+{
+    const double n0 = (double)ekf->cekf.pend_n0;
+    return 2.0 * n0 * n0 + 4.0 * n0 * (double)n;
+}
+
+/* Complete the rows (and columns) of the landmark at pend_list[t] against
+ * every pending landmark (itself included), and unflag it (the last one
+ * moves to t). O(N_A0^2 + N_pend N_A0). */
+static void pend_complete(ekfslam_t *ekf, int t)
+{
+    ekfslam_cekf_t *ck = &ekf->cekf;
+    const int j = ck->pend_list[t];
+    const int n0 = ck->pend_n0;
+    const int a = 3 + 2 * j;
+    pend_weights(ekf, j);
+    const double *w0 = ck->pend_w[0];
+    const double *w1 = ck->pend_w[1];
+    for (int t2 = 0; t2 < ck->pend_n; ++t2) {
+        const int k = ck->pend_list[t2];
+        const int b = 3 + 2 * k; /* k = j: the 2x2 block, symmetric as written */
+        const double *u0 = ck->pend_u[2 * k];
+        const double *u1 = ck->pend_u[2 * k + 1];
+        double c00 = 0.0, c01 = 0.0, c10 = 0.0, c11 = 0.0;
+        for (int i = 0; i < n0; ++i) {
+            c00 += w0[i] * u0[i];
+            c01 += w0[i] * u1[i];
+            c10 += w1[i] * u0[i];
+            c11 += w1[i] * u1[i];
+        }
+        const double v00 = P_(ekf, a, b) - c00;
+        const double v01 = P_(ekf, a, b + 1) - c01;
+        const double v10 = P_(ekf, a + 1, b) - c10;
+        const double v11 = P_(ekf, a + 1, b + 1) - c11;
+        P_(ekf, a, b) = v00;
+        P_(ekf, b, a) = v00;
+        P_(ekf, a, b + 1) = v01;
+        P_(ekf, b + 1, a) = v01;
+        P_(ekf, a + 1, b) = v10;
+        P_(ekf, b, a + 1) = v10;
+        P_(ekf, a + 1, b + 1) = v11;
+        P_(ekf, b + 1, a + 1) = v11;
+    }
+    ck->pend[j] = 0U;
+    ck->pend_list[t] = ck->pend_list[--ck->pend_n];
+}
+
+/* Complete every pending entry (before anything reads or rewrites them). */
+static void cekf_finish(ekfslam_t *ekf)
+{
+    ekfslam_cekf_t *ck = &ekf->cekf;
+    if (COSLAM_EKF_MAX_ACTIVE == 0 || ck->pend_n == 0) {
+        return;
+    }
+    ekf->ctr.cekf_spread_forced++;
+    while (ck->pend_n > 0) {
+        pend_complete(ekf, ck->pend_n - 1);
+    }
+}
+
+/* A predict or update's share: whole landmark rows for about
+ * active_spread_madds multiply-adds (at least one). */
+static void cekf_spread(ekfslam_t *ekf)
+{
+    ekfslam_cekf_t *ck = &ekf->cekf;
+    if (COSLAM_EKF_MAX_ACTIVE == 0 || ck->pend_n == 0) {
+        return;
+    }
+    const double budget = (double)ekf->cfg.active_spread_madds;
+    double spent = 0.0;
+    while (ck->pend_n > 0 && spent < budget) {
+        spent += pend_cost(ekf, ck->pend_n);
+        pend_complete(ekf, ck->pend_n - 1);
+        ekf->ctr.cekf_spread_rows++;
+    }
+}
+
 /* P(r, c) now, (1) or (2) where passive states are involved. */
 static double p_now(const ekfslam_t *ekf, int r, int c)
 {
     const ekfslam_cekf_t *ck = &ekf->cekf;
     if (!in_local(ekf)) {
-        return P_(ekf, r, c);
+        return p_final(ekf, r, c);
     }
     const int kr = act_pos(ekf, r);
     const int kc = act_pos(ekf, c);
@@ -161,7 +322,7 @@ static double p_now(const ekfslam_t *ekf, int r, int c)
         }
         acc += P_(ekf, ck->idx[i], r) * wi;
     }
-    return P_(ekf, r, c) - acc + (r == c ? ck->w5_sum : 0.0);
+    return p_final(ekf, r, c) - acc + (r == c ? ck->w5_sum : 0.0);
 }
 
 /* u = P_A0,blk (stored values), zero beyond the block's nb columns */
@@ -211,23 +372,88 @@ static void block_products(ekfslam_t *ekf, const double *m, int n)
     }
 }
 
-void ekfslam_sync(ekfslam_t *ekf)
+/* (3): x_B += P_BA0 theta. O(N_B N_A0). */
+static void sync_x(ekfslam_t *ekf)
 {
-    ekfslam_cekf_t *ck = &ekf->cekf;
-    if (!in_local(ekf)) {
-        return;
-    }
     const int d = dim(ekf);
-    const int n0 = ck->na0;
-    const int na = ck->na;
-    const int32_t *idx = ck->idx;
-    int blk[EKFSLAM_SYNC_BLOCK];
-    /* (3): x_B += P_BA0 theta */
     for (int r = 3; r < d; ++r) {
         if (act_pos(ekf, r) < 0) {
             ekf->x[r] = x_now(ekf, r);
         }
     }
+}
+
+/* (1): P_AB = phi P_A0B, a block of columns at a time (A0's part of them
+ * read first); ends the local phase. O(N_B N_A N_A0). */
+static void sync_ab_end(ekfslam_t *ekf)
+{
+    ekfslam_cekf_t *ck = &ekf->cekf;
+    const int d = dim(ekf);
+    const int na = ck->na;
+    const int32_t *idx = ck->idx;
+    int blk[EKFSLAM_SYNC_BLOCK];
+    for (int b = 3, next; b < d; b = next) {
+        const int nb = passive_block(ekf, b, d, blk, &next);
+        block_products(ekf, ck->phi, na); /* w = (phi P_A0,blk)^T */
+        for (int k = 0; k < na; ++k) {
+            for (int q = 0; q < nb; ++q) {
+                P_(ekf, idx[k], blk[q]) = ck->w[q][k];
+                P_(ekf, blk[q], idx[k]) = ck->w[q][k];
+            }
+        }
+    }
+    ck->local = 0U;
+    ekf->ctr.cekf_global_updates++;
+}
+
+/* The periodic global update, spread ("The deferred part of a global
+ * update" above): (3), w5_sum on P_BB's diagonal, u and psi kept, (1).
+ * Nothing may be pending from before. O(N_B N_A N_A0). */
+static void sync_spread(ekfslam_t *ekf)
+{
+    ekfslam_cekf_t *ck = &ekf->cekf;
+    COSLAM_ASSERT(ck->pend_n == 0);
+    const int n0 = ck->na0;
+    sync_x(ekf);
+    ck->pend_n0 = n0;
+    for (int i = 0; i < n0; ++i) {
+        for (int k = 0; k < n0; ++k) {
+            PSIP_(ekf, i, k) = PSI_(ekf, i, k);
+        }
+    }
+    for (uint16_t j = 0; j < ekf->n_lm; ++j) {
+        if (ck->slot[j] >= 0) {
+            continue;
+        }
+        const int a = 3 + 2 * j;
+        for (int q = 0; q < 2; ++q) {
+            /* u = P_A0,a+q as row a+q's A0 columns: P is stored symmetric */
+            const double *row = &ekf->p[(long)(a + q) * D_];
+            double *u = ck->pend_u[2 * j + q];
+            for (int i = 0; i < n0; ++i) {
+                u[i] = row[ck->idx[i]];
+            }
+        }
+        P_(ekf, a, a) += ck->w5_sum;
+        P_(ekf, a + 1, a + 1) += ck->w5_sum;
+        ck->pend[j] = 1U;
+        ck->pend_list[ck->pend_n++] = j;
+    }
+    sync_ab_end(ekf);
+}
+
+void ekfslam_sync(ekfslam_t *ekf)
+{
+    ekfslam_cekf_t *ck = &ekf->cekf;
+    cekf_finish(ekf); /* an earlier global update's rest: this phase's P_BB(0) */
+    if (!in_local(ekf)) {
+        return;
+    }
+    const int d = dim(ekf);
+    const int n0 = ck->na0;
+    const int32_t *idx = ck->idx;
+    int blk[EKFSLAM_SYNC_BLOCK];
+    sync_x(ekf);
     /* (2): P_BB -= P_BA0 psi P_A0B, + w5_sum on the diagonal. Each row's
      * upper part as axpys with the (contiguous) rows of A0, a block of rows
      * at a time, mirrored below; the axpys also write garbage into the
@@ -258,20 +484,7 @@ void ekfslam_sync(ekfslam_t *ekf)
             }
         }
     }
-    /* (1): P_AB = phi P_A0B, a block of columns at a time (A0's part of
-     * them read first) */
-    for (int b = 3, next; b < d; b = next) {
-        const int nb = passive_block(ekf, b, d, blk, &next);
-        block_products(ekf, ck->phi, na); /* w = (phi P_A0,blk)^T */
-        for (int k = 0; k < na; ++k) {
-            for (int q = 0; q < nb; ++q) {
-                P_(ekf, idx[k], blk[q]) = ck->w[q][k];
-                P_(ekf, blk[q], idx[k]) = ck->w[q][k];
-            }
-        }
-    }
-    ck->local = 0U;
-    ekf->ctr.cekf_global_updates++;
+    sync_ab_end(ekf);
 }
 
 /* Reach of the association's near test (ekfslam_update) for landmark state
@@ -319,6 +532,12 @@ static void cekf_select(ekfslam_t *ekf, double max_range_m)
     ck->na = k;
     ck->na0 = k;
     ck->local = 1U; /* act_pos below needs the slots */
+    /* the new active landmarks' rows must be final: this phase reads them */
+    for (int t = ck->pend_n - 1; t >= 0; --t) {
+        if (ck->slot[ck->pend_list[t]] >= 0) {
+            pend_complete(ekf, t);
+        }
+    }
     /* |P_bA0| bounds how far theta moves passive landmark b, (3) */
     for (uint16_t j = 0; j < ekf->n_lm; ++j) {
         if (ck->slot[j] >= 0) {
@@ -374,11 +593,19 @@ static void cekf_prepare(ekfslam_t *ekf, double max_range_m)
             leave = hypot(x_now(ekf, a) - pose.x, x_now(ekf, a + 1) - pose.y) <= reach;
         }
         if (leave) {
-            ekfslam_sync(ekf);
+            if (ekf->cfg.active_spread_madds > 0U) {
+                cekf_finish(ekf);
+                sync_spread(ekf);
+            } else {
+                ekfslam_sync(ekf);
+            }
         }
     }
     if (!in_local(ekf)) {
         cekf_select(ekf, max_range_m);
+        if (!in_local(ekf)) {
+            cekf_finish(ekf); /* this frame runs the full EKF */
+        }
     }
 }
 
@@ -439,6 +666,8 @@ coslam_status_t ekfslam_init(ekfslam_t *ekf, const ekfslam_config_t *cfg, pose2_
     ekf->n_lm = 0;
     ekf->merging = 0U;
     ekf->cekf.local = 0U;
+    ekf->cekf.pend_n = 0;
+    memset(ekf->cekf.pend, 0, sizeof ekf->cekf.pend);
     ekf->next_id = 1U;
     memset(&ekf->ctr, 0, sizeof ekf->ctr);
     ekf->x[0] = pose0.x;
@@ -500,6 +729,7 @@ coslam_status_t ekfslam_predict(ekfslam_t *ekf, odo_increment_t u)
         ekf->ctr.rejected_controls++;
         return COSLAM_E_NUMERIC;
     }
+    cekf_spread(ekf);
     const slam_params_t *sp = &ekf->cfg.slam;
     const pose2_t pose = robot_pose(ekf);
     double g[3][3];
@@ -799,11 +1029,52 @@ coslam_status_t ekfslam_add_landmark_body(ekfslam_t *ekf, point2_t m_body, cov2_
     return add_landmark(ekf, pose2_apply(pose, m_body), gr, 0, cov2_congruence(gb, cov_body), meta);
 }
 
+/* Removal of landmark j, last moving to j: the pending flags and u rows
+ * follow the rows of P. O(N_pend + N_A0). */
+static void pend_remove(ekfslam_t *ekf, uint16_t j, uint16_t last)
+{
+    ekfslam_cekf_t *ck = &ekf->cekf;
+    if (COSLAM_EKF_MAX_ACTIVE == 0 || ck->pend_n == 0) {
+        return;
+    }
+    for (int t = 0; t < ck->pend_n; ++t) {
+        if (ck->pend_list[t] == j) {
+            ck->pend_list[t] = ck->pend_list[--ck->pend_n];
+            break;
+        }
+    }
+    ck->pend[j] = 0U;
+    if (j == last || !ck->pend[last]) {
+        return;
+    }
+    for (int t = 0; t < ck->pend_n; ++t) {
+        if (ck->pend_list[t] == last) {
+            ck->pend_list[t] = j;
+            break;
+        }
+    }
+    ck->pend[j] = 1U;
+    ck->pend[last] = 0U;
+    for (int q = 0; q < 2; ++q) {
+        memcpy(ck->pend_u[2 * j + q], ck->pend_u[2 * last + q], (size_t)ck->pend_n0 * sizeof(double));
+    }
+}
+
 void ekfslam_remove_landmark(ekfslam_t *ekf, uint16_t j)
 {
     COSLAM_ASSERT(j < ekf->n_lm);
-    ekfslam_sync(ekf);
+    if (ekf->cfg.active_spread_madds > 0U) {
+        /* end a local phase as the periodic global update does; pending
+         * rows stay pending (pend_remove) */
+        if (in_local(ekf)) {
+            cekf_finish(ekf);
+            sync_spread(ekf);
+        }
+    } else {
+        ekfslam_sync(ekf);
+    }
     const uint16_t last = (uint16_t)(ekf->n_lm - 1);
+    pend_remove(ekf, j, last);
     if (j != last) {
         const int d = dim(ekf);
         const int a = 3 + 2 * j;
@@ -1223,6 +1494,7 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
         ++ns;
     }
     ekf->ctr.updates++;
+    cekf_spread(ekf);
     cekf_prepare(ekf, max_range_m);
 
     /* 1-2. expectations and gated, likelihood-ranked candidate pairs */

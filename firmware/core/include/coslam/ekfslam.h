@@ -39,8 +39,10 @@
  * Compressed EKF (active_radius_m > 0, Guivant and Nebot 2001): steps 1-5
  * run on the active part around the robot only, O(N_A^2) per sighting;
  * a global update, O(N_B^2 N_A), brings the rest up to date when the
- * robot leaves its region or a function needs the whole state. Results
- * equal the full EKF's up to rounding (test_cekf).
+ * robot leaves its region or a function needs the whole state; its
+ * O(N_B^2 N_A) part is spread over the following steps
+ * (active_spread_madds) except where something needs the whole state.
+ * Results equal the full EKF's up to rounding (test_cekf).
  *
  * Memory: sizeof(ekfslam_t) ~ 8 * EKFSLAM_DIM^2 bytes (137 KB for 64
  * landmarks, 2.1 MB for 256, 34 MB for 1024: the capacity is its own,
@@ -125,6 +127,17 @@ typedef struct {
     /** The compression starts only with at least this many landmarks in
      *  the state (below, the full update is as cheap). Default 128. */
     uint16_t active_min_landmarks;
+    /** Compressed EKF: the global update that ends a local phase (the
+     *  robot left its region, or a removal) does at once only what the
+     *  next local phase reads (x_B, P_AB, the rows of the new active part)
+     *  and leaves the rest of P_BB -= P_BA0 psi P_A0B pending; each later
+     *  predict and update completes about this many multiply-adds of it
+     *  (whole landmark rows, at least one), and whatever reads or rewrites
+     *  pending entries completes all of them first (ekfslam.c "The deferred
+     *  part of a global update"). 0: the whole global update at once, as
+     *  before. Default 8,000,000 (about 3 ms on a desktop core; at 800
+     *  landmarks the pending rows then end within the next local phase). */
+    uint32_t active_spread_madds;
 } ekfslam_config_t;
 
 /** Per-landmark bookkeeping beside the state (same meaning as in landmark_t). */
@@ -155,6 +168,10 @@ typedef struct {
     uint32_t cekf_global_updates;     /**< compressed EKF: local phases ended by a global update */
     uint32_t cekf_active_overflows;   /**< compressed EKF: regions with more than COSLAM_EKF_MAX_ACTIVE
                                            landmarks in reach (that frame used the full update) */
+    uint32_t cekf_spread_rows;        /**< compressed EKF: landmark rows of a global update's P_BB
+                                           completed later, a budget per step (active_spread_madds) */
+    uint32_t cekf_spread_forced;      /**< compressed EKF: times the pending rows had to be completed
+                                           at once (sync, export, removal, the next global update, ...) */
 } ekfslam_counters_t;
 
 /** Largest joint innovation handled by JCBB (2 rows per sighting). */
@@ -196,6 +213,9 @@ typedef struct {
 /** Active states of the compressed EKF at most: the pose and COSLAM_EKF_MAX_ACTIVE landmarks. */
 #define EKFSLAM_ACTIVE_DIM (3 + 2 * COSLAM_EKF_MAX_ACTIVE)
 #define EKFSLAM_SYNC_BLOCK 8
+/** Landmarks the deferred part of a global update keeps (1 where the
+ *  compressed EKF is compiled out, so that the profile does not grow). */
+#define EKFSLAM_SPREAD_LM (COSLAM_EKF_MAX_ACTIVE > 0 ? COSLAM_EKF_MAX_LANDMARKS : 1)
 
 /**
  * Compressed EKF bookkeeping (ekfslam.c "Compressed EKF"). In a local
@@ -204,7 +224,9 @@ typedef struct {
  * added since are appended). x_A and P_AA are current in x and p; x_B,
  * P_AB and P_BB hold their values at the phase start, and the current ones
  * are P_AB = phi P_A0B, P_BB = P_BB - P_BA0 psi P_A0B + w5_sum I, x_B = x_B
- * + P_BA0 theta.
+ * + P_BA0 theta. A global update spread over later steps leaves entry
+ * (r, c) of P_BB pending while both r's and c's landmarks are flagged in
+ * pend: its value is P(r, c) - pend_u_r^T pend_psi pend_u_c.
  */
 typedef struct {
     uint8_t local;                            /**< 1 in a local phase */
@@ -224,6 +246,14 @@ typedef struct {
      * columns of B (each block reads the rows of A0 once) */
     double u[EKFSLAM_ACTIVE_DIM][EKFSLAM_SYNC_BLOCK];
     double w[EKFSLAM_SYNC_BLOCK][EKFSLAM_ACTIVE_DIM];
+    /* the deferred part of the last global update (active_spread_madds) */
+    int32_t pend_n;                           /**< landmarks in pend_list */
+    int32_t pend_n0;                          /**< |A0| of the phase it ended */
+    uint16_t pend_list[EKFSLAM_SPREAD_LM];    /**< the pending landmarks */
+    uint8_t pend[EKFSLAM_SPREAD_LM];          /**< 1: landmark j's rows are pending */
+    double pend_psi[EKFSLAM_ACTIVE_DIM * EKFSLAM_ACTIVE_DIM]; /**< that phase's psi, stride EKFSLAM_ACTIVE_DIM */
+    double pend_u[2 * EKFSLAM_SPREAD_LM][EKFSLAM_ACTIVE_DIM]; /**< row 2j+q: that phase's P_A0,(3+2j+q) */
+    double pend_w[2][EKFSLAM_ACTIVE_DIM];     /**< scratch: pend_psi pend_u of one landmark */
 } ekfslam_cekf_t;
 
 typedef struct {
@@ -274,9 +304,10 @@ point2_t ekfslam_landmark_mean(const ekfslam_t *ekf, uint16_t j);
 double ekfslam_p(const ekfslam_t *ekf, int r, int c);
 
 /**
- * Compressed EKF: end the local phase with the global update, so that x
- * and p hold the whole current state (needed before reading or writing them
- * directly). No-op outside a local phase. O(N_B^2 N_A) time, no memory.
+ * Compressed EKF: end the local phase with the global update and complete
+ * any pending part of an earlier one, so that x and p hold the whole
+ * current state (needed before reading or writing them directly). No-op
+ * outside a local phase with nothing pending. O(N_B^2 N_A) time, no memory.
  * ekfslam_export, _export_whole, _merge_begin, _remove_landmark call it.
  */
 void ekfslam_sync(ekfslam_t *ekf);
@@ -340,7 +371,9 @@ coslam_status_t ekfslam_merge_add(ekfslam_t *ekf, pose2_t t_hat, point2_t rel_ot
                                   const ekfslam_meta_t *meta);
 void ekfslam_merge_end(ekfslam_t *ekf);
 
-/** Remove landmark j, deleting its rows and columns. O(L), after ekfslam_sync. */
+/** Remove landmark j, deleting its rows and columns. O(L), after ekfslam_sync
+ *  (compressed EKF with active_spread_madds > 0: after the spread global
+ *  update, pending rows stay pending). */
 void ekfslam_remove_landmark(ekfslam_t *ekf, uint16_t j);
 
 /** A fresh landmark identity (never 0). */
