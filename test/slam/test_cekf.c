@@ -75,6 +75,20 @@ static void compare_all(const ekfslam_t *a, const ekfslam_t *b, tally_t *t)
     }
 }
 
+/* landmark j's mean and 2x2 block, through the readers, against the full EKF */
+static void compare_landmark(const ekfslam_t *full, const ekfslam_t *ce, uint16_t j, double ps)
+{
+    point2_t mf, mc;
+    cov2_t cf, cc;
+    ekfslam_landmark(full, j, &mf, &cf);
+    ekfslam_landmark(ce, j, &mc, &cc);
+    ASSERT_NEAR(mc.x, mf.x, REL_TOL * fmax(1.0, fabs(mf.x)));
+    ASSERT_NEAR(mc.y, mf.y, REL_TOL * fmax(1.0, fabs(mf.y)));
+    ASSERT_NEAR(cc.xx, cf.xx, REL_TOL * ps);
+    ASSERT_NEAR(cc.xy, cf.xy, REL_TOL * ps);
+    ASSERT_NEAR(cc.yy, cf.yy, REL_TOL * ps);
+}
+
 /* in a local phase: passive landmarks through the public readers */
 static void compare_passive(const ekfslam_t *full, const ekfslam_t *ce, tally_t *t)
 {
@@ -87,15 +101,7 @@ static void compare_passive(const ekfslam_t *full, const ekfslam_t *ce, tally_t 
             continue;
         }
         passive = j;
-        point2_t mf, mc;
-        cov2_t cf, cc;
-        ekfslam_landmark(full, j, &mf, &cf);
-        ekfslam_landmark(ce, j, &mc, &cc);
-        ASSERT_NEAR(mc.x, mf.x, REL_TOL * fmax(1.0, fabs(mf.x)));
-        ASSERT_NEAR(mc.y, mf.y, REL_TOL * fmax(1.0, fabs(mf.y)));
-        ASSERT_NEAR(cc.xx, cf.xx, REL_TOL * ps);
-        ASSERT_NEAR(cc.xy, cf.xy, REL_TOL * ps);
-        ASSERT_NEAR(cc.yy, cf.yy, REL_TOL * ps);
+        compare_landmark(full, ce, j, ps);
         /* pose-landmark and a few landmark-landmark cross terms */
         const int a = 3 + 2 * j;
         for (int r = 0; r < 3 + 2 * ce->n_lm; r += 7) {
@@ -126,15 +132,7 @@ static void compare_final(const ekfslam_t *full, const ekfslam_t *ce, tally_t *t
     const int d = 3 + 2 * ce->n_lm;
     const double ps = scale_of(full);
     for (uint16_t j = 0; j < ce->n_lm; ++j) {
-        point2_t mf, mc;
-        cov2_t cf, cc;
-        ekfslam_landmark(full, j, &mf, &cf);
-        ekfslam_landmark(ce, j, &mc, &cc);
-        ASSERT_NEAR(mc.x, mf.x, REL_TOL * fmax(1.0, fabs(mf.x)));
-        ASSERT_NEAR(mc.y, mf.y, REL_TOL * fmax(1.0, fabs(mf.y)));
-        ASSERT_NEAR(cc.xx, cf.xx, REL_TOL * ps);
-        ASSERT_NEAR(cc.xy, cf.xy, REL_TOL * ps);
-        ASSERT_NEAR(cc.yy, cf.yy, REL_TOL * ps);
+        compare_landmark(full, ce, j, ps);
     }
     /* the active rows: stored (P_AA) or from the stored P_A0B (P_AB), both
      * final; outside a local phase (a removal ended it) the pose's */
@@ -263,6 +261,17 @@ static void test_exact_default(void **state)
     assert_true(g_cekf.n_lm >= 150);
 }
 
+/* the w5 runs' filter: NN, no FEJ, landmark process noise */
+static ekfslam_config_t w5_config(const synth_config_t *sc)
+{
+    ekfslam_config_t cfg = ekfslam_config_default();
+    cfg.slam = sc->truth;
+    cfg.slam.noise.lm_process_var_m2_per_m = 1e-4;
+    cfg.assoc = EKFSLAM_ASSOC_NN;
+    cfg.fej = 0U;
+    return cfg;
+}
+
 /* NN, no FEJ, landmark process noise (w5 reaches the passive part through
  * w5_sum), clutter (tentative landmarks die: removal forces a global update,
  * spread, the pending rows moving with the swap) */
@@ -272,11 +281,7 @@ static void test_exact_w5_clutter(void **state)
     synth_config_t sc = world(7U);
     sc.clutter_per_frame = 0.5;
     sc.loops = 0.5;
-    ekfslam_config_t cfg = ekfslam_config_default();
-    cfg.slam = sc.truth;
-    cfg.slam.noise.lm_process_var_m2_per_m = 1e-4;
-    cfg.assoc = EKFSLAM_ASSOC_NN;
-    cfg.fej = 0U;
+    ekfslam_config_t cfg = w5_config(&sc);
     tally_t t;
     run_pair(&sc, cfg, 1.5, 0, &t);
     assert_true(t.global_updates >= 3);
@@ -294,11 +299,7 @@ static void test_exact_w5_spread(void **state)
     (void)state;
     synth_config_t sc = world(7U);
     sc.loops = 0.5;
-    ekfslam_config_t cfg = ekfslam_config_default();
-    cfg.slam = sc.truth;
-    cfg.slam.noise.lm_process_var_m2_per_m = 1e-4;
-    cfg.assoc = EKFSLAM_ASSOC_NN;
-    cfg.fej = 0U;
+    ekfslam_config_t cfg = w5_config(&sc);
     cfg.active_spread_madds = 20000U;
     tally_t t;
     run_pair(&sc, cfg, 1.5, 0, &t);
