@@ -29,7 +29,7 @@ synth_config_t eval_world_large_config(uint64_t seed, int n_landmarks)
      * frame), its radius from the count: 1,024 landmarks, 16.3 m */
     synth_config_t sc = synth_config_default(seed, n_landmarks);
     sc.ring_half_width_m = 2.5;
-    sc.loop_radius_m = (double)n_landmarks / (2.0 * 2.0 * 3.14159265358979323846 * 2.0 * sc.ring_half_width_m);
+    sc.loop_radius_m = (double)n_landmarks / (2.0 * COSLAM_TWO_PI * 2.0 * sc.ring_half_width_m);
     sc.loops = 1.1;
     sc.n_signatures = 4;
     return sc;

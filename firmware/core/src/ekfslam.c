@@ -487,6 +487,19 @@ void ekfslam_sync(ekfslam_t *ekf)
     sync_ab_end(ekf);
 }
 
+/* End a local phase: spread (sync_spread, after the rest of an earlier one)
+ * where active_spread_madds allows, else the whole global update. Outside
+ * a local phase, with spreading on, nothing: pending rows stay pending. */
+static void cekf_end_phase(ekfslam_t *ekf)
+{
+    if (ekf->cfg.active_spread_madds == 0U) {
+        ekfslam_sync(ekf);
+    } else if (in_local(ekf)) {
+        cekf_finish(ekf);
+        sync_spread(ekf);
+    }
+}
+
 /* Reach of the association's near test (ekfslam_update) for landmark state
  * a with landmark variance trace var_m (plus the pose's, var_r). */
 static double near_reach(double max_range_m, double var_m, double var_r)
@@ -593,12 +606,7 @@ static void cekf_prepare(ekfslam_t *ekf, double max_range_m)
             leave = hypot(x_now(ekf, a) - pose.x, x_now(ekf, a + 1) - pose.y) <= reach;
         }
         if (leave) {
-            if (ekf->cfg.active_spread_madds > 0U) {
-                cekf_finish(ekf);
-                sync_spread(ekf);
-            } else {
-                ekfslam_sync(ekf);
-            }
+            cekf_end_phase(ekf);
         }
     }
     if (!in_local(ekf)) {
@@ -1063,16 +1071,7 @@ static void pend_remove(ekfslam_t *ekf, uint16_t j, uint16_t last)
 void ekfslam_remove_landmark(ekfslam_t *ekf, uint16_t j)
 {
     COSLAM_ASSERT(j < ekf->n_lm);
-    if (ekf->cfg.active_spread_madds > 0U) {
-        /* end a local phase as the periodic global update does; pending
-         * rows stay pending (pend_remove) */
-        if (in_local(ekf)) {
-            cekf_finish(ekf);
-            sync_spread(ekf);
-        }
-    } else {
-        ekfslam_sync(ekf);
-    }
+    cekf_end_phase(ekf); /* pending rows stay pending (pend_remove) */
     const uint16_t last = (uint16_t)(ekf->n_lm - 1);
     pend_remove(ekf, j, last);
     if (j != last) {
@@ -1905,11 +1904,14 @@ static void export_fill(const ekfslam_t *ekf, map_landmark_t *lm, const uint16_t
     }
 }
 
-/* The confirmed landmarks, at most `cap` (the most observed, state order
- * breaking ties; the rest counted), by identity into lm; their number. */
-static coslam_status_t export_capped(ekfslam_t *ekf, map_landmark_t *lm, int cap, uint16_t *n_out)
+/* The pose, and the confirmed landmarks, at most `cap` (the most observed,
+ * state order breaking ties; the rest counted), by identity into lm; their
+ * number. */
+static coslam_status_t export_capped(ekfslam_t *ekf, pose2_t *pose, cov3_t *pose_cov, map_landmark_t *lm, int cap,
+                                     uint16_t *n_out)
 {
     ekfslam_sync(ekf);
+    ekfslam_pose(ekf, pose, pose_cov);
     uint16_t *order = ekf->scratch.order;
     coslam_status_t result = COSLAM_OK;
     int n = confirmed_order(ekf, order);
@@ -1929,12 +1931,10 @@ coslam_status_t ekfslam_export(ekfslam_t *ekf, map_estimate_t *out)
 {
     /* more than a message carries (the cap follows the link, config.h):
      * the most observed landmarks go */
-    ekfslam_pose(ekf, &out->pose, &out->pose_cov);
-    return export_capped(ekf, out->lm, COSLAM_MAX_MSG_LANDMARKS, &out->n_landmarks);
+    return export_capped(ekf, &out->pose, &out->pose_cov, out->lm, COSLAM_MAX_MSG_LANDMARKS, &out->n_landmarks);
 }
 
 coslam_status_t ekfslam_export_whole(ekfslam_t *ekf, map_whole_t *out)
 {
-    ekfslam_pose(ekf, &out->pose, &out->pose_cov);
-    return export_capped(ekf, out->lm, COSLAM_MAX_LANDMARKS, &out->n_landmarks);
+    return export_capped(ekf, &out->pose, &out->pose_cov, out->lm, COSLAM_MAX_LANDMARKS, &out->n_landmarks);
 }

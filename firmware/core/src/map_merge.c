@@ -404,8 +404,7 @@ static void grid_gated(merge_scratch_t *sc, const merge_body_map_t *bm, int32_t 
                 if (vx * vx + vy * vy > gate * tr * (1.0 + 1e-9)) {
                     continue;
                 }
-                if (cov2_mahalanobis2(cov2_add(sc->own_cov[j], bm->cov[i]), bm->mean[i].x - sc->own_body[j].x,
-                                      bm->mean[i].y - sc->own_body[j].y, &d2) == COSLAM_OK &&
+                if (cov2_mahalanobis2(cov2_add(sc->own_cov[j], bm->cov[i]), vx, vy, &d2) == COSLAM_OK &&
                     d2 < gate) {
                     visit(sc, j, i, d2, ctx);
                 }
@@ -534,19 +533,14 @@ coslam_status_t merge_into_fastslam(fastslam_t *fs, const merge_body_map_t *bm, 
         /* own map in this particle's body frame */
         const landmark_t *const *own = fastslam_particle_landmarks(fs, k);
         for (uint16_t j = 0; j < p->n_lm; ++j) {
-            /* pose2_apply_inverse with this particle's cos and sin, once */
-            const double dx = own[j]->mean.x - p->pose.x;
-            const double dy = own[j]->mean.y - p->pose.y;
-            sc->own_body[j] = (point2_t){c * dx + s * dy, -s * dx + c * dy};
+            sc->own_body[j] = pose2_apply_inverse_cs(p->pose, c, s, own[j]->mean);
             sc->own_cov[j] = cov2_congruence(rt, own[j]->cov);
             sc->own_sig[j] = own[j]->signature;
         }
         pair_and_select(sc, bm, cfg, p->n_lm, stats);
         const double dup_w = duplicate_weight(sc, bm, cfg);
         for (uint16_t i = 0; i < bm->n; ++i) {
-            /* pose2_apply, cos and sin once per particle */
-            const point2_t wm = {p->pose.x + c * bm->mean[i].x - s * bm->mean[i].y,
-                                 p->pose.y + s * bm->mean[i].x + c * bm->mean[i].y};
+            const point2_t wm = pose2_apply_cs(p->pose, c, s, bm->mean[i]);
             const int32_t j = sc->match_of_in[i];
             /* a duplicate's information scaled by dup_w: its covariance by 1 / dup_w */
             const cov2_t wc = cov2_scale(cov2_congruence(r, bm->cov[i]), j >= 0 ? 1.0 / dup_w : 1.0);

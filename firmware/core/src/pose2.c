@@ -49,26 +49,32 @@ pose2_t pose2_between(pose2_t a, pose2_t b)
     return pose2_compose(pose2_inverse(a), b);
 }
 
-point2_t pose2_apply(pose2_t a, point2_t p)
+point2_t pose2_apply_cs(pose2_t a, double c, double s, point2_t p)
 {
-    const double c = cos(a.theta);
-    const double s = sin(a.theta);
     point2_t r;
     r.x = a.x + c * p.x - s * p.y;
     r.y = a.y + s * p.x + c * p.y;
     return r;
 }
 
-point2_t pose2_apply_inverse(pose2_t a, point2_t p)
+point2_t pose2_apply(pose2_t a, point2_t p)
 {
-    const double c = cos(a.theta);
-    const double s = sin(a.theta);
+    return pose2_apply_cs(a, cos(a.theta), sin(a.theta), p);
+}
+
+point2_t pose2_apply_inverse_cs(pose2_t a, double c, double s, point2_t p)
+{
     const double dx = p.x - a.x;
     const double dy = p.y - a.y;
     point2_t r;
     r.x = c * dx + s * dy;
     r.y = -s * dx + c * dy;
     return r;
+}
+
+point2_t pose2_apply_inverse(pose2_t a, point2_t p)
+{
+    return pose2_apply_inverse_cs(a, cos(a.theta), sin(a.theta), p);
 }
 
 void pose2_compose_jacobians(pose2_t a, pose2_t b, double ja[3][3], double jb[3][3])

@@ -49,6 +49,11 @@ point2_t pose2_apply(pose2_t a, point2_t p_local);
 /** Transform a parent-frame point into the frame of `a`. */
 point2_t pose2_apply_inverse(pose2_t a, point2_t p_parent);
 
+/** pose2_apply / pose2_apply_inverse with cos and sin of a.theta given
+ *  (c, s): for many points through one pose, the trigonometry once. */
+point2_t pose2_apply_cs(pose2_t a, double c, double s, point2_t p_local);
+point2_t pose2_apply_inverse_cs(pose2_t a, double c, double s, point2_t p_parent);
+
 /**
  * Jacobians of c = a (+) b with respect to a (ja, 3x3) and b (jb, 3x3),
  * row-major, rows (x, y, theta) of c. Either output may be NULL.
