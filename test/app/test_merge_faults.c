@@ -294,6 +294,44 @@ static void test_spurious_partner_is_harmless(void **state)
     }
 }
 
+/* The sender's map holds a pair it cannot tell apart: the two landmarks
+ * lie within unresolved_chi2 of each other on the sender's own relative
+ * covariances. An EKF-SLAM receiver adds neither (its single-hypothesis
+ * association could not resolve them) and adds the resolved pair; a
+ * Fast-SLAM receiver adds both pairs (docs/map-merge.md). */
+static void test_unresolved_pair_is_not_added(void **state)
+{
+    (void)state;
+    for (int k = 0; k < 2; ++k) {
+        setup_pair(kKinds[k], kKinds[1 - k]);
+        assert_int_equal(slam_filter_export(&g_b, &g_msg), COSLAM_OK);
+        /* the south-east pair (0.41 m apart) known to 0.2 m: d2 about 4 */
+        int blurred = 0;
+        for (uint16_t i = 0; i < g_msg.n_landmarks; ++i) {
+            if (g_msg.lm[i].mean.x > 3.0 && g_msg.lm[i].mean.y < 0.0) {
+                g_msg.lm[i].cov_rel = cov2_make(0.04, 0.0, 0.04);
+                g_msg.lm[i].cov = cov2_make(0.04, 0.0, 0.04);
+                blurred++;
+            }
+        }
+        assert_int_equal(blurred, 2);
+        merge_stats_t st;
+        assert_int_equal(merge_b_into_a(0.0, &st), COSLAM_OK);
+        const int ekf = kKinds[k] == SLAM_FILTER_EKF;
+        assert_true(ekf ? st.ambiguous >= 2U : st.ambiguous == 0U);
+        assert_int_equal(slam_filter_export(&g_a, &g_after), COSLAM_OK);
+        assert_int_equal(g_after.n_landmarks, ekf ? N_WORLD - 2 : N_WORLD);
+        for (int i = 0; i < N_WORLD; ++i) {
+            const int south_east = g_world[i].x > 3.0 && g_world[i].y < 0.0;
+            if (south_east) { /* the pair, 0.41 m apart: none, or both */
+                assert_int_equal(near_count(&g_after, g_world[i], 0.6), ekf ? 0 : 2);
+            } else {
+                assert_int_equal(near_count(&g_after, g_world[i], 0.15), 1);
+            }
+        }
+    }
+}
+
 static void test_chain_adds_nothing_twice(void **state)
 {
     (void)state;
@@ -350,6 +388,7 @@ int main(void)
         cmocka_unit_test(test_bearing_error_corrected_by_shared_landmarks),
         cmocka_unit_test(test_rotated_partner_is_refused_map_unchanged),
         cmocka_unit_test(test_spurious_partner_is_harmless),
+        cmocka_unit_test(test_unresolved_pair_is_not_added),
         cmocka_unit_test(test_chain_adds_nothing_twice),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -26,6 +26,7 @@ merge_config_t merge_config_default(void)
     c.veto_looks = 5U;
     c.max_contradict_fraction = 0.3;
     c.ambiguous_chi2 = 25.0;
+    c.unresolved_chi2 = 9.21;
     return c;
 }
 
@@ -379,38 +380,45 @@ static void sort_pairs(merge_pair_t *p, int n)
     }
 }
 
-/* Visit every incoming landmark of own landmark j's signature in the 3x3
- * grid cells around it with squared Mahalanobis distance below gate (on
- * S_own + S_in). The cell is wide enough for the gate (grid_cell_size). */
+/* Visit every incoming landmark of signature `sig` in the 3x3 grid cells
+ * around point q (covariance q_cov) with squared Mahalanobis distance below
+ * gate (on q_cov + S_in); the visitor gets `tag` as its j. The cell is wide
+ * enough for the gate (grid_cell_size). */
 typedef void (*grid_visit_fn)(merge_scratch_t *sc, int32_t j, int32_t i, double d2, void *ctx);
 
-static void grid_gated(merge_scratch_t *sc, const merge_body_map_t *bm, int32_t j, double gate, grid_visit_fn visit,
-                       void *ctx)
+static void grid_gated_at(merge_scratch_t *sc, const merge_body_map_t *bm, point2_t q, cov2_t q_cov, uint8_t sig,
+                          int32_t tag, double gate, grid_visit_fn visit, void *ctx)
 {
-    const int32_t cx = cell_of(sc->own_body[j].x, sc->cell_m);
-    const int32_t cy = cell_of(sc->own_body[j].y, sc->cell_m);
+    const int32_t cx = cell_of(q.x, sc->cell_m);
+    const int32_t cy = cell_of(q.y, sc->cell_m);
     for (int32_t dx = -1; dx <= 1; ++dx) {
         for (int32_t dy = -1; dy <= 1; ++dy) {
             for (int32_t i = sc->bucket_head[cell_hash(cx + dx, cy + dy)]; i >= 0; i = sc->next[i]) {
                 double d2;
-                if (sc->cell_x[i] != cx + dx || sc->cell_y[i] != cy + dy || bm->signature[i] != sc->own_sig[j]) {
+                if (sc->cell_x[i] != cx + dx || sc->cell_y[i] != cy + dy || bm->signature[i] != sig) {
                     continue;
                 }
                 /* d2 >= |v|^2 / lambda_max(S) >= |v|^2 / trace(S): most
                  * neighbours of other cells fail this without an inverse */
-                const double vx = bm->mean[i].x - sc->own_body[j].x;
-                const double vy = bm->mean[i].y - sc->own_body[j].y;
-                const double tr = sc->own_cov[j].xx + sc->own_cov[j].yy + bm->cov[i].xx + bm->cov[i].yy;
+                const double vx = bm->mean[i].x - q.x;
+                const double vy = bm->mean[i].y - q.y;
+                const double tr = q_cov.xx + q_cov.yy + bm->cov[i].xx + bm->cov[i].yy;
                 if (vx * vx + vy * vy > gate * tr * (1.0 + 1e-9)) {
                     continue;
                 }
-                if (cov2_mahalanobis2(cov2_add(sc->own_cov[j], bm->cov[i]), vx, vy, &d2) == COSLAM_OK &&
-                    d2 < gate) {
-                    visit(sc, j, i, d2, ctx);
+                if (cov2_mahalanobis2(cov2_add(q_cov, bm->cov[i]), vx, vy, &d2) == COSLAM_OK && d2 < gate) {
+                    visit(sc, tag, i, d2, ctx);
                 }
             }
         }
     }
+}
+
+/* The same around own landmark j (its body-frame position and cov_rel). */
+static void grid_gated(merge_scratch_t *sc, const merge_body_map_t *bm, int32_t j, double gate, grid_visit_fn visit,
+                       void *ctx)
+{
+    grid_gated_at(sc, bm, sc->own_body[j], sc->own_cov[j], sc->own_sig[j], j, gate, visit, ctx);
 }
 
 typedef struct {
@@ -848,8 +856,9 @@ static void check_pair(merge_scratch_t *sc, merge_body_map_t *bm, const merge_co
     for (uint16_t i = 0; i < bm->n; ++i) {
         body_landmark(t, t_cov, bm->rel[i], bm->rel_cov[i], &bm->mean[i], &bm->cov[i]);
     }
-    /* cells wide enough for the ambiguity search too (merge_check step 3) */
-    const double gate = cfg->ambiguous_chi2 > cfg->gate_chi2 ? cfg->ambiguous_chi2 : cfg->gate_chi2;
+    /* cells wide enough for the ambiguity searches too (merge_check step 3) */
+    double gate = cfg->ambiguous_chi2 > cfg->gate_chi2 ? cfg->ambiguous_chi2 : cfg->gate_chi2;
+    gate = cfg->unresolved_chi2 > gate ? cfg->unresolved_chi2 : gate;
     grid_build(sc, bm, grid_cell_size(bm, cfg, gate));
     pair_and_select(sc, bm, cfg, n_own, stats);
 }
@@ -867,11 +876,43 @@ static void mark_if_unpaired(merge_scratch_t *sc, int32_t j, int32_t i, double d
     }
 }
 
+/* An unpaired incoming landmark with another incoming landmark of its
+ * signature (paired or not) within unresolved_chi2 of it is ambiguous too:
+ * the sender's own map cannot tell the two apart (they could be one object),
+ * so adding it would plant a pair that stalls or misleads the receiver's
+ * association. The distance is on the two relative covariances, the
+ * sender's uncertainty of the two places, not on the transform's error,
+ * which moves both alike (docs/map-merge.md). The grid's gate on the larger
+ * body-frame covariances finds every such neighbour. */
+typedef struct {
+    const merge_body_map_t *bm;
+    double gate;
+} other_ctx_t;
+
+static void mark_if_other(merge_scratch_t *sc, int32_t j, int32_t i, double d2_body, void *ctx)
+{
+    const other_ctx_t *oc = (const other_ctx_t *)ctx;
+    const merge_body_map_t *bm = oc->bm;
+    double d2;
+    (void)d2_body; /* <= d2: the body-frame covariances hold the transform's too */
+    if (i != j && cov2_mahalanobis2(cov2_add(bm->rel_cov[i], bm->rel_cov[j]), bm->rel[i].x - bm->rel[j].x,
+                                    bm->rel[i].y - bm->rel[j].y, &d2) == COSLAM_OK && d2 < oc->gate) {
+        sc->drop[j] = 2U;
+    }
+}
+
 static void mark_ambiguous(merge_scratch_t *sc, const merge_body_map_t *bm, const merge_config_t *cfg, int n_own)
 {
+    other_ctx_t oc = {bm, cfg->unresolved_chi2};
     for (int j = 0; j < n_own; ++j) {
         if (!sc->own_used[j]) {
             grid_gated(sc, bm, (int32_t)j, cfg->ambiguous_chi2, mark_if_unpaired, 0);
+        }
+    }
+    for (uint16_t i = 0; i < bm->n; ++i) {
+        if (cfg->unresolved_chi2 > 0.0 && sc->match_of_in[i] < 0 && sc->drop[i] == 0U) {
+            grid_gated_at(sc, bm, bm->mean[i], bm->cov[i], bm->signature[i], (int32_t)i, cfg->unresolved_chi2,
+                          mark_if_other, &oc);
         }
     }
 }

@@ -163,6 +163,15 @@ typedef struct {
      *  distance to an own landmark left unpaired is ambiguous (a failed
      *  pairing, not a new object) and is not added. */
     double ambiguous_chi2;
+    /** An unpaired incoming landmark closer than this squared Mahalanobis
+     *  distance to another incoming landmark of its signature, on the two
+     *  relative covariances (the sender's own uncertainty of the pair), is
+     *  unresolved (the sender cannot tell the two apart) and is not added.
+     *  Default 9.21, the 99 % quantile of 2 dof. 0 disables. The robot's
+     *  merge path (slam_filter_merge_map) applies it to EKF-SLAM receivers
+     *  only: Fast-SLAM's per-particle association resolves such a pair, and
+     *  on MRCLAM its maps were worse without it (docs/map-merge.md). */
+    double unresolved_chi2;
 } merge_config_t;
 
 /** Defaults: gate 9.21 (99 %), cell 1 m, full uncertainty, no reweighting,
@@ -172,7 +181,8 @@ typedef struct {
  *  in [1e-6, 1e4] m^2 (1 mm .. 100 m standard deviation), bearing variance
  *  >= 1e-8 rad^2 (0.006 deg), check on with 3 refinements moving the map
  *  and counting as 2 independent pairs, agree_z 2.33 (99 %), veto_looks 5,
- *  contradict fraction 0.3, ambiguous_chi2 25. docs/map-merge.md says why
+ *  contradict fraction 0.3, ambiguous_chi2 25, unresolved_chi2 9.21.
+ *  docs/map-merge.md says why
  *  and on what they were chosen. */
 merge_config_t merge_config_default(void);
 
@@ -234,7 +244,8 @@ typedef struct {
     uint32_t pairs;         /**< incoming landmarks paired with own ones */
     uint32_t vetoed;        /**< unpaired, where the receiver looked and saw nothing */
     uint32_t echoes;        /**< unpaired, holding the receiver's own information */
-    uint32_t ambiguous;     /**< unpaired, next to an unpaired own landmark */
+    uint32_t ambiguous;     /**< unpaired, next to an unpaired own landmark or unresolved
+                                 from another incoming one */
     double nis;             /**< joint normalised innovation squared of the pairs */
     double nis_bound;       /**< its chi-square bound (0: no pairs) */
     pose2_t t_shift;        /**< refined transform minus the sightings' one */
@@ -389,7 +400,9 @@ uint16_t merge_coverage_looks(const merge_coverage_t *c, const slam_params_t *p,
  *  3. each unpaired incoming landmark: refused if it carries own_id's
  *     provenance bit (an echo of the receiver's own information that the
  *     receiver no longer holds), if an unpaired own landmark is within
- *     ambiguous_chi2 (a failed pairing), or if coverage (may be NULL) shows
+ *     ambiguous_chi2 (a failed pairing), if another incoming landmark of
+ *     its signature is within unresolved_chi2 on the two relative covariances
+ *     (the sender cannot tell them apart), or if coverage (may be NULL) shows
  *     the receiver looked at the spot from veto_looks keyframes, in line of
  *     sight through `grid` if given (negative information);
  *  4. too many contradictions (max_contradict_fraction) refuse the merge.
