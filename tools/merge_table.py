@@ -14,7 +14,67 @@ def fmt(v, nd=3):
     return "n/a" if v is None else f"{v:.{nd}f}"
 
 
-def main(out):
+GOALS = ("spurious > 1", "more spurious than alone", "landmark RMSE higher", "pose RMSE higher")
+
+
+def goals_missed(fm, fa, pm_, pa_):
+    """Issue 8's per-robot goals that a run with merging misses against its
+    run alone: (index into GOALS, message) for each."""
+    missed = []
+    if fm["n_spurious"] > 1:
+        missed.append((0, f"{fm['n_spurious']} spurious with merging (goal <= 1)"))
+    if fm["n_spurious"] > fa["n_spurious"]:
+        missed.append((1, "more spurious with merging"))
+    if fm["rmse_m"] > fa["rmse_m"] + 1e-9:
+        missed.append((2, "landmark RMSE higher with merging"))
+    if pm_ is not None and pa_ is not None and pm_ > pa_ + 1e-9:
+        missed.append((3, "pose RMSE higher with merging"))
+    return missed
+
+
+def seed_table(out, seeds):
+    """Fast-SLAM 2.0 over particle seeds: per robot, the seeds missing each goal."""
+    for d in (6, 1):
+        runs = []
+        for s in seeds:
+            pm, pa = f"{out}/d{d}_fastslam2_s{s}/metrics.json", f"{out}/d{d}_fastslam2_s{s}_alone/metrics.json"
+            if not (os.path.exists(pm) and os.path.exists(pa)):
+                print(f"missing {pm} or {pa}")
+                continue
+            runs.append((load(pm), load(pa)))
+        if not runs:
+            continue
+        print(f"\n### Dataset {d}, Fast-SLAM 2.0 over particle seeds {' '.join(seeds)}: per robot, seeds that miss "
+              f"a goal\n")
+        print(f"| robot | {' | '.join(GOALS)} | any goal missed | spurious merge / alone (sum) |")
+        print("|---|---|---|---|---|---|---|")
+        tot_bad = tot = sp_m = sp_a = 0
+        for k in range(len(runs[0][0]["robots"])):
+            cnt = [0, 0, 0, 0]
+            bad = sm = sa = 0
+            for m, a in runs:
+                rm, ra = m["robots"][k], a["robots"][k]
+                fm, fa = rm["map_fit"], ra["map_fit"]
+                pm_, pa_ = rm["pose"].get("rmse_m"), ra["pose"].get("rmse_m")
+                missed = goals_missed(fm, fa, pm_, pa_)
+                for g, _ in missed:
+                    cnt[g] += 1
+                bad += int(bool(missed))
+                sm += fm["n_spurious"]
+                sa += fa["n_spurious"]
+            n = len(runs)
+            pose = "n/a" if runs[0][0]["robots"][k]["pose"].get("rmse_m") is None else f"{cnt[3]} / {n}"
+            print(f"| {runs[0][0]['robots'][k]['id']} | {cnt[0]} / {n} | {cnt[1]} / {n} | {cnt[2]} / {n} | {pose} | "
+                  f"{bad} / {n} | {sm} / {sa} |")
+            tot_bad += bad
+            tot += n
+            sp_m += sm
+            sp_a += sa
+        print(f"\nRobot-runs missing a goal: {tot_bad} of {tot}; spurious landmarks {sp_m} with merging, "
+              f"{sp_a} alone.")
+
+
+def main(out, seeds):
     verdicts = []
     for d in (6, 1):
         for f, name in (("ekf", "EKF-SLAM"), ("fastslam2", "Fast-SLAM 2.0")):
@@ -29,26 +89,19 @@ def main(out):
             print("| robot | spurious merge / alone | landmark RMSE (fit) merge / alone [m] | "
                   "pose RMSE merge / alone [m] | landmarks merge / alone |")
             print("|---|---|---|---|---|")
-            worse = []
             for rm, ra in zip(m["robots"], a["robots"]):
                 fm, fa = rm["map_fit"], ra["map_fit"]
                 pm_, pa_ = rm["pose"].get("rmse_m"), ra["pose"].get("rmse_m")
                 print(f"| {rm['id']} | {fm['n_spurious']} / {fa['n_spurious']} | {fmt(fm['rmse_m'])} / "
                       f"{fmt(fa['rmse_m'])} | {fmt(pm_)} / {fmt(pa_)} | {fm['n_estimated']} / {fa['n_estimated']} |")
-                if fm["n_spurious"] > 1:
-                    worse.append(f"robot {rm['id']}: {fm['n_spurious']} spurious with merging (goal <= 1)")
-                if fm["n_spurious"] > fa["n_spurious"]:
-                    worse.append(f"robot {rm['id']}: more spurious with merging")
-                if fm["rmse_m"] > fa["rmse_m"] + 1e-9:
-                    worse.append(f"robot {rm['id']}: landmark RMSE higher with merging")
-                if pm_ is not None and pa_ is not None and pm_ > pa_ + 1e-9:
-                    worse.append(f"robot {rm['id']}: pose RMSE higher with merging")
-            for w in worse:
-                verdicts.append(f"Dataset {d}, {name}, {w}")
+                for _, w in goals_missed(fm, fa, pm_, pa_):
+                    verdicts.append(f"Dataset {d}, {name}, robot {rm['id']}: {w}")
+    if seeds:
+        seed_table(out, seeds)
     print("\n### Goals not met\n")
     for v in verdicts or ["none"]:
         print(f"- {v}")
 
 
 if __name__ == "__main__":
-    main(sys.argv[1] if len(sys.argv) > 1 else "out/merge_table")
+    main(sys.argv[1] if len(sys.argv) > 1 else "out/merge_table", sys.argv[2:])

@@ -7,7 +7,11 @@
 #   tools/merge_table.sh [BUILD] [OUT]     -> OUT/merge_table.md
 # BUILD: a host-profile build (default build-host, as `make replay` makes:
 # 300 particles need more than the default profile's 100).
-# Environment: COSLAM_DATA_DIR (folder holding mrclam/), PARTICLES.
+# Environment: COSLAM_DATA_DIR (folder holding mrclam/), PARTICLES, SEEDS.
+# SEEDS (e.g. "1 2 3 4 5 6"): Fast-SLAM 2.0 is random and on this data one
+# robot's figures change from seed to seed by more than most merge changes
+# do, so the table then also runs it with each particle seed (merge and
+# alone) and counts, per robot, the seeds that miss each goal.
 set -eu
 build=${1:-build-host}
 out=${2:-out/merge_table}
@@ -31,4 +35,15 @@ for d in 6 1; do
   (run $d fastslam2 ""; run $d fastslam2 --no-merge) &
   wait
 done
-/usr/bin/python3 tools/merge_table.py "$out" | tee "$out/merge_table.md"
+seeds=${SEEDS:-}
+for s in $seeds; do
+  for d in 6 1; do
+    for m in "" --no-merge; do
+      tag="d${d}_fastslam2_s$s${m:+_alone}"
+      "$bin" run "$data/MRCLAM_Dataset$d" -c host/replay/mrclam6.ini -f fastslam2 -p "$particles" --seed "$s" $m \
+        -q --no-plots -o "$out/$tag" > "$out/$tag.txt" 2>&1 &
+    done
+    wait
+  done
+done
+/usr/bin/python3 tools/merge_table.py "$out" $seeds | tee "$out/merge_table.md"
