@@ -170,7 +170,8 @@ typedef struct {
      *  Default 9.21, the 99 % quantile of 2 dof. 0 disables. The robot's
      *  merge path (slam_filter_merge_map) applies it to EKF-SLAM receivers
      *  only: Fast-SLAM's per-particle association resolves such a pair, and
-     *  on MRCLAM its maps were worse without it (docs/map-merge.md). */
+     *  on MRCLAM Fast-SLAM's maps were worse with the rule than without it
+     *  (docs/map-merge.md). */
     double unresolved_chi2;
 } merge_config_t;
 
@@ -182,8 +183,7 @@ typedef struct {
  *  >= 1e-8 rad^2 (0.006 deg), check on with 3 refinements moving the map
  *  and counting as 2 independent pairs, agree_z 2.33 (99 %), veto_looks 5,
  *  contradict fraction 0.3, ambiguous_chi2 25, unresolved_chi2 9.21.
- *  docs/map-merge.md says why
- *  and on what they were chosen. */
+ *  docs/map-merge.md says why and on what they were chosen. */
 merge_config_t merge_config_default(void);
 
 /** The incoming map in self's body frame (output of merge_transform_map). */
