@@ -25,10 +25,10 @@ for d in 6 1; do
   fi
 done
 mkdir -p "$out"
-run() { # dataset filter merge-flag
-  tag="d$1_$2${3:+_alone}"
-  "$bin" run "$data/MRCLAM_Dataset$1" -c host/replay/mrclam6.ini -f "$2" -p "$particles" $3 -q --no-plots \
-    -o "$out/$tag" > "$out/$tag.txt" 2>&1
+run() { # dataset filter merge-flag [particle-seed]
+  tag="d$1_$2${4:+_s$4}${3:+_alone}"
+  "$bin" run "$data/MRCLAM_Dataset$1" -c host/replay/mrclam6.ini -f "$2" -p "$particles" ${4:+--seed "$4"} $3 \
+    -q --no-plots -o "$out/$tag" > "$out/$tag.txt" 2>&1
 }
 for d in 6 1; do
   (run $d ekf ""; run $d ekf --no-merge) &
@@ -38,11 +38,8 @@ done
 seeds=${SEEDS:-}
 for s in $seeds; do
   for d in 6 1; do
-    for m in "" --no-merge; do
-      tag="d${d}_fastslam2_s$s${m:+_alone}"
-      "$bin" run "$data/MRCLAM_Dataset$d" -c host/replay/mrclam6.ini -f fastslam2 -p "$particles" --seed "$s" $m \
-        -q --no-plots -o "$out/$tag" > "$out/$tag.txt" 2>&1 &
-    done
+    run $d fastslam2 "" "$s" &
+    run $d fastslam2 --no-merge "$s" &
     wait
   done
 done

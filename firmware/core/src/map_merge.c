@@ -903,14 +903,17 @@ static void mark_if_other(merge_scratch_t *sc, int32_t j, int32_t i, double d2_b
 
 static void mark_ambiguous(merge_scratch_t *sc, const merge_body_map_t *bm, const merge_config_t *cfg, int n_own)
 {
-    other_ctx_t oc = {bm, cfg->unresolved_chi2};
     for (int j = 0; j < n_own; ++j) {
         if (!sc->own_used[j]) {
             grid_gated(sc, bm, (int32_t)j, cfg->ambiguous_chi2, mark_if_unpaired, 0);
         }
     }
+    if (!(cfg->unresolved_chi2 > 0.0)) {
+        return;
+    }
+    other_ctx_t oc = {bm, cfg->unresolved_chi2};
     for (uint16_t i = 0; i < bm->n; ++i) {
-        if (cfg->unresolved_chi2 > 0.0 && sc->match_of_in[i] < 0 && sc->drop[i] == 0U) {
+        if (sc->match_of_in[i] < 0 && sc->drop[i] == 0U) {
             grid_gated_at(sc, bm, bm->mean[i], bm->cov[i], bm->signature[i], (int32_t)i, cfg->unresolved_chi2,
                           mark_if_other, &oc);
         }
