@@ -266,6 +266,7 @@ std::vector<Key> keys_of(ReplayConfig &c)
          [&c] { return std::string(c.filter.assoc == EKFSLAM_ASSOC_JCBB ? "jcbb" : "nn"); }},
         ikey("filter", "jcbb_max_nodes", &c.filter.jcbb_max_nodes, 1, 100000000),
         ikey("filter", "fej", &c.filter.fej, 0, 1),
+        ikey("filter", "iekf_max_iters", &c.filter.iekf_max_iters, 0, 255),
         ikey("filter", "seed", &c.filter.seed, 0, 2000000000),
         dkey("filter", "predict_period_s", &c.filter.predict_period_s),
         dkey("input", "min_range_m", &c.input.min_range_m),

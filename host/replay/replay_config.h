@@ -13,7 +13,7 @@
 //   [odometry]  scale_v, scale_w, delay_s (OdoModel)
 //   [filter]    type (fastslam1 | fastslam2 | ekf), particles, ess_fraction,
 //               export_min_weight, assoc (jcbb | nn), jcbb_max_nodes, fej,
-//               seed, predict_period_s
+//               iekf_max_iters, seed, predict_period_s
 //   [input]     min_range_m, max_range_m (sightings outside are dropped, counted),
 //               known_id_gate_rad, known_id_gate_chi2, known_id_log_lik
 //               (known-ids mode, see below)
@@ -52,6 +52,7 @@ struct FilterConfig {
     ekfslam_assoc_t assoc = EKFSLAM_ASSOC_JCBB;
     uint32_t jcbb_max_nodes = 20000;
     int fej = 1;
+    int iekf_max_iters = 0; ///< ekfslam_config_t::iekf_max_iters
     uint64_t seed = 1;
     /// Odometry is folded into one prediction at most this long [s] (and
     /// always right before a camera frame): the robot's control rate.

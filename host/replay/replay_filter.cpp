@@ -27,6 +27,7 @@ RobotFilter::RobotFilter(FilterKind kind, const ReplayConfig &cfg, uint8_t core_
     c.assoc = cfg.filter.assoc;
     c.jcbb_max_nodes = cfg.filter.jcbb_max_nodes;
     c.fej = static_cast<uint8_t>(cfg.filter.fej);
+    c.iekf_max_iters = static_cast<uint8_t>(cfg.filter.iekf_max_iters);
     if (slam_filter_init(f_.get(), &c, pose0) != COSLAM_OK) {
         throw ReplayError(std::string(slam_filter_kind_name(c.kind)) + ": the core refused the configuration");
     }
@@ -104,6 +105,8 @@ std::map<std::string, long> RobotFilter::counters() const
         m["jcbb_ambiguous"] = c.jcbb_ambiguous;
         m["jcbb_closures_held"] = c.jcbb_closures_held;
         m["jcbb_closures_nonlinear"] = c.jcbb_closures_nonlinear;
+        m["iekf_updates"] = c.iekf_updates;
+        m["iekf_iterations"] = c.iekf_iterations;
         m["landmarks_in_state"] = ekf->n_lm;
     } else {
         const fastslam_counters_t &c = fastslam()->ctr;

@@ -366,6 +366,149 @@ static void test_nonlinear_closure_held(void **state)
     assert_true(g_ekf.x[0] != 0.0 || g_ekf.x[1] != 0.0);
 }
 
+
+/* J(x) = (x - x0)^T P0^-1 (x - x0) + nu(x)^T R^-1 nu(x) over (pose, landmark)
+ * for one sighting z: the cost whose minimum the iterated update finds. */
+static double closure_cost(const double x[5], const double x0[5], double pinv[5][5], sighting_t z, double r_var,
+                           double b_var)
+{
+    double d[5];
+    for (int r = 0; r < 5; ++r) {
+        d[r] = x[r] - x0[r];
+    }
+    d[2] = angle_wrap(d[2]);
+    double j = 0.0;
+    for (int r = 0; r < 5; ++r) {
+        for (int c = 0; c < 5; ++c) {
+            j += d[r] * pinv[r][c] * d[c];
+        }
+    }
+    const pose2_t pose = {x[0], x[1], x[2]};
+    const point2_t m = {x[3], x[4]};
+    const sighting_t h = observe_predict(pose, m);
+    const double nr = z.range_m - h.range_m;
+    const double nb = angle_wrap(z.bearing_rad - h.bearing_rad);
+    return j + nr * nr / r_var + nb * nb / b_var;
+}
+
+/* Gauss-Jordan inverse of a 5x5 (test helper). */
+static void inverse5(double a[5][5], double inv[5][5])
+{
+    double m[5][10];
+    for (int r = 0; r < 5; ++r) {
+        for (int c = 0; c < 5; ++c) {
+            m[r][c] = a[r][c];
+            m[r][5 + c] = r == c ? 1.0 : 0.0;
+        }
+    }
+    for (int c = 0; c < 5; ++c) {
+        int piv = c;
+        for (int r = c + 1; r < 5; ++r) {
+            if (fabs(m[r][c]) > fabs(m[piv][c])) {
+                piv = r;
+            }
+        }
+        for (int k = 0; k < 10; ++k) {
+            const double t = m[c][k];
+            m[c][k] = m[piv][k];
+            m[piv][k] = t;
+        }
+        const double d = m[c][c];
+        for (int k = 0; k < 10; ++k) {
+            m[c][k] /= d;
+        }
+        for (int r = 0; r < 5; ++r) {
+            if (r != c) {
+                const double f = m[r][c];
+                for (int k = 0; k < 10; ++k) {
+                    m[r][k] -= f * m[c][k];
+                }
+            }
+        }
+    }
+    for (int r = 0; r < 5; ++r) {
+        for (int c = 0; c < 5; ++c) {
+            inv[r][c] = m[r][5 + c];
+        }
+    }
+}
+
+/* A revisit at 2 m with a 0.6 m robot-landmark offset sd (s / r = 0.3, a
+ * usable closure but past the bearing's linear range) updated with
+ * `iters` relinearisations; returns the largest component of the gradient
+ * of the update's cost at the posterior mean (central differences), and
+ * the cost there. */
+static double iterated_closure(int iters, double *cost)
+{
+    ekfslam_config_t c = config();
+    c.slam.new_landmark_log_lik = -20.0; /* the pairing is admissible */
+    c.iekf_max_iters = (uint8_t)iters;
+    const pose2_t p0 = {0.0, 0.0, 0.0};
+    assert_int_equal(ekfslam_init(&g_ekf, &c, p0), COSLAM_OK);
+    const point2_t lm = {2.0, 0.0};
+    ekfslam_meta_t meta = {1U, 5.0f, 5, 1, 0, 0};
+    assert_int_equal(ekfslam_add_landmark_body(&g_ekf, lm, cov2_make(1e-4, 0.0, 1e-4), &meta), COSLAM_OK);
+    const double p_prior[5][5] = {{0.36, 0.05, 0.02, 0.0, 0.0},
+                                  {0.05, 0.36, 0.03, 0.0, 0.0},
+                                  {0.02, 0.03, 0.04, 0.0, 0.0},
+                                  {0.0, 0.0, 0.0, 0.01, 0.002},
+                                  {0.0, 0.0, 0.0, 0.002, 0.01}};
+    for (int r = 0; r < 5; ++r) {
+        for (int k = 0; k < 5; ++k) {
+            PE(&g_ekf, r, k) = p_prior[r][k];
+        }
+    }
+    g_ekf.ctr.updates = 100U; /* last sighted at update 0: a revisit */
+    const pose2_t truth = {0.5, -0.6, 0.25};
+    const sighting_t z = observe_predict(truth, lm);
+    const double x0[5] = {0.0, 0.0, 0.0, lm.x, lm.y};
+    assert_int_equal(ekfslam_update(&g_ekf, &z, 1), COSLAM_OK);
+    assert_int_equal(g_ekf.n_lm, 1);
+    assert_int_equal(g_ekf.ctr.jcbb_closures_nonlinear, 0U);
+    assert_int_equal(g_ekf.ctr.iekf_updates, iters > 0 ? 1U : 0U);
+    double pin[5][5];
+    double pinv[5][5];
+    memcpy(pin, p_prior, sizeof pin);
+    inverse5(pin, pinv);
+    double x[5];
+    for (int r = 0; r < 5; ++r) {
+        x[r] = g_ekf.x[r];
+    }
+    const double r_var = c.slam.noise.range_var_m2;
+    const double b_var = c.slam.noise.bearing_var_rad2;
+    *cost = closure_cost(x, x0, pinv, z, r_var, b_var);
+    double gmax = 0.0;
+    for (int r = 0; r < 5; ++r) {
+        const double h = 1e-6;
+        double xp[5];
+        double xm[5];
+        memcpy(xp, x, sizeof xp);
+        memcpy(xm, x, sizeof xm);
+        xp[r] += h;
+        xm[r] -= h;
+        const double g = (closure_cost(xp, x0, pinv, z, r_var, b_var) - closure_cost(xm, x0, pinv, z, r_var, b_var)) /
+                         (2.0 * h);
+        gmax = fabs(g) > gmax ? fabs(g) : gmax;
+    }
+    return gmax;
+}
+
+/* The iterated update ends where the update's cost is stationary (the MAP
+ * of the Gaussian prior and the nonlinear sighting), at a lower cost than
+ * the one EKF step, whose end point is not stationary. */
+static void test_iterated_closure_is_map(void **state)
+{
+    (void)state;
+    double cost_ekf;
+    double cost_iekf;
+    const double g_ekf_step = iterated_closure(0, &cost_ekf);
+    const double g_iekf = iterated_closure(10, &cost_iekf);
+    assert_true(g_iekf < 1e-3);
+    assert_true(g_ekf_step > 1.0);
+    assert_true(cost_iekf < cost_ekf);
+    assert_true(g_ekf.ctr.iekf_iterations >= 2U && g_ekf.ctr.iekf_iterations <= 10U);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -376,6 +519,7 @@ int main(void)
         cmocka_unit_test(test_capacity_and_bad_input),
         cmocka_unit_test(test_jcbb_beats_nn),
         cmocka_unit_test(test_nonlinear_closure_held),
+        cmocka_unit_test(test_iterated_closure_is_map),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -21,6 +21,7 @@ slam_filter_config_t slam_filter_config_default(void)
     c.assoc = ec.assoc;
     c.jcbb_max_nodes = ec.jcbb_max_nodes;
     c.fej = ec.fej;
+    c.iekf_max_iters = ec.iekf_max_iters;
     return c;
 }
 
@@ -51,6 +52,7 @@ coslam_status_t slam_filter_init(slam_filter_t *f, const slam_filter_config_t *c
         c.assoc = cfg->assoc;
         c.jcbb_max_nodes = cfg->jcbb_max_nodes;
         c.fej = cfg->fej;
+        c.iekf_max_iters = cfg->iekf_max_iters;
         return ekfslam_init(&f->u.ekf, &c, pose0);
     }
     }

@@ -18,6 +18,8 @@ ekfslam_config_t ekfslam_config_default(void)
     c.jcbb_closure_gap = 25U;
     c.jcbb_closure_max_spread = 0.7;
     c.fej = 1U;
+    c.iekf_max_iters = 0U;
+    c.iekf_min_spread = -1.0;
 #if COSLAM_EKF_MAX_ACTIVE >= 128
     c.active_radius_m = 3.0;
 #else
@@ -851,15 +853,10 @@ static void sparse_hph(const ekfslam_t *ekf, const lm_expect_t *ea, uint16_t ja,
 
 /* Expected sighting of landmark j with the full innovation covariance
  * S = H P H^T + Q, H = [H_r 0 .. H_m .. 0]. */
-static coslam_status_t expect_landmark(const ekfslam_t *ekf, uint16_t j, lm_expect_t *e)
+static coslam_status_t expect_at(const ekfslam_t *ekf, uint16_t j, pose2_t pose, point2_t m, pose2_t lin_pose,
+                                 point2_t lin_m, lm_expect_t *e)
 {
     const slam_params_t *sp = &ekf->cfg.slam;
-    const pose2_t pose = robot_pose(ekf);
-    const int a = 3 + 2 * j;
-    const point2_t m = {ekf->x[a], ekf->x[a + 1]};
-    /* FEJ: linearise at the predicted pose and the landmark's first estimate */
-    const pose2_t lin_pose = ekf->cfg.fej ? ekf->pose_prior : pose;
-    const point2_t lin_m = ekf->cfg.fej ? ekf->lm_first[j] : m;
     const coslam_status_t st = observe_jacobians(lin_pose, lin_m, e->h_pose, e->h_lm);
     if (st != COSLAM_OK || observe_jacobians(pose, m, NULL, NULL) != COSLAM_OK) {
         return COSLAM_E_DEGENERATE;
@@ -878,6 +875,88 @@ static coslam_status_t expect_landmark(const ekfslam_t *ekf, uint16_t j, lm_expe
     return COSLAM_OK;
 }
 
+static coslam_status_t expect_landmark(const ekfslam_t *ekf, uint16_t j, lm_expect_t *e)
+{
+    const pose2_t pose = robot_pose(ekf);
+    const int a = 3 + 2 * j;
+    const point2_t m = {ekf->x[a], ekf->x[a + 1]};
+    /* FEJ: linearise at the predicted pose and the landmark's first estimate */
+    const pose2_t lin_pose = ekf->cfg.fej ? ekf->pose_prior : pose;
+    const point2_t lin_m = ekf->cfg.fej ? ekf->lm_first[j] : m;
+    return expect_at(ekf, j, pose, m, lin_pose, lin_m, e);
+}
+
+/*
+ * Iterated EKF (Bell and Cathey 1993; Gauss-Newton on the update's cost):
+ * relinearise the sighting of landmark j at the iterate
+ *   x_{i+1} = x_0 + K_i (z - h(x_i) - H_i (x_0 - x_i)),  K_i = P H_i^T S_i^-1,
+ * with P the prior covariance, until the step is below 1e-6. Only the pose
+ * and the landmark enter h, so each iteration is O(1). On return e holds the
+ * expectation linearised at the last iterate and nu the innovation that,
+ * applied as one EKF step from x_0 with e's Jacobians, gives the next
+ * iterate: the ordinary update then finishes the iteration. Returns the
+ * number of iterations taken.
+ */
+static int iterate_linearisation(const ekfslam_t *ekf, uint16_t j, sighting_t z, int max_iters, lm_expect_t *e,
+                                 double nu[2])
+{
+    const int a = 3 + 2 * j;
+    const int ix[5] = {0, 1, 2, a, a + 1};
+    double x0[5];
+    double xi[5];
+    for (int r = 0; r < 5; ++r) {
+        x0[r] = ekf->x[ix[r]];
+        xi[r] = x0[r];
+    }
+    int it = 0;
+    for (;;) {
+        lm_expect_t ei;
+        const pose2_t pose = {xi[0], xi[1], xi[2]};
+        const point2_t m = {xi[3], xi[4]};
+        if (expect_at(ekf, j, pose, m, pose, m, &ei) != COSLAM_OK) {
+            return it; /* keep the last good linearisation */
+        }
+        double nui[2];
+        observe_innovation(z, ei.zhat, nui);
+        const double dx[5] = {x0[0] - xi[0], x0[1] - xi[1], angle_wrap(x0[2] - xi[2]), x0[3] - xi[3], x0[4] - xi[4]};
+        for (int q = 0; q < 2; ++q) {
+            nui[q] -= ei.h_pose[q][0] * dx[0] + ei.h_pose[q][1] * dx[1] + ei.h_pose[q][2] * dx[2] +
+                      ei.h_lm[q][0] * dx[3] + ei.h_lm[q][1] * dx[4];
+        }
+        *e = ei;
+        nu[0] = nui[0];
+        nu[1] = nui[1];
+        if (it >= max_iters) {
+            return it;
+        }
+        /* the next iterate's pose and landmark: x_0 + K nu */
+        double step2 = 0.0;
+        for (int r = 0; r < 5; ++r) {
+            double pht[2];
+            for (int q = 0; q < 2; ++q) {
+                pht[q] = P_(ekf, ix[r], 0) * ei.h_pose[q][0] + P_(ekf, ix[r], 1) * ei.h_pose[q][1] +
+                         P_(ekf, ix[r], 2) * ei.h_pose[q][2] + P_(ekf, ix[r], a) * ei.h_lm[q][0] +
+                         P_(ekf, ix[r], a + 1) * ei.h_lm[q][1];
+            }
+            const double k0 = pht[0] * ei.s_inv.xx + pht[1] * ei.s_inv.xy;
+            const double k1 = pht[0] * ei.s_inv.xy + pht[1] * ei.s_inv.yy;
+            double xn = x0[r] + k0 * nui[0] + k1 * nui[1];
+            double d = xn - xi[r];
+            if (r == 2) {
+                xn = angle_wrap(xn);
+                d = angle_wrap(d);
+            }
+            step2 += d * d;
+            xi[r] = xn;
+        }
+        ++it;
+        if (!(step2 > 1e-12)) {
+            /* converged: one more linearisation at the fixed point */
+            max_iters = it;
+        }
+    }
+}
+
 /*
  * EKF update of the whole state with one sighting of landmark j.
  * With PHt = P H^T (D x 2), S = H PHt + Q, K = PHt S^-1:
@@ -885,13 +964,19 @@ static coslam_status_t expect_landmark(const ekfslam_t *ekf, uint16_t j, lm_expe
  *   P = (I - K H) P (I - K H)^T + K Q K^T
  *     = P - K PHt^T - PHt K^T + K S K^T          (Joseph form, O(D^2))
  */
-static coslam_status_t update_one(ekfslam_t *ekf, uint16_t j, sighting_t z)
+static coslam_status_t update_one(ekfslam_t *ekf, uint16_t j, sighting_t z, int iterate)
 {
     lm_expect_t e;
     coslam_status_t st = expect_landmark(ekf, j, &e);
     if (st != COSLAM_OK) {
         ekf->ctr.numeric_faults++;
         return st;
+    }
+    double nu[2];
+    observe_innovation(z, e.zhat, nu);
+    if (iterate && ekf->cfg.iekf_max_iters > 0U) {
+        ekf->ctr.iekf_updates++;
+        ekf->ctr.iekf_iterations += (uint32_t)iterate_linearisation(ekf, j, z, (int)ekf->cfg.iekf_max_iters, &e, nu);
     }
     /* the whole state, or the active part in a local phase */
     const int local = in_local(ekf);
@@ -912,8 +997,6 @@ static coslam_status_t update_one(ekfslam_t *ekf, uint16_t j, sighting_t z)
         k[r][0] = pht[r][0] * si.xx + pht[r][1] * si.xy;
         k[r][1] = pht[r][0] * si.xy + pht[r][1] * si.yy;
     }
-    double nu[2];
-    observe_innovation(z, e.zhat, nu);
     for (int r = 0; r < d; ++r) {
         ekf->x[local ? ix[r] : r] += k[r][0] * nu[0] + k[r][1] * nu[1];
     }
@@ -1550,13 +1633,21 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
                       assoc_unpaired_is_new(sc->pairs, n_pairs, i, sc->assign, ns, sc->n_near);
     }
 
-    /* 3. sequential updates, relinearised at the current state */
+    /* 3. sequential updates, relinearised at the current state; a
+     * loop-closing pairing whose bearing's second-order term, about
+     * (s / r)^2 for an offset standard deviation s at range r, exceeds the
+     * bearing's standard deviation is iterated (iterate_linearisation) */
+    const double iekf_spread = ekf->cfg.iekf_min_spread >= 0.0 ? ekf->cfg.iekf_min_spread
+                                                               : sqrt(sqrt(sp->noise.bearing_var_rad2));
     for (int i = 0; i < ns; ++i) {
         const int32_t j = sc->assign[i];
         if (j < 0) {
             continue;
         }
-        if (update_one(ekf, (uint16_t)j, z[i]) == COSLAM_OK) {
+        /* a revisit's pairing relinearised (iterate_linearisation): its
+         * prior offset is uncertain against the range */
+        const int iterate = pair_is_closure(ekf, j) && pair_spread(ekf, j) > iekf_spread;
+        if (update_one(ekf, (uint16_t)j, z[i], iterate) == COSLAM_OK) {
             ekfslam_meta_t *m = &ekf->meta[j];
             m->last_seen = ekf->ctr.updates;
             exist_hit(&m->exist, sp);

@@ -477,6 +477,7 @@ static const cfg_key_t keys[] = {
     C_("filter", "assoc", parse_assoc, print_assoc),
     N_("filter", "jcbb_max_nodes", K_U32, node.filter.jcbb_max_nodes, 1, 100000000),
     B_("filter", "fej", node.filter.fej),
+    N_("filter", "iekf_max_iters", K_U8, node.filter.iekf_max_iters, 0, 255),
     N_("filter", "predict_period_s", K_US, node.filter_period_us, 0.001, 10.0),
 
     NO_("merge", "window_s", K_US, node.meeting.pair_window_us, 0.0, 4000.0),

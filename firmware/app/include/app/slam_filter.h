@@ -45,6 +45,7 @@ typedef struct {
     ekfslam_assoc_t assoc;        /**< EKF-SLAM: ekfslam_config_t */
     uint32_t jcbb_max_nodes;      /**< EKF-SLAM: ekfslam_config_t */
     uint8_t fej;                  /**< EKF-SLAM: ekfslam_config_t */
+    uint8_t iekf_max_iters;       /**< EKF-SLAM: ekfslam_config_t */
 } slam_filter_config_t;
 
 typedef struct {

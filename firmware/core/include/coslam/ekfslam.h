@@ -113,6 +113,17 @@ typedef struct {
      *  standard EKF gains spurious heading information and becomes
      *  overconfident over a loop; FEJ removes most of that. */
     uint8_t fej;
+    /** Iterated EKF for revisits: a loop-closing pairing (jcbb_closure_gap)
+     *  whose offset spread s / r (jcbb_closure_max_spread) exceeds
+     *  iekf_min_spread is relinearised at the updated estimate up to this
+     *  many times (Gauss-Newton on the update's cost, ending at its MAP),
+     *  instead of one step along the prior's tangent. Default 0: off; on
+     *  MRCLAM it helped the merging robots and hurt one robot alone, and
+     *  changed nothing on the synthetic worlds (docs/consistency.md). */
+    uint8_t iekf_max_iters;
+    /** < 0 (default): bearing_sd^(1/2), where the bearing's second-order
+     *  term, about (s / r)^2, reaches one bearing standard deviation. */
+    double iekf_min_spread;
     /** Compressed EKF (Guivant and Nebot 2001; ekfslam.c "Compressed
      *  EKF"): while the robot stays within this distance of where its
      *  local region was chosen, predictions and updates touch only the
@@ -165,6 +176,8 @@ typedef struct {
     uint32_t jcbb_ambiguous;          /**< frames whose best hypothesis was ambiguous */
     uint32_t jcbb_closures_held;      /**< frames with a loop closure of too few pairings */
     uint32_t jcbb_closures_nonlinear; /**< frames with a loop closure held back as too nonlinear */
+    uint32_t iekf_updates;            /**< loop-closing pairings applied by the iterated EKF */
+    uint32_t iekf_iterations;         /**< their relinearisations, in all */
     uint32_t cekf_global_updates;     /**< compressed EKF: local phases ended by a global update */
     uint32_t cekf_active_overflows;   /**< compressed EKF: regions with more than COSLAM_EKF_MAX_ACTIVE
                                            landmarks in reach (that frame used the full update) */
