@@ -31,6 +31,7 @@
 typedef struct {
     double nees_sum;      /* sum over merges of the mean NEES of added + fused landmarks */
     int merges;
+    double nees_before_sum; /* sum over merges of the receiver's own map NEES before it */
     double t_nees_sum;    /* one transform per meeting */
     int meetings;
     double t_se;          /* squared position errors of the sightings' transforms */
@@ -81,6 +82,7 @@ static void run_many(run_filter_t a, run_filter_t b, int n_signatures, uint8_t t
             const int n = r->n_added_eval + r->n_common;
             if (n > 0) {
                 g->nees_sum += (r->after_nees_added * r->n_added_eval + r->nees_common_merged) / n;
+                g->nees_before_sum += r->before.nees_mean;
                 g->merges++;
             }
             g->rel_self += r->se_rel_self;
@@ -97,10 +99,12 @@ static void run_many(run_filter_t a, run_filter_t b, int n_signatures, uint8_t t
 
 static void print_agg(const char *name, const merge_agg_t *g)
 {
-    printf("%s: %d merges (%d refused), landmark NEES after merge %.2f, transform NEES %.2f, RMS error %.3f m (refined "
+    printf("%s: %d merges (%d refused), landmark NEES after merge %.2f (the receivers' own maps before it %.2f), "
+           "transform NEES %.2f, RMS error %.3f m (refined "
            "%.3f m), common landmarks %d: relative RMSE own %.3f received %.3f merged %.3f, added %d, spurious "
            "%d -> %d\n",
-           name, g->merges, g->refused, g->nees_sum / g->merges, g->t_nees_sum / g->meetings,
+           name, g->merges, g->refused, g->nees_sum / g->merges, g->nees_before_sum / g->merges,
+           g->t_nees_sum / g->meetings,
            sqrt(g->t_se / (2 * g->meetings)), sqrt(g->t_se_refined / (2 * g->meetings)), g->n_common,
            sqrt(g->rel_self / g->n_common), sqrt(g->rel_recv / g->n_common), sqrt(g->rel_merged / g->n_common),
            g->added, g->spurious_before, g->spurious_after);
