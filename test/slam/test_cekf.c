@@ -7,13 +7,18 @@
  * the cross-covariances of landmarks added in the local phase with the
  * passive part (P_mB = G_r phi_r P_A0B). With the global update spread
  * over later steps (active_spread_madds > 0, small budgets here so that
- * the pending rows outlive several frames and some are forced), every
- * third global update is compared whole after ekfslam_sync (which completes
- * the pending rows), and at the others and at frames with pending rows
- * everything the design declares final is compared without syncing (x, the
- * active rows P_AA and P_AB) and, through the readers, each landmark's 2x2
- * block and a sample of the other pending entries. Needs COSLAM_EKF_MAX_ACTIVE > 0: built
- * against the large profile. */
+ * entries stay pending for several frames, two generations of them at
+ * once, and some completions are forced), every third global update is
+ * compared whole after ekfslam_sync (which completes the pending entries);
+ * at the others and every third frame with entries pending the whole state
+ * is compared through a synced copy, and through the readers (which add
+ * the pending corrections) a sample of the landmarks' means and 2x2
+ * blocks, of the active rows (P_AA, and P_AB from the stored P_A0B and its
+ * pending entries) and of each generation's pending entries; exports and
+ * merges while entries are pending, a backlog that fills every generation
+ * (the oldest completed at once) and removals that move flagged rows are
+ * covered too. Needs COSLAM_EKF_MAX_ACTIVE > 0: built against the large
+ * profile. */
 #include "test_util.h"
 
 #include <stdlib.h>
@@ -40,6 +45,9 @@ typedef struct {
     int new_passive;      /* ... of those, new landmark x passive landmark */
     int pending_checks;   /* comparisons without sync while rows were pending */
     int pending_entries;  /* ... pending entries read through ekfslam_p */
+    int two_gens;         /* ... with two generations pending */
+    int active_pending;   /* ... in a local phase with pending P_A'B' entries */
+    int forced_pending;   /* exports or merges while entries were pending */
     double worst;         /* largest relative difference seen */
 } tally_t;
 
@@ -121,40 +129,102 @@ static void compare_passive(const ekfslam_t *full, const ekfslam_t *ce, tally_t 
     }
 }
 
-/* With rows of a global update pending (no sync): everything the design
- * declares final, and through the readers (which add the pending
- * correction) each landmark's 2x2 block and a sample of the other pending
- * entries. */
+/* Landmarks flagged in some generation of pending entries, and whether
+ * landmark j is one of them. */
+static int n_flagged(const ekfslam_t *e)
+{
+    int n = 0;
+    for (int g = 0; g < EKFSLAM_PEND_GENS; ++g) {
+        n += e->cekf.gen[g].n;
+    }
+    return n;
+}
+
+static int flagged(const ekfslam_t *e, int j)
+{
+    int f = 0;
+    for (int g = 0; g < EKFSLAM_PEND_GENS; ++g) {
+        f |= e->cekf.gen[g].flag[j] != 0U;
+    }
+    return f;
+}
+
+/* Generations with pending entries. */
+static int gens_busy(const ekfslam_t *e)
+{
+    int n = 0;
+    for (int g = 0; g < EKFSLAM_PEND_GENS; ++g) {
+        n += e->cekf.gen[g].n > 0;
+    }
+    return n;
+}
+
+/* In a local phase: active landmarks with pending entries (P_A'B'). */
+static int active_flagged(const ekfslam_t *e)
+{
+    int n = 0;
+    for (uint16_t j = 0; e->cekf.local && j < e->n_lm; ++j) {
+        n += e->cekf.slot[j] >= 0 && flagged(e, j);
+    }
+    return n;
+}
+
+/* Landmark j's flag in the youngest generation with pending entries. */
+static uint8_t newest_flag(const ekfslam_t *e, int j)
+{
+    int best = -1;
+    for (int g = 0; g < EKFSLAM_PEND_GENS; ++g) {
+        if (e->cekf.gen[g].n > 0 && (best < 0 || e->cekf.gen[g].seq > e->cekf.gen[best].seq)) {
+            best = g;
+        }
+    }
+    return best < 0 ? 0U : e->cekf.gen[best].flag[j];
+}
+
+static ekfslam_t g_copy;
+
+/* With entries pending (no sync): the whole state through a synced copy
+ * (ekfslam_sync completes every pending entry and ends the phase), and
+ * through the readers, which add the pending corrections, a sample of the
+ * landmarks' means and 2x2 blocks, of the active rows (P_AA stored, P_AB
+ * from the stored P_A0B and its pending entries) and of the pending
+ * entries of each generation. */
 static void compare_final(const ekfslam_t *full, const ekfslam_t *ce, tally_t *t)
 {
     const ekfslam_cekf_t *ck = &ce->cekf;
     assert_int_equal(full->n_lm, ce->n_lm);
     const int d = 3 + 2 * ce->n_lm;
     const double ps = scale_of(full);
-    for (uint16_t j = 0; j < ce->n_lm; ++j) {
+    for (uint16_t j = (uint16_t)(t->pending_checks % 3); j < ce->n_lm; j = (uint16_t)(j + 3)) {
         compare_landmark(full, ce, j, ps);
     }
-    /* the active rows: stored (P_AA) or from the stored P_A0B (P_AB), both
-     * final; outside a local phase (a removal ended it) the pose's */
-    for (int k = 0; k < (ck->local ? ck->na : 3); ++k) {
+    for (int k = t->pending_checks % 4; k < (ck->local ? ck->na : 3); k += 4) {
         const int r = ck->idx[k];
-        for (int c = 0; c < d; ++c) {
+        for (int c = t->pending_checks % 5; c < d; c += 5) {
             const double pf = full->p[(long)r * EKFSLAM_DIM + c];
             const double pc = ekfslam_p(ce, r, c);
-            ASSERT_TRUE_MSG(fabs(pc - pf) <= REL_TOL * ps, "P(%d,%d): %.15g vs %.15g (%d pending)\n", r, c, pc, pf,
-                            ck->pend_n);
+            ASSERT_TRUE_MSG(fabs(pc - pf) <= REL_TOL * ps, "P(%d,%d): %.15g vs %.15g (%d flagged)\n", r, c, pc, pf,
+                            n_flagged(ce));
         }
     }
-    /* pending entries (the readers add the correction) */
-    for (int t1 = 0; t1 < ck->pend_n; t1 += 5) {
-        for (int t2 = t1 + 1; t2 < ck->pend_n; t2 += 11) {
-            const int r = 3 + 2 * ck->pend_list[t1];
-            const int c = 4 + 2 * ck->pend_list[t2];
-            ASSERT_NEAR(ekfslam_p(ce, r, c), full->p[(long)r * EKFSLAM_DIM + c], REL_TOL * ps);
-            t->pending_entries++;
+    for (int g = 0; g < EKFSLAM_PEND_GENS; ++g) {
+        const ekfslam_pend_t *gen = &ck->gen[g];
+        for (int t1 = 0; t1 < gen->n; t1 += 5) {
+            for (int t2 = t1 + 1; t2 < gen->n; t2 += 11) {
+                const int r = 3 + 2 * gen->list[t1];
+                const int c = 4 + 2 * gen->list[t2];
+                ASSERT_NEAR(ekfslam_p(ce, r, c), full->p[(long)r * EKFSLAM_DIM + c], REL_TOL * ps);
+                t->pending_entries++;
+            }
         }
     }
+    g_copy = *ce;
+    ekfslam_sync(&g_copy);
+    assert_int_equal(n_flagged(&g_copy), 0);
+    compare_all(full, &g_copy, t);
     t->pending_checks++;
+    t->two_gens += gens_busy(ce) > 1;
+    t->active_pending += active_flagged(ce) > 0;
 }
 
 static void run_pair(const synth_config_t *sc, ekfslam_config_t cfg, double radius_m, int export_every, tally_t *t)
@@ -194,16 +264,31 @@ static void run_pair(const synth_config_t *sc, ekfslam_config_t cfg, double radi
             compare_passive(&g_full, &g_cekf, t);
         }
         if (g_cekf.ctr.cekf_global_updates > globals &&
-            (cfg.active_spread_madds == 0U || t->global_updates % 3 == 0 || g_cekf.cekf.pend_n == 0)) {
+            (cfg.active_spread_madds == 0U || t->global_updates % 3 == 0 || n_flagged(&g_cekf) == 0)) {
             /* the update itself may have started the next phase: compare
              * through a sync of that one (also exact; it completes the
              * pending rows too) */
             ekfslam_sync(&g_cekf);
-            assert_int_equal(g_cekf.cekf.pend_n, 0);
+            assert_int_equal(n_flagged(&g_cekf), 0);
             compare_all(&g_full, &g_cekf, t);
             t->global_updates++;
-        } else if (g_cekf.cekf.pend_n > 0) {
-            if (g_cekf.ctr.cekf_global_updates > globals) {
+        } else if (n_flagged(&g_cekf) > 0) {
+            if (export_every > 0 && (t->pending_checks + t->forced_pending) % 9 == 8) {
+                /* what reads the whole state completes the pending entries */
+                if (t->forced_pending % 2 == 0) {
+                    (void)ekfslam_export(&g_full, &g_map);
+                    (void)ekfslam_export(&g_cekf, &g_map);
+                } else {
+                    assert_int_equal(ekfslam_merge_begin(&g_full, NULL), COSLAM_OK);
+                    assert_int_equal(ekfslam_merge_begin(&g_cekf, NULL), COSLAM_OK);
+                    ekfslam_merge_end(&g_full);
+                    ekfslam_merge_end(&g_cekf);
+                }
+                assert_int_equal(n_flagged(&g_cekf), 0);
+                assert_int_equal(g_cekf.cekf.local, 0);
+                compare_all(&g_full, &g_cekf, t);
+                t->forced_pending++;
+            } else if (g_cekf.ctr.cekf_global_updates > globals) {
                 t->global_updates++;
                 compare_final(&g_full, &g_cekf, t);
             } else if (step % 3 == 0) {
@@ -220,11 +305,13 @@ static void run_pair(const synth_config_t *sc, ekfslam_config_t cfg, double radi
     ekfslam_sync(&g_cekf);
     compare_all(&g_full, &g_cekf, t);
     print_message("cekf: %d global updates, %d forced, %d local updates, %d local adds, %d removals, %d passive "
-                  "reads (%d new x passive), %d checks with rows pending (%d pending entries; %u rows spread, %u "
-                  "completions forced), %d landmarks, worst rel diff %.2g\n",
+                  "reads (%d new x passive), %d checks with entries pending (%d with two generations, %d with active ones; "
+                  "%d pending entries; %u rows spread, %u completions forced, %d exports/merges while pending), %d "
+                  "landmarks, worst rel diff %.2g\n",
                   t->global_updates, t->forced, t->local_updates, t->local_adds, t->local_removals, t->passive_checks,
-                  t->new_passive, t->pending_checks, t->pending_entries, g_cekf.ctr.cekf_spread_rows,
-                  g_cekf.ctr.cekf_spread_forced, g_cekf.n_lm, t->worst);
+                  t->new_passive, t->pending_checks, t->two_gens, t->active_pending, t->pending_entries,
+                  g_cekf.ctr.cekf_spread_rows,
+                  g_cekf.ctr.cekf_spread_forced, t->forced_pending, g_cekf.n_lm, t->worst);
 }
 
 static synth_config_t world(uint64_t seed)
@@ -256,6 +343,9 @@ static void test_exact_default(void **state)
     assert_true(t.new_passive > 10);
     assert_true(t.pending_checks > 50);
     assert_true(t.pending_entries > 1000);
+    assert_true(t.two_gens > 5);       /* a global update while the last one's entries were pending */
+    assert_true(t.active_pending > 20); /* P_A'B' pending in a local phase */
+    assert_true(t.forced_pending >= 4); /* exports and merges completing them */
     assert_true(g_cekf.ctr.cekf_spread_rows > 500U);
     assert_true(g_cekf.ctr.cekf_spread_forced >= 3U);
     assert_true(g_cekf.n_lm >= 150);
@@ -309,6 +399,24 @@ static void test_exact_w5_spread(void **state)
     assert_true(g_cekf.ctr.cekf_spread_rows > 100U);
 }
 
+/* A backlog: about one landmark row per step, so that global updates come
+ * while both generations are pending and the oldest must be completed at
+ * once. */
+static void test_exact_backlog(void **state)
+{
+    (void)state;
+    const synth_config_t sc = world(101U);
+    ekfslam_config_t cfg = ekfslam_config_default();
+    cfg.slam = sc.truth;
+    cfg.active_spread_madds = 1U;
+    tally_t t;
+    run_pair(&sc, cfg, 0.7, 0, &t);
+    print_message("cekf backlog: %u global updates with every generation pending\n", g_cekf.ctr.cekf_spread_gens_full);
+    assert_true(t.two_gens > 10);
+    assert_true(t.active_pending > 20);
+    assert_true(g_cekf.ctr.cekf_spread_gens_full >= 3U);
+}
+
 /* Removals while rows are pending, white box: a removal in a local phase
  * ends it as the periodic global update does, and the last landmark's
  * pending rows must move with it into the removed one's place. */
@@ -336,12 +444,12 @@ static void test_removal_moves_pending(void **state)
             (void)ekfslam_update(&g_full, st.z, st.n_z);
             (void)ekfslam_update(&g_cekf, st.z, st.n_z);
         }
-        if (step > 600 && g_cekf.cekf.local && g_cekf.cekf.pend_n > 20) {
+        if (step > 600 && g_cekf.cekf.local && n_flagged(&g_cekf) > 20) {
             break;
         }
     }
     const ekfslam_cekf_t *ck = &g_cekf.cekf;
-    assert_true(ck->local && ck->pend_n > 20);
+    assert_true(ck->local && n_flagged(&g_cekf) > 20);
     tally_t t;
     memset(&t, 0, sizeof t);
     /* the first removal ends the phase; remove from the end until the last
@@ -352,22 +460,37 @@ static void test_removal_moves_pending(void **state)
         ekfslam_remove_landmark(&g_full, last);
         ekfslam_remove_landmark(&g_cekf, last);
         removed++;
-    } while (g_cekf.n_lm > 0 && !ck->pend[g_cekf.n_lm - 1]);
+    } while (g_cekf.n_lm > 0 && !flagged(&g_cekf, g_cekf.n_lm - 1));
     assert_false(ck->local);
-    assert_true(ck->pend_n > 20);
+    assert_true(n_flagged(&g_cekf) > 20);
     compare_final(&g_full, &g_cekf, &t);
-    /* a pending landmark, the pending last moving in, then one that is not pending */
-    uint16_t j = ck->pend_list[0] != g_cekf.n_lm - 1 ? ck->pend_list[0] : ck->pend_list[1];
-    ekfslam_remove_landmark(&g_full, j);
-    ekfslam_remove_landmark(&g_cekf, j);
-    assert_true(ck->pend[j]);
-    compare_final(&g_full, &g_cekf, &t);
-    for (j = 0; j < g_cekf.n_lm && ck->pend[j]; ++j) {
+    /* a landmark flagged B, then one flagged A (active in the phase the
+     * removal ended), the last (flagged) moving into their places; then
+     * one not flagged if any */
+    for (uint8_t f = EKFSLAM_PEND_B; f <= EKFSLAM_PEND_A; ++f) {
+        uint16_t j = 0;
+        while (j < g_cekf.n_lm - 1 && newest_flag(&g_cekf, j) != f) {
+            ++j;
+        }
+        assert_true(j < g_cekf.n_lm - 1);
+        assert_true(flagged(&g_cekf, g_cekf.n_lm - 1));
+        const uint8_t moving = newest_flag(&g_cekf, g_cekf.n_lm - 1);
+        ekfslam_remove_landmark(&g_full, j);
+        ekfslam_remove_landmark(&g_cekf, j);
+        assert_int_equal(newest_flag(&g_cekf, j), moving);
+        compare_final(&g_full, &g_cekf, &t);
+        removed++;
     }
-    assert_true(j < g_cekf.n_lm - 1);
-    ekfslam_remove_landmark(&g_full, j);
-    ekfslam_remove_landmark(&g_cekf, j);
-    compare_final(&g_full, &g_cekf, &t);
+    uint16_t j = 0;
+    while (j < g_cekf.n_lm && flagged(&g_cekf, j)) {
+        ++j;
+    }
+    if (j < g_cekf.n_lm) {
+        ekfslam_remove_landmark(&g_full, j);
+        ekfslam_remove_landmark(&g_cekf, j);
+        compare_final(&g_full, &g_cekf, &t);
+        removed++;
+    }
     /* the next frames start a phase from there */
     for (int frames = 0; frames < 10 && synth_next(&g_world, &st);) {
         (void)ekfslam_predict(&g_full, st.u);
@@ -379,7 +502,7 @@ static void test_removal_moves_pending(void **state)
     }
     ekfslam_sync(&g_cekf);
     compare_all(&g_full, &g_cekf, &t);
-    print_message("cekf removal: %d removed from the end, %d pending entries read, worst rel diff %.2g\n", removed,
+    print_message("cekf removal: %d removed, %d pending entries read, worst rel diff %.2g\n", removed,
                   t.pending_entries, t.worst);
 }
 
@@ -463,6 +586,7 @@ int main(void)
         cmocka_unit_test(test_exact_default),
         cmocka_unit_test(test_exact_w5_clutter),
         cmocka_unit_test(test_exact_w5_spread),
+        cmocka_unit_test(test_exact_backlog),
         cmocka_unit_test(test_removal_moves_pending),
         cmocka_unit_test(test_exact_loop_world),
         cmocka_unit_test(test_local_phase_is_small),

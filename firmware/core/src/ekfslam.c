@@ -87,7 +87,7 @@ static int active_idx(const ekfslam_t *ekf, int k)
  * times the pose's. The global update (ekfslam_sync) applies (3), (2), (1)
  * in that order (each reads the stored P_A0B before (1) overwrites it),
  * O(N_B^2 N_A0), after which every entry is what the full EKF holds up to
- * rounding; the periodic one leaves most of (2) for later steps ("The
+ * rounding; the periodic one leaves most of (1) and (2) for later steps ("The
  * deferred part of a global update" below). Between, readers of a passive
  * entry evaluate (1)-(3) for it (x_now, p_now). The full EKF's association reads the landmarks within
  * reach (max range + 3 sigma + 0.5 m) only; cekf_prepare forces a global
@@ -122,7 +122,372 @@ static int is_current(const ekfslam_t *ekf, int r)
     return !in_local(ekf) || act_pos(ekf, r) >= 0;
 }
 
-/* x_r now, (3) for a passive state. */
+/* ---- The deferred part of a global update ---------------------------------
+ *
+ * The global update's (2), P_BB -= P_BA0 psi P_A0B, costs O(N_B^2 N_A0),
+ * 300 ms at 800 landmarks (N_A0 ~ 340 states, N_B ~ 1200), and its (1),
+ * P_AB = phi P_A0B, O(N_B N_A N_A0), 50-65 ms. The local phase that
+ * follows reads or writes of P only the block of its own active part A',
+ * P_A'A' (its updates), and, in the reach tests, each landmark's variance;
+ * the rows P_A0'B' it needs only at its own end ((1) and (3) read them),
+ * and its const readers. So the periodic global update (cekf_prepare,
+ * active_spread_madds > 0) does at once (3), P_BB's w5_sum I and (1) for
+ * the pose rows only (sync_spread, O(N_B N_A0)), and leaves a generation
+ * (ekfslam_pend_t) of pending entries: with u_b = P_A0,b for b in B and
+ * u_a = phi_a - e_a for a in A (e_a: the unit row of a's position in A0,
+ * none for a landmark added in the phase, whose B columns are zeroed),
+ *   entry (b, c), both B:  P(b, c) - u_b^T psi u_c               (2)
+ *   entry (a, b), a in A:  P(a, b) + u_a^T u_b = phi_a P_A0,b      (1)
+ * (P(a, b) = P_ab(0) = (e_a)^T u_b for a in A0). Both only add to the
+ * stored value, so generations overlap and the order of completion does
+ * not matter. A generation is kept per landmark (flag B or A, the u rows
+ * of its x and y states, the phase's psi); an entry is pending while its
+ * two landmarks are flagged, not both A and, in a local phase, not both
+ * active.
+ *
+ * cekf_select completes the pending entries between landmarks of the new
+ * active part A' (O(|A'|^2 N_A0), not O(|A'| N_B N_A0)): from then on the
+ * phase may read and write P_A'A'. Its other entries stay pending, which
+ * is exact because no local step reads or rewrites P_A'B' or P_B'B' (the
+ * updates change them through phi, psi and theta only; predict's w5 on
+ * the diagonal adds, so it commutes), and x_now's (3) adds their share
+ * through per-generation sums (cekf_drift). Each predict and update
+ * completes whole landmark rows for about active_spread_madds
+ * multiply-adds (cekf_spread), the active landmarks' first: their rows
+ * (P_A0'B') must be final when the phase ends. The next periodic global
+ * update completes what is left of them (pend_done_active), takes a free
+ * generation (EKFSLAM_PEND_GENS; if none, the oldest is completed first,
+ * counted in cekf_spread_forced) and reads only final entries. Whatever
+ * reads or rewrites pending entries otherwise completes them all first
+ * (cekf_finish): ekfslam_sync (exports, merges, a full active part), a
+ * frame that runs the full EKF (cekf_prepare). A removal ends a local
+ * phase the same way and moves the last landmark's flags and u rows with
+ * it (ekfslam_remove_landmark). Const readers add the corrections
+ * themselves (p_final, col_final). The reach tests read the stored
+ * variance: it is the value (A landmarks' own blocks are never pending)
+ * or larger (psi is positive semi-definite), so they stay safe bounds;
+ * cekf_select's only picks A', and any A' gives the same numbers; a
+ * passive landmark with pending entries against A0' has no drift_gain
+ * (-1) until they are complete and is always tested exactly. */
+
+#define GPSI_(g, i, k) ((g)->psi[(long)(i) * ADIM_ + (k)])
+
+/* Generation g's landmarks j and k (both flagged) have pending entries. */
+static int pend_pair(const ekfslam_t *ekf, const ekfslam_pend_t *g, int j, int k)
+{
+    if (g->flag[j] == EKFSLAM_PEND_A && g->flag[k] == EKFSLAM_PEND_A) {
+        return 0;
+    }
+    return !(in_local(ekf) && ekf->cekf.slot[j] >= 0 && ekf->cekf.slot[k] >= 0);
+}
+
+static double dot_n(const double *a, const double *b, int n)
+{
+    double acc = 0.0;
+    for (int i = 0; i < n; ++i) {
+        acc += a[i] * b[i];
+    }
+    return acc;
+}
+
+/* Generation g's correction of entry (r, c) (landmark states), 0 if none.
+ * O(N_A0^2). */
+static double pend_corr(const ekfslam_t *ekf, const ekfslam_pend_t *g, int r, int c)
+{
+    const int j = (r - 3) / 2;
+    const int k = (c - 3) / 2;
+    if (!g->flag[j] || !g->flag[k] || !pend_pair(ekf, g, j, k)) {
+        return 0.0;
+    }
+    const double *ur = g->u[r - 3];
+    const double *uc = g->u[c - 3];
+    if (g->flag[j] == EKFSLAM_PEND_B && g->flag[k] == EKFSLAM_PEND_B) {
+        double acc = 0.0;
+        for (int i = 0; i < g->n0; ++i) {
+            acc += ur[i] * dot_n(&g->psi[(long)i * ADIM_], uc, g->n0);
+        }
+        return -acc;
+    }
+    return dot_n(ur, uc, g->n0);
+}
+
+/* P(r, c) with the pending corrections. */
+static double p_final(const ekfslam_t *ekf, int r, int c)
+{
+    double v = P_(ekf, r, c);
+    if (COSLAM_EKF_MAX_ACTIVE == 0 || r < 3 || c < 3 || r >= dim(ekf) || c >= dim(ekf)) {
+        return v;
+    }
+    for (int gi = 0; gi < EKFSLAM_PEND_GENS; ++gi) {
+        if (ekf->cekf.gen[gi].n > 0) {
+            v += pend_corr(ekf, &ekf->cekf.gen[gi], r, c);
+        }
+    }
+    return v;
+}
+
+/* pend_w[q] = psi u_(2j+q) */
+static void pend_weights(ekfslam_t *ekf, const ekfslam_pend_t *g, int j)
+{
+    ekfslam_cekf_t *ck = &ekf->cekf;
+    for (int q = 0; q < 2; ++q) {
+        const double *u = g->u[2 * j + q];
+        for (int i = 0; i < g->n0; ++i) {
+            ck->pend_w[q][i] = dot_n(&g->psi[(long)i * ADIM_], u, g->n0);
+        }
+    }
+}
+
+/* Add generation g's correction to the 2x2 block of landmarks j and k
+ * (and its mirror); pend_w holds psi u_j if both are B. O(N_A0). */
+static void pend_block(ekfslam_t *ekf, const ekfslam_pend_t *g, int j, int k)
+{
+    const int both_b = g->flag[j] == EKFSLAM_PEND_B && g->flag[k] == EKFSLAM_PEND_B;
+    const double *w0 = both_b ? ekf->cekf.pend_w[0] : g->u[2 * j];
+    const double *w1 = both_b ? ekf->cekf.pend_w[1] : g->u[2 * j + 1];
+    const double sign = both_b ? -1.0 : 1.0;
+    const double *u0 = g->u[2 * k];
+    const double *u1 = g->u[2 * k + 1];
+    double c00 = 0.0, c01 = 0.0, c10 = 0.0, c11 = 0.0;
+    for (int i = 0; i < g->n0; ++i) {
+        c00 += w0[i] * u0[i];
+        c01 += w0[i] * u1[i];
+        c10 += w1[i] * u0[i];
+        c11 += w1[i] * u1[i];
+    }
+    const int a = 3 + 2 * j;
+    const int b = 3 + 2 * k; /* k = j: the 2x2 block, symmetric as written */
+    const double v00 = P_(ekf, a, b) + sign * c00;
+    const double v01 = P_(ekf, a, b + 1) + sign * c01;
+    const double v10 = P_(ekf, a + 1, b) + sign * c10;
+    const double v11 = P_(ekf, a + 1, b + 1) + sign * c11;
+    P_(ekf, a, b) = v00;
+    P_(ekf, b, a) = v00;
+    P_(ekf, a, b + 1) = v01;
+    P_(ekf, b + 1, a) = v01;
+    P_(ekf, a + 1, b) = v10;
+    P_(ekf, b, a + 1) = v10;
+    P_(ekf, a + 1, b + 1) = v11;
+    P_(ekf, b + 1, a + 1) = v11;
+}
+
+/* Multiply-adds of completing landmark j's rows in generation g. */
+static double pend_cost(const ekfslam_pend_t *g, int j)
+{
+    const double n0 = (double)g->n0;
+    if (g->flag[j] == EKFSLAM_PEND_A) {
+        return 4.0 * n0 * (double)g->n_b;
+    }
+    return 2.0 * n0 * n0 + 4.0 * n0 * (double)g->n;
+}
+
+/* Unflag the landmark at list[t] (the last one moves to t); a generation
+ * without B landmarks has nothing pending and is emptied. */
+static void pend_unflag(ekfslam_pend_t *g, int t)
+{
+    const int j = g->list[t];
+    if (g->flag[j] == EKFSLAM_PEND_B) {
+        g->n_b--;
+    }
+    g->flag[j] = 0U;
+    g->list[t] = g->list[--g->n];
+    if (g->n_b == 0) {
+        for (int t2 = 0; t2 < g->n; ++t2) {
+            g->flag[g->list[t2]] = 0U;
+        }
+        g->n = 0;
+    }
+}
+
+/* Complete the rows (and columns) of the landmark at list[t] of generation
+ * g against every landmark it has pending entries with (itself included),
+ * and unflag it. O(N_A0^2 + N_pend N_A0). */
+static void pend_row(ekfslam_t *ekf, ekfslam_pend_t *g, int t)
+{
+    const int j = g->list[t];
+    if (g->flag[j] == EKFSLAM_PEND_B) {
+        pend_weights(ekf, g, j);
+    }
+    for (int t2 = 0; t2 < g->n; ++t2) {
+        const int k = g->list[t2];
+        if (pend_pair(ekf, g, j, k)) {
+            pend_block(ekf, g, j, k);
+        }
+    }
+    pend_unflag(g, t);
+}
+
+/* Complete every pending entry (before anything reads or rewrites them). */
+static void cekf_finish(ekfslam_t *ekf)
+{
+    ekfslam_cekf_t *ck = &ekf->cekf;
+    if (COSLAM_EKF_MAX_ACTIVE == 0) {
+        return;
+    }
+    for (int gi = 0; gi < EKFSLAM_PEND_GENS; ++gi) {
+        ekfslam_pend_t *g = &ck->gen[gi];
+        g->drift_on = 0U;
+        if (g->n == 0) {
+            continue;
+        }
+        ekf->ctr.cekf_spread_forced++;
+        while (g->n > 0) {
+            pend_row(ekf, g, g->n - 1);
+        }
+    }
+}
+
+/* Complete the rows of every flagged active landmark (the phase ends: its
+ * rows P_AB must be final). */
+static void pend_done_active(ekfslam_t *ekf)
+{
+    ekfslam_cekf_t *ck = &ekf->cekf;
+    int done = 0;
+    for (int gi = 0; gi < EKFSLAM_PEND_GENS; ++gi) {
+        ekfslam_pend_t *g = &ck->gen[gi];
+        /* downwards: what moves into t was looked at already */
+        for (int t = g->n - 1; t >= 0; --t) {
+            if (t < g->n && ck->slot[g->list[t]] >= 0) {
+                pend_row(ekf, g, t);
+                done = 1;
+            }
+        }
+        g->drift_on = 0U;
+    }
+    if (done) {
+        ekf->ctr.cekf_spread_forced++;
+    }
+}
+
+/* The oldest generation with pending entries, -1 if none. */
+static int pend_oldest(const ekfslam_cekf_t *ck)
+{
+    int best = -1;
+    for (int gi = 0; gi < EKFSLAM_PEND_GENS; ++gi) {
+        if (ck->gen[gi].n > 0 && (best < 0 || ck->gen[gi].seq < ck->gen[best].seq)) {
+            best = gi;
+        }
+    }
+    return best;
+}
+
+/* |P_bA0| from the stored (final) entries. */
+static double drift_gain_of(const ekfslam_t *ekf, int j)
+{
+    const ekfslam_cekf_t *ck = &ekf->cekf;
+    const double *rx = &ekf->p[(long)(3 + 2 * j) * D_];
+    const double *ry = rx + D_;
+    double acc = 0.0;
+    for (int i = 0; i < ck->na0; ++i) {
+        acc += rx[ck->idx[i]] * rx[ck->idx[i]] + ry[ck->idx[i]] * ry[ck->idx[i]];
+    }
+    return sqrt(acc);
+}
+
+/* x_now's sums over the flagged states of A0' (see ekfslam_pend_t), after
+ * theta or the flags changed; once no active landmark is flagged, the
+ * missing drift gains. O(N_A0' N_A0 + N_A0^2) per generation with flagged
+ * active landmarks. */
+static void cekf_drift(ekfslam_t *ekf)
+{
+    ekfslam_cekf_t *ck = &ekf->cekf;
+    if (!in_local(ekf)) {
+        return;
+    }
+    int any = 0;
+    for (int gi = 0; gi < EKFSLAM_PEND_GENS; ++gi) {
+        ekfslam_pend_t *g = &ck->gen[gi];
+        g->drift_on = 0U;
+        if (g->n == 0) {
+            continue;
+        }
+        const int n0 = g->n0;
+        for (int i = 0; i < n0; ++i) {
+            g->drift_a[i] = 0.0;
+            g->drift_b[i] = 0.0;
+        }
+        for (int i = 3; i < ck->na0; ++i) {
+            const int r = ck->idx[i];
+            const uint8_t f = g->flag[(r - 3) / 2];
+            if (!f) {
+                continue;
+            }
+            g->drift_on = 1U;
+            double *dst = f == EKFSLAM_PEND_A ? g->drift_a : g->drift_b;
+            const double *u = g->u[r - 3];
+            const double th = ck->theta[i];
+            for (int k = 0; k < n0; ++k) {
+                dst[k] += th * u[k];
+            }
+        }
+        if (g->drift_on) {
+            any = 1;
+            for (int i = 0; i < n0; ++i) {
+                g->drift_bpsi[i] = dot_n(&g->psi[(long)i * ADIM_], g->drift_b, n0);
+            }
+        }
+    }
+    if (!any && ck->gain_stale) {
+        for (uint16_t j = 0; j < ekf->n_lm; ++j) {
+            if (ck->slot[j] < 0 && ck->drift_gain[j] < 0.0) {
+                ck->drift_gain[j] = drift_gain_of(ekf, j);
+            }
+        }
+        ck->gain_stale = 0U;
+    }
+}
+
+/* A predict or update's share: whole landmark rows for about
+ * active_spread_madds multiply-adds (at least one), the flagged active
+ * landmarks' first in a local phase, then the oldest generation's. */
+static void cekf_spread(ekfslam_t *ekf)
+{
+    ekfslam_cekf_t *ck = &ekf->cekf;
+    if (COSLAM_EKF_MAX_ACTIVE == 0 || pend_oldest(ck) < 0) {
+        return;
+    }
+    /* a budget per generation with pending entries: a backlog (the robot
+     * leaving regions quickly) is worked off faster, before the next
+     * global update would have to complete the oldest at once */
+    int busy = 0;
+    for (int g2 = 0; g2 < EKFSLAM_PEND_GENS; ++g2) {
+        busy += ck->gen[g2].n > 0;
+    }
+    const double budget = (double)ekf->cfg.active_spread_madds * (double)busy;
+    double spent = 0.0;
+    int act = in_local(ekf);
+    while (spent < budget) {
+        int gi = -1;
+        int t = -1;
+        if (act) {
+            for (int g2 = 0; g2 < EKFSLAM_PEND_GENS && gi < 0; ++g2) {
+                const ekfslam_pend_t *g = &ck->gen[g2];
+                for (int t2 = 0; t2 < g->n; ++t2) {
+                    if (ck->slot[g->list[t2]] >= 0) {
+                        gi = g2;
+                        t = t2;
+                        break;
+                    }
+                }
+            }
+            act = gi >= 0;
+        }
+        if (gi < 0) {
+            gi = pend_oldest(ck);
+            if (gi < 0) {
+                break;
+            }
+            t = ck->gen[gi].n - 1;
+        }
+        ekfslam_pend_t *g = &ck->gen[gi];
+        spent += pend_cost(g, g->list[t]);
+        pend_row(ekf, g, t);
+        ekf->ctr.cekf_spread_rows++;
+    }
+    cekf_drift(ekf);
+}
+
+/* x_r now, (3) for a passive state (with the pending entries' share). */
 static double x_now(const ekfslam_t *ekf, int r)
 {
     if (is_current(ekf, r)) {
@@ -133,165 +498,55 @@ static double x_now(const ekfslam_t *ekf, int r)
     for (int i = 0; i < ck->na0; ++i) {
         acc += P_(ekf, ck->idx[i], r) * ck->theta[i];
     }
+    for (int gi = 0; gi < EKFSLAM_PEND_GENS; ++gi) {
+        const ekfslam_pend_t *g = &ck->gen[gi];
+        const uint8_t f = g->flag[(r - 3) / 2];
+        if (!g->drift_on || !f) {
+            continue;
+        }
+        const double *u = g->u[r - 3];
+        if (f == EKFSLAM_PEND_B) {
+            acc += dot_n(u, g->drift_a, g->n0) - dot_n(u, g->drift_bpsi, g->n0);
+        } else {
+            acc += dot_n(u, g->drift_b, g->n0);
+        }
+    }
     return ekf->x[r] + acc;
 }
 
-/* ---- The deferred part of a global update ---------------------------------
- *
- * The global update's (2), P_BB -= P_BA0 psi P_A0B, costs O(N_B^2 N_A0),
- * 300 ms at 800 landmarks (N_A0 ~ 340 states, N_B ~ 1200), while the local
- * phase that follows reads of P_BB only the rows of its own active part A'
- * (P_A'A', P_A'B', and, through drift_gain and (1)-(3), P_A0'B') and, in
- * the reach tests, each landmark's variance. So the periodic global update
- * (cekf_prepare, active_spread_madds > 0) does (3), (1) and P_BB's w5_sum I
- * at once (sync_spread, O(N_B N_A N_A0)), keeps u_r = P_A0,r (the stored
- * columns of A0, which (1) overwrites) and psi, and leaves the rest of (2)
- * pending: entry (r, c) of P_BB is pending while the landmarks of r and c
- * are both flagged (the same landmark included), and its value is P(r, c) -
- * u_r^T psi u_c. The reach tests read the stored variance instead: larger
- * than the value (psi is positive semi-definite), so they stay safe bounds
- * (cekf_prepare's test must never miss a passive landmark within reach;
- * cekf_select's only picks A', and any A' gives the same numbers). Doing
- * the landmarks' 2x2 blocks at once too, O(N_B N_A0^2), cost as much as
- * (1). cekf_select completes the rows (and columns) of the new active
- * landmarks before it reads them, O(|A'| N_B N_A0); each predict and update
- * completes whole landmark rows for about active_spread_madds multiply-adds
- * (cekf_spread); everything that reads or rewrites pending entries
- * completes them all first (cekf_finish): ekfslam_sync (so the next global
- * update, exports, merges, a full active part), a frame that runs the full
- * EKF (cekf_prepare). A removal ends a local phase the same way and moves
- * the last landmark's pending rows with it (ekfslam_remove_landmark). Const
- * readers (p_now) add the correction themselves. Pending entries are only
- * those of landmarks passive in both phases, which no local phase reads or
- * writes (predict's w5 on the diagonal adds, so it commutes): the results
- * equal the undeferred ones up to rounding. */
-
-#define PSIP_(e, i, k) ((e)->cekf.pend_psi[(long)(i) * ADIM_ + (k)])
-
-/* Entry (r, c) is pending (r, c < dim). */
-static int is_pending(const ekfslam_t *ekf, int r, int c)
+/* out[i] = P(idx[i], b) for i < na0 with the pending corrections (b a
+ * passive state). O(N_A0' N_A0 + N_A0^2). */
+static void col_final(const ekfslam_t *ekf, int b, double *out)
 {
     const ekfslam_cekf_t *ck = &ekf->cekf;
-    if (COSLAM_EKF_MAX_ACTIVE == 0 || ck->pend_n == 0 || r < 3 || c < 3 || r >= dim(ekf) || c >= dim(ekf)) {
-        return 0;
+    for (int i = 0; i < ck->na0; ++i) {
+        out[i] = P_(ekf, ck->idx[i], b);
     }
-    return ck->pend[(r - 3) / 2] && ck->pend[(c - 3) / 2];
-}
-
-/* P(r, c) with the pending correction: the value the local phase sees. */
-static double p_final(const ekfslam_t *ekf, int r, int c)
-{
-    if (!is_pending(ekf, r, c)) {
-        return P_(ekf, r, c);
-    }
-    const ekfslam_cekf_t *ck = &ekf->cekf;
-    const int n0 = ck->pend_n0;
-    const double *ur = ck->pend_u[r - 3];
-    const double *uc = ck->pend_u[c - 3];
-    double acc = 0.0;
-    for (int i = 0; i < n0; ++i) {
-        double wi = 0.0;
-        for (int k = 0; k < n0; ++k) {
-            wi += PSIP_(ekf, i, k) * uc[k];
+    const int jb = (b - 3) / 2;
+    for (int gi = 0; gi < EKFSLAM_PEND_GENS; ++gi) {
+        const ekfslam_pend_t *g = &ck->gen[gi];
+        if (g->n == 0 || !g->flag[jb]) {
+            continue;
         }
-        acc += ur[i] * wi;
-    }
-    return P_(ekf, r, c) - acc;
-}
-
-/* pend_w[q] = psi u_(2j+q) */
-static void pend_weights(ekfslam_t *ekf, int j)
-{
-    ekfslam_cekf_t *ck = &ekf->cekf;
-    const int n0 = ck->pend_n0;
-    for (int q = 0; q < 2; ++q) {
-        const double *u = ck->pend_u[2 * j + q];
-        for (int i = 0; i < n0; ++i) {
-            const double *pr = &ck->pend_psi[(long)i * ADIM_];
-            double acc = 0.0;
-            for (int k = 0; k < n0; ++k) {
-                acc += pr[k] * u[k];
+        const double *ub = g->u[b - 3];
+        double wb[ADIM_];
+        if (g->flag[jb] == EKFSLAM_PEND_B) {
+            for (int i = 0; i < g->n0; ++i) {
+                wb[i] = dot_n(&g->psi[(long)i * ADIM_], ub, g->n0);
             }
-            ck->pend_w[q][i] = acc;
         }
-    }
-}
-
-/* Multiply-adds of completing one landmark's rows with n pending. */
-static double pend_cost(const ekfslam_t *ekf, int n)
-{
-    const double n0 = (double)ekf->cekf.pend_n0;
-    return 2.0 * n0 * n0 + 4.0 * n0 * (double)n;
-}
-
-/* Complete the rows (and columns) of the landmark at pend_list[t] against
- * every pending landmark (itself included), and unflag it (the last one
- * moves to t). O(N_A0^2 + N_pend N_A0). */
-static void pend_complete(ekfslam_t *ekf, int t)
-{
-    ekfslam_cekf_t *ck = &ekf->cekf;
-    const int j = ck->pend_list[t];
-    const int n0 = ck->pend_n0;
-    const int a = 3 + 2 * j;
-    pend_weights(ekf, j);
-    const double *w0 = ck->pend_w[0];
-    const double *w1 = ck->pend_w[1];
-    for (int t2 = 0; t2 < ck->pend_n; ++t2) {
-        const int k = ck->pend_list[t2];
-        const int b = 3 + 2 * k; /* k = j: the 2x2 block, symmetric as written */
-        const double *u0 = ck->pend_u[2 * k];
-        const double *u1 = ck->pend_u[2 * k + 1];
-        double c00 = 0.0, c01 = 0.0, c10 = 0.0, c11 = 0.0;
-        for (int i = 0; i < n0; ++i) {
-            c00 += w0[i] * u0[i];
-            c01 += w0[i] * u1[i];
-            c10 += w1[i] * u0[i];
-            c11 += w1[i] * u1[i];
+        for (int i = 3; i < ck->na0; ++i) {
+            const int r = ck->idx[i];
+            const int j = (r - 3) / 2;
+            if (!g->flag[j] || !pend_pair(ekf, g, j, jb)) {
+                continue;
+            }
+            if (g->flag[j] == EKFSLAM_PEND_B && g->flag[jb] == EKFSLAM_PEND_B) {
+                out[i] -= dot_n(g->u[r - 3], wb, g->n0);
+            } else {
+                out[i] += dot_n(g->u[r - 3], ub, g->n0);
+            }
         }
-        const double v00 = P_(ekf, a, b) - c00;
-        const double v01 = P_(ekf, a, b + 1) - c01;
-        const double v10 = P_(ekf, a + 1, b) - c10;
-        const double v11 = P_(ekf, a + 1, b + 1) - c11;
-        P_(ekf, a, b) = v00;
-        P_(ekf, b, a) = v00;
-        P_(ekf, a, b + 1) = v01;
-        P_(ekf, b + 1, a) = v01;
-        P_(ekf, a + 1, b) = v10;
-        P_(ekf, b, a + 1) = v10;
-        P_(ekf, a + 1, b + 1) = v11;
-        P_(ekf, b + 1, a + 1) = v11;
-    }
-    ck->pend[j] = 0U;
-    ck->pend_list[t] = ck->pend_list[--ck->pend_n];
-}
-
-/* Complete every pending entry (before anything reads or rewrites them). */
-static void cekf_finish(ekfslam_t *ekf)
-{
-    ekfslam_cekf_t *ck = &ekf->cekf;
-    if (COSLAM_EKF_MAX_ACTIVE == 0 || ck->pend_n == 0) {
-        return;
-    }
-    ekf->ctr.cekf_spread_forced++;
-    while (ck->pend_n > 0) {
-        pend_complete(ekf, ck->pend_n - 1);
-    }
-}
-
-/* A predict or update's share: whole landmark rows for about
- * active_spread_madds multiply-adds (at least one). */
-static void cekf_spread(ekfslam_t *ekf)
-{
-    ekfslam_cekf_t *ck = &ekf->cekf;
-    if (COSLAM_EKF_MAX_ACTIVE == 0 || ck->pend_n == 0) {
-        return;
-    }
-    const double budget = (double)ekf->cfg.active_spread_madds;
-    double spent = 0.0;
-    while (ck->pend_n > 0 && spent < budget) {
-        spent += pend_cost(ekf, ck->pend_n);
-        pend_complete(ekf, ck->pend_n - 1);
-        ekf->ctr.cekf_spread_rows++;
     }
 }
 
@@ -307,22 +562,22 @@ static double p_now(const ekfslam_t *ekf, int r, int c)
     if (kr >= 0 && kc >= 0) {
         return P_(ekf, r, c);
     }
+    double cb[ADIM_];
     if (kr >= 0 || kc >= 0) {
         const int k = kr >= 0 ? kr : kc;
-        const int b = kr >= 0 ? c : r;
+        col_final(ekf, kr >= 0 ? c : r, cb);
         double acc = 0.0;
         for (int i = 0; i < ck->na0; ++i) {
-            acc += PHI_(ekf, k, i) * P_(ekf, ck->idx[i], b);
+            acc += PHI_(ekf, k, i) * cb[i];
         }
         return acc;
     }
+    double cr[ADIM_];
+    col_final(ekf, r, cr);
+    col_final(ekf, c, cb);
     double acc = 0.0;
     for (int i = 0; i < ck->na0; ++i) {
-        double wi = 0.0;
-        for (int i2 = 0; i2 < ck->na0; ++i2) {
-            wi += PSI_(ekf, i, i2) * P_(ekf, ck->idx[i2], c);
-        }
-        acc += P_(ekf, ck->idx[i], r) * wi;
+        acc += cr[i] * dot_n(&ck->psi[(long)i * ADIM_], cb, ck->na0);
     }
     return p_final(ekf, r, c) - acc + (r == c ? ck->w5_sum : 0.0);
 }
@@ -409,39 +664,93 @@ static void sync_ab_end(ekfslam_t *ekf)
 }
 
 /* The periodic global update, spread ("The deferred part of a global
- * update" above): (3), w5_sum on P_BB's diagonal, u and psi kept, (1).
- * Nothing may be pending from before. O(N_B N_A N_A0). */
+ * update" above): the flagged active rows completed, (3), w5_sum on P_BB's
+ * diagonal, (1) for the pose rows, the rest a new generation of pending
+ * entries (the oldest completed first if none is free). O(N_B N_A0) plus
+ * what was left of the active rows. */
 static void sync_spread(ekfslam_t *ekf)
 {
     ekfslam_cekf_t *ck = &ekf->cekf;
-    COSLAM_ASSERT(ck->pend_n == 0);
-    const int n0 = ck->na0;
-    sync_x(ekf);
-    ck->pend_n0 = n0;
-    for (int i = 0; i < n0; ++i) {
-        for (int k = 0; k < n0; ++k) {
-            PSIP_(ekf, i, k) = PSI_(ekf, i, k);
+    pend_done_active(ekf);
+    int gi = -1;
+    for (int g2 = 0; g2 < EKFSLAM_PEND_GENS && gi < 0; ++g2) {
+        gi = ck->gen[g2].n == 0 ? g2 : -1;
+    }
+    if (gi < 0) {
+        gi = pend_oldest(ck);
+        ekfslam_pend_t *old = &ck->gen[gi];
+        ekf->ctr.cekf_spread_forced++;
+        ekf->ctr.cekf_spread_gens_full++;
+        while (old->n > 0) {
+            pend_row(ekf, old, old->n - 1);
         }
     }
+    sync_x(ekf);
+    ekfslam_pend_t *g = &ck->gen[gi];
+    const int n0 = ck->na0;
+    const int na = ck->na;
+    g->n0 = n0;
+    g->n = 0;
+    g->n_b = 0;
+    g->seq = ++ck->pend_seq;
+    g->drift_on = 0U;
+    for (int i = 0; i < n0; ++i) {
+        memcpy(&g->psi[(long)i * ADIM_], &ck->psi[(long)i * ADIM_], (size_t)n0 * sizeof(double));
+    }
+    for (uint16_t j = 0; j < ekf->n_lm; ++j) {
+        const int a = 3 + 2 * j;
+        const int s = ck->slot[j];
+        for (int q = 0; q < 2; ++q) {
+            double *u = g->u[2 * j + q];
+            if (s < 0) {
+                /* u = P_A0,a+q as row a+q's A0 columns: P is stored symmetric */
+                const double *row = &ekf->p[(long)(a + q) * D_];
+                for (int i = 0; i < n0; ++i) {
+                    u[i] = row[ck->idx[i]];
+                }
+            } else {
+                memcpy(u, &ck->phi[(long)(s + q) * ADIM_], (size_t)n0 * sizeof(double));
+                if (s + q < n0) {
+                    u[s + q] -= 1.0;
+                }
+            }
+        }
+        if (s < 0) {
+            P_(ekf, a, a) += ck->w5_sum;
+            P_(ekf, a + 1, a + 1) += ck->w5_sum;
+            g->n_b++;
+        }
+        g->flag[j] = s < 0 ? EKFSLAM_PEND_B : EKFSLAM_PEND_A;
+        g->list[g->n++] = j;
+    }
+    /* (1) for the pose rows; the B columns of landmarks added in the phase
+     * zeroed (their correction is all of (1)) */
     for (uint16_t j = 0; j < ekf->n_lm; ++j) {
         if (ck->slot[j] >= 0) {
             continue;
         }
-        const int a = 3 + 2 * j;
         for (int q = 0; q < 2; ++q) {
-            /* u = P_A0,a+q as row a+q's A0 columns: P is stored symmetric */
-            const double *row = &ekf->p[(long)(a + q) * D_];
-            double *u = ck->pend_u[2 * j + q];
-            for (int i = 0; i < n0; ++i) {
-                u[i] = row[ck->idx[i]];
+            const int b = 3 + 2 * j + q;
+            const double *ub = g->u[b - 3];
+            for (int r = 0; r < 3; ++r) {
+                const double v = dot_n(&ck->phi[(long)r * ADIM_], ub, n0);
+                P_(ekf, r, b) = v;
+                P_(ekf, b, r) = v;
+            }
+            for (int k = n0; k < na; ++k) {
+                P_(ekf, ck->idx[k], b) = 0.0;
+                P_(ekf, b, ck->idx[k]) = 0.0;
             }
         }
-        P_(ekf, a, a) += ck->w5_sum;
-        P_(ekf, a + 1, a + 1) += ck->w5_sum;
-        ck->pend[j] = 1U;
-        ck->pend_list[ck->pend_n++] = j;
     }
-    sync_ab_end(ekf);
+    if (g->n_b == 0) {
+        for (int t = 0; t < g->n; ++t) {
+            g->flag[g->list[t]] = 0U;
+        }
+        g->n = 0;
+    }
+    ck->local = 0U;
+    ekf->ctr.cekf_global_updates++;
 }
 
 void ekfslam_sync(ekfslam_t *ekf)
@@ -489,15 +798,14 @@ void ekfslam_sync(ekfslam_t *ekf)
     sync_ab_end(ekf);
 }
 
-/* End a local phase: spread (sync_spread, after the rest of an earlier one)
- * where active_spread_madds allows, else the whole global update. Outside
- * a local phase, with spreading on, nothing: pending rows stay pending. */
+/* End a local phase: spread (sync_spread) where active_spread_madds
+ * allows, else the whole global update. Outside a local phase, with
+ * spreading on, nothing: pending entries stay pending. */
 static void cekf_end_phase(ekfslam_t *ekf)
 {
     if (ekf->cfg.active_spread_madds == 0U) {
         ekfslam_sync(ekf);
     } else if (in_local(ekf)) {
-        cekf_finish(ekf);
         sync_spread(ekf);
     }
 }
@@ -546,25 +854,46 @@ static void cekf_select(ekfslam_t *ekf, double max_range_m)
     }
     ck->na = k;
     ck->na0 = k;
-    ck->local = 1U; /* act_pos below needs the slots */
-    /* the new active landmarks' rows must be final: this phase reads them */
-    for (int t = ck->pend_n - 1; t >= 0; --t) {
-        if (ck->slot[ck->pend_list[t]] >= 0) {
-            pend_complete(ekf, t);
+    ck->local = 1U; /* act_pos and pend_pair below need the slots */
+    /* the entries between the new active landmarks must be final: this
+     * phase reads and writes P_A'A' (each pair once, itself included) */
+    int gen_act[EKFSLAM_PEND_GENS];
+    for (int gi = 0; gi < EKFSLAM_PEND_GENS; ++gi) {
+        ekfslam_pend_t *g = &ck->gen[gi];
+        int m = 0;
+        for (int t = 0; t < g->n; ++t) {
+            if (ck->slot[g->list[t]] >= 0) {
+                ck->pend_act[m++] = g->list[t];
+            }
         }
+        gen_act[gi] = m;
+        for (int t = 0; t < m; ++t) {
+            const int j = ck->pend_act[t];
+            if (g->flag[j] == EKFSLAM_PEND_B) {
+                pend_weights(ekf, g, j);
+            }
+            for (int t2 = t; t2 < m; ++t2) {
+                const int kk = ck->pend_act[t2];
+                if (!(g->flag[j] == EKFSLAM_PEND_A && g->flag[kk] == EKFSLAM_PEND_A)) {
+                    pend_block(ekf, g, j, kk);
+                }
+            }
+        }
+        g->drift_on = 0U; /* theta = 0 */
     }
-    /* |P_bA0| bounds how far theta moves passive landmark b, (3) */
+    /* |P_bA0| bounds how far theta moves passive landmark b, (3); unknown
+     * (-1) while b has pending entries against A0 */
+    ck->gain_stale = 0U;
     for (uint16_t j = 0; j < ekf->n_lm; ++j) {
         if (ck->slot[j] >= 0) {
             continue;
         }
-        const double *rx = &ekf->p[(long)(3 + 2 * j) * D_];
-        const double *ry = rx + D_;
-        double acc = 0.0;
-        for (int i = 0; i < k; ++i) {
-            acc += rx[ck->idx[i]] * rx[ck->idx[i]] + ry[ck->idx[i]] * ry[ck->idx[i]];
+        int pending = 0;
+        for (int gi = 0; gi < EKFSLAM_PEND_GENS; ++gi) {
+            pending |= gen_act[gi] > 0 && ck->gen[gi].flag[j];
         }
-        ck->drift_gain[j] = sqrt(acc);
+        ck->drift_gain[j] = pending ? -1.0 : drift_gain_of(ekf, j);
+        ck->gain_stale |= (uint8_t)pending;
     }
     for (int r = 0; r < k; ++r) {
         for (int c = 0; c < k; ++c) {
@@ -602,7 +931,8 @@ static void cekf_prepare(ekfslam_t *ekf, double max_range_m)
             const int a = 3 + 2 * j;
             const double reach =
                 near_reach(max_range_m, P_(ekf, a, a) + P_(ekf, a + 1, a + 1) + 2.0 * ck->w5_sum, var_r);
-            if (hypot(ekf->x[a] - pose.x, ekf->x[a + 1] - pose.y) - ck->drift_gain[j] * tn > reach) {
+            if (ck->drift_gain[j] >= 0.0 &&
+                hypot(ekf->x[a] - pose.x, ekf->x[a + 1] - pose.y) - ck->drift_gain[j] * tn > reach) {
                 continue;
             }
             leave = hypot(x_now(ekf, a) - pose.x, x_now(ekf, a + 1) - pose.y) <= reach;
@@ -676,8 +1006,14 @@ coslam_status_t ekfslam_init(ekfslam_t *ekf, const ekfslam_config_t *cfg, pose2_
     ekf->n_lm = 0;
     ekf->merging = 0U;
     ekf->cekf.local = 0U;
-    ekf->cekf.pend_n = 0;
-    memset(ekf->cekf.pend, 0, sizeof ekf->cekf.pend);
+    ekf->cekf.gain_stale = 0U;
+    ekf->cekf.pend_seq = 0U;
+    for (int gi = 0; gi < EKFSLAM_PEND_GENS; ++gi) {
+        ekf->cekf.gen[gi].n = 0;
+        ekf->cekf.gen[gi].n_b = 0;
+        ekf->cekf.gen[gi].drift_on = 0U;
+        memset(ekf->cekf.gen[gi].flag, 0, sizeof ekf->cekf.gen[gi].flag);
+    }
     ekf->next_id = 1U;
     memset(&ekf->ctr, 0, sizeof ekf->ctr);
     ekf->x[0] = pose0.x;
@@ -1121,33 +1457,37 @@ coslam_status_t ekfslam_add_landmark_body(ekfslam_t *ekf, point2_t m_body, cov2_
 }
 
 /* Removal of landmark j, last moving to j: the pending flags and u rows
- * follow the rows of P. O(N_pend + N_A0). */
+ * follow the rows of P, in every generation. O(N_pend + N_A0). */
 static void pend_remove(ekfslam_t *ekf, uint16_t j, uint16_t last)
 {
     ekfslam_cekf_t *ck = &ekf->cekf;
-    if (COSLAM_EKF_MAX_ACTIVE == 0 || ck->pend_n == 0) {
+    if (COSLAM_EKF_MAX_ACTIVE == 0) {
         return;
     }
-    for (int t = 0; t < ck->pend_n; ++t) {
-        if (ck->pend_list[t] == j) {
-            ck->pend_list[t] = ck->pend_list[--ck->pend_n];
-            break;
+    for (int gi = 0; gi < EKFSLAM_PEND_GENS; ++gi) {
+        ekfslam_pend_t *g = &ck->gen[gi];
+        if (g->n == 0) {
+            continue;
         }
-    }
-    ck->pend[j] = 0U;
-    if (j == last || !ck->pend[last]) {
-        return;
-    }
-    for (int t = 0; t < ck->pend_n; ++t) {
-        if (ck->pend_list[t] == last) {
-            ck->pend_list[t] = j;
-            break;
+        for (int t = 0; t < g->n && g->flag[j]; ++t) {
+            if (g->list[t] == j) {
+                pend_unflag(g, t); /* may empty g */
+            }
         }
-    }
-    ck->pend[j] = 1U;
-    ck->pend[last] = 0U;
-    for (int q = 0; q < 2; ++q) {
-        memcpy(ck->pend_u[2 * j + q], ck->pend_u[2 * last + q], (size_t)ck->pend_n0 * sizeof(double));
+        if (j == last || !g->flag[last]) {
+            continue;
+        }
+        for (int t = 0; t < g->n; ++t) {
+            if (g->list[t] == last) {
+                g->list[t] = j;
+                break;
+            }
+        }
+        g->flag[j] = g->flag[last];
+        g->flag[last] = 0U;
+        for (int q = 0; q < 2; ++q) {
+            memcpy(g->u[2 * j + q], g->u[2 * last + q], (size_t)g->n0 * sizeof(double));
+        }
     }
 }
 
@@ -1696,6 +2036,7 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
             result = COSLAM_E_CAPACITY;
         }
     }
+    cekf_drift(ekf); /* theta moved: x_now's sums */
     return result;
 }
 

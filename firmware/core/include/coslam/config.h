@@ -104,6 +104,18 @@
 #define COSLAM_EKF_MAX_ACTIVE 0
 #endif
 
+/** Global updates of the compressed EKF whose deferred part may be
+ *  pending at once (ekfslam.c "The deferred part of a global update"):
+ *  each takes 16 COSLAM_EKF_MAX_LANDMARKS (3 + 2 COSLAM_EKF_MAX_ACTIVE)
+ *  bytes of u rows plus 8 (3 + 2 COSLAM_EKF_MAX_ACTIVE)^2 of psi (8.4 and
+ *  2.1 MB in the host profile). A global update that finds all of them
+ *  pending completes the oldest at once (ekfslam_counters_t.
+ *  cekf_spread_gens_full). 2 where the compression is compiled in, else 1
+ *  (its buffers then sized 1). */
+#ifndef COSLAM_EKF_PEND_GENS
+#define COSLAM_EKF_PEND_GENS (COSLAM_EKF_MAX_ACTIVE > 0 ? 2 : 1)
+#endif
+
 /**
  * Landmarks that fit one map message in one link datagram: the largest n
  * with map_msg.h's MAP_MSG_BYTES(n) = 142 + 73 n plus the 64 bytes a link
@@ -191,6 +203,9 @@
 #endif
 #if COSLAM_EKF_MAX_ACTIVE < 0 || COSLAM_EKF_MAX_ACTIVE > COSLAM_EKF_MAX_LANDMARKS
 #error "COSLAM_EKF_MAX_ACTIVE must be in [0, COSLAM_EKF_MAX_LANDMARKS]"
+#endif
+#if COSLAM_EKF_PEND_GENS < 1 || COSLAM_EKF_PEND_GENS > 8
+#error "COSLAM_EKF_PEND_GENS must be in [1, 8]"
 #endif
 #if COSLAM_MAX_MSG_LANDMARKS < 1 || COSLAM_MAX_MSG_LANDMARKS > 65535
 #error "COSLAM_MAX_MSG_LANDMARKS must be in [1, 65535]"

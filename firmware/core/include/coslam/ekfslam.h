@@ -139,15 +139,18 @@ typedef struct {
      *  the state (below, the full update is as cheap). Default 128. */
     uint16_t active_min_landmarks;
     /** Compressed EKF: the global update that ends a local phase (the
-     *  robot left its region, or a removal) does at once only what the
-     *  next local phase reads (x_B, P_AB, the rows of the new active part)
-     *  and leaves the rest of P_BB -= P_BA0 psi P_A0B pending; each later
-     *  predict and update completes about this many multiply-adds of it
-     *  (whole landmark rows, at least one), and whatever reads or rewrites
-     *  pending entries completes all of them first (ekfslam.c "The deferred
-     *  part of a global update"). 0: the whole global update at once, as
-     *  before. Default 8,000,000 (about 3 ms on a desktop core; at 800
-     *  landmarks the pending rows then end within the next local phase). */
+     *  robot left its region, or a removal) does at once only x_B and the
+     *  pose's rows, O(N_B N_A), and leaves the rest (P_AB = phi P_A0B and
+     *  P_BB -= P_BA0 psi P_A0B) pending; the next local phase completes
+     *  the entries between its own active landmarks when it starts, and
+     *  each later predict and update completes about this many
+     *  multiply-adds per generation with pending entries (whole landmark
+     *  rows, at least one, the active landmarks' first); whatever reads or
+     *  rewrites pending entries completes them first (ekfslam.c "The
+     *  deferred part of a global update"). 0: the whole global update at
+     *  once, as before. Default 8,000,000 (1.5-3 ms on a desktop core; at
+     *  800 landmarks the pending entries then end within the next local
+     *  phase). */
     uint32_t active_spread_madds;
 } ekfslam_config_t;
 
@@ -183,8 +186,12 @@ typedef struct {
                                            landmarks in reach (that frame used the full update) */
     uint32_t cekf_spread_rows;        /**< compressed EKF: landmark rows of a global update's P_BB
                                            completed later, a budget per step (active_spread_madds) */
-    uint32_t cekf_spread_forced;      /**< compressed EKF: times the pending rows had to be completed
-                                           at once (sync, export, removal, the next global update, ...) */
+    uint32_t cekf_spread_forced;      /**< compressed EKF: times pending entries had to be completed
+                                           at once (sync, export, a full-EKF frame, the active rows left
+                                           when a phase ends, a full set of generations) */
+    uint32_t cekf_spread_gens_full;   /**< compressed EKF: global updates that found all
+                                           EKFSLAM_PEND_GENS generations pending and completed the oldest
+                                           at once */
 } ekfslam_counters_t;
 
 /** Largest joint innovation handled by JCBB (2 rows per sighting). */
@@ -229,6 +236,42 @@ typedef struct {
 /** Landmarks the deferred part of a global update keeps (1 where the
  *  compressed EKF is compiled out, so that the profile does not grow). */
 #define EKFSLAM_SPREAD_LM (COSLAM_EKF_MAX_ACTIVE > 0 ? COSLAM_EKF_MAX_LANDMARKS : 1)
+/** Generations of pending entries (config.h COSLAM_EKF_PEND_GENS). */
+#define EKFSLAM_PEND_GENS COSLAM_EKF_PEND_GENS
+
+/** Flag of a landmark in a pending generation: it was passive (B) or
+ *  active (A) in the local phase that the generation's global update ended. */
+#define EKFSLAM_PEND_B 1U
+#define EKFSLAM_PEND_A 2U
+
+/**
+ * The deferred part of one global update (ekfslam.c "The deferred part of
+ * a global update"). With A0, phi, psi of the phase it ended, the entry
+ * (r, c) of P between two flagged landmarks, not both A and (in a local
+ * phase) not both active now, is pending: its value is P(r, c) plus
+ *   -u_r^T psi u_c    both B (u_r = P_A0,r then)
+ *   +u_r^T u_c        r A, c B (u_r = phi_r - e_r then, e_r the unit row of
+ *                     r's position in A0, 0 beyond A0: (1) as a correction)
+ * and every such correction only adds, so generations overlap.
+ */
+typedef struct {
+    int32_t n;                                /**< flagged landmarks (list) */
+    int32_t n_b;                              /**< ... of them B */
+    int32_t n0;                               /**< |A0| of the phase it ended */
+    uint32_t seq;                             /**< age: larger is younger */
+    uint16_t list[EKFSLAM_SPREAD_LM];         /**< the flagged landmarks */
+    uint8_t flag[EKFSLAM_SPREAD_LM];          /**< 0, EKFSLAM_PEND_B or EKFSLAM_PEND_A */
+    uint8_t drift_on;                         /**< drift_* hold this local phase's sums */
+    double psi[EKFSLAM_ACTIVE_DIM * EKFSLAM_ACTIVE_DIM]; /**< that phase's psi, stride EKFSLAM_ACTIVE_DIM */
+    double u[2 * EKFSLAM_SPREAD_LM][EKFSLAM_ACTIVE_DIM]; /**< row 2j+q: u of state 3+2j+q */
+    /* x_now's share of the pending entries between the active part A0'
+     * of the local phase now and a passive landmark: sum_i theta'_i u_i
+     * over the flagged A (drift_a) and B (drift_b) states i of A0', and
+     * psi drift_b (drift_bpsi) */
+    double drift_a[EKFSLAM_ACTIVE_DIM];
+    double drift_b[EKFSLAM_ACTIVE_DIM];
+    double drift_bpsi[EKFSLAM_ACTIVE_DIM];
+} ekfslam_pend_t;
 
 /**
  * Compressed EKF bookkeeping (ekfslam.c "Compressed EKF"). In a local
@@ -237,19 +280,20 @@ typedef struct {
  * added since are appended). x_A and P_AA are current in x and p; x_B,
  * P_AB and P_BB hold their values at the phase start, and the current ones
  * are P_AB = phi P_A0B, P_BB = P_BB - P_BA0 psi P_A0B + w5_sum I, x_B = x_B
- * + P_BA0 theta. A global update spread over later steps leaves entry
- * (r, c) of P_BB pending while both r's and c's landmarks are flagged in
- * pend: its value is P(r, c) - pend_u_r^T pend_psi pend_u_c.
+ * + P_BA0 theta. Global updates spread over later steps leave entries of P
+ * pending (gen, ekfslam_pend_t).
  */
 typedef struct {
     uint8_t local;                            /**< 1 in a local phase */
+    uint8_t gain_stale;                       /**< drift_gain not yet computed for this phase */
     int32_t na;                               /**< active states now */
     int32_t na0;                              /**< active states at the phase start */
     point2_t centre;                          /**< robot position at the phase start */
     double w5_sum;                            /**< landmark process noise added since (lm_process_var_m2_per_m) */
     int32_t idx[EKFSLAM_ACTIVE_DIM];          /**< state index of active state k */
     int32_t slot[COSLAM_EKF_MAX_LANDMARKS];   /**< active position of landmark j's x, -1 passive */
-    double drift_gain[COSLAM_EKF_MAX_LANDMARKS]; /**< |P_bA0| of passive landmark b (x and y rows) */
+    double drift_gain[COSLAM_EKF_MAX_LANDMARKS]; /**< |P_bA0| of passive landmark b (x and y rows);
+                                                      < 0: unknown (pending entries), test exactly */
     double phi[EKFSLAM_ACTIVE_DIM * EKFSLAM_ACTIVE_DIM]; /**< na x na0, stride EKFSLAM_ACTIVE_DIM */
     double psi[EKFSLAM_ACTIVE_DIM * EKFSLAM_ACTIVE_DIM]; /**< na0 x na0 */
     double theta[EKFSLAM_ACTIVE_DIM];
@@ -259,14 +303,11 @@ typedef struct {
      * columns of B (each block reads the rows of A0 once) */
     double u[EKFSLAM_ACTIVE_DIM][EKFSLAM_SYNC_BLOCK];
     double w[EKFSLAM_SYNC_BLOCK][EKFSLAM_ACTIVE_DIM];
-    /* the deferred part of the last global update (active_spread_madds) */
-    int32_t pend_n;                           /**< landmarks in pend_list */
-    int32_t pend_n0;                          /**< |A0| of the phase it ended */
-    uint16_t pend_list[EKFSLAM_SPREAD_LM];    /**< the pending landmarks */
-    uint8_t pend[EKFSLAM_SPREAD_LM];          /**< 1: landmark j's rows are pending */
-    double pend_psi[EKFSLAM_ACTIVE_DIM * EKFSLAM_ACTIVE_DIM]; /**< that phase's psi, stride EKFSLAM_ACTIVE_DIM */
-    double pend_u[2 * EKFSLAM_SPREAD_LM][EKFSLAM_ACTIVE_DIM]; /**< row 2j+q: that phase's P_A0,(3+2j+q) */
-    double pend_w[2][EKFSLAM_ACTIVE_DIM];     /**< scratch: pend_psi pend_u of one landmark */
+    /* the deferred parts of the last global updates (active_spread_madds) */
+    uint32_t pend_seq;                        /**< generations made so far */
+    ekfslam_pend_t gen[EKFSLAM_PEND_GENS];
+    double pend_w[2][EKFSLAM_ACTIVE_DIM];     /**< scratch: psi u of one landmark */
+    uint16_t pend_act[EKFSLAM_SPREAD_LM];     /**< scratch: flagged active landmarks */
 } ekfslam_cekf_t;
 
 typedef struct {
@@ -320,7 +361,8 @@ double ekfslam_p(const ekfslam_t *ekf, int r, int c);
  * Compressed EKF: end the local phase with the global update and complete
  * any pending part of an earlier one, so that x and p hold the whole
  * current state (needed before reading or writing them directly). No-op
- * outside a local phase with nothing pending. O(N_B^2 N_A) time, no memory.
+ * outside a local phase with nothing pending. O(N_B^2 N_A) time (plus
+ * what is pending, O(N_pend^2 N_A0) per generation), no memory.
  * ekfslam_export, _export_whole, _merge_begin, _remove_landmark call it.
  */
 void ekfslam_sync(ekfslam_t *ekf);
@@ -386,7 +428,7 @@ void ekfslam_merge_end(ekfslam_t *ekf);
 
 /** Remove landmark j, deleting its rows and columns. O(L), after ekfslam_sync
  *  (compressed EKF with active_spread_madds > 0: after the spread global
- *  update, pending rows stay pending). */
+ *  update, pending entries stay pending). */
 void ekfslam_remove_landmark(ekfslam_t *ekf, uint16_t j);
 
 /** A fresh landmark identity (never 0). */
