@@ -409,6 +409,131 @@ static void test_merge_into_fastslam(void **state)
     assert_int_equal(g_fs.particles[3].n_lm, COSLAM_MAX_LANDMARKS);
 }
 
+/* Fast-SLAM's duplicate search against brute force: random particles (poses
+ * spread), own maps and an incoming map of 2 classes in two clusters far
+ * apart with one very uncertain landmark (a wide grid cell), some own
+ * landmarks one cell beyond the incoming ones. Every particle must end
+ * with its own landmarks plus exactly the incoming ones that the
+ * all-pairs, one-to-one by increasing distance pairing leaves unpaired. */
+#define BF_IN 24  /* incoming landmarks, two clusters */
+#define BF_OWN 36 /* own landmarks per particle, BF_IN / 2 near copies */
+_Static_assert(BF_IN + BF_OWN <= COSLAM_MAX_LANDMARKS && BF_IN <= COSLAM_MAX_MSG_LANDMARKS,
+               "the brute-force case must fit the smallest profile");
+
+static void test_fastslam_pairing_brute_force(void **state)
+{
+    (void)state;
+    rng_t r;
+    rng_seed(&r, 77U);
+    fastslam_config_t c = fastslam_config_default();
+    c.n_particles = 30;
+    const pose2_t p0 = {0.0, 0.0, 0.0};
+    merge_config_t mc = merge_config_default();
+    for (int trial = 0; trial < 20; ++trial) {
+        assert_int_equal(fastslam_init(&g_fs, &c, p0, 5U + (uint64_t)trial), COSLAM_OK);
+        /* incoming: two clusters 30 m apart, body frame */
+        memset(&g_bm, 0, sizeof g_bm);
+        g_bm.n = BF_IN;
+        for (int i = 0; i < g_bm.n; ++i) {
+            const double cx = i < BF_IN / 2 ? 3.0 : 33.0;
+            g_bm.mean[i] = (point2_t){cx + 4.0 * rng_uniform(&r), -2.0 + 4.0 * rng_uniform(&r)};
+            const double v = i == 5 ? 0.5 + trial * 0.05 : 0.005 + 0.02 * rng_uniform(&r);
+            g_bm.cov[i] = cov2_make(v, 0.3 * v * (rng_uniform(&r) - 0.5), v * (0.5 + rng_uniform(&r)));
+            g_bm.rel[i] = g_bm.mean[i];
+            g_bm.rel_cov[i] = g_bm.cov[i];
+            g_bm.src_mask[i] = 0x2U;
+            g_bm.n_obs[i] = 7;
+            g_bm.signature[i] = (uint8_t)(i % 2);
+            g_bm.id[i] = 100U + (uint32_t)i;
+        }
+        g_bm.t_cov = cov3_zero();
+        /* own maps: near copies of half the incoming ones, landmarks between
+         * and around the clusters, per particle a jittered pose */
+        for (uint16_t k = 0; k < c.n_particles; ++k) {
+            fastslam_particle_t *pk = &g_fs.particles[k];
+            pk->pose = (pose2_t){0.2 * rng_gauss(&r), 0.2 * rng_gauss(&r), 0.05 * rng_gauss(&r)};
+            for (int j = 0; j < BF_OWN; ++j) {
+                landmark_t lm;
+                memset(&lm, 0, sizeof lm);
+                point2_t body;
+                if (j < BF_IN / 2) {
+                    const int i = 2 * j;
+                    body = (point2_t){g_bm.mean[i].x + 0.15 * rng_gauss(&r), g_bm.mean[i].y + 0.15 * rng_gauss(&r)};
+                    lm.signature = g_bm.signature[i];
+                } else {
+                    body = (point2_t){-10.0 + 50.0 * rng_uniform(&r), -6.0 + 12.0 * rng_uniform(&r)};
+                    lm.signature = (uint8_t)(j % 2);
+                }
+                lm.mean = pose2_apply(pk->pose, body);
+                const double v = 0.005 + 0.02 * rng_uniform(&r);
+                lm.cov = cov2_make(v, 0.0, v);
+                lm.id = (uint32_t)(j + 1);
+                lm.exist = 6.0f;
+                lm.n_obs = 8;
+                lm.src_mask = 1;
+                assert_int_equal(fastslam_particle_add(&g_fs, k, &lm), COSLAM_OK);
+            }
+        }
+        /* brute force, per particle */
+        int expect_new[COSLAM_MAX_PARTICLES];
+        uint32_t expect_fused = 0;
+        for (uint16_t k = 0; k < c.n_particles; ++k) {
+            const fastslam_particle_t *pk = &g_fs.particles[k];
+            const double ct = cos(pk->pose.theta);
+            const double st = sin(pk->pose.theta);
+            double rt[2][2] = {{ct, st}, {-st, ct}};
+            int n_pairs = 0;
+            static merge_pair_t pairs[BF_OWN * BF_IN];
+            for (uint16_t j = 0; j < pk->n_lm; ++j) {
+                const landmark_t *lm = fastslam_particle_lm(&g_fs, k, j);
+                const point2_t b = pose2_apply_inverse(pk->pose, lm->mean);
+                const cov2_t bc = cov2_congruence(rt, lm->cov);
+                for (int i = 0; i < g_bm.n; ++i) {
+                    double d2;
+                    if (g_bm.signature[i] != lm->signature ||
+                        cov2_mahalanobis2(cov2_add(bc, g_bm.cov[i]), g_bm.mean[i].x - b.x, g_bm.mean[i].y - b.y,
+                                          &d2) != COSLAM_OK ||
+                        !(d2 < mc.gate_chi2)) {
+                        continue;
+                    }
+                    pairs[n_pairs].own = j;
+                    pairs[n_pairs].in = i;
+                    pairs[n_pairs].d2 = d2;
+                    n_pairs++;
+                }
+            }
+            /* one to one by increasing distance (selection, n is small) */
+            uint8_t used_own[BF_OWN] = {0};
+            uint8_t used_in[BF_IN] = {0};
+            int matched = 0;
+            for (;;) {
+                int best = -1;
+                for (int q = 0; q < n_pairs; ++q) {
+                    if (!used_own[pairs[q].own] && !used_in[pairs[q].in] && (best < 0 || pairs[q].d2 < pairs[best].d2)) {
+                        best = q;
+                    }
+                }
+                if (best < 0) {
+                    break;
+                }
+                used_own[pairs[best].own] = 1;
+                used_in[pairs[best].in] = 1;
+                matched++;
+            }
+            expect_new[k] = g_bm.n - matched;
+            expect_fused += (uint32_t)matched;
+        }
+        merge_stats_t stt;
+        memset(&stt, 0, sizeof stt);
+        assert_int_equal(merge_into_fastslam(&g_fs, &g_bm, &mc, &g_sc, &stt), COSLAM_OK);
+        assert_int_equal(stt.fused, expect_fused);
+        assert_true(expect_fused > 0U);
+        for (uint16_t k = 0; k < c.n_particles; ++k) {
+            assert_int_equal(g_fs.particles[k].n_lm, BF_OWN + expect_new[k]);
+        }
+    }
+}
+
 static void test_merge_into_ekfslam(void **state)
 {
     (void)state;
@@ -537,6 +662,7 @@ int main(void)
         cmocka_unit_test(test_fusion_rules),
         cmocka_unit_test(test_session_replay),
         cmocka_unit_test(test_merge_into_fastslam),
+        cmocka_unit_test(test_fastslam_pairing_brute_force),
         cmocka_unit_test(test_merge_into_ekfslam),
         cmocka_unit_test(test_relative_covariance),
     };

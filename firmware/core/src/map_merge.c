@@ -335,6 +335,10 @@ static void grid_build(merge_scratch_t *sc, const merge_body_map_t *bm, double c
     for (int b = 0; b < COSLAM_MERGE_GRID_BUCKETS; ++b) {
         sc->bucket_head[b] = -1;
     }
+    int32_t x_lo = INT32_MAX;
+    int32_t x_hi = INT32_MIN;
+    int32_t y_lo = INT32_MAX;
+    int32_t y_hi = INT32_MIN;
     for (uint16_t i = 0; i < bm->n; ++i) {
         const int32_t cx = cell_of(bm->mean[i].x, cell);
         const int32_t cy = cell_of(bm->mean[i].y, cell);
@@ -343,7 +347,61 @@ static void grid_build(merge_scratch_t *sc, const merge_body_map_t *bm, double c
         sc->cell_y[i] = cy;
         sc->next[i] = sc->bucket_head[h];
         sc->bucket_head[h] = (int32_t)i;
+        x_lo = cx < x_lo ? cx : x_lo;
+        x_hi = cx > x_hi ? cx : x_hi;
+        y_lo = cy < y_lo ? cy : y_lo;
+        y_hi = cy > y_hi ? cy : y_hi;
     }
+    /* the occupancy bitmap: bins of occ_bin cells covering the incoming
+     * cells and one more on each side, each incoming bin dilated by one
+     * (a neighbour cell is at most one bin away) */
+    for (int b = 0; b < MERGE_OCC_BINS; ++b) {
+        sc->occ[b] = 0U;
+    }
+    if (bm->n == 0) {
+        sc->occ_bin = 0; /* nothing can pair */
+        return;
+    }
+    const int64_t span_x = (int64_t)x_hi - x_lo + 3;
+    const int64_t span_y = (int64_t)y_hi - y_lo + 3;
+    const int64_t span = span_x > span_y ? span_x : span_y;
+    const int64_t bin = (span + MERGE_OCC_BINS - 1) / MERGE_OCC_BINS;
+    sc->occ_bin = bin > INT32_MAX ? INT32_MAX : (int32_t)bin;
+    sc->occ_x0 = x_lo - 1;
+    sc->occ_y0 = y_lo - 1;
+    for (uint16_t i = 0; i < bm->n; ++i) {
+        const int bx = (int)(((int64_t)sc->cell_x[i] - sc->occ_x0) / sc->occ_bin);
+        const int by = (int)(((int64_t)sc->cell_y[i] - sc->occ_y0) / sc->occ_bin);
+        for (int y = by - 1; y <= by + 1; ++y) {
+            if (y < 0 || y >= MERGE_OCC_BINS) {
+                continue;
+            }
+            for (int x = bx - 1; x <= bx + 1; ++x) {
+                if (x >= 0 && x < MERGE_OCC_BINS) {
+                    sc->occ[y] |= (uint64_t)1U << x;
+                }
+            }
+        }
+    }
+}
+
+/* 0 if no incoming landmark lies in the 3x3 cells around point q (so q
+ * can pair with none): the occupancy bitmap of grid_build. q's cell in
+ * *cx, *cy. */
+static int grid_may_pair(const merge_scratch_t *sc, point2_t q, int32_t *cx, int32_t *cy)
+{
+    *cx = cell_of(q.x, sc->cell_m);
+    *cy = cell_of(q.y, sc->cell_m);
+    if (sc->occ_bin <= 0) {
+        return 0;
+    }
+    const int64_t dx = (int64_t)*cx - sc->occ_x0;
+    const int64_t dy = (int64_t)*cy - sc->occ_y0;
+    const int64_t lim = (int64_t)sc->occ_bin * MERGE_OCC_BINS;
+    if (dx < 0 || dy < 0 || dx >= lim || dy >= lim) {
+        return 0;
+    }
+    return (int)((sc->occ[dy / sc->occ_bin] >> (dx / sc->occ_bin)) & 1U);
 }
 
 /* Greedy one-to-one selection needs the pairs sorted by d2 (heap sort). */
@@ -386,11 +444,9 @@ static void sort_pairs(merge_pair_t *p, int n)
  * enough for the gate (grid_cell_size). */
 typedef void (*grid_visit_fn)(merge_scratch_t *sc, int32_t j, int32_t i, double d2, void *ctx);
 
-static void grid_gated_at(merge_scratch_t *sc, const merge_body_map_t *bm, point2_t q, cov2_t q_cov, uint8_t sig,
-                          int32_t tag, double gate, grid_visit_fn visit, void *ctx)
+static void grid_gated_cells(merge_scratch_t *sc, const merge_body_map_t *bm, int32_t cx, int32_t cy, point2_t q,
+                             cov2_t q_cov, uint8_t sig, int32_t tag, double gate, grid_visit_fn visit, void *ctx)
 {
-    const int32_t cx = cell_of(q.x, sc->cell_m);
-    const int32_t cy = cell_of(q.y, sc->cell_m);
     for (int32_t dx = -1; dx <= 1; ++dx) {
         for (int32_t dy = -1; dy <= 1; ++dy) {
             for (int32_t i = sc->bucket_head[cell_hash(cx + dx, cy + dy)]; i >= 0; i = sc->next[i]) {
@@ -412,6 +468,13 @@ static void grid_gated_at(merge_scratch_t *sc, const merge_body_map_t *bm, point
             }
         }
     }
+}
+
+static void grid_gated_at(merge_scratch_t *sc, const merge_body_map_t *bm, point2_t q, cov2_t q_cov, uint8_t sig,
+                          int32_t tag, double gate, grid_visit_fn visit, void *ctx)
+{
+    grid_gated_cells(sc, bm, cell_of(q.x, sc->cell_m), cell_of(q.y, sc->cell_m), q, q_cov, sig, tag, gate, visit,
+                     ctx);
 }
 
 /* The same around own landmark j (its body-frame position and cov_rel). */
@@ -444,10 +507,11 @@ static void collect_pair(merge_scratch_t *sc, int32_t j, int32_t i, double d2, v
  * the receiver's body frame) and the incoming map: candidates from the 3x3
  * grid cells around each own landmark, same signature, inside the gate;
  * then one-to-one by increasing distance into sc->match_of_in.
- * O(M_own + P log P) for P candidate pairs.
+ * O(M_own + P log P) for P candidate pairs. With own_cells set, the own
+ * landmarks' grid cells are in sc->own_cx / own_cy already.
  */
 static void pair_and_select(merge_scratch_t *sc, const merge_body_map_t *bm, const merge_config_t *cfg, int n_own,
-                            merge_stats_t *stats)
+                            merge_stats_t *stats, int own_cells)
 {
     pair_ctx_t pc = {0, stats};
     for (uint16_t i = 0; i < bm->n; ++i) {
@@ -456,7 +520,12 @@ static void pair_and_select(merge_scratch_t *sc, const merge_body_map_t *bm, con
     }
     for (int j = 0; j < n_own; ++j) {
         sc->own_used[j] = 0;
-        grid_gated(sc, bm, (int32_t)j, cfg->gate_chi2, collect_pair, &pc);
+        if (own_cells) {
+            grid_gated_cells(sc, bm, sc->own_cx[j], sc->own_cy[j], sc->own_body[j], sc->own_cov[j], sc->own_sig[j],
+                             (int32_t)j, cfg->gate_chi2, collect_pair, &pc);
+        } else {
+            grid_gated(sc, bm, (int32_t)j, cfg->gate_chi2, collect_pair, &pc);
+        }
     }
     const int n_pairs = pc.n_pairs;
     sort_pairs(sc->pairs, n_pairs);
@@ -538,18 +607,31 @@ coslam_status_t merge_into_fastslam(fastslam_t *fs, const merge_body_map_t *bm, 
         const double s = sin(p->pose.theta);
         double rt[2][2] = {{c, s}, {-s, c}}; /* world -> body */
         double r[2][2] = {{c, -s}, {s, c}};  /* body -> world */
-        /* own map in this particle's body frame */
+        /* own map in this particle's body frame: the landmarks that can
+         * pair with an incoming one (the others have none in their grid
+         * neighbourhood), in slot order; own_idx maps them back */
         const landmark_t *const *own = fastslam_particle_landmarks(fs, k);
+        int n_cand = 0;
         for (uint16_t j = 0; j < p->n_lm; ++j) {
-            sc->own_body[j] = pose2_apply_inverse_cs(p->pose, c, s, own[j]->mean);
-            sc->own_cov[j] = cov2_congruence(rt, own[j]->cov);
-            sc->own_sig[j] = own[j]->signature;
+            const point2_t body = pose2_apply_inverse_cs(p->pose, c, s, own[j]->mean);
+            int32_t cx;
+            int32_t cy;
+            if (!grid_may_pair(sc, body, &cx, &cy)) {
+                continue;
+            }
+            sc->own_body[n_cand] = body;
+            sc->own_cx[n_cand] = cx;
+            sc->own_cy[n_cand] = cy;
+            sc->own_cov[n_cand] = cov2_congruence(rt, own[j]->cov);
+            sc->own_sig[n_cand] = own[j]->signature;
+            sc->own_idx[n_cand] = j;
+            n_cand++;
         }
-        pair_and_select(sc, bm, cfg, p->n_lm, stats);
+        pair_and_select(sc, bm, cfg, n_cand, stats, 1);
         const double dup_w = duplicate_weight(sc, bm, cfg);
         for (uint16_t i = 0; i < bm->n; ++i) {
             const point2_t wm = pose2_apply_cs(p->pose, c, s, bm->mean[i]);
-            const int32_t j = sc->match_of_in[i];
+            const int32_t j = sc->match_of_in[i] >= 0 ? (int32_t)sc->own_idx[sc->match_of_in[i]] : -1;
             /* a duplicate's information scaled by dup_w: its covariance by 1 / dup_w */
             const cov2_t wc = cov2_scale(cov2_congruence(r, bm->cov[i]), j >= 0 ? 1.0 / dup_w : 1.0);
             if (j >= 0) {
@@ -628,7 +710,7 @@ coslam_status_t merge_into_ekfslam(ekfslam_t *ekf, const merge_body_map_t *bm, c
         ekfslam_landmark_relative(ekf, j, &sc->own_body[j], &sc->own_cov[j]);
         sc->own_sig[j] = ekf->meta[j].signature;
     }
-    pair_and_select(sc, bm, cfg, n_own, stats);
+    pair_and_select(sc, bm, cfg, n_own, stats, 0);
     const double dup_w = duplicate_weight(sc, bm, cfg);
     if (ekfslam_merge_begin(ekf, &bm->t_cov) != COSLAM_OK) {
         return COSLAM_E_ARG;
@@ -860,7 +942,7 @@ static void check_pair(merge_scratch_t *sc, merge_body_map_t *bm, const merge_co
     double gate = cfg->ambiguous_chi2 > cfg->gate_chi2 ? cfg->ambiguous_chi2 : cfg->gate_chi2;
     gate = cfg->unresolved_chi2 > gate ? cfg->unresolved_chi2 : gate;
     grid_build(sc, bm, grid_cell_size(bm, cfg, gate));
-    pair_and_select(sc, bm, cfg, n_own, stats);
+    pair_and_select(sc, bm, cfg, n_own, stats, 0);
 }
 
 /* Mark (sc->drop = 2) every unpaired incoming landmark that lies within

@@ -212,6 +212,9 @@ typedef struct {
 /** Candidate pairs kept per map (beyond: counted as skipped). */
 #define MERGE_MAX_PAIRS (4 * COSLAM_MAX_MSG_LANDMARKS)
 
+/** Side of the occupancy bitmap over the incoming map's grid cells. */
+#define MERGE_OCC_BINS 64
+
 /** Grid hash over a body map plus per-call scratch. Caller-owned. */
 typedef struct {
     int32_t bucket_head[COSLAM_MERGE_GRID_BUCKETS];   /**< first entry, -1 empty */
@@ -229,6 +232,16 @@ typedef struct {
     cov2_t own_cov[COSLAM_MAX_LANDMARKS];
     uint8_t own_sig[COSLAM_MAX_LANDMARKS];
     uint8_t own_used[COSLAM_MAX_LANDMARKS];
+    uint16_t own_idx[COSLAM_MAX_LANDMARKS];     /**< Fast-SLAM: own slot of each candidate */
+    int32_t own_cx[COSLAM_MAX_LANDMARKS];       /**< Fast-SLAM: its grid cell */
+    int32_t own_cy[COSLAM_MAX_LANDMARKS];
+    /* cells (dilated by one) that hold an incoming landmark, in bins of
+     * occ_bin cells from (occ_x0, occ_y0): an own landmark outside them
+     * has no incoming one in its 3x3 neighbourhood */
+    uint64_t occ[MERGE_OCC_BINS];
+    int32_t occ_x0;
+    int32_t occ_y0;
+    int32_t occ_bin;
     merge_pair_t pairs[MERGE_MAX_PAIRS];
     uint32_t new_id[COSLAM_MAX_MSG_LANDMARKS];  /**< identities of added landmarks (shared by particles) */
     double cell_m;                              /**< grid cell edge in use */
