@@ -19,7 +19,6 @@ ekfslam_config_t ekfslam_config_default(void)
     c.jcbb_closure_max_spread = 0.7;
     c.fej = 1U;
     c.iekf_max_iters = 0U;
-    c.iekf_min_spread = -1.0;
 #if COSLAM_EKF_MAX_ACTIVE >= 128
     c.active_radius_m = 3.0;
 #else
@@ -1310,7 +1309,7 @@ static coslam_status_t update_one(ekfslam_t *ekf, uint16_t j, sighting_t z, int 
     }
     double nu[2];
     observe_innovation(z, e.zhat, nu);
-    if (iterate && ekf->cfg.iekf_max_iters > 0U) {
+    if (iterate) {
         ekf->ctr.iekf_updates++;
         ekf->ctr.iekf_iterations += (uint32_t)iterate_linearisation(ekf, j, z, (int)ekf->cfg.iekf_max_iters, &e, nu);
     }
@@ -1977,8 +1976,7 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
      * loop-closing pairing whose bearing's second-order term, about
      * (s / r)^2 for an offset standard deviation s at range r, exceeds the
      * bearing's standard deviation is iterated (iterate_linearisation) */
-    const double iekf_spread = ekf->cfg.iekf_min_spread >= 0.0 ? ekf->cfg.iekf_min_spread
-                                                               : sqrt(sqrt(sp->noise.bearing_var_rad2));
+    const double iekf_spread = sqrt(sqrt(sp->noise.bearing_var_rad2));
     for (int i = 0; i < ns; ++i) {
         const int32_t j = sc->assign[i];
         if (j < 0) {
@@ -1986,7 +1984,7 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
         }
         /* a revisit's pairing relinearised (iterate_linearisation): its
          * prior offset is uncertain against the range */
-        const int iterate = pair_is_closure(ekf, j) && pair_spread(ekf, j) > iekf_spread;
+        const int iterate = ekf->cfg.iekf_max_iters > 0U && pair_is_closure(ekf, j) && pair_spread(ekf, j) > iekf_spread;
         if (update_one(ekf, (uint16_t)j, z[i], iterate) == COSLAM_OK) {
             ekfslam_meta_t *m = &ekf->meta[j];
             m->last_seen = ekf->ctr.updates;

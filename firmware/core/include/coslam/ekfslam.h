@@ -115,15 +115,14 @@ typedef struct {
     uint8_t fej;
     /** Iterated EKF for revisits: a loop-closing pairing (jcbb_closure_gap)
      *  whose offset spread s / r (jcbb_closure_max_spread) exceeds
-     *  iekf_min_spread is relinearised at the updated estimate up to this
-     *  many times (Gauss-Newton on the update's cost, ending at its MAP),
-     *  instead of one step along the prior's tangent. Default 0: off; on
-     *  MRCLAM it helped the merging robots and hurt one robot alone, and
-     *  changed nothing on the synthetic worlds (docs/consistency.md). */
+     *  bearing_sd^(1/2) (where the bearing's second-order term, about
+     *  (s / r)^2, reaches one bearing standard deviation) is relinearised
+     *  at the updated estimate up to this many times (Gauss-Newton on the
+     *  update's cost, ending at its MAP), instead of one step along the
+     *  prior's tangent. Default 0: off; on MRCLAM it helped the merging
+     *  robots and hurt one robot alone, and changed nothing on the
+     *  synthetic worlds (docs/consistency.md). */
     uint8_t iekf_max_iters;
-    /** < 0 (default): bearing_sd^(1/2), where the bearing's second-order
-     *  term, about (s / r)^2, reaches one bearing standard deviation. */
-    double iekf_min_spread;
     /** Compressed EKF (Guivant and Nebot 2001; ekfslam.c "Compressed
      *  EKF"): while the robot stays within this distance of where its
      *  local region was chosen, predictions and updates touch only the
