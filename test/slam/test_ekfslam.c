@@ -2,6 +2,7 @@
  * of landmark initialisation, state bookkeeping, JCBB versus NN, bad input. */
 #include "test_util.h"
 
+#include <math.h>
 #include <string.h>
 
 #include "coslam/ekfslam.h"
@@ -325,12 +326,113 @@ static void test_jcbb_beats_nn(void **state)
     assert_int_equal(g_ekf.ctr.jcbb_budget_hits, 0);
 }
 
+/* Pairings that are each less likely than a new landmark (the robot's
+ * position sd 1.2 m makes every prediction vague: at 2-3 m the density at
+ * zero innovation is below the default p0 = exp(-1)) but jointly decisive:
+ * four identical markers, the robot 0.78 m off. JCBB must pair all four
+ * (the first fixes the pose, the rest are then sharp) and correct the pose;
+ * a frame with one of them alone is neither paired nor a new landmark. */
+static void weak_pairings_case(int n_z, sighting_t z[4])
+{
+    ekfslam_config_t c = config();
+    const pose2_t p0 = {0.0, 0.0, 0.0};
+    assert_int_equal(ekfslam_init(&g_ekf, &c, p0), COSLAM_OK);
+    const point2_t lms[4] = {{2.0, 1.0}, {2.5, -1.0}, {1.5, -2.0}, {2.8, 0.2}};
+    for (int j = 0; j < 4; ++j) {
+        const pose2_t origin = {0.0, 0.0, 0.0};
+        ekfslam_meta_t meta = {(uint32_t)(j + 1), 5.0f, 5, 1, 0, 0};
+        assert_int_equal(ekfslam_add_landmark_body(&g_ekf, pose2_apply_inverse(origin, lms[j]),
+                                                   cov2_make(1e-4, 0.0, 1e-4), &meta),
+                         COSLAM_OK);
+    }
+    const int d = 3 + 2 * 4;
+    for (int r = 0; r < d; ++r) {
+        for (int k = 0; k < d; ++k) {
+            PE(&g_ekf, r, k) = 0.0;
+        }
+    }
+    PE(&g_ekf, 0, 0) = 1.44;
+    PE(&g_ekf, 1, 1) = 1.44;
+    PE(&g_ekf, 2, 2) = 1e-4;
+    for (int r = 3; r < d; ++r) {
+        PE(&g_ekf, r, r) = 1e-4;
+    }
+    const pose2_t truth = {0.5, -0.6, 0.0};
+    for (int i = 0; i < n_z; ++i) {
+        z[i] = observe_predict(truth, lms[i]);
+        /* each alone: below p0 even at zero innovation */
+        landmark_t lm;
+        memset(&lm, 0, sizeof lm);
+        lm.mean = lms[i];
+        lm.cov = cov2_make(1e-4, 0.0, 1e-4);
+        const cov3_t pc = cov3_diag(1.44, 1.44, 1e-4);
+        lm_expect_t e;
+        assert_int_equal(landmark_expect(&lm, &c.slam, p0, &pc, &e), COSLAM_OK);
+        assert_true(landmark_log_lik(&e, 0.0) < c.slam.new_landmark_log_lik);
+    }
+}
+
+static void test_jcbb_weak_pairings_jointly(void **state)
+{
+    (void)state;
+    sighting_t z[4];
+    weak_pairings_case(4, z);
+    assert_int_equal(ekfslam_update(&g_ekf, z, 4), COSLAM_OK);
+    for (int i = 0; i < 4; ++i) {
+        assert_int_equal(g_ekf.scratch.assign[i], i);
+    }
+    assert_int_equal(g_ekf.n_lm, 4);
+    ASSERT_NEAR(g_ekf.x[0], 0.5, 0.05);
+    ASSERT_NEAR(g_ekf.x[1], -0.6, 0.05);
+    assert_true(PE(&g_ekf, 0, 0) < 0.01);
+    /* one weak pairing alone does not beat a new landmark, and inside the
+     * gate the sighting is not a new landmark either */
+    weak_pairings_case(1, z);
+    assert_int_equal(ekfslam_update(&g_ekf, z, 1), COSLAM_OK);
+    assert_int_equal(g_ekf.scratch.assign[0], -1);
+    assert_int_equal(g_ekf.n_lm, 4);
+    assert_true(g_ekf.x[0] == 0.0 && g_ekf.x[1] == 0.0);
+}
+
+/* A weak pairing (alone less likely than a new landmark) is not a competing
+ * reading in the ambiguity test: a revisit of L1 (robot sd 0.3 m, innovation
+ * zero) with an identical L2 at d^2 = 7 (inside the gate, below p0) is
+ * applied, not held back as ambiguous. */
+static void test_weak_alternative_does_not_hold_closure(void **state)
+{
+    (void)state;
+    ekfslam_config_t c = config();
+    const pose2_t p0 = {0.0, 0.0, 0.0};
+    assert_int_equal(ekfslam_init(&g_ekf, &c, p0), COSLAM_OK);
+    const point2_t l1 = {3.0, 0.0};
+    const double sd_b = sqrt(0.09 / 9.0 + c.slam.noise.bearing_var_rad2);
+    const double b2 = sqrt(7.0) * sd_b; /* bearing offset of L2: d^2 = 7 */
+    const point2_t l2 = {3.0 * cos(b2), 3.0 * sin(b2)};
+    const point2_t lms[2] = {l1, l2};
+    for (int j = 0; j < 2; ++j) {
+        ekfslam_meta_t meta = {(uint32_t)(j + 1), 5.0f, 5, 1, 0, 0};
+        assert_int_equal(ekfslam_add_landmark_body(&g_ekf, lms[j], cov2_make(1e-6, 0.0, 1e-6), &meta), COSLAM_OK);
+    }
+    for (int r = 0; r < 7; ++r) {
+        for (int k = 0; k < 7; ++k) {
+            PE(&g_ekf, r, k) = r == k ? (r < 2 ? 0.09 : 1e-6) : 0.0;
+        }
+    }
+    g_ekf.ctr.updates = 100U; /* both last sighted at update 0: a revisit */
+    const sighting_t z = observe_predict(p0, l1);
+    assert_int_equal(ekfslam_update(&g_ekf, &z, 1), COSLAM_OK);
+    assert_int_equal(g_ekf.scratch.assign[0], 0);
+    assert_int_equal(g_ekf.ctr.jcbb_ambiguous, 0);
+    assert_true(PE(&g_ekf, 0, 0) < 0.09);
+}
+
 /* A revisit whose robot-landmark offset is uncertain against its range
  * (sd 0.8 m at 1 m) is held back: no update, no new landmark, counted.
  * The same uncertainty at 4 m is a usable closure. */
-static int closure_case(double range_m)
+static int closure_case_budget(double range_m, uint32_t max_nodes)
 {
     ekfslam_config_t c = config();
+    c.jcbb_max_nodes = max_nodes;
     c.slam.new_landmark_log_lik = -20.0; /* the pairing is admissible */
     const pose2_t p0 = {0.0, 0.0, 0.0};
     assert_int_equal(ekfslam_init(&g_ekf, &c, p0), COSLAM_OK);
@@ -353,6 +455,25 @@ static int closure_case(double range_m)
     assert_int_equal(ekfslam_update(&g_ekf, &z, 1), COSLAM_OK);
     assert_int_equal(g_ekf.n_lm, 1);
     return g_ekf.ctr.jcbb_closures_nonlinear == 1U;
+}
+
+static int closure_case(double range_m)
+{
+    return closure_case_budget(range_m, ekfslam_config_default().jcbb_max_nodes);
+}
+
+/* A search cut by its node budget has not ruled out the alternatives: the
+ * usable closure of closure_case(4 m) is held back, counted, the pose and
+ * its covariance untouched. */
+static void test_cut_search_holds_closure(void **state)
+{
+    (void)state;
+    assert_false(closure_case_budget(4.0, 2U));
+    assert_int_equal(g_ekf.ctr.jcbb_budget_hits, 1);
+    assert_int_equal(g_ekf.ctr.jcbb_ambiguous, 1);
+    assert_true(g_ekf.x[0] == 0.0 && g_ekf.x[1] == 0.0 && g_ekf.x[2] == 0.0);
+    assert_true(PE(&g_ekf, 0, 0) == 0.64);
+    assert_int_equal(g_ekf.n_lm, 1);
 }
 
 static void test_nonlinear_closure_held(void **state)
@@ -518,7 +639,10 @@ int main(void)
         cmocka_unit_test(test_remove_keeps_the_rest),
         cmocka_unit_test(test_capacity_and_bad_input),
         cmocka_unit_test(test_jcbb_beats_nn),
+        cmocka_unit_test(test_jcbb_weak_pairings_jointly),
+        cmocka_unit_test(test_weak_alternative_does_not_hold_closure),
         cmocka_unit_test(test_nonlinear_closure_held),
+        cmocka_unit_test(test_cut_search_holds_closure),
         cmocka_unit_test(test_iterated_closure_is_map),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

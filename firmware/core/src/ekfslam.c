@@ -1707,9 +1707,12 @@ static void jcbb_search(ekfslam_t *ekf, const sighting_t *z, int ns, int i, int 
         if (sc->pass == 0U) {
             jcbb_leaf(ekf, ns, k, score);
         } else {
-            /* second pass: the best alternative for each sighting */
+            /* second pass: the best alternative for each sighting; a weak
+             * pairing (alone less likely than a new landmark) is not a
+             * competing reading */
             for (int q = 0; q < ns; ++q) {
-                if (sc->hyp[q] == sc->best[q]) {
+                if (sc->hyp[q] == sc->best[q] ||
+                    (sc->hyp[q] >= 0 && sc->pairs[sc->hyp_pi[q]].score < ekf->cfg.slam.new_landmark_log_lik)) {
                     continue;
                 }
                 double *alt = sc->hyp[q] >= 0 ? &sc->alt_other[q] : &sc->alt_none[q];
@@ -1729,6 +1732,7 @@ static void jcbb_search(ekfslam_t *ekf, const sighting_t *z, int ns, int i, int 
         const double d2n = jcbb_extend(ekf, z, k, pi, &inc);
         if (d2n < sc->chi2_joint[k + 1]) {
             sc->hyp[i] = j;
+            sc->hyp_pi[i] = pi;
             sc->hyp_pair[k] = pi;
             jcbb_search(ekf, z, ns, i + 1, k + 1, d2n, logdet + inc, n_unpaired,
                         n_closure + sc->closure[j]);
@@ -1827,11 +1831,16 @@ static void jcbb_associate(ekfslam_t *ekf, const sighting_t *z, int ns, int n_pa
         sc->alt_other[i] = -INFINITY;
         sc->alt_none[i] = -INFINITY;
     }
+    /* each pass has the budget; a cut search has not ruled out the
+     * alternatives, so the frame's loop-closing pairings are held back */
+    int cut = sc->nodes >= ekf->cfg.jcbb_max_nodes;
     if (ekf->cfg.jcbb_ambiguity_d2 > 0.0 && sc->best_pairings > 0) {
         sc->pass = 1U;
+        sc->nodes = 0U;
         jcbb_search(ekf, z, ns, 0, 0, 0.0, 0.0, 0, 0);
+        cut = cut || sc->nodes >= ekf->cfg.jcbb_max_nodes;
     }
-    if (sc->nodes >= ekf->cfg.jcbb_max_nodes) {
+    if (cut) {
         ekf->ctr.jcbb_budget_hits++;
     }
     /* A loop-closing pairing is used only if it is decisively the most
@@ -1852,7 +1861,7 @@ static void jcbb_associate(ekfslam_t *ekf, const sighting_t *z, int ns, int n_pa
         sc->held[i] = 0U;
         sc->assign[i] = sc->best[i];
         if (sc->best[i] >= 0 && sc->closure[sc->best[i]] &&
-            (sc->alt_other[i] > sc->best_score - margin ||
+            (cut || sc->alt_other[i] > sc->best_score - margin ||
              (n_with_cand >= 2 && sc->alt_none[i] > sc->best_score - margin))) {
             sc->assign[i] = -1;
             sc->held[i] = 1U;
@@ -1946,7 +1955,16 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
             }
             const double d2 = landmark_mahalanobis2(&sc->expect[j], z[i]);
             const double ll = landmark_log_lik(&sc->expect[j], d2);
-            const assoc_class_t cls = assoc_classify(sp, d2, ll);
+            assoc_class_t cls = assoc_classify(sp, d2, ll);
+            if (cls == ASSOC_NEAR && d2 < sp->gate_chi2 && ekf->cfg.assoc == EKFSLAM_ASSOC_JCBB) {
+                /* inside the gate but alone less likely than a new
+                 * landmark (a vague prediction): JCBB scores hypotheses
+                 * jointly against p0 itself, and with the pose fixed by
+                 * the frame's other pairings this one can be likely; it
+                 * is a weak pairing, not a competing reading of the
+                 * sighting in the ambiguity test (jcbb_associate) */
+                cls = ASSOC_ADMISSIBLE;
+            }
             if (cls == ASSOC_ADMISSIBLE) {
                 assoc_pair_t *pr = &sc->pairs[n_pairs++];
                 pr->score = ll;

@@ -94,7 +94,7 @@ typedef struct {
                                     (robot-landmark uncertainty well above the
                                     sensor's) needs at least this many of them;
                                     with fewer, those sightings are held back.
-                                    Default 2 (>= 1; 1 = plain JCBB) */
+                                    Default 1 (>= 1; 1 = plain JCBB) */
     uint32_t jcbb_closure_gap;  /**< a pairing is loop-closing if its landmark was
                                     last sighted more than this many updates ago
                                     and det S > 4 det Q. Default 25 (5 s at 5 Hz) */
@@ -208,6 +208,7 @@ typedef struct {
     int32_t cand_begin[COSLAM_MAX_SIGHTINGS + 1]; /**< candidates of sighting i: pairs[begin[i] .. begin[i+1]) */
     int32_t hyp[COSLAM_MAX_SIGHTINGS];
     int32_t hyp_pair[COSLAM_MAX_SIGHTINGS];       /**< pair index of the k-th pairing */
+    int32_t hyp_pi[COSLAM_MAX_SIGHTINGS];         /**< pair index of sighting i's pairing (valid if hyp[i] >= 0) */
     double chol[EKFSLAM_JCBB_DIM][EKFSLAM_JCBB_DIM]; /**< Cholesky factor of the joint S */
     double y[EKFSLAM_JCBB_DIM];                   /**< L^-1 nu */
     double chi2_joint[COSLAM_MAX_SIGHTINGS + 1];
