@@ -273,6 +273,32 @@ static void test_capacity_and_bad_input(void **state)
  * sighting of L1 then lands nearer L2; only the sighting of L3, paired
  * jointly, reveals the shift. NN takes L2 individually; JCBB must not.
  */
+/* g_ekf from config c at the origin with landmarks lms[0..n) (ids 1..n,
+ * class 0, confirmed), the state decorrelated: robot position variance
+ * pos_var, heading theta_var, landmarks 1e-4 m^2. */
+static void init_decorrelated(const ekfslam_config_t *c, const point2_t *lms, int n, double pos_var,
+                              double theta_var)
+{
+    const pose2_t origin = {0.0, 0.0, 0.0};
+    assert_int_equal(ekfslam_init(&g_ekf, c, origin), COSLAM_OK);
+    for (int j = 0; j < n; ++j) {
+        ekfslam_meta_t meta = {(uint32_t)(j + 1), 5.0f, 5, 1, 0, 0};
+        assert_int_equal(ekfslam_add_landmark_body(&g_ekf, lms[j], cov2_make(1e-4, 0.0, 1e-4), &meta), COSLAM_OK);
+    }
+    const int d = 3 + 2 * n;
+    for (int r = 0; r < d; ++r) {
+        for (int k = 0; k < d; ++k) {
+            PE(&g_ekf, r, k) = 0.0;
+        }
+    }
+    PE(&g_ekf, 0, 0) = pos_var;
+    PE(&g_ekf, 1, 1) = pos_var;
+    PE(&g_ekf, 2, 2) = theta_var;
+    for (int r = 3; r < d; ++r) {
+        PE(&g_ekf, r, r) = 1e-4;
+    }
+}
+
 static void setup_jcbb_case(ekfslam_assoc_t assoc, sighting_t z[2])
 {
     ekfslam_config_t c = config();
@@ -283,29 +309,9 @@ static void setup_jcbb_case(ekfslam_assoc_t assoc, sighting_t z[2])
     c.slam.gate_chi2 = 16.0;
     c.slam.new_landmark_chi2 = 30.0;
     c.slam.exist_confirm = c.slam.exist_init;
-    const pose2_t p0 = {0.0, 0.0, 0.0};
-    assert_int_equal(ekfslam_init(&g_ekf, &c, p0), COSLAM_OK);
     const point2_t lms[3] = {{3.0, 0.0}, {3.0, 0.6}, {2.0, -2.0}};
-    for (int j = 0; j < 3; ++j) {
-        const pose2_t origin = {0.0, 0.0, 0.0};
-        ekfslam_meta_t meta = {(uint32_t)(j + 1), 5.0f, 5, 1, 0, 0};
-        assert_int_equal(ekfslam_add_landmark_body(&g_ekf, pose2_apply_inverse(origin, lms[j]),
-                                                   cov2_make(1e-4, 0.0, 1e-4), &meta),
-                         COSLAM_OK);
-    }
-    /* decorrelate: robot position sd 0.3, heading sd 0.001, landmarks 1 cm */
-    const int d = 3 + 2 * 3;
-    for (int r = 0; r < d; ++r) {
-        for (int k = 0; k < d; ++k) {
-            PE(&g_ekf, r, k) = 0.0;
-        }
-    }
-    PE(&g_ekf, 0, 0) = 0.09;
-    PE(&g_ekf, 1, 1) = 0.09;
-    PE(&g_ekf, 2, 2) = 1e-6;
-    for (int r = 3; r < d; ++r) {
-        PE(&g_ekf, r, r) = 1e-4;
-    }
+    /* robot position sd 0.3, heading sd 0.001, landmarks 1 cm */
+    init_decorrelated(&c, lms, 3, 0.09, 1e-6);
     const pose2_t truth = {0.0, -0.4, 0.0};
     z[0] = observe_predict(truth, lms[0]);
     z[1] = observe_predict(truth, lms[2]);
@@ -336,27 +342,8 @@ static void weak_pairings_case(int n_z, sighting_t z[4])
 {
     ekfslam_config_t c = config();
     const pose2_t p0 = {0.0, 0.0, 0.0};
-    assert_int_equal(ekfslam_init(&g_ekf, &c, p0), COSLAM_OK);
     const point2_t lms[4] = {{2.0, 1.0}, {2.5, -1.0}, {1.5, -2.0}, {2.8, 0.2}};
-    for (int j = 0; j < 4; ++j) {
-        const pose2_t origin = {0.0, 0.0, 0.0};
-        ekfslam_meta_t meta = {(uint32_t)(j + 1), 5.0f, 5, 1, 0, 0};
-        assert_int_equal(ekfslam_add_landmark_body(&g_ekf, pose2_apply_inverse(origin, lms[j]),
-                                                   cov2_make(1e-4, 0.0, 1e-4), &meta),
-                         COSLAM_OK);
-    }
-    const int d = 3 + 2 * 4;
-    for (int r = 0; r < d; ++r) {
-        for (int k = 0; k < d; ++k) {
-            PE(&g_ekf, r, k) = 0.0;
-        }
-    }
-    PE(&g_ekf, 0, 0) = 1.44;
-    PE(&g_ekf, 1, 1) = 1.44;
-    PE(&g_ekf, 2, 2) = 1e-4;
-    for (int r = 3; r < d; ++r) {
-        PE(&g_ekf, r, r) = 1e-4;
-    }
+    init_decorrelated(&c, lms, 4, 1.44, 1e-4);
     const pose2_t truth = {0.5, -0.6, 0.0};
     for (int i = 0; i < n_z; ++i) {
         z[i] = observe_predict(truth, lms[i]);
