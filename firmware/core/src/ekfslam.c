@@ -1929,6 +1929,7 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
 
     /* 1-2. expectations and gated, likelihood-ranked candidate pairs */
     const pose2_t pose = robot_pose(ekf);
+    const int jcbb = ekf->cfg.assoc == EKFSLAM_ASSOC_JCBB;
     int n_pairs = 0;
     for (uint16_t j = 0; j < ekf->n_lm; ++j) {
         sc->near[j] = 0;
@@ -1955,16 +1956,13 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
             }
             const double d2 = landmark_mahalanobis2(&sc->expect[j], z[i]);
             const double ll = landmark_log_lik(&sc->expect[j], d2);
-            assoc_class_t cls = assoc_classify(sp, d2, ll);
-            if (cls == ASSOC_NEAR && d2 < sp->gate_chi2 && ekf->cfg.assoc == EKFSLAM_ASSOC_JCBB) {
-                /* inside the gate but alone less likely than a new
-                 * landmark (a vague prediction): JCBB scores hypotheses
-                 * jointly against p0 itself, and with the pose fixed by
-                 * the frame's other pairings this one can be likely; it
-                 * is a weak pairing, not a competing reading of the
-                 * sighting in the ambiguity test (jcbb_associate) */
-                cls = ASSOC_ADMISSIBLE;
-            }
+            /* JCBB: every pairing inside the gate is a candidate, also one
+             * alone less likely than a new landmark (a vague prediction):
+             * JCBB scores hypotheses jointly against p0 itself, and with
+             * the pose fixed by the frame's other pairings this one can be
+             * likely. Such a weak pairing is not a competing reading of
+             * the sighting in the ambiguity test (jcbb_associate). */
+            const assoc_class_t cls = assoc_classify(sp, d2, jcbb ? (double)INFINITY : ll);
             if (cls == ASSOC_ADMISSIBLE) {
                 assoc_pair_t *pr = &sc->pairs[n_pairs++];
                 pr->score = ll;
@@ -1975,7 +1973,7 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
             }
         }
     }
-    if (ekf->cfg.assoc == EKFSLAM_ASSOC_JCBB) {
+    if (jcbb) {
         jcbb_associate(ekf, z, ns, n_pairs);
     } else {
         assoc_greedy(sc->pairs, n_pairs, ns, sc->assign);

@@ -386,17 +386,14 @@ static void grid_build(merge_scratch_t *sc, const merge_body_map_t *bm, double c
 }
 
 /* 0 if no incoming landmark lies in the 3x3 cells around point q (so q
- * can pair with none): the occupancy bitmap of grid_build. q's cell in
- * *cx, *cy. */
-static int grid_may_pair(const merge_scratch_t *sc, point2_t q, int32_t *cx, int32_t *cy)
+ * can pair with none): the occupancy bitmap of grid_build. */
+static int grid_may_pair(const merge_scratch_t *sc, point2_t q)
 {
-    *cx = cell_of(q.x, sc->cell_m);
-    *cy = cell_of(q.y, sc->cell_m);
     if (sc->occ_bin <= 0) {
         return 0;
     }
-    const int64_t dx = (int64_t)*cx - sc->occ_x0;
-    const int64_t dy = (int64_t)*cy - sc->occ_y0;
+    const int64_t dx = (int64_t)cell_of(q.x, sc->cell_m) - sc->occ_x0;
+    const int64_t dy = (int64_t)cell_of(q.y, sc->cell_m) - sc->occ_y0;
     const int64_t lim = (int64_t)sc->occ_bin * MERGE_OCC_BINS;
     if (dx < 0 || dy < 0 || dx >= lim || dy >= lim) {
         return 0;
@@ -444,9 +441,11 @@ static void sort_pairs(merge_pair_t *p, int n)
  * enough for the gate (grid_cell_size). */
 typedef void (*grid_visit_fn)(merge_scratch_t *sc, int32_t j, int32_t i, double d2, void *ctx);
 
-static void grid_gated_cells(merge_scratch_t *sc, const merge_body_map_t *bm, int32_t cx, int32_t cy, point2_t q,
-                             cov2_t q_cov, uint8_t sig, int32_t tag, double gate, grid_visit_fn visit, void *ctx)
+static void grid_gated_at(merge_scratch_t *sc, const merge_body_map_t *bm, point2_t q, cov2_t q_cov, uint8_t sig,
+                          int32_t tag, double gate, grid_visit_fn visit, void *ctx)
 {
+    const int32_t cx = cell_of(q.x, sc->cell_m);
+    const int32_t cy = cell_of(q.y, sc->cell_m);
     for (int32_t dx = -1; dx <= 1; ++dx) {
         for (int32_t dy = -1; dy <= 1; ++dy) {
             for (int32_t i = sc->bucket_head[cell_hash(cx + dx, cy + dy)]; i >= 0; i = sc->next[i]) {
@@ -468,13 +467,6 @@ static void grid_gated_cells(merge_scratch_t *sc, const merge_body_map_t *bm, in
             }
         }
     }
-}
-
-static void grid_gated_at(merge_scratch_t *sc, const merge_body_map_t *bm, point2_t q, cov2_t q_cov, uint8_t sig,
-                          int32_t tag, double gate, grid_visit_fn visit, void *ctx)
-{
-    grid_gated_cells(sc, bm, cell_of(q.x, sc->cell_m), cell_of(q.y, sc->cell_m), q, q_cov, sig, tag, gate, visit,
-                     ctx);
 }
 
 /* The same around own landmark j (its body-frame position and cov_rel). */
@@ -507,11 +499,10 @@ static void collect_pair(merge_scratch_t *sc, int32_t j, int32_t i, double d2, v
  * the receiver's body frame) and the incoming map: candidates from the 3x3
  * grid cells around each own landmark, same signature, inside the gate;
  * then one-to-one by increasing distance into sc->match_of_in.
- * O(M_own + P log P) for P candidate pairs. With own_cells set, the own
- * landmarks' grid cells are in sc->own_cx / own_cy already.
+ * O(M_own + P log P) for P candidate pairs.
  */
 static void pair_and_select(merge_scratch_t *sc, const merge_body_map_t *bm, const merge_config_t *cfg, int n_own,
-                            merge_stats_t *stats, int own_cells)
+                            merge_stats_t *stats)
 {
     pair_ctx_t pc = {0, stats};
     for (uint16_t i = 0; i < bm->n; ++i) {
@@ -520,12 +511,7 @@ static void pair_and_select(merge_scratch_t *sc, const merge_body_map_t *bm, con
     }
     for (int j = 0; j < n_own; ++j) {
         sc->own_used[j] = 0;
-        if (own_cells) {
-            grid_gated_cells(sc, bm, sc->own_cx[j], sc->own_cy[j], sc->own_body[j], sc->own_cov[j], sc->own_sig[j],
-                             (int32_t)j, cfg->gate_chi2, collect_pair, &pc);
-        } else {
-            grid_gated(sc, bm, (int32_t)j, cfg->gate_chi2, collect_pair, &pc);
-        }
+        grid_gated(sc, bm, (int32_t)j, cfg->gate_chi2, collect_pair, &pc);
     }
     const int n_pairs = pc.n_pairs;
     sort_pairs(sc->pairs, n_pairs);
@@ -614,20 +600,16 @@ coslam_status_t merge_into_fastslam(fastslam_t *fs, const merge_body_map_t *bm, 
         int n_cand = 0;
         for (uint16_t j = 0; j < p->n_lm; ++j) {
             const point2_t body = pose2_apply_inverse_cs(p->pose, c, s, own[j]->mean);
-            int32_t cx;
-            int32_t cy;
-            if (!grid_may_pair(sc, body, &cx, &cy)) {
+            if (!grid_may_pair(sc, body)) {
                 continue;
             }
             sc->own_body[n_cand] = body;
-            sc->own_cx[n_cand] = cx;
-            sc->own_cy[n_cand] = cy;
             sc->own_cov[n_cand] = cov2_congruence(rt, own[j]->cov);
             sc->own_sig[n_cand] = own[j]->signature;
             sc->own_idx[n_cand] = j;
             n_cand++;
         }
-        pair_and_select(sc, bm, cfg, n_cand, stats, 1);
+        pair_and_select(sc, bm, cfg, n_cand, stats);
         const double dup_w = duplicate_weight(sc, bm, cfg);
         for (uint16_t i = 0; i < bm->n; ++i) {
             const point2_t wm = pose2_apply_cs(p->pose, c, s, bm->mean[i]);
@@ -710,7 +692,7 @@ coslam_status_t merge_into_ekfslam(ekfslam_t *ekf, const merge_body_map_t *bm, c
         ekfslam_landmark_relative(ekf, j, &sc->own_body[j], &sc->own_cov[j]);
         sc->own_sig[j] = ekf->meta[j].signature;
     }
-    pair_and_select(sc, bm, cfg, n_own, stats, 0);
+    pair_and_select(sc, bm, cfg, n_own, stats);
     const double dup_w = duplicate_weight(sc, bm, cfg);
     if (ekfslam_merge_begin(ekf, &bm->t_cov) != COSLAM_OK) {
         return COSLAM_E_ARG;
@@ -942,7 +924,7 @@ static void check_pair(merge_scratch_t *sc, merge_body_map_t *bm, const merge_co
     double gate = cfg->ambiguous_chi2 > cfg->gate_chi2 ? cfg->ambiguous_chi2 : cfg->gate_chi2;
     gate = cfg->unresolved_chi2 > gate ? cfg->unresolved_chi2 : gate;
     grid_build(sc, bm, grid_cell_size(bm, cfg, gate));
-    pair_and_select(sc, bm, cfg, n_own, stats, 0);
+    pair_and_select(sc, bm, cfg, n_own, stats);
 }
 
 /* Mark (sc->drop = 2) every unpaired incoming landmark that lies within

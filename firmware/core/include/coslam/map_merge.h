@@ -233,8 +233,6 @@ typedef struct {
     uint8_t own_sig[COSLAM_MAX_LANDMARKS];
     uint8_t own_used[COSLAM_MAX_LANDMARKS];
     uint16_t own_idx[COSLAM_MAX_LANDMARKS];     /**< Fast-SLAM: own slot of each candidate */
-    int32_t own_cx[COSLAM_MAX_LANDMARKS];       /**< Fast-SLAM: its grid cell */
-    int32_t own_cy[COSLAM_MAX_LANDMARKS];
     /* cells (dilated by one) that hold an incoming landmark, in bins of
      * occ_bin cells from (occ_x0, occ_y0): an own landmark outside them
      * has no incoming one in its 3x3 neighbourhood */
