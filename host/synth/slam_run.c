@@ -231,6 +231,10 @@ int run_synth_traced(const synth_config_t *scfg, const run_opts_t *opts, run_res
     }
     if (full != NULL) {
         eval_map_whole(full, w->lm, w->n_seen, w->n_lm, opts->min_seen, opts->gate_m, &res->map);
+        pose2_t fit;
+        res->has_map_fit = opts->score_rigid_fit &&
+                           eval_map_rigid_whole(full, w->lm, w->n_seen, w->n_lm, opts->min_seen, opts->gate_m, &fit,
+                                                &res->map_fit) == COSLAM_OK;
     } else {
         eval_map(&res->estimate, w->lm, w->n_seen, w->n_lm, opts->min_seen, opts->gate_m, &res->map);
     }

@@ -31,6 +31,7 @@ typedef struct {
     int stop_after_steps;       /**< end the run early (0: run to the end) */
     int nees_every;             /**< pose NEES checkpoint period in steps (0: 50) */
     double ekf_active_radius_m; /**< EKF-SLAM: ekfslam_config_t.active_radius_m (< 0: the default) */
+    int score_rigid_fit;        /**< also score the final map after the best rigid fit (run_result_t.map_fit) */
     int trace_map_every;        /**< run_synth_traced: score the map every this many steps
                                      into the trace (0: never; costs an export and eval_map each) */
 } run_opts_t;
@@ -47,6 +48,9 @@ typedef struct {
     int n_ckpt;
     double pose_nees_ckpt[RUN_MAX_CKPT]; /**< pose NEES every nees_every steps */
     map_eval_t map;
+    int has_map_fit;            /**< map_fit is set (run_opts_t.score_rigid_fit) */
+    map_eval_t map_fit;         /**< the final map after the best rigid fit (eval_map_rigid_whole),
+                                     as coslam-replay scores maps without robot truth */
     double step_us_mean;        /**< wall time per control step (predict + update) */
     double step_us_max;
     uint32_t capacity_errors;

@@ -55,9 +55,24 @@ int synth_sight_landmarks(const slam_params_t *sp, rng_t *rng, pose2_t pose, con
     return n;
 }
 
+static int is_arena(const synth_config_t *cfg) { return cfg->arena_half_x_m > 0.0; }
+
 pose2_t synth_start_pose(const synth_config_t *cfg)
 {
+    if (is_arena(cfg)) {
+        const pose2_t centre = {0.0, 0.0, 0.0};
+        return centre;
+    }
     const pose2_t p = {cfg->loop_radius_m, 0.0, COSLAM_PI / 2.0};
+    return p;
+}
+
+/* a uniform point of the arena, `inset` inside its edges */
+static point2_t arena_point(synth_world_t *w, double inset)
+{
+    const double hx = fmax(w->cfg.arena_half_x_m - inset, 0.0);
+    const double hy = fmax(w->cfg.arena_half_y_m - inset, 0.0);
+    const point2_t p = {(2.0 * rng_uniform(&w->rng) - 1.0) * hx, (2.0 * rng_uniform(&w->rng) - 1.0) * hy};
     return p;
 }
 
@@ -71,30 +86,73 @@ void synth_init(synth_world_t *w, const synth_config_t *cfg)
     const double r_out = cfg->loop_radius_m + cfg->ring_half_width_m;
     /* relax the separation if the ring is too crowded for it */
     double sep = cfg->min_separation_m;
+    double centre_sep = 1.5;
     int tries = 0;
     while (w->n_lm < want) {
-        /* uniform in the ring (area-weighted radius) */
-        const double u = rng_uniform(&w->rng);
-        const double rad = sqrt(r_in * r_in + u * (r_out * r_out - r_in * r_in));
-        const double ang = COSLAM_TWO_PI * rng_uniform(&w->rng);
-        const point2_t p = {rad * cos(ang), rad * sin(ang)};
+        point2_t p;
+        if (is_arena(cfg) && cfg->arena_clusters > 0 && w->n_lm >= cfg->arena_clusters) {
+            /* a landmark of cluster n_lm mod k: uniform in the disc round the centre */
+            const point2_t c = w->lm[w->n_lm % cfg->arena_clusters];
+            const double rad = cfg->cluster_radius_m * sqrt(rng_uniform(&w->rng));
+            const double ang = COSLAM_TWO_PI * rng_uniform(&w->rng);
+            p.x = c.x + rad * cos(ang);
+            p.y = c.y + rad * sin(ang);
+        } else if (is_arena(cfg)) {
+            p = arena_point(w, 0.0);
+        } else {
+            /* uniform in the ring (area-weighted radius) */
+            const double u = rng_uniform(&w->rng);
+            const double rad = sqrt(r_in * r_in + u * (r_out * r_out - r_in * r_in));
+            const double ang = COSLAM_TWO_PI * rng_uniform(&w->rng);
+            p.x = rad * cos(ang);
+            p.y = rad * sin(ang);
+        }
+        /* cluster centres (the first landmarks) stand 1.5 m apart */
+        const double sep_here = is_arena(cfg) && w->n_lm < cfg->arena_clusters ? centre_sep : sep;
         int ok = 1;
         for (int j = 0; j < w->n_lm && ok; ++j) {
             const double dx = p.x - w->lm[j].x;
             const double dy = p.y - w->lm[j].y;
-            ok = dx * dx + dy * dy >= sep * sep;
+            ok = dx * dx + dy * dy >= sep_here * sep_here;
         }
         if (ok) {
             w->sig[w->n_lm] = synth_signature(&w->rng, cfg->n_signatures, w->n_lm);
             w->lm[w->n_lm++] = p;
         } else if (++tries > 200000) {
             sep *= 0.9;
+            centre_sep *= 0.9;
             tries = 0;
         }
     }
     w->pose = synth_start_pose(cfg);
+    if (is_arena(cfg)) {
+        w->waypoint = arena_point(w, 0.5);
+        w->n_steps = (int)ceil(cfg->wander_s / cfg->dt_s);
+        return;
+    }
     const double length = cfg->loops * COSLAM_TWO_PI * cfg->loop_radius_m;
     w->n_steps = (int)ceil(length / (cfg->speed_mps * cfg->dt_s));
+}
+
+/* arena mode: turn on the spot towards the waypoint, then drive to it */
+static odo_increment_t wander_motion(synth_world_t *w)
+{
+    const synth_config_t *c = &w->cfg;
+    double dx = w->waypoint.x - w->pose.x;
+    double dy = w->waypoint.y - w->pose.y;
+    if (dx * dx + dy * dy < 0.3 * 0.3) {
+        w->waypoint = arena_point(w, 0.5);
+        dx = w->waypoint.x - w->pose.x;
+        dy = w->waypoint.y - w->pose.y;
+    }
+    const double e = angle_wrap(atan2(dy, dx) - w->pose.theta);
+    const double w_max = c->turn_radps;
+    if (fabs(e) > 0.2) {
+        const double wz = fabs(e) / c->dt_s < w_max ? e / c->dt_s : copysign(w_max, e);
+        return motion_from_body_velocity(0.0, 0.0, wz, c->dt_s);
+    }
+    const double wz = fmax(-w_max, fmin(w_max, 2.0 * e));
+    return motion_from_body_velocity(c->speed_mps, 0.0, wz, c->dt_s);
 }
 
 static int poisson(rng_t *rng, double mean)
@@ -118,9 +176,11 @@ int synth_next(synth_world_t *w, synth_step_t *s)
     if (w->step >= w->n_steps) {
         return 0;
     }
-    /* true motion: a circular arc; the odometry reports it with noise */
+    /* true motion: a circular arc (or the arena's wandering); the odometry
+     * reports it with noise */
     const odo_increment_t u_true =
-        motion_from_body_velocity(c->speed_mps, 0.0, c->speed_mps / c->loop_radius_m, c->dt_s);
+        is_arena(c) ? wander_motion(w)
+                    : motion_from_body_velocity(c->speed_mps, 0.0, c->speed_mps / c->loop_radius_m, c->dt_s);
     s->u = motion_sample(&c->truth, u_true, &w->rng);
     w->pose = motion_apply(w->pose, u_true);
     w->step++;

@@ -13,6 +13,16 @@
  * footprint is detected with probability p_detect and sighted with the
  * range-bearing noise of the observation model; clutter_per_frame false
  * sightings (Poisson mean) are added uniformly over the footprint.
+ *
+ * Arena mode (arena_half_x_m > 0), the MRCLAM-like regime: landmarks
+ * uniform in the rectangle [-arena_half_x_m, arena_half_x_m] x
+ * [-arena_half_y_m, arena_half_y_m]; the robot starts at the centre facing
+ * +x and wanders for wander_s seconds between random waypoints (0.5 m inside
+ * the rectangle): it turns on the spot at turn_radps until it faces the
+ * next waypoint, then drives to it at speed_mps, steering the residual.
+ * With arena_clusters > 0 the landmarks stand in that many clusters (centres
+ * uniform, at least 1.5 m apart; landmarks dealt round-robin, each within
+ * cluster_radius_m of its centre and min_separation_m of the others).
  */
 #ifndef COSLAM_TEST_SYNTH_H
 #define COSLAM_TEST_SYNTH_H
@@ -47,6 +57,12 @@ typedef struct {
     int camera_every;           /**< a camera frame every k control steps */
     double p_detect;
     double clutter_per_frame;
+    double arena_half_x_m;      /**< > 0: arena mode (rectangle, waypoints); the ring fields are unused */
+    double arena_half_y_m;
+    double wander_s;            /**< arena mode: duration of the run */
+    double turn_radps;          /**< arena mode: on-the-spot turn rate */
+    int arena_clusters;         /**< arena mode: > 0 puts the landmarks in this many clusters */
+    double cluster_radius_m;    /**< a cluster's landmarks lie within this of its centre */
     slam_params_t truth;        /**< noise and sensor footprint of the truth */
 } synth_config_t;
 
@@ -68,6 +84,7 @@ typedef struct {
     uint8_t sig[SYNTH_MAX_LANDMARKS];
     int n_seen[SYNTH_MAX_LANDMARKS]; /**< detections so far */
     pose2_t pose;
+    point2_t waypoint;          /**< arena mode: where the robot is going */
     int step;
     int n_steps;
 } synth_world_t;
@@ -89,7 +106,8 @@ int synth_sight_landmarks(const slam_params_t *sp, rng_t *rng, pose2_t pose, con
  *  5 Hz camera, p_detect 0.9, no clutter, slam_params_default() noise. */
 synth_config_t synth_config_default(uint64_t seed, int n_landmarks);
 
-/** Build the world (landmarks, start pose (R, 0, pi/2) on the circle). */
+/** Build the world (landmarks, start pose (R, 0, pi/2) on the circle, or
+ *  the arena's centre facing +x). */
 void synth_init(synth_world_t *w, const synth_config_t *cfg);
 
 /** Advance one control step; returns 0 when the run is over. */

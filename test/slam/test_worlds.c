@@ -17,6 +17,7 @@
  *    on the paper world.
  * Fast-SLAM on the long loop is printed, not asserted: it closes 4/10
  * (100 particles) and 6/10 (1000), see docs/consistency.md.
+ * The arena world (MRCLAM's regime) is bounded after a rigid fit, below.
  * CI runs world seeds 1-10; COSLAM_TEST_FULL adds the held-out seeds
  * 101-130, never used while choosing anything.
  */
@@ -92,11 +93,49 @@ static void test_long_loop(void **state)
     assert_nees(&ekf);
 }
 
+/* The arena (MRCLAM's regime, 15 identical landmarks in clusters, one or
+ * two sightings per frame, the filters on coslam-replay's MRCLAM model):
+ * its maps scored as coslam-replay scores MRCLAM, after the best rigid fit.
+ * Regression bounds, not goals: measured (seeds 1-10 / held-out 101-130)
+ * EKF-SLAM 0.60 / 1.40 spurious landmarks per run, landmark RMSE 0.32 /
+ * 0.20 m; Fast-SLAM 2.0 (100) 0.30 / 0.73 and 0.15 / 0.19 m. Issue 8 asks
+ * at most 1 per robot on MRCLAM; EKF-SLAM does not reach it here. */
+static void arena_set(run_filter_t f, int particles, double max_spurious_per_run, double max_rmse_m)
+{
+    run_result_t *r = malloc(sizeof *r);
+    assert_non_null(r);
+    int spurious = 0;
+    int clean = 0;
+    double rmse = 0.0;
+    for (int k = 0; k < WORLD_SEEDS; ++k) {
+        assert_int_equal(eval_world_run(EVAL_WORLD_ARENA, f, particles, WORLD_SEED0 + (uint64_t)k, r), 0);
+        assert_true(r->has_map_fit);
+        spurious += r->map_fit.n_spurious;
+        clean += r->map_fit.n_spurious == 0;
+        rmse += r->map_fit.rmse_m;
+    }
+    printf("arena, %s: after rigid fit %d of %d runs without a spurious landmark, %.2f per run, landmark RMSE %.3f m\n",
+           f == RUN_EKFSLAM ? "EKF-SLAM" : "Fast-SLAM 2.0 (100)", clean, WORLD_SEEDS, (double)spurious / WORLD_SEEDS,
+           rmse / WORLD_SEEDS);
+    ASSERT_TRUE_MSG(spurious <= max_spurious_per_run * WORLD_SEEDS, "%d spurious landmarks in %d runs\n", spurious,
+                    WORLD_SEEDS);
+    ASSERT_TRUE_MSG(rmse <= max_rmse_m * WORLD_SEEDS, "landmark RMSE %.3f m\n", rmse / WORLD_SEEDS);
+    free(r);
+}
+
+static void test_arena(void **state)
+{
+    (void)state;
+    arena_set(RUN_EKFSLAM, 0, 2.0, 0.4);
+    arena_set(RUN_FASTSLAM2, 100, 1.0, 0.3);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_paper_world),
         cmocka_unit_test(test_long_loop),
+        cmocka_unit_test(test_arena),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
