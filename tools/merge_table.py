@@ -25,7 +25,10 @@ def goals_missed(fm, fa, pm_, pa_):
         missed.append((0, f"{fm['n_spurious']} spurious with merging (goal <= 1)"))
     if fm["n_spurious"] > fa["n_spurious"]:
         missed.append((1, "more spurious with merging"))
-    if fm["rmse_m"] > fa["rmse_m"] + 1e-9:
+    # rmse_m is None where no landmark could be matched after the fit
+    if fm["rmse_m"] is None and fa["rmse_m"] is not None:
+        missed.append((2, "no landmark matched with merging"))
+    elif fm["rmse_m"] is not None and fa["rmse_m"] is not None and fm["rmse_m"] > fa["rmse_m"] + 1e-9:
         missed.append((2, "landmark RMSE higher with merging"))
     if pm_ is not None and pa_ is not None and pm_ > pa_ + 1e-9:
         missed.append((3, "pose RMSE higher with merging"))

@@ -34,59 +34,137 @@
 #include "eval_worlds.h"
 #include "profile_print.h"
 
-/* The world of `seed` as a landmark log (docs/replay.md: robot1.log with
- * O and Z records, robot1_truth.txt, landmarks_truth.txt, t0.txt), for
+/* The world of `seed` as a landmark log (docs/replay.md: robot<k>.log with
+ * O, Z and R records, robot<k>_truth.txt, landmarks_truth.txt, t0.txt), for
  * coslam-replay: odometry increments per control step as measured (noisy),
- * sightings with the true landmark index as id. Returns 0 on success. */
-static int write_log(eval_world_t wk, uint64_t seed, const char *dir)
+ * sightings with the true landmark index as id. The arena takes a team of
+ * n_robots (1-9): each starts at its own random pose (0.5 m inside the
+ * arena, 1 m apart), wanders with its own random stream, and on its camera
+ * frames also sights the other robots inside its footprint (with the
+ * landmarks' detection probability and noise) as R records, from which
+ * coslam-replay's meetings and merges follow. Returns 0 on success. */
+static int write_log(eval_world_t wk, uint64_t seed, const char *dir, int n_robots)
 {
+    enum { MAX_TEAM = 9 };
+    if (n_robots < 1 || n_robots > MAX_TEAM || (n_robots > 1 && wk != EVAL_WORLD_ARENA)) {
+        fprintf(stderr, "coslam-eval-worlds: --robots takes 1-%d, more than 1 only in the arena\n", MAX_TEAM);
+        return 2;
+    }
     if (mkdir(dir, 0775) != 0 && errno != EEXIST) {
         fprintf(stderr, "coslam-eval-worlds: cannot create %s: %s\n", dir, strerror(errno));
         return 1;
     }
     const synth_config_t sc = eval_world_config(wk, seed);
-    synth_world_t *w = malloc(sizeof *w);
-    synth_step_t *st = malloc(sizeof *st);
+    synth_world_t *w = malloc(sizeof(*w) * (size_t)n_robots);
+    synth_step_t *st = malloc(sizeof(*st) * (size_t)n_robots);
     char path[4096];
-    FILE *f[4] = {NULL, NULL, NULL, NULL};
-    const char *names[4] = {"robot1.log", "robot1_truth.txt", "landmarks_truth.txt", "t0.txt"};
+    FILE *f_log[MAX_TEAM] = {NULL};
+    FILE *f_truth[MAX_TEAM] = {NULL};
+    FILE *f_lm = NULL;
+    FILE *f_t0 = NULL;
     int rc = 0;
-    for (int k = 0; k < 4; ++k) {
-        snprintf(path, sizeof path, "%s/%s", dir, names[k]);
-        f[k] = fopen(path, "w");
-        if (f[k] == NULL) {
-            fprintf(stderr, "coslam-eval-worlds: cannot write %s: %s\n", path, strerror(errno));
-            rc = 1;
-        }
+    for (int k = 0; k < n_robots; ++k) {
+        snprintf(path, sizeof path, "%s/robot%d.log", dir, k + 1);
+        f_log[k] = fopen(path, "w");
+        rc |= f_log[k] == NULL;
+        snprintf(path, sizeof path, "%s/robot%d_truth.txt", dir, k + 1);
+        f_truth[k] = fopen(path, "w");
+        rc |= f_truth[k] == NULL;
     }
-    if (w == NULL || st == NULL || rc != 0) {
+    snprintf(path, sizeof path, "%s/landmarks_truth.txt", dir);
+    f_lm = fopen(path, "w");
+    snprintf(path, sizeof path, "%s/t0.txt", dir);
+    f_t0 = fopen(path, "w");
+    if (w == NULL || st == NULL || rc != 0 || f_lm == NULL || f_t0 == NULL) {
+        fprintf(stderr, "coslam-eval-worlds: cannot write the log in %s: %s\n", dir, strerror(errno));
         rc = 1;
         goto out;
     }
-    synth_init(w, &sc);
-    const pose2_t p0 = synth_start_pose(&sc);
-    fprintf(f[1], "%.17g %.17g %.17g %.17g\n", 0.0, p0.x, p0.y, p0.theta);
-    int n_z = 0;
-    while (synth_next(w, st)) {
-        fprintf(f[0], "O %.17g %.17g %.17g %.17g\n", st->t_s, st->u.dx, st->u.dy, st->u.dtheta);
-        fprintf(f[1], "%.17g %.17g %.17g %.17g\n", st->t_s, st->true_pose.x, st->true_pose.y, st->true_pose.theta);
-        for (int i = 0; st->is_frame && i < st->n_z; ++i) {
-            fprintf(f[0], "Z %.17g %d %.17g %.17g\n", st->t_s, (int)st->true_id[i], st->z[i].range_m,
-                    st->z[i].bearing_rad);
-            n_z++;
+    synth_init(&w[0], &sc);
+    rng_t team;
+    rng_seed(&team, seed * 7919U + 104729U);
+    if (n_robots > 1) {
+        /* random start poses, 1 m apart; each robot its own stream */
+        for (int k = 0; k < n_robots; ++k) {
+            if (k > 0) {
+                memcpy(&w[k], &w[0], sizeof w[0]);
+            }
+            pose2_t p0;
+            int ok;
+            do {
+                p0.x = (2.0 * rng_uniform(&team) - 1.0) * (sc.arena_half_x_m - 0.5);
+                p0.y = (2.0 * rng_uniform(&team) - 1.0) * (sc.arena_half_y_m - 0.5);
+                p0.theta = angle_wrap(COSLAM_TWO_PI * rng_uniform(&team));
+                ok = 1;
+                for (int q = 0; q < k; ++q) {
+                    ok = ok && hypot(p0.x - w[q].pose.x, p0.y - w[q].pose.y) >= 1.0;
+                }
+            } while (!ok);
+            synth_arena_place(&w[k], p0, seed * 1000U + (uint64_t)k + 1U);
         }
     }
-    for (int j = 0; j < w->n_lm; ++j) {
-        fprintf(f[2], "%d %.17g %.17g\n", j, w->lm[j].x, w->lm[j].y);
+    for (int k = 0; k < n_robots; ++k) {
+        fprintf(f_truth[k], "%.17g %.17g %.17g %.17g\n", 0.0, w[k].pose.x, w[k].pose.y, w[k].pose.theta);
     }
-    fprintf(f[3], "0\n");
-    fprintf(stderr, "coslam-eval-worlds: wrote %s (%d steps, %d sightings, %d landmarks)\n", dir, w->n_steps, n_z,
-            w->n_lm);
+    int n_z = 0;
+    int n_rz = 0;
+    for (;;) {
+        int more = 1;
+        for (int k = 0; k < n_robots; ++k) {
+            more = synth_next(&w[k], &st[k]) && more;
+        }
+        if (!more) {
+            break;
+        }
+        for (int k = 0; k < n_robots; ++k) {
+            const synth_step_t *s = &st[k];
+            fprintf(f_log[k], "O %.17g %.17g %.17g %.17g\n", s->t_s, s->u.dx, s->u.dy, s->u.dtheta);
+            fprintf(f_truth[k], "%.17g %.17g %.17g %.17g\n", s->t_s, s->true_pose.x, s->true_pose.y,
+                    s->true_pose.theta);
+            for (int i = 0; s->is_frame && i < s->n_z; ++i) {
+                fprintf(f_log[k], "Z %.17g %d %.17g %.17g\n", s->t_s, (int)s->true_id[i], s->z[i].range_m,
+                        s->z[i].bearing_rad);
+                n_z++;
+            }
+            /* the other robots in view: the landmarks' footprint, detection and noise */
+            const slam_params_t *tp = &sc.truth;
+            for (int q = 0; s->is_frame && q < n_robots; ++q) {
+                if (q == k) {
+                    continue;
+                }
+                const sighting_t zt = observe_predict(s->true_pose, (point2_t){st[q].true_pose.x, st[q].true_pose.y});
+                if (zt.range_m < tp->sensor_min_range_m || zt.range_m > tp->sensor_max_range_m ||
+                    fabs(zt.bearing_rad) > 0.5 * tp->sensor_fov_rad || rng_uniform(&team) >= sc.p_detect) {
+                    continue;
+                }
+                const cov2_t qn = observe_noise(tp, zt.range_m);
+                fprintf(f_log[k], "R %.17g %d %.17g %.17g\n", s->t_s, q + 1,
+                        zt.range_m + sqrt(qn.xx) * rng_gauss(&team),
+                        angle_wrap(zt.bearing_rad + sqrt(qn.yy) * rng_gauss(&team)));
+                n_rz++;
+            }
+        }
+    }
+    for (int j = 0; j < w[0].n_lm; ++j) {
+        fprintf(f_lm, "%d %.17g %.17g\n", j, w[0].lm[j].x, w[0].lm[j].y);
+    }
+    fprintf(f_t0, "0\n");
+    fprintf(stderr, "coslam-eval-worlds: wrote %s (%d robot(s), %d steps, %d landmark sightings, %d robot sightings, "
+                    "%d landmarks)\n", dir, n_robots, w[0].n_steps, n_z, n_rz, w[0].n_lm);
 out:
-    for (int k = 0; k < 4; ++k) {
-        if (f[k] != NULL && fclose(f[k]) != 0) {
+    for (int k = 0; k < MAX_TEAM; ++k) {
+        if (f_log[k] != NULL && fclose(f_log[k]) != 0) {
             rc = 1;
         }
+        if (f_truth[k] != NULL && fclose(f_truth[k]) != 0) {
+            rc = 1;
+        }
+    }
+    if (f_lm != NULL && fclose(f_lm) != 0) {
+        rc = 1;
+    }
+    if (f_t0 != NULL && fclose(f_t0) != 0) {
+        rc = 1;
     }
     free(w);
     free(st);
@@ -96,7 +174,7 @@ out:
 static void usage(void)
 {
     fprintf(stderr, "usage: coslam-eval-worlds [--world paper|loop|large|arena] [--filter ekf|fs1|fs2] [-p N] [--seeds N] "
-                    "[--seed0 S] [--out DIR] [--trace] [--active-radius R] [--write-log DIR]\n");
+                    "[--seed0 S] [--out DIR] [--trace] [--active-radius R] [--write-log DIR [--robots N]]\n");
 }
 
 int main(int argc, char **argv)
@@ -107,6 +185,7 @@ int main(int argc, char **argv)
     int particles = 100;
     int trace = 0;
     const char *log_dir = NULL;
+    int n_robots = 1;
     int seeds = 10;
     long seed0 = 1;
     double active_radius_m = -1.0;
@@ -120,6 +199,7 @@ int main(int argc, char **argv)
         else if (!strcmp(argv[i], "--out") && more) out = argv[++i];
         else if (!strcmp(argv[i], "--trace")) trace = 1;
         else if (!strcmp(argv[i], "--write-log") && more) log_dir = argv[++i];
+        else if (!strcmp(argv[i], "--robots") && more) n_robots = atoi(argv[++i]);
         else if (!strcmp(argv[i], "--active-radius") && more) active_radius_m = atof(argv[++i]);
         else { usage(); return 2; }
     }
@@ -135,7 +215,7 @@ int main(int argc, char **argv)
     }
     if (log_dir != NULL) {
         /* the world of seed0 as a landmark log for coslam-replay, no runs */
-        return write_log(wk, (uint64_t)seed0, log_dir);
+        return write_log(wk, (uint64_t)seed0, log_dir, n_robots);
     }
     FILE *md = NULL;
     if (out != NULL) {

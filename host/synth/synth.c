@@ -134,6 +134,13 @@ void synth_init(synth_world_t *w, const synth_config_t *cfg)
     w->n_steps = (int)ceil(length / (cfg->speed_mps * cfg->dt_s));
 }
 
+void synth_arena_place(synth_world_t *w, pose2_t start, uint64_t seed)
+{
+    w->pose = start;
+    rng_seed(&w->rng, seed);
+    w->waypoint = arena_point(w, 0.5);
+}
+
 /* arena mode: turn on the spot towards the waypoint, then drive to it */
 static odo_increment_t wander_motion(synth_world_t *w)
 {

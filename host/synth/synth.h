@@ -110,6 +110,12 @@ synth_config_t synth_config_default(uint64_t seed, int n_landmarks);
  *  the arena's centre facing +x). */
 void synth_init(synth_world_t *w, const synth_config_t *cfg);
 
+/** Arena mode: put the robot at `start` with its own random stream `seed`
+ *  (odometry noise, detections, waypoints) and draw its first waypoint. A
+ *  team shares one world: copy the synth_world_t of the first robot (same
+ *  landmarks) and place each copy. */
+void synth_arena_place(synth_world_t *w, pose2_t start, uint64_t seed);
+
 /** Advance one control step; returns 0 when the run is over. */
 int synth_next(synth_world_t *w, synth_step_t *s);
 

@@ -38,6 +38,12 @@ def check(cond, what):
 fa = {"n_spurious": 1, "rmse_m": 0.2}
 check(mt.goals_missed({"n_spurious": 1, "rmse_m": 0.2}, fa, 0.5, 0.5) == [], "equal figures miss nothing")
 check([g for g, _ in mt.goals_missed({"n_spurious": 2, "rmse_m": 0.2}, fa, 0.5, 0.5)] == [0, 1], "2 spurious")
+# no landmark matched after the fit (rmse_m None): a miss only with merging
+check([g for g, _ in mt.goals_missed({"n_spurious": 1, "rmse_m": None}, fa, 0.5, 0.5)] == [2],
+      "nothing matched with merging is a landmark miss")
+check(mt.goals_missed({"n_spurious": 1, "rmse_m": None}, {"n_spurious": 1, "rmse_m": None}, 0.5, 0.5) == [],
+      "nothing matched either way is no miss")
+check(mt.goals_missed(fa, {"n_spurious": 1, "rmse_m": None}, 0.5, 0.5) == [], "nothing matched alone is no miss")
 check([g for g, _ in mt.goals_missed({"n_spurious": 0, "rmse_m": 0.21}, fa, 0.5, 0.5)] == [2], "landmark RMSE")
 check([g for g, _ in mt.goals_missed({"n_spurious": 0, "rmse_m": 0.2}, fa, 0.6, 0.5)] == [3], "pose RMSE")
 check(mt.goals_missed({"n_spurious": 0, "rmse_m": 0.2}, fa, None, None) == [], "no truth: no pose goal")

@@ -1,0 +1,63 @@
+#!/usr/bin/python3
+"""Per-robot issue-8 table of tools/team_table.sh: DIR holds sS/ (merging)
+and sS_alone/ (--no-merge) coslam-replay outputs (metrics.json) for each
+seed S; the goals are tools/merge_table.py's (goals_missed)."""
+import importlib.util
+import os
+import sys
+
+_spec = importlib.util.spec_from_file_location(
+    "merge_table", os.path.join(os.path.dirname(os.path.abspath(__file__)), "merge_table.py"))
+merge_table = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(merge_table)
+
+
+def table(d, seeds):
+    """Prints the table; returns (robot-runs, robot-runs missing a goal,
+    spurious landmarks merged, spurious alone)."""
+    print("| seed | robot | spurious alone / merged | landmark RMSE alone / merged [m] | "
+          "pose RMSE alone / merged [m] | goals missed |")
+    print("|---|---|---|---|---|---|")
+    n = bad = sp_m = sp_a = 0
+    cnt = [0] * len(merge_table.GOALS)
+    sums = [0.0, 0.0, 0.0, 0.0]
+    counted = [0, 0, 0, 0]  # figures that exist (None: nothing matched, no truth)
+    for s in seeds:
+        alone = merge_table.load(os.path.join(d, f"s{s}_alone", "metrics.json"))["robots"]
+        merged = merge_table.load(os.path.join(d, f"s{s}", "metrics.json"))["robots"]
+        for ra, rm in zip(alone, merged):
+            fa, fm = ra["map_fit"], rm["map_fit"]
+            pa, pm = ra["pose"].get("rmse_m"), rm["pose"].get("rmse_m")
+            missed = merge_table.goals_missed(fm, fa, pm, pa)
+            for g, _ in missed:
+                cnt[g] += 1
+            bad += int(bool(missed))
+            n += 1
+            sp_m += fm["n_spurious"]
+            sp_a += fa["n_spurious"]
+            for k, v in enumerate((fa["rmse_m"], fm["rmse_m"], pa, pm)):
+                if v is not None:
+                    sums[k] += v
+                    counted[k] += 1
+            print(f"| {s} | {ra['id']} | {fa['n_spurious']} / {fm['n_spurious']} | "
+                  f"{merge_table.fmt(fa['rmse_m'])} / {merge_table.fmt(fm['rmse_m'])} | "
+                  f"{merge_table.fmt(pa, 2)} / {merge_table.fmt(pm, 2)} | "
+                  f"{'; '.join(m for _, m in missed) or '-'} |")
+    if n == 0:
+        print("no runs")
+        return 0, 0, 0, 0
+    print()
+    mean = [merge_table.fmt(sums[k] / counted[k] if counted[k] else None, 3 if k < 2 else 2) for k in range(4)]
+    print(f"{n} robot-runs: spurious landmarks per robot alone {sp_a / n:.2f}, merged {sp_m / n:.2f}; "
+          f"landmark RMSE {mean[0]} / {mean[1]} m; pose RMSE {mean[2]} / {mean[3]} m"
+          + ("" if counted[0] == n and counted[1] == n else
+             f" (no landmark matched: {n - counted[0]} alone, {n - counted[1]} merged)"))
+    print(f"robot-runs missing a goal: {bad} of {n} ("
+          + ", ".join(f"{g}: {c}" for g, c in zip(merge_table.GOALS, cnt)) + ")")
+    return n, bad, sp_m, sp_a
+
+
+if __name__ == "__main__":
+    if len(sys.argv) < 3:
+        sys.exit("usage: team_table.py DIR SEED...")
+    table(sys.argv[1], sys.argv[2:])
