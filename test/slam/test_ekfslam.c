@@ -413,6 +413,54 @@ static void test_weak_alternative_does_not_hold_closure(void **state)
     assert_true(PE(&g_ekf, 0, 0) < 0.09);
 }
 
+/* A revisit that is the only sighting with candidates in its frame must
+ * beat a new landmark by jcbb_single_closure_d2 / 2 in log-likelihood (ln 10
+ * by default): landmark L at 3 m, robot sd 0.3 m and 0.25 m off, and p0 set
+ * `delta_nats` below the pairing's own log-likelihood. Returns whether the
+ * pairing was used; a held one leaves the state untouched and makes no
+ * landmark. */
+static int single_closure_used(double delta_nats)
+{
+    ekfslam_config_t c = config();
+    const pose2_t p0 = {0.0, 0.0, 0.0};
+    const point2_t l = {3.0, 0.0};
+    const pose2_t truth = {0.0, 0.25, 0.0};
+    const sighting_t z = observe_predict(truth, l);
+    landmark_t lm;
+    memset(&lm, 0, sizeof lm);
+    lm.mean = l;
+    lm.cov = cov2_make(1e-4, 0.0, 1e-4);
+    const cov3_t pc = cov3_diag(0.09, 0.09, 1e-4);
+    lm_expect_t e;
+    assert_int_equal(landmark_expect(&lm, &c.slam, p0, &pc, &e), COSLAM_OK);
+    const double d2 = landmark_mahalanobis2(&e, z);
+    assert_true(d2 > 0.3 && d2 < c.slam.gate_chi2);
+    c.slam.new_landmark_log_lik = landmark_log_lik(&e, d2) - delta_nats;
+    init_decorrelated(&c, &l, 1, 0.09, 1e-4);
+    g_ekf.ctr.updates = 100U; /* last sighted at update 0: a revisit */
+    assert_int_equal(ekfslam_update(&g_ekf, &z, 1), COSLAM_OK);
+    assert_int_equal(g_ekf.n_lm, 1); /* never a new landmark: it has a candidate */
+    if (g_ekf.scratch.assign[0] == 0) {
+        return 1;
+    }
+    assert_int_equal(g_ekf.scratch.assign[0], -1);
+    assert_int_equal(g_ekf.ctr.jcbb_ambiguous, 1);
+    assert_true(g_ekf.x[0] == 0.0 && g_ekf.x[1] == 0.0 && PE(&g_ekf, 1, 1) == 0.09);
+    return 0;
+}
+
+static void test_single_closure_margin(void **state)
+{
+    (void)state;
+    const double half = 0.5 * ekfslam_config_default().jcbb_single_closure_d2;
+    ASSERT_NEAR(half, log(10.0), 0.01);
+    assert_false(single_closure_used(0.5));        /* 1.6:1 - held back */
+    assert_false(single_closure_used(half - 0.1)); /* just short of 10:1 */
+    assert_true(single_closure_used(half + 0.1));
+    ASSERT_NEAR(g_ekf.x[1], 0.25, 0.1); /* used: the pose moves towards the truth */
+    assert_true(single_closure_used(3.0));
+}
+
 /* A revisit whose robot-landmark offset is uncertain against its range
  * (sd 0.8 m at 1 m) is held back: no update, no new landmark, counted.
  * The same uncertainty at 4 m is a usable closure. */
@@ -630,6 +678,7 @@ int main(void)
         cmocka_unit_test(test_weak_alternative_does_not_hold_closure),
         cmocka_unit_test(test_nonlinear_closure_held),
         cmocka_unit_test(test_cut_search_holds_closure),
+        cmocka_unit_test(test_single_closure_margin),
         cmocka_unit_test(test_iterated_closure_is_map),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

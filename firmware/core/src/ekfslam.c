@@ -14,6 +14,7 @@ ekfslam_config_t ekfslam_config_default(void)
     c.assoc = EKFSLAM_ASSOC_JCBB;
     c.jcbb_max_nodes = 20000U;
     c.jcbb_ambiguity_d2 = 9.21;
+    c.jcbb_single_closure_d2 = 4.61;
     c.jcbb_min_closure_pairs = 1U;
     c.jcbb_closure_gap = 25U;
     c.jcbb_closure_max_spread = 0.7;
@@ -996,7 +997,9 @@ coslam_status_t ekfslam_init(ekfslam_t *ekf, const ekfslam_config_t *cfg, pose2_
     COSLAM_ASSERT(ekf != 0 && cfg != 0);
     if (slam_params_validate(&cfg->slam) != COSLAM_OK || cfg->robot_id >= COSLAM_MAX_ROBOTS || cfg->fej > 1U ||
         (cfg->assoc != EKFSLAM_ASSOC_NN && cfg->assoc != EKFSLAM_ASSOC_JCBB) || cfg->jcbb_max_nodes < 1U ||
-        !(cfg->jcbb_ambiguity_d2 >= 0.0 && cfg->jcbb_ambiguity_d2 < 1e6) || cfg->jcbb_min_closure_pairs < 1U ||
+        !(cfg->jcbb_ambiguity_d2 >= 0.0 && cfg->jcbb_ambiguity_d2 < 1e6) ||
+        !(cfg->jcbb_single_closure_d2 >= 0.0 && cfg->jcbb_single_closure_d2 <= cfg->jcbb_ambiguity_d2) ||
+        cfg->jcbb_min_closure_pairs < 1U ||
         !(cfg->jcbb_closure_max_spread > 0.0) || !(cfg->active_radius_m >= 0.0 && cfg->active_radius_m < 1e6) ||
         (cfg->active_radius_m > 0.0 && COSLAM_EKF_MAX_ACTIVE == 0) || !pose2_is_finite(pose0)) {
         return COSLAM_E_ARG;
@@ -1855,6 +1858,9 @@ static void jcbb_associate(ekfslam_t *ekf, const sighting_t *z, int ns, int n_pa
     for (int i = 0; i < ns; ++i) {
         n_with_cand += sc->cand_begin[i + 1] > sc->cand_begin[i];
     }
+    /* against "no pairing": one sighting alone cannot reach the full margin
+     * once the pose is uncertain, so it needs the smaller one */
+    const double margin_none = n_with_cand >= 2 ? margin : 0.5 * ekf->cfg.jcbb_single_closure_d2;
     int ambiguous = 0;
     int nonlinear = 0;
     for (int i = 0; i < ns; ++i) {
@@ -1862,7 +1868,7 @@ static void jcbb_associate(ekfslam_t *ekf, const sighting_t *z, int ns, int n_pa
         sc->assign[i] = sc->best[i];
         if (sc->best[i] >= 0 && sc->closure[sc->best[i]] &&
             (cut || sc->alt_other[i] > sc->best_score - margin ||
-             (n_with_cand >= 2 && sc->alt_none[i] > sc->best_score - margin))) {
+             sc->alt_none[i] > sc->best_score - margin_none)) {
             sc->assign[i] = -1;
             sc->held[i] = 1U;
             ambiguous = 1;

@@ -90,6 +90,18 @@ typedef struct {
                                     sightings are held back (no new landmark).
                                     0 disables. Default 9.21 (likelihood ratio
                                     about 100, the 99 % point of 2 dof) */
+    double jcbb_single_closure_d2; /**< a loop-closing pairing in a frame where it is
+                                    the only sighting with candidates must beat
+                                    "no pairing" (a new landmark) by this much
+                                    (twice the log-likelihood ratio), else it is
+                                    held back. With two or more such sightings the
+                                    margin is jcbb_ambiguity_d2. One sighting cannot
+                                    beat a new landmark by 100:1 once the pose is
+                                    0.5 m uncertain, and one that beats it by 1.3:1
+                                    turned robots 20 deg the wrong way
+                                    (docs/consistency.md, "The arena world").
+                                    Default 4.61 (likelihood ratio 10, the 90 %
+                                    point of 2 dof); 0 <= it <= jcbb_ambiguity_d2 */
     uint32_t jcbb_min_closure_pairs; /**< a hypothesis with loop-closing pairings
                                     (robot-landmark uncertainty well above the
                                     sensor's) needs at least this many of them;
