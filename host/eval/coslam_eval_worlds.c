@@ -213,6 +213,11 @@ int main(int argc, char **argv)
         usage();
         return 2;
     }
+    if (n_robots != 1 && log_dir == NULL) {
+        fprintf(stderr, "coslam-eval-worlds: --robots is for --write-log (a team log); the runs here are one robot\n");
+        usage();
+        return 2;
+    }
     if (log_dir != NULL) {
         /* the world of seed0 as a landmark log for coslam-replay, no runs */
         return write_log(wk, (uint64_t)seed0, log_dir, n_robots);

@@ -5,7 +5,8 @@
 # every robot's log and truth is written, the robots sight each other (R
 # records) so that meetings happen and maps are merged, each robot is
 # evaluated against its truth, and the table counts every robot-run. A team
-# outside the arena, or of 0 or 10 robots, is refused with exit code 2.
+# outside the arena, of 0 or 10 robots, or without --write-log is refused
+# with exit code 2.
 #
 #   team_log_smoke.sh EVAL_WORLDS_BIN REPLAY_BIN PYTHON SOURCE_DIR WORK_DIR
 set -u
@@ -34,10 +35,15 @@ merged=$(sed -n 's/^merges: \([0-9]*\).*/\1/p' "$WORK/s3.txt")
 "$PY" "$SRC/tools/team_table.py" "$WORK" 3 > "$WORK/table.md" 2>&1 || fail "team_table.py: $(tail -3 "$WORK/table.md")"
 grep -q '^3 robot-runs: ' "$WORK/table.md" || fail "the table does not count 3 robot-runs: $(tail -2 "$WORK/table.md")"
 [ "$(grep -c '^| 3 | [123] |' "$WORK/table.md")" -eq 3 ] || fail "not one row per robot"
-for bad in "--world loop --robots 2" "--world arena --robots 0" "--world arena --robots 10"; do
+for bad in "--world loop --robots 2" "--world arena --robots 0" "--world arena --robots 10" "--world arena --robots x"; do
     # shellcheck disable=SC2086
     "$EVAL" $bad --seed0 1 --write-log "$WORK/bad" > "$WORK/bad.txt" 2>&1
     rc=$?
     [ "$rc" -eq 2 ] || fail "'$bad' exit $rc, not 2"
 done
+# a team without --write-log: the runs are one robot's, so it is refused
+"$EVAL" --world arena --robots 3 --seeds 1 > "$WORK/bad.txt" 2>&1
+rc=$?
+[ "$rc" -eq 2 ] || fail "--robots without --write-log: exit $rc, not 2"
+grep -q -- '--robots is for --write-log' "$WORK/bad.txt" || fail "no message for --robots without --write-log"
 echo "team_log_smoke: ok ($merged merges; $(tail -2 "$WORK/table.md" | head -1))"
