@@ -117,6 +117,11 @@ int run_synth_traced(const synth_config_t *scfg, const run_opts_t *opts, run_res
             return -1;
         }
     }
+    /* the estimated path, kept for the pose error after the map's rigid fit */
+    const int keep_path = opts->score_rigid_fit != 0;
+    point2_t *path_est = keep_path ? malloc(sizeof(point2_t) * (size_t)w->n_steps) : NULL;
+    point2_t *path_truth = keep_path ? malloc(sizeof(point2_t) * (size_t)w->n_steps) : NULL;
+    int n_path = 0;
     pose2_t odo = start;
     double se = 0.0;
     double se_h = 0.0;
@@ -171,6 +176,11 @@ int run_synth_traced(const synth_config_t *scfg, const run_opts_t *opts, run_res
         const double ox = odo.x - st->true_pose.x;
         const double oy = odo.y - st->true_pose.y;
         se_odo += ox * ox + oy * oy;
+        if (path_est != NULL && path_truth != NULL && n_path < w->n_steps) {
+            path_est[n_path] = (point2_t){est.x, est.y};
+            path_truth[n_path] = (point2_t){st->true_pose.x, st->true_pose.y};
+            n_path++;
+        }
         if (trace != NULL && trace->n < w->n_steps) {
             trace->t[trace->n] = st->t_s;
             trace->est[trace->n] = est;
@@ -235,10 +245,21 @@ int run_synth_traced(const synth_config_t *scfg, const run_opts_t *opts, run_res
         res->has_map_fit = opts->score_rigid_fit &&
                            eval_map_rigid_whole(full, w->lm, w->n_seen, w->n_lm, opts->min_seen, opts->gate_m, &fit,
                                                 &res->map_fit) == COSLAM_OK;
+        if (res->has_map_fit && path_est != NULL && path_truth != NULL && n_path > 0) {
+            /* the path moved with the map: the robot's error in its own map */
+            double se_fit = 0.0;
+            for (int k = 0; k < n_path; ++k) {
+                const point2_t q = pose2_apply(fit, path_est[k]);
+                se_fit += (q.x - path_truth[k].x) * (q.x - path_truth[k].x) + (q.y - path_truth[k].y) * (q.y - path_truth[k].y);
+            }
+            res->pose_rmse_fit_m = sqrt(se_fit / n_path);
+        }
     } else {
         eval_map(&res->estimate, w->lm, w->n_seen, w->n_lm, opts->min_seen, opts->gate_m, &res->map);
     }
     free(full);
+    free(path_est);
+    free(path_truth);
     free(map_est);
     free(map_ev);
     free(fs);

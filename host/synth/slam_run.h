@@ -51,6 +51,8 @@ typedef struct {
     int has_map_fit;            /**< map_fit is set (run_opts_t.score_rigid_fit) */
     map_eval_t map_fit;         /**< the final map after the best rigid fit (eval_map_rigid_whole),
                                      as coslam-replay scores maps without robot truth */
+    double pose_rmse_fit_m;     /**< position RMSE of the path moved by that fit: the robot's
+                                     error in its own map, a turned map frame taken out */
     double step_us_mean;        /**< wall time per control step (predict + update) */
     double step_us_max;
     uint32_t capacity_errors;

@@ -99,36 +99,43 @@ static void test_long_loop(void **state)
  * Regression bounds, not goals: measured (seeds 1-10 / held-out 101-130)
  * EKF-SLAM 1.70 / 1.10 spurious landmarks per run, landmark RMSE 0.23 /
  * 0.17 m (0.60 / 1.40 and 0.32 / 0.20 m before jcbb_single_closure_d2);
- * Fast-SLAM 2.0 (100) 0.30 / 0.73 and 0.15 / 0.19 m. Issue 8 asks at most 1
- * per robot on MRCLAM; EKF-SLAM does not reach it here. */
-static void arena_set(run_filter_t f, int particles, double max_spurious_per_run, double max_rmse_m)
+ * Fast-SLAM 2.0 (100) 0.30 / 0.73 and 0.15 / 0.19 m. The path moved by the
+ * map's fit (the robot's error in its own map): EKF-SLAM 1.40 / 1.50 m,
+ * Fast-SLAM 2.0 0.42 / 0.55 m. Issue 8 asks at most 1 spurious landmark per
+ * robot on MRCLAM; EKF-SLAM does not reach it here. */
+static void arena_set(run_filter_t f, int particles, double max_spurious_per_run, double max_rmse_m,
+                      double max_pose_m)
 {
     run_result_t *r = malloc(sizeof *r);
     assert_non_null(r);
     int spurious = 0;
     int clean = 0;
     double rmse = 0.0;
+    double pose = 0.0;
     for (int k = 0; k < WORLD_SEEDS; ++k) {
         assert_int_equal(eval_world_run(EVAL_WORLD_ARENA, f, particles, WORLD_SEED0 + (uint64_t)k, r), 0);
         assert_true(r->has_map_fit);
         spurious += r->map_fit.n_spurious;
         clean += r->map_fit.n_spurious == 0;
         rmse += r->map_fit.rmse_m;
+        pose += r->pose_rmse_fit_m;
     }
-    printf("arena, %s: after rigid fit %d of %d runs without a spurious landmark, %.2f per run, landmark RMSE %.3f m\n",
+    printf("arena, %s: after rigid fit %d of %d runs without a spurious landmark, %.2f per run, landmark RMSE %.3f m, "
+           "pose RMSE in the fitted map %.3f m\n",
            f == RUN_EKFSLAM ? "EKF-SLAM" : "Fast-SLAM 2.0 (100)", clean, WORLD_SEEDS, (double)spurious / WORLD_SEEDS,
-           rmse / WORLD_SEEDS);
+           rmse / WORLD_SEEDS, pose / WORLD_SEEDS);
     ASSERT_TRUE_MSG(spurious <= max_spurious_per_run * WORLD_SEEDS, "%d spurious landmarks in %d runs\n", spurious,
                     WORLD_SEEDS);
     ASSERT_TRUE_MSG(rmse <= max_rmse_m * WORLD_SEEDS, "landmark RMSE %.3f m\n", rmse / WORLD_SEEDS);
+    ASSERT_TRUE_MSG(pose <= max_pose_m * WORLD_SEEDS, "pose RMSE in the fitted map %.3f m\n", pose / WORLD_SEEDS);
     free(r);
 }
 
 static void test_arena(void **state)
 {
     (void)state;
-    arena_set(RUN_EKFSLAM, 0, 2.0, 0.4);
-    arena_set(RUN_FASTSLAM2, 100, 1.0, 0.3);
+    arena_set(RUN_EKFSLAM, 0, 2.0, 0.4, 2.0);
+    arena_set(RUN_FASTSLAM2, 100, 1.0, 0.3, 0.8);
 }
 
 int main(void)
