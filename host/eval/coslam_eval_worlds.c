@@ -126,23 +126,31 @@ static int write_log(eval_world_t wk, uint64_t seed, const char *dir, int n_robo
                         s->z[i].bearing_rad);
                 n_z++;
             }
-            /* the other robots in view: the landmarks' footprint, detection and noise */
-            const slam_params_t *tp = &sc.truth;
-            for (int q = 0; s->is_frame && q < n_robots; ++q) {
-                if (q == k) {
-                    continue;
-                }
-                const sighting_t zt = observe_predict(s->true_pose, (point2_t){st[q].true_pose.x, st[q].true_pose.y});
-                if (zt.range_m < tp->sensor_min_range_m || zt.range_m > tp->sensor_max_range_m ||
-                    fabs(zt.bearing_rad) > 0.5 * tp->sensor_fov_rad || rng_uniform(&team) >= sc.p_detect) {
-                    continue;
-                }
-                const cov2_t qn = observe_noise(tp, zt.range_m);
-                fprintf(f_log[k], "R %.17g %d %.17g %.17g\n", s->t_s, q + 1,
-                        zt.range_m + sqrt(qn.xx) * rng_gauss(&team),
-                        angle_wrap(zt.bearing_rad + sqrt(qn.yy) * rng_gauss(&team)));
-                n_rz++;
+            if (!s->is_frame || n_robots < 2) {
+                continue;
             }
+            /* the other robots in view, sighted as the landmarks are
+             * (footprint, detection, noise) */
+            point2_t others[MAX_TEAM];
+            int other_id[MAX_TEAM];
+            int n_other = 0;
+            for (int q = 0; q < n_robots; ++q) {
+                if (q != k) {
+                    others[n_other] = (point2_t){st[q].true_pose.x, st[q].true_pose.y};
+                    other_id[n_other++] = q + 1;
+                }
+            }
+            static const uint8_t no_sig[MAX_TEAM] = {0};
+            sighting_t rz[MAX_TEAM];
+            int32_t which[MAX_TEAM];
+            int seen[MAX_TEAM] = {0};
+            const int n = synth_sight_landmarks(&sc.truth, &team, s->true_pose, others, no_sig, n_other, sc.p_detect,
+                                                rz, which, MAX_TEAM, seen);
+            for (int i = 0; i < n; ++i) {
+                fprintf(f_log[k], "R %.17g %d %.17g %.17g\n", s->t_s, other_id[which[i]], rz[i].range_m,
+                        rz[i].bearing_rad);
+            }
+            n_rz += n;
         }
     }
     for (int j = 0; j < w[0].n_lm; ++j) {
