@@ -96,6 +96,10 @@ static int active_idx(const ekfslam_t *ekf, int k)
 
 static pose2_t robot_pose(const ekfslam_t *ekf);
 
+/* Side of the square tiles in which the symmetric updates of P and psi run
+ * (update_one, cekf_update_aux). */
+#define EKF_TILE 32
+
 #define ADIM_ EKFSLAM_ACTIVE_DIM
 #define PHI_(e, k, i) ((e)->cekf.phi[(long)(k) * ADIM_ + (i)])
 #define PSI_(e, i, k) ((e)->cekf.psi[(long)(i) * ADIM_ + (k)])
@@ -973,21 +977,30 @@ static void cekf_update_aux(ekfslam_t *ekf, uint16_t j, const lm_expect_t *e, co
         ck->shphi[1][i] = si.xy * h[0] + si.yy * h[1];
         ck->theta[i] += h[0] * sinu0 + h[1] * sinu1;
     }
-    for (int i = 0; i < n0; ++i) {
-        for (int i2 = i; i2 < n0; ++i2) {
-            const double v = ck->hphi[0][i] * ck->shphi[0][i2] + ck->hphi[1][i] * ck->shphi[1][i2];
-            PSI_(ekf, i, i2) += v;
-            if (i2 != i) {
-                PSI_(ekf, i2, i) += v;
+    /* psi is symmetric: each entry once, mirrored, in tiles (update_one) */
+    for (int r0 = 0; r0 < n0; r0 += EKF_TILE) {
+        const int r1 = r0 + EKF_TILE < n0 ? r0 + EKF_TILE : n0;
+        for (int c0 = r0; c0 < n0; c0 += EKF_TILE) {
+            const int c1 = c0 + EKF_TILE < n0 ? c0 + EKF_TILE : n0;
+            for (int i = r0; i < r1; ++i) {
+                for (int i2 = i > c0 ? i : c0; i2 < c1; ++i2) {
+                    const double v = ck->hphi[0][i] * ck->shphi[0][i2] + ck->hphi[1][i] * ck->shphi[1][i2];
+                    PSI_(ekf, i, i2) += v;
+                    if (i2 != i) {
+                        PSI_(ekf, i2, i) += v;
+                    }
+                }
             }
         }
     }
+    const double *restrict h0 = ck->hphi[0];
+    const double *restrict h1 = ck->hphi[1];
     for (int r = 0; r < ck->na; ++r) {
         const double k0 = k[r][0];
         const double k1 = k[r][1];
-        double *row = &ck->phi[(long)r * ADIM_];
+        double *restrict row = &ck->phi[(long)r * ADIM_];
         for (int i = 0; i < n0; ++i) {
-            row[i] -= k0 * ck->hphi[0][i] + k1 * ck->hphi[1][i];
+            row[i] -= k0 * h0[i] + k1 * h1[i];
         }
     }
 }
@@ -1340,18 +1353,28 @@ static coslam_status_t update_one(ekfslam_t *ekf, uint16_t j, sighting_t z, int 
     }
     ekf->x[2] = angle_wrap(ekf->x[2]);
     const cov2_t s = e.s;
-    for (int r = 0; r < d; ++r) {
-        /* ks = K_r S */
-        const double ks0 = k[r][0] * s.xx + k[r][1] * s.xy;
-        const double ks1 = k[r][0] * s.xy + k[r][1] * s.yy;
-        const int pr = local ? ix[r] : r;
-        for (int c = r; c < d; ++c) {
-            const double delta = k[r][0] * pht[c][0] + k[r][1] * pht[c][1] + pht[r][0] * k[c][0] +
-                                 pht[r][1] * k[c][1] - (ks0 * k[c][0] + ks1 * k[c][1]);
-            const int pc = local ? ix[c] : c;
-            const double val = P_(ekf, pr, pc) - delta;
-            P_(ekf, pr, pc) = val;
-            P_(ekf, pc, pr) = val;
+    /* P -= delta, each entry computed once and written to both halves; in
+     * tiles, so that the mirrored writes (a column of the row-major P)
+     * stay within a few rows (pages) at a time. The order of the entries
+     * changes nothing: each is written once per update. */
+    for (int r0 = 0; r0 < d; r0 += EKF_TILE) {
+        const int r1 = r0 + EKF_TILE < d ? r0 + EKF_TILE : d;
+        for (int c0 = r0; c0 < d; c0 += EKF_TILE) {
+            const int c1 = c0 + EKF_TILE < d ? c0 + EKF_TILE : d;
+            for (int r = r0; r < r1; ++r) {
+                /* ks = K_r S */
+                const double ks0 = k[r][0] * s.xx + k[r][1] * s.xy;
+                const double ks1 = k[r][0] * s.xy + k[r][1] * s.yy;
+                const int pr = local ? ix[r] : r;
+                for (int c = r > c0 ? r : c0; c < c1; ++c) {
+                    const double delta = k[r][0] * pht[c][0] + k[r][1] * pht[c][1] + pht[r][0] * k[c][0] +
+                                         pht[r][1] * k[c][1] - (ks0 * k[c][0] + ks1 * k[c][1]);
+                    const int pc = local ? ix[c] : c;
+                    const double val = P_(ekf, pr, pc) - delta;
+                    P_(ekf, pr, pc) = val;
+                    P_(ekf, pc, pr) = val;
+                }
+            }
         }
     }
     if (local) {
@@ -1524,9 +1547,27 @@ void ekfslam_remove_landmark(ekfslam_t *ekf, uint16_t j)
 
 /* Cross block S_ab = H_a P H_b^T of the joint innovation covariance for the
  * landmarks ja and jb (the Q term belongs to the diagonal blocks only). */
-static void joint_block(const ekfslam_t *ekf, uint16_t ja, uint16_t jb, double s[2][2])
+/* The cross block of candidate pairs pb and pa of the joint innovation
+ * covariance, H_b P H_a^T: the search asks for the same blocks at many
+ * nodes, so they are kept once computed (same numbers). */
+static void joint_block(ekfslam_t *ekf, int pb, int pa, double s[2][2])
 {
-    sparse_hph(ekf, &ekf->scratch.expect[ja], ja, &ekf->scratch.expect[jb], jb, s);
+    ekfslam_scratch_t *sc = &ekf->scratch;
+    const uint16_t jb = (uint16_t)sc->pairs[pb].landmark;
+    const uint16_t ja = (uint16_t)sc->pairs[pa].landmark;
+    if (pb >= sc->cross_n || pa >= sc->cross_n) {
+        sparse_hph(ekf, &sc->expect[jb], jb, &sc->expect[ja], ja, s);
+        return;
+    }
+    if (!sc->cross_ok[pb][pa]) {
+        sparse_hph(ekf, &sc->expect[jb], jb, &sc->expect[ja], ja, sc->cross[pb][pa]);
+        sc->cross_ok[pb][pa] = 1U;
+    }
+    for (int q1 = 0; q1 < 2; ++q1) {
+        for (int q2 = 0; q2 < 2; ++q2) {
+            s[q1][q2] = sc->cross[pb][pa][q1][q2];
+        }
+    }
 }
 
 /*
@@ -1539,8 +1580,7 @@ static double jcbb_extend(ekfslam_t *ekf, const sighting_t *z, int k, int pi, do
 {
     ekfslam_scratch_t *sc = &ekf->scratch;
     const assoc_pair_t *pa = &sc->pairs[pi];
-    const uint16_t ja = (uint16_t)pa->landmark;
-    const lm_expect_t *ea = &sc->expect[ja];
+    const lm_expect_t *ea = &sc->expect[pa->landmark];
     const int n = 2 * k;
     double(*l)[EKFSLAM_JCBB_DIM] = sc->chol;
     /* w = L^-1 c, c = S_(H, a); stored as the new rows' left part */
@@ -1551,7 +1591,7 @@ static double jcbb_extend(ekfslam_t *ekf, const sighting_t *z, int k, int pi, do
     }
     for (int b = 0; b < k; ++b) {
         double s[2][2];
-        joint_block(ekf, (uint16_t)sc->pairs[sc->hyp_pair[b]].landmark, ja, s);
+        joint_block(ekf, sc->hyp_pair[b], pi, s);
         for (int q1 = 0; q1 < 2; ++q1) {
             for (int q2 = 0; q2 < 2; ++q2) {
                 l[n + q2][2 * b + q1] = s[q1][q2]; /* c^T for now */
@@ -1681,21 +1721,57 @@ static double pair_spread(const ekfslam_t *ekf, int32_t j)
     return sqrt(lmax) / r;
 }
 
+/* Pass 1, hypothesis so far decided for sightings 0..i-1: does it read
+ * sighting q < i otherwise than the best one, and not weakly (a pairing
+ * alone less likely than a new landmark does not compete)? */
+static int alt_reading(const ekfslam_t *ekf, int q)
+{
+    const ekfslam_scratch_t *sc = &ekf->scratch;
+    return sc->hyp[q] != sc->best[q] &&
+           !(sc->hyp[q] >= 0 && sc->pairs[sc->hyp_pi[q]].score < ekf->cfg.slam.new_landmark_log_lik);
+}
+
+/* Pass 1 asks, for each sighting whose best pairing closes a loop, only
+ * whether some hypothesis reads it otherwise with a score within the
+ * margin of the best (then it is held back): the lowest threshold a leaf
+ * below this node could still decide, +INFINITY if none (the subtree
+ * cannot change a decision and is skipped). A sighting already decided
+ * below i (q >= i) may still read either way: the lower margin applies. */
+static double pass1_floor(const ekfslam_t *ekf, int ns, int i)
+{
+    const ekfslam_scratch_t *sc = &ekf->scratch;
+    double floor = INFINITY;
+    for (int q = 0; q < ns; ++q) {
+        if (!sc->need_alt[q]) {
+            continue;
+        }
+        if (q >= i) {
+            return sc->best_score - fmax(sc->margin_other, sc->margin_none);
+        }
+        if (alt_reading(ekf, q)) {
+            const double t = sc->best_score - (sc->hyp[q] >= 0 ? sc->margin_other : sc->margin_none);
+            floor = fmin(floor, t);
+        }
+    }
+    return floor;
+}
+
 static void jcbb_search(ekfslam_t *ekf, const sighting_t *z, int ns, int i, int k, double d2, double logdet,
                         int n_unpaired, int n_closure)
 {
     ekfslam_scratch_t *sc = &ekf->scratch;
-    if (sc->nodes >= ekf->cfg.jcbb_max_nodes) {
+    if (sc->nodes >= ekf->cfg.jcbb_max_nodes || (sc->pass == 1U && sc->n_need_alt == 0)) {
         return;
     }
     sc->nodes++;
     /* branch and bound: the score so far plus the most the remaining
-     * sightings can add (ub_rest) must beat the best (pass 0) or come
-     * within the ambiguity margin of it (pass 1) */
+     * sightings can add (ub_rest) must beat the best (pass 0) or a
+     * threshold that decides a sighting still in question (pass 1,
+     * pass1_floor) */
     {
         const double partial = -0.5 * (d2 + logdet) - (double)k * log(COSLAM_TWO_PI) +
                                (double)n_unpaired * ekf->cfg.slam.new_landmark_log_lik;
-        const double floor = sc->pass == 0U ? sc->best_score : sc->best_score - 0.5 * ekf->cfg.jcbb_ambiguity_d2;
+        const double floor = sc->pass == 0U ? sc->best_score : pass1_floor(ekf, ns, i);
         if (partial + sc->ub_rest[i] <= floor) {
             return;
         }
@@ -1710,17 +1786,21 @@ static void jcbb_search(ekfslam_t *ekf, const sighting_t *z, int ns, int i, int 
         if (sc->pass == 0U) {
             jcbb_leaf(ekf, ns, k, score);
         } else {
-            /* second pass: the best alternative for each sighting; a weak
-             * pairing (alone less likely than a new landmark) is not a
-             * competing reading */
+            /* second pass: alternatives for the sightings in question; a
+             * weak pairing (alone less likely than a new landmark) is not
+             * a competing reading */
             for (int q = 0; q < ns; ++q) {
-                if (sc->hyp[q] == sc->best[q] ||
-                    (sc->hyp[q] >= 0 && sc->pairs[sc->hyp_pi[q]].score < ekf->cfg.slam.new_landmark_log_lik)) {
+                if (!sc->need_alt[q] || !alt_reading(ekf, q)) {
                     continue;
                 }
-                double *alt = sc->hyp[q] >= 0 ? &sc->alt_other[q] : &sc->alt_none[q];
+                const int other = sc->hyp[q] >= 0;
+                double *alt = other ? &sc->alt_other[q] : &sc->alt_none[q];
                 if (score > *alt) {
                     *alt = score;
+                }
+                if (score > sc->best_score - (other ? sc->margin_other : sc->margin_none)) {
+                    sc->need_alt[q] = 0U; /* held back: no need to look further */
+                    sc->n_need_alt--;
                 }
             }
         }
@@ -1789,6 +1869,12 @@ static void jcbb_associate(ekfslam_t *ekf, const sighting_t *z, int ns, int n_pa
         sc->cand_begin[i] = pi;
     }
     sc->cand_begin[ns] = n_pairs;
+    sc->cross_n = n_pairs <= EKFSLAM_JCBB_CROSS ? n_pairs : 0;
+    for (int b = 0; b < sc->cross_n; ++b) {
+        for (int a = 0; a < sc->cross_n; ++a) {
+            sc->cross_ok[b][a] = 0U;
+        }
+    }
     jcbb_thresholds(ekf, ns);
     for (int i = 0; i < ns; ++i) {
         sc->hyp[i] = -1;
@@ -1828,24 +1914,6 @@ static void jcbb_associate(ekfslam_t *ekf, const sighting_t *z, int ns, int n_pa
     if (sc->closures_short > 0U) {
         ekf->ctr.jcbb_closures_held++;
     }
-    /* second pass: for each sighting, the most likely hypothesis that reads
-     * it differently (pairs it with another landmark, or with none) */
-    for (int i = 0; i < ns; ++i) {
-        sc->alt_other[i] = -INFINITY;
-        sc->alt_none[i] = -INFINITY;
-    }
-    /* each pass has the budget; a cut search has not ruled out the
-     * alternatives, so the frame's loop-closing pairings are held back */
-    int cut = sc->nodes >= ekf->cfg.jcbb_max_nodes;
-    if (ekf->cfg.jcbb_ambiguity_d2 > 0.0 && sc->best_pairings > 0) {
-        sc->pass = 1U;
-        sc->nodes = 0U;
-        jcbb_search(ekf, z, ns, 0, 0, 0.0, 0.0, 0, 0);
-        cut = cut || sc->nodes >= ekf->cfg.jcbb_max_nodes;
-    }
-    if (cut) {
-        ekf->ctr.jcbb_budget_hits++;
-    }
     /* A loop-closing pairing is used only if it is decisively the most
      * likely reading of its sighting (by ambiguity_d2 / 2 in log-likelihood)
      * against both pairing it with another landmark and with none; else the
@@ -1861,6 +1929,31 @@ static void jcbb_associate(ekfslam_t *ekf, const sighting_t *z, int ns, int n_pa
     /* against "no pairing": one sighting alone cannot reach the full margin
      * once the pose is uncertain, so it needs the smaller one */
     const double margin_none = n_with_cand >= 2 ? margin : 0.5 * ekf->cfg.jcbb_single_closure_d2;
+    /* second pass: for each sighting whose best pairing closes a loop,
+     * whether a hypothesis reads it differently (pairs it with another
+     * landmark, or with none) within the margin; the other sightings'
+     * alternatives decide nothing and are not searched (pass1_floor) */
+    sc->n_need_alt = 0;
+    sc->margin_other = margin;
+    sc->margin_none = margin_none;
+    for (int i = 0; i < ns; ++i) {
+        sc->alt_other[i] = -INFINITY;
+        sc->alt_none[i] = -INFINITY;
+        sc->need_alt[i] = (uint8_t)(ekf->cfg.jcbb_ambiguity_d2 > 0.0 && sc->best[i] >= 0 && sc->closure[sc->best[i]]);
+        sc->n_need_alt += sc->need_alt[i];
+    }
+    /* each pass has the budget; a cut search has not ruled out the
+     * alternatives, so the frame's loop-closing pairings are held back */
+    int cut = sc->nodes >= ekf->cfg.jcbb_max_nodes;
+    if (sc->n_need_alt > 0) {
+        sc->pass = 1U;
+        sc->nodes = 0U;
+        jcbb_search(ekf, z, ns, 0, 0, 0.0, 0.0, 0, 0);
+        cut = cut || (sc->nodes >= ekf->cfg.jcbb_max_nodes && sc->n_need_alt > 0);
+    }
+    if (cut) {
+        ekf->ctr.jcbb_budget_hits++;
+    }
     int ambiguous = 0;
     int nonlinear = 0;
     for (int i = 0; i < ns; ++i) {

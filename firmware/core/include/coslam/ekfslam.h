@@ -207,6 +207,9 @@ typedef struct {
 
 /** Largest joint innovation handled by JCBB (2 rows per sighting). */
 #define EKFSLAM_JCBB_DIM (2 * COSLAM_MAX_SIGHTINGS)
+/** Candidate pairs whose cross blocks JCBB keeps once computed (an update
+ *  with more computes them at every use). */
+#define EKFSLAM_JCBB_CROSS COSLAM_MAX_SIGHTINGS
 
 typedef struct {
     lm_expect_t expect[COSLAM_EKF_MAX_LANDMARKS];
@@ -233,10 +236,21 @@ typedef struct {
     uint8_t held[COSLAM_MAX_SIGHTINGS];           /**< sighting held back: ambiguous */
     uint32_t closures_short;                      /**< leaves refused: too few closure pairings */
     uint32_t pass;                                /**< 0: find the best; 1: the alternatives */
-    double alt_other[COSLAM_MAX_SIGHTINGS];       /**< best score pairing sighting i elsewhere */
-    double alt_none[COSLAM_MAX_SIGHTINGS];        /**< best score leaving sighting i unpaired */
+    double alt_other[COSLAM_MAX_SIGHTINGS];       /**< best score found pairing sighting i elsewhere */
+    double alt_none[COSLAM_MAX_SIGHTINGS];        /**< best score found leaving sighting i unpaired */
+    uint8_t need_alt[COSLAM_MAX_SIGHTINGS];       /**< pass 1: sighting i's best pairing closes a loop and no
+                                                       alternative within the margin is found yet */
+    int n_need_alt;                               /**< pass 1: sightings with need_alt set */
+    double margin_other;                          /**< pass 1: an alternative pairing within this of the best
+                                                       holds the sighting back */
+    double margin_none;                           /**< pass 1: "unpaired" within this of the best holds it */
     double ub_rest[COSLAM_MAX_SIGHTINGS + 1];     /**< bound of the score of sightings i.. */
     uint32_t nodes;
+    /** H_b P H_a^T of candidate pairs b, a (pair indices after the sort),
+     *  filled as the search asks; valid where cross_ok */
+    double cross[EKFSLAM_JCBB_CROSS][EKFSLAM_JCBB_CROSS][2][2];
+    uint8_t cross_ok[EKFSLAM_JCBB_CROSS][EKFSLAM_JCBB_CROSS];
+    int cross_n;                                  /**< pairs the table covers (0: too many pairs) */
     double pht[EKFSLAM_DIM][2];
     double k[EKFSLAM_DIM][2];
     uint16_t order[COSLAM_EKF_MAX_LANDMARKS];
