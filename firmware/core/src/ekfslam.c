@@ -443,11 +443,20 @@ static void cekf_drift(ekfslam_t *ekf)
 
 /* A predict or update's share: whole landmark rows for about
  * active_spread_madds multiply-adds (at least one), the flagged active
- * landmarks' first in a local phase, then the oldest generation's. */
-static void cekf_spread(ekfslam_t *ekf)
+ * landmarks' first in a local phase, then the oldest generation's. An
+ * update runs it after its pairings and does only what its share leaves
+ * after their own multiply-adds (`own_madds`); what it leaves is owed and
+ * paid by the next predict (`pay_owed`), so a frame with many pairings is
+ * not also the one that completes deferred rows, and the pace of the
+ * completion stays the same. Which rows are completed when does not change
+ * the numbers (they only add to entries no local step reads). */
+static void cekf_spread(ekfslam_t *ekf, double own_madds, int pay_owed)
 {
     ekfslam_cekf_t *ck = &ekf->cekf;
     if (COSLAM_EKF_MAX_ACTIVE == 0 || pend_oldest(ck) < 0) {
+        if (COSLAM_EKF_MAX_ACTIVE > 0) {
+            ck->spread_owed = 0.0;
+        }
         return;
     }
     /* a budget per generation with pending entries: a backlog (the robot
@@ -457,7 +466,9 @@ static void cekf_spread(ekfslam_t *ekf)
     for (int g2 = 0; g2 < EKFSLAM_PEND_GENS; ++g2) {
         busy += ck->gen[g2].n > 0;
     }
-    const double budget = (double)ekf->cfg.active_spread_madds * (double)busy;
+    const double share = (double)ekf->cfg.active_spread_madds * (double)busy;
+    const double owed = ck->spread_owed + share;
+    const double budget = pay_owed ? owed : share - own_madds;
     double spent = 0.0;
     int act = in_local(ekf);
     while (spent < budget) {
@@ -488,6 +499,7 @@ static void cekf_spread(ekfslam_t *ekf)
         pend_row(ekf, g, t);
         ekf->ctr.cekf_spread_rows++;
     }
+    ck->spread_owed = owed > spent && pend_oldest(ck) >= 0 ? owed - spent : 0.0;
     cekf_drift(ekf);
 }
 
@@ -1023,6 +1035,8 @@ coslam_status_t ekfslam_init(ekfslam_t *ekf, const ekfslam_config_t *cfg, pose2_
     ekf->cekf.local = 0U;
     ekf->cekf.gain_stale = 0U;
     ekf->cekf.pend_seq = 0U;
+    ekf->cekf.spread_owed = 0.0;
+    ekf->cekf.upd_madds = 0.0;
     for (int gi = 0; gi < EKFSLAM_PEND_GENS; ++gi) {
         ekf->cekf.gen[gi].n = 0;
         ekf->cekf.gen[gi].n_b = 0;
@@ -1090,7 +1104,7 @@ coslam_status_t ekfslam_predict(ekfslam_t *ekf, odo_increment_t u)
         ekf->ctr.rejected_controls++;
         return COSLAM_E_NUMERIC;
     }
-    cekf_spread(ekf);
+    cekf_spread(ekf, 0.0, 1);
     const slam_params_t *sp = &ekf->cfg.slam;
     const pose2_t pose = robot_pose(ekf);
     double g[3][3];
@@ -1379,6 +1393,9 @@ static coslam_status_t update_one(ekfslam_t *ekf, uint16_t j, sighting_t z, int 
     }
     if (local) {
         cekf_update_aux(ekf, j, &e, nu, (const double(*)[2])k);
+        /* P_AA's entries (5 each), psi's (2), phi's (2): cekf_spread */
+        const double n0 = (double)ekf->cekf.na0;
+        ekf->cekf.upd_madds += 2.5 * (double)d * (double)(d + 1) + n0 * (n0 + 1.0) + 2.0 * (double)d * n0;
     }
     return COSLAM_OK;
 }
@@ -1548,24 +1565,49 @@ void ekfslam_remove_landmark(ekfslam_t *ekf, uint16_t j)
 /* Cross block S_ab = H_a P H_b^T of the joint innovation covariance for the
  * landmarks ja and jb (the Q term belongs to the diagonal blocks only). */
 /* The cross block of candidate pairs pb and pa of the joint innovation
- * covariance, H_b P H_a^T: the search asks for the same blocks at many
- * nodes, so they are kept once computed (same numbers). */
+ * covariance, H_b P H_a^T (it depends on their landmarks only): the search
+ * asks for the same blocks at many nodes, so they are kept once computed
+ * (same numbers). */
 static void joint_block(ekfslam_t *ekf, int pb, int pa, double s[2][2])
 {
     ekfslam_scratch_t *sc = &ekf->scratch;
     const uint16_t jb = (uint16_t)sc->pairs[pb].landmark;
     const uint16_t ja = (uint16_t)sc->pairs[pa].landmark;
-    if (pb >= sc->cross_n || pa >= sc->cross_n) {
+    if (sc->cross_n == 0) {
         sparse_hph(ekf, &sc->expect[jb], jb, &sc->expect[ja], ja, s);
         return;
     }
-    if (!sc->cross_ok[pb][pa]) {
-        sparse_hph(ekf, &sc->expect[jb], jb, &sc->expect[ja], ja, sc->cross[pb][pa]);
-        sc->cross_ok[pb][pa] = 1U;
+    const int ib = sc->cross_ix[jb];
+    const int ia = sc->cross_ix[ja];
+    if (!sc->cross_ok[ib][ia]) {
+        sparse_hph(ekf, &sc->expect[jb], jb, &sc->expect[ja], ja, sc->cross[ib][ia]);
+        sc->cross_ok[ib][ia] = 1U;
     }
     for (int q1 = 0; q1 < 2; ++q1) {
         for (int q2 = 0; q2 < 2; ++q2) {
-            s[q1][q2] = sc->cross[pb][pa][q1][q2];
+            s[q1][q2] = sc->cross[ib][ia][q1][q2];
+        }
+    }
+}
+
+/* Rows of the candidate landmarks in the cross table; none if there are
+ * more than EKFSLAM_JCBB_CROSS (then joint_block computes every block). */
+static void cross_table_init(ekfslam_scratch_t *sc, int n_pairs)
+{
+    for (int q = 0; q < n_pairs; ++q) {
+        sc->cross_ix[sc->pairs[q].landmark] = -1;
+    }
+    int n = 0;
+    for (int q = 0; q < n_pairs && n <= EKFSLAM_JCBB_CROSS; ++q) {
+        int16_t *ix = &sc->cross_ix[sc->pairs[q].landmark];
+        if (*ix < 0) {
+            *ix = (int16_t)n++;
+        }
+    }
+    sc->cross_n = n <= EKFSLAM_JCBB_CROSS ? n : 0;
+    for (int b = 0; b < sc->cross_n; ++b) {
+        for (int a = 0; a < sc->cross_n; ++a) {
+            sc->cross_ok[b][a] = 0U;
         }
     }
 }
@@ -1869,12 +1911,7 @@ static void jcbb_associate(ekfslam_t *ekf, const sighting_t *z, int ns, int n_pa
         sc->cand_begin[i] = pi;
     }
     sc->cand_begin[ns] = n_pairs;
-    sc->cross_n = n_pairs <= EKFSLAM_JCBB_CROSS ? n_pairs : 0;
-    for (int b = 0; b < sc->cross_n; ++b) {
-        for (int a = 0; a < sc->cross_n; ++a) {
-            sc->cross_ok[b][a] = 0U;
-        }
-    }
+    cross_table_init(sc, n_pairs);
     jcbb_thresholds(ekf, ns);
     for (int i = 0; i < ns; ++i) {
         sc->hyp[i] = -1;
@@ -2023,8 +2060,8 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
         ++ns;
     }
     ekf->ctr.updates++;
-    cekf_spread(ekf);
     cekf_prepare(ekf, max_range_m);
+    ekf->cekf.upd_madds = 0.0;
 
     /* 1-2. expectations and gated, likelihood-ranked candidate pairs */
     const pose2_t pose = robot_pose(ekf);
@@ -2110,6 +2147,7 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
         }
         sc->matched[j] = 1;
     }
+    cekf_spread(ekf, ekf->cekf.upd_madds, 0);
 
     /* 4. negative evidence, highest index first (removal swaps in the last) */
     for (int j = (int)ekf->n_lm - 1; j >= 0; --j) {

@@ -207,8 +207,8 @@ typedef struct {
 
 /** Largest joint innovation handled by JCBB (2 rows per sighting). */
 #define EKFSLAM_JCBB_DIM (2 * COSLAM_MAX_SIGHTINGS)
-/** Candidate pairs whose cross blocks JCBB keeps once computed (an update
- *  with more computes them at every use). */
+/** Candidate landmarks whose cross blocks JCBB keeps once computed (an
+ *  update with more computes them at every use). */
 #define EKFSLAM_JCBB_CROSS COSLAM_MAX_SIGHTINGS
 
 typedef struct {
@@ -246,11 +246,13 @@ typedef struct {
     double margin_none;                           /**< pass 1: "unpaired" within this of the best holds it */
     double ub_rest[COSLAM_MAX_SIGHTINGS + 1];     /**< bound of the score of sightings i.. */
     uint32_t nodes;
-    /** H_b P H_a^T of candidate pairs b, a (pair indices after the sort),
-     *  filled as the search asks; valid where cross_ok */
+    /** H_b P H_a^T of candidate landmarks b, a (their cross_ix), filled
+     *  as the search asks; valid where cross_ok */
     double cross[EKFSLAM_JCBB_CROSS][EKFSLAM_JCBB_CROSS][2][2];
     uint8_t cross_ok[EKFSLAM_JCBB_CROSS][EKFSLAM_JCBB_CROSS];
-    int cross_n;                                  /**< pairs the table covers (0: too many pairs) */
+    int16_t cross_ix[COSLAM_EKF_MAX_LANDMARKS];   /**< landmark's row in cross, -1 none (valid for
+                                                       paired landmarks) */
+    int cross_n;                                  /**< landmarks in the table (0: too many) */
     double pht[EKFSLAM_DIM][2];
     double k[EKFSLAM_DIM][2];
     uint16_t order[COSLAM_EKF_MAX_LANDMARKS];
@@ -331,6 +333,10 @@ typedef struct {
     double w[EKFSLAM_SYNC_BLOCK][EKFSLAM_ACTIVE_DIM];
     /* the deferred parts of the last global updates (active_spread_madds) */
     uint32_t pend_seq;                        /**< generations made so far */
+    double spread_owed;                       /**< multiply-adds of completion owed: an update that
+                                                   spent its share on its own pairings leaves it to
+                                                   the next predict (cekf_spread) */
+    double upd_madds;                         /**< multiply-adds of the current update's pairings */
     ekfslam_pend_t gen[EKFSLAM_PEND_GENS];
     double pend_w[2][EKFSLAM_ACTIVE_DIM];     /**< scratch: psi u of one landmark */
     uint16_t pend_act[EKFSLAM_SPREAD_LM];     /**< scratch: flagged active landmarks */
