@@ -368,6 +368,14 @@ static void test_chain_adds_nothing_twice(void **state)
         for (int i = 0; i < N_WORLD; ++i) {
             assert_true(near_count(&g_after, g_world[i], 0.15) <= 1);
         }
+        /* nor its sightings: each robot made 20 of each landmark it holds */
+        for (uint16_t j = 0; j < g_after.n_landmarks; ++j) {
+            int robots = 0;
+            for (uint16_t m = g_after.lm[j].src_mask; m != 0U; m &= (uint16_t)(m - 1U)) {
+                ++robots;
+            }
+            assert_true(g_after.lm[j].n_obs <= 20 * robots);
+        }
         /* landmarks A held before: covariance intersection, never shrunk
          * below what the information it did not hold could justify; here
          * C's copies of A's west landmarks carry A's own bit */

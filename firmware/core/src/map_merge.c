@@ -548,8 +548,13 @@ static merge_stats_t *begin_merge(merge_scratch_t *sc, const merge_body_map_t *b
 static void absorb_meta(uint16_t *src_mask, uint16_t *n_obs, float *exist, const merge_body_map_t *bm, uint16_t i,
                         const slam_params_t *sp)
 {
+    /* sightings behind it: disjoint provenance adds; shared provenance (a
+     * repeated meeting, a chain back to this robot) may already hold this
+     * robot's count, so the larger one is kept (never counted twice, as
+     * the fusion itself: Kalman or covariance intersection) */
+    const uint32_t nobs = (*src_mask & bm->src_mask[i]) == 0U ? (uint32_t)*n_obs + bm->n_obs[i]
+                          : (*n_obs > bm->n_obs[i] ? *n_obs : bm->n_obs[i]);
     *src_mask |= bm->src_mask[i];
-    const uint32_t nobs = (uint32_t)*n_obs + bm->n_obs[i];
     *n_obs = nobs > UINT16_MAX ? (uint16_t)UINT16_MAX : (uint16_t)nobs;
     if (*exist < sp->exist_confirm) {
         *exist = sp->exist_confirm; /* the sender confirmed it */
