@@ -24,6 +24,13 @@ slam_params_t mrclam_slam_params(void)
     p.noise.init_xy_var_m2 = 0.0;
     p.noise.init_theta_var_rad2 = 0.0;
     p.noise.lm_init_var_m2 = 0.0;
+    /* The offset a track of sightings shares (docs/replay.md "fit-noise",
+     * Dataset 6): var(offset) = rho_1 var, range 0.94 * (4.25 %)^2 per m^2,
+     * bearing 0.60 * (0.65 deg)^2; a Fast-SLAM landmark's covariance is
+     * kept above it (slam_params.h). Derived, not searched. */
+    p.track_offset_range_var_per_m2 = 0.94 * 0.0425 * 0.0425;
+    p.track_offset_bearing_var_rad2 = 0.60 * (0.65 * 3.14159265358979323846 / 180.0) *
+                                      (0.65 * 3.14159265358979323846 / 180.0);
     p.base_radius_m = 0.3;
     /* Camera footprint for negative evidence: bearings reach +-0.6 rad but
      * detections beyond +-0.45 rad are rare; the detection probability is

@@ -127,6 +127,64 @@ static void test_kalman_update_hand_computed(void **state)
     assert_int_equal(lm.n_obs, 2);
 }
 
+/* The track-offset floor (slam_params_t track_offset_*): off, a landmark
+ * sighted 1,000 times from one pose ends with covariance Q / 1000; with
+ * the floor it ends at the offset's covariance, analytic for a landmark
+ * straight ahead at 2 m: diag(4 v_r, 4 v_b) (range along x, bearing times
+ * the range across). From another pose (bearing 90 deg) the floor only
+ * adds: the result dominates both the old covariance and the new floor.
+ * Both weights 0 leave landmark_update bit for bit as it was. */
+static void test_track_offset_floor(void **state)
+{
+    (void)state;
+    slam_params_t p = params();
+    const pose2_t pose = {0.0, 0.0, 0.0};
+    landmark_t lm;
+    memset(&lm, 0, sizeof lm);
+    lm.mean = (point2_t){2.0, 0.0};
+    lm.cov = cov2_make(0.04, 0.0, 0.09);
+    lm_expect_t e;
+    const sighting_t z = {2.0, 0.0, 0};
+    landmark_t off = lm;
+    for (int i = 0; i < 1000; ++i) {
+        assert_int_equal(landmark_expect(&off, &p, pose, NULL, &e), COSLAM_OK);
+        landmark_update(&off, &p, &e, z);
+    }
+    assert_true(off.cov.xx < 0.01 / 900.0 && off.cov.yy < 4.0 * 0.0025 / 900.0);
+    /* floor off: the helper returns its input unchanged */
+    const cov2_t c0 = cov2_make(0.3, 0.1, 0.2);
+    const cov2_t c1 = landmark_offset_floor(&p, &e, c0);
+    assert_true(c1.xx == c0.xx && c1.xy == c0.xy && c1.yy == c0.yy);
+
+    p.track_offset_range_var_per_m2 = 0.0017;
+    p.track_offset_bearing_var_rad2 = 7.7e-5;
+    landmark_t on = lm;
+    for (int i = 0; i < 1000; ++i) {
+        assert_int_equal(landmark_expect(&on, &p, pose, NULL, &e), COSLAM_OK);
+        landmark_update(&on, &p, &e, z);
+    }
+    ASSERT_NEAR(on.cov.xx, 4.0 * 0.0017, 1e-12);
+    ASSERT_NEAR(on.cov.xy, 0.0, 1e-12);
+    ASSERT_NEAR(on.cov.yy, 4.0 * 7.7e-5, 1e-12);
+
+    /* seen from the side (robot at (2, -2) facing +y, the landmark 2 m
+     * ahead): the floor is now diag(4 v_b, 4 v_r); the result dominates it
+     * and the covariance it started from */
+    const pose2_t side = {2.0, -2.0, 0.5 * COSLAM_PI};
+    const cov2_t before = on.cov;
+    assert_int_equal(landmark_expect(&on, &p, side, NULL, &e), COSLAM_OK);
+    const cov2_t floor_side = cov2_make(4.0 * 7.7e-5, 0.0, 4.0 * 0.0017);
+    const cov2_t got = landmark_offset_floor(&p, &e, before);
+    double lmin;
+    double lmax;
+    cov2_eigenvalues(cov2_make(got.xx - floor_side.xx, got.xy - floor_side.xy, got.yy - floor_side.yy), &lmin, &lmax);
+    assert_true(lmin > -1e-12);
+    cov2_eigenvalues(cov2_make(got.xx - before.xx, got.xy - before.xy, got.yy - before.yy), &lmin, &lmax);
+    assert_true(lmin > -1e-12);
+    ASSERT_NEAR(got.xx, fmax(before.xx, floor_side.xx), 1e-12); /* diagonal case: elementwise max */
+    ASSERT_NEAR(got.yy, fmax(before.yy, floor_side.yy), 1e-12);
+}
+
 /* The update against the information form: Sigma'^-1 = Sigma^-1 + H^T Q^-1 H
  * for a general (rotated, correlated) case. */
 static void test_kalman_update_information_form(void **state)
@@ -361,6 +419,7 @@ int main(void)
         cmocka_unit_test(test_greedy_mutual_exclusion),
         cmocka_unit_test(test_classify_and_new),
         cmocka_unit_test(test_d2_lower_bound),
+        cmocka_unit_test(test_track_offset_floor),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

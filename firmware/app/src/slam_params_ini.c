@@ -41,6 +41,8 @@ static const slam_params_ini_key_t keys[] = {
     {"max_speed_mps", offsetof(slam_params_t, max_speed_mps), D_, 0.0, HUGE_VAL, 1U},
     {"max_turn_radps", offsetof(slam_params_t, max_turn_radps), D_, 0.0, HUGE_VAL, 1U},
     {"sighting_max_range_m", offsetof(slam_params_t, sighting_max_range_m), D_, 0.0, HUGE_VAL, 1U},
+    {"track_offset_range_var_per_m2", offsetof(slam_params_t, track_offset_range_var_per_m2), D_, 0.0, HUGE_VAL, 0U},
+    {"track_offset_bearing_var_rad2", offsetof(slam_params_t, track_offset_bearing_var_rad2), D_, 0.0, HUGE_VAL, 0U},
 };
 
 #define N_KEYS (sizeof keys / sizeof keys[0])

@@ -145,6 +145,49 @@ double landmark_log_lik(const lm_expect_t *e, double d2)
     return e->log_norm - 0.5 * d2;
 }
 
+cov2_t landmark_offset_floor(const slam_params_t *params, const lm_expect_t *e, cov2_t cov)
+{
+    const double r = e->zhat.range_m;
+    const double vr = params->track_offset_range_var_per_m2 * r * r;
+    const double vb = params->track_offset_bearing_var_rad2;
+    if (!(vr > 0.0 || vb > 0.0)) {
+        return cov;
+    }
+    /* the offset in the landmark's frame: H_lm^-1 diag(vr, vb) H_lm^-T */
+    const double (*h)[2] = e->h_lm;
+    const double det = h[0][0] * h[1][1] - h[0][1] * h[1][0];
+    if (!(fabs(det) > 1e-12)) {
+        return cov;
+    }
+    double hi[2][2] = {{h[1][1] / det, -h[0][1] / det}, {-h[1][0] / det, h[0][0] / det}};
+    const cov2_t f = cov2_congruence(hi, cov2_make(vr, 0.0, vb));
+    /* add the positive part of f - cov (eigenvalues clipped at 0) */
+    const cov2_t d = cov2_make(f.xx - cov.xx, f.xy - cov.xy, f.yy - cov.yy);
+    double lmin;
+    double lmax;
+    cov2_eigenvalues(d, &lmin, &lmax);
+    if (!(lmax > 0.0)) {
+        return cov;
+    }
+    if (lmin >= 0.0) {
+        return f; /* cov + d */
+    }
+    /* unit eigenvector of lmax: (xy, lmax - xx) or (lmax - yy, xy), the longer */
+    double vx = d.xy;
+    double vy = lmax - d.xx;
+    const double ux = lmax - d.yy;
+    const double uy = d.xy;
+    if (ux * ux + uy * uy > vx * vx + vy * vy) {
+        vx = ux;
+        vy = uy;
+    }
+    const double n2 = vx * vx + vy * vy;
+    if (!(n2 > 0.0)) {
+        return cov;
+    }
+    return cov2_make(cov.xx + lmax * vx * vx / n2, cov.xy + lmax * vx * vy / n2, cov.yy + lmax * vy * vy / n2);
+}
+
 void landmark_update(landmark_t *lm, const slam_params_t *params, const lm_expect_t *e, sighting_t z)
 {
     double nu[2];
@@ -172,7 +215,7 @@ void landmark_update(landmark_t *lm, const slam_params_t *params, const lm_expec
         }
     }
     const cov2_t q = observe_noise(params, e->zhat.range_m);
-    lm->cov = cov2_add(cov2_congruence(a, sg), cov2_congruence(k, q));
+    lm->cov = landmark_offset_floor(params, e, cov2_add(cov2_congruence(a, sg), cov2_congruence(k, q)));
     if (lm->n_obs < UINT16_MAX) {
         lm->n_obs++;
     }

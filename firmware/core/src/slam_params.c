@@ -38,6 +38,8 @@ slam_params_t slam_params_default(void)
     p.noise.init_theta_var_rad2 = 0.0;
     p.noise.lm_init_var_m2 = 0.0;
     p.noise.range_var_per_m2 = 0.03 * 0.03; /* 3 % of range, 1 sigma */
+    p.track_offset_range_var_per_m2 = 0.0;
+    p.track_offset_bearing_var_rad2 = 0.0;
     p.base_radius_m = 0.132;
     p.sensor_min_range_m = 0.3;
     p.sensor_max_range_m = 5.0;
@@ -78,7 +80,8 @@ coslam_status_t slam_params_validate(const slam_params_t *p)
         !finite_nonneg(n->odo_xy_var_m2_per_m) || !finite_nonneg(n->odo_theta_var_rad2_per_m) ||
         !finite_nonneg(n->lm_process_var_m2_per_m) || !finite_nonneg(n->init_xy_var_m2) ||
         !finite_nonneg(n->init_theta_var_rad2) || !finite_nonneg(n->lm_init_var_m2) ||
-        !finite_nonneg(n->range_var_per_m2)) {
+        !finite_nonneg(n->range_var_per_m2) || !finite_nonneg(p->track_offset_range_var_per_m2) ||
+        !finite_nonneg(p->track_offset_bearing_var_rad2)) {
         return COSLAM_E_ARG;
     }
     if (!finite_nonneg(p->base_radius_m) || !finite_nonneg(p->sensor_min_range_m) ||

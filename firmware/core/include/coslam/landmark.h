@@ -111,6 +111,13 @@ double landmark_log_lik(const lm_expect_t *e, double d2);
  */
 void landmark_update(landmark_t *lm, const slam_params_t *params, const lm_expect_t *e, sighting_t z);
 
+/**
+ * `cov` kept at least the covariance of the offset a track of sightings
+ * shares (slam_params_t track_offset_*), at the sighting `e` predicts: cov
+ * plus the positive part of (offset - cov). Unchanged where both are 0.
+ */
+cov2_t landmark_offset_floor(const slam_params_t *params, const lm_expect_t *e, cov2_t cov);
+
 /** 1 if the predicted sighting lies inside the sensor footprint (with margin). */
 int landmark_should_be_seen(const slam_params_t *params, sighting_t zhat);
 

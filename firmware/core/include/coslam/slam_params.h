@@ -131,6 +131,21 @@ typedef struct {
      *  marker is a few pixels tall there). Not the negative-evidence
      *  footprint sensor_max_range_m, which may be set tighter. */
     double sighting_max_range_m;
+
+    /* Sighting errors shared by a whole track (Fast-SLAM's landmarks). A
+     * camera's range and bearing errors on one landmark are mostly an
+     * offset that persists while the robot keeps seeing it from about the
+     * same place (MRCLAM: lag-1 correlation 0.94 in range, 0.60 in bearing,
+     * docs/replay.md "fit-noise"); fused as independent, n such sightings
+     * shrink the landmark's covariance n-fold while its error does not
+     * shrink. So after each update a landmark's covariance is kept at least
+     * the offset's covariance at that sighting (range variance
+     * track_offset_range_var_per_m2 * r^2, bearing variance
+     * track_offset_bearing_var_rad2, through the sighting's geometry), by
+     * adding the positive part of the difference: process noise, so it
+     * stays a covariance. 0 and 0 (the default): off. */
+    double track_offset_range_var_per_m2;
+    double track_offset_bearing_var_rad2;
 } slam_params_t;
 
 /** The noise weights as an array w[0..7] = (w1..w8), for calibration. */
