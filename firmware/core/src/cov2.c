@@ -120,14 +120,8 @@ void cov2_eigenvalues(cov2_t a, double *lam_min, double *lam_max)
     *lam_max = half_tr + r;
 }
 
-cov2_t cov2_clamp_eigen(cov2_t a, double min_eig)
+int cov2_eig_projector(cov2_t a, double lmax, cov2_t *proj)
 {
-    double lmin;
-    double lmax;
-    cov2_eigenvalues(a, &lmin, &lmax);
-    if (lmin >= min_eig) {
-        return a;
-    }
     /* eigenvector of lmax: (xy, lmax - xx) or (lmax - yy, xy), whichever is larger */
     double vx = a.xy;
     double vy = lmax - a.xx;
@@ -139,6 +133,22 @@ cov2_t cov2_clamp_eigen(cov2_t a, double min_eig)
     }
     const double n2 = vx * vx + vy * vy;
     if (!(n2 > 0.0)) {
+        return 0; /* isotropic */
+    }
+    *proj = cov2_make(vx * vx / n2, vx * vy / n2, vy * vy / n2);
+    return 1;
+}
+
+cov2_t cov2_clamp_eigen(cov2_t a, double min_eig)
+{
+    double lmin;
+    double lmax;
+    cov2_eigenvalues(a, &lmin, &lmax);
+    if (lmin >= min_eig) {
+        return a;
+    }
+    cov2_t c;
+    if (!cov2_eig_projector(a, lmax, &c)) {
         /* isotropic: a = lmin I */
         const double l = lmin < min_eig ? min_eig : lmin;
         return cov2_make(l, 0.0, l);
@@ -146,8 +156,5 @@ cov2_t cov2_clamp_eigen(cov2_t a, double min_eig)
     const double l1 = lmax < min_eig ? min_eig : lmax;
     const double l2 = min_eig;
     /* A = l1 v v^T + l2 (I - v v^T) */
-    const double cxx = vx * vx / n2;
-    const double cxy = vx * vy / n2;
-    const double cyy = vy * vy / n2;
-    return cov2_make(l2 + (l1 - l2) * cxx, (l1 - l2) * cxy, l2 + (l1 - l2) * cyy);
+    return cov2_make(l2 + (l1 - l2) * c.xx, (l1 - l2) * c.xy, l2 + (l1 - l2) * c.yy);
 }

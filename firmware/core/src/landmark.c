@@ -172,20 +172,11 @@ cov2_t landmark_offset_floor(const slam_params_t *params, const lm_expect_t *e, 
     if (lmin >= 0.0) {
         return f; /* cov + d */
     }
-    /* unit eigenvector of lmax: (xy, lmax - xx) or (lmax - yy, xy), the longer */
-    double vx = d.xy;
-    double vy = lmax - d.xx;
-    const double ux = lmax - d.yy;
-    const double uy = d.xy;
-    if (ux * ux + uy * uy > vx * vx + vy * vy) {
-        vx = ux;
-        vy = uy;
+    cov2_t p;
+    if (!cov2_eig_projector(d, lmax, &p)) {
+        return cov; /* lmin < 0 <= lmax: not isotropic; only rounding gets here */
     }
-    const double n2 = vx * vx + vy * vy;
-    if (!(n2 > 0.0)) {
-        return cov;
-    }
-    return cov2_make(cov.xx + lmax * vx * vx / n2, cov.xy + lmax * vx * vy / n2, cov.yy + lmax * vy * vy / n2);
+    return cov2_add(cov, cov2_scale(p, lmax));
 }
 
 void landmark_update(landmark_t *lm, const slam_params_t *params, const lm_expect_t *e, sighting_t z)

@@ -59,6 +59,13 @@ cov2_t cov2_from_3x3(double j[2][3], double p[3][3]);
 void cov2_eigenvalues(cov2_t a, double *lam_min, double *lam_max);
 
 /**
+ * v v^T / |v|^2 for the eigenvector v of symmetric `a` belonging to its
+ * larger eigenvalue `lmax` (from cov2_eigenvalues). 0 if `a` is isotropic
+ * (every direction is one), `proj` untouched.
+ */
+int cov2_eig_projector(cov2_t a, double lmax, cov2_t *proj);
+
+/**
  * Nearest matrix with every eigenvalue >= min_eig (eigenvalue clamping).
  * Used to keep covariances positive definite against rounding.
  */
