@@ -441,6 +441,19 @@ static void cekf_drift(ekfslam_t *ekf)
     }
 }
 
+/* Multiply-adds of one update in a local phase (update_one,
+ * cekf_update_aux): P_AA's entries (5 each), psi's (2), phi's (2); 0
+ * outside a local phase, where nothing is pending. */
+static double local_update_madds(const ekfslam_t *ekf)
+{
+    if (!in_local(ekf)) {
+        return 0.0;
+    }
+    const double d = (double)ekf->cekf.na;
+    const double n0 = (double)ekf->cekf.na0;
+    return 2.5 * d * (d + 1.0) + n0 * (n0 + 1.0) + 2.0 * d * n0;
+}
+
 /* A predict or update's share: whole landmark rows for about
  * active_spread_madds multiply-adds (at least one), the flagged active
  * landmarks' first in a local phase, then the oldest generation's. An
@@ -454,9 +467,7 @@ static void cekf_spread(ekfslam_t *ekf, double own_madds, int pay_owed)
 {
     ekfslam_cekf_t *ck = &ekf->cekf;
     if (COSLAM_EKF_MAX_ACTIVE == 0 || pend_oldest(ck) < 0) {
-        if (COSLAM_EKF_MAX_ACTIVE > 0) {
-            ck->spread_owed = 0.0;
-        }
+        ck->spread_owed = 0.0;
         return;
     }
     /* a budget per generation with pending entries: a backlog (the robot
@@ -1036,7 +1047,6 @@ coslam_status_t ekfslam_init(ekfslam_t *ekf, const ekfslam_config_t *cfg, pose2_
     ekf->cekf.gain_stale = 0U;
     ekf->cekf.pend_seq = 0U;
     ekf->cekf.spread_owed = 0.0;
-    ekf->cekf.upd_madds = 0.0;
     for (int gi = 0; gi < EKFSLAM_PEND_GENS; ++gi) {
         ekf->cekf.gen[gi].n = 0;
         ekf->cekf.gen[gi].n_b = 0;
@@ -1393,9 +1403,6 @@ static coslam_status_t update_one(ekfslam_t *ekf, uint16_t j, sighting_t z, int 
     }
     if (local) {
         cekf_update_aux(ekf, j, &e, nu, (const double(*)[2])k);
-        /* P_AA's entries (5 each), psi's (2), phi's (2): cekf_spread */
-        const double n0 = (double)ekf->cekf.na0;
-        ekf->cekf.upd_madds += 2.5 * (double)d * (double)(d + 1) + n0 * (n0 + 1.0) + 2.0 * (double)d * n0;
     }
     return COSLAM_OK;
 }
@@ -1562,10 +1569,9 @@ void ekfslam_remove_landmark(ekfslam_t *ekf, uint16_t j)
 
 /* ---- Joint compatibility branch and bound ------------------------------ */
 
-/* Cross block S_ab = H_a P H_b^T of the joint innovation covariance for the
- * landmarks ja and jb (the Q term belongs to the diagonal blocks only). */
 /* The cross block of candidate pairs pb and pa of the joint innovation
- * covariance, H_b P H_a^T (it depends on their landmarks only): the search
+ * covariance, H_b P H_a^T (the Q term belongs to the diagonal blocks only;
+ * it depends on the pairs' landmarks only): the search
  * asks for the same blocks at many nodes, so they are kept once computed
  * (same numbers). */
 static void joint_block(ekfslam_t *ekf, int pb, int pa, double s[2][2])
@@ -2061,7 +2067,6 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
     }
     ekf->ctr.updates++;
     cekf_prepare(ekf, max_range_m);
-    ekf->cekf.upd_madds = 0.0;
 
     /* 1-2. expectations and gated, likelihood-ranked candidate pairs */
     const pose2_t pose = robot_pose(ekf);
@@ -2129,6 +2134,7 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
      * (s / r)^2 for an offset standard deviation s at range r, exceeds the
      * bearing's standard deviation is iterated (iterate_linearisation) */
     const double iekf_spread = sqrt(sqrt(sp->noise.bearing_var_rad2));
+    int n_updated = 0;
     for (int i = 0; i < ns; ++i) {
         const int32_t j = sc->assign[i];
         if (j < 0) {
@@ -2138,6 +2144,7 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
          * prior offset is uncertain against the range */
         const int iterate = ekf->cfg.iekf_max_iters > 0U && pair_is_closure(ekf, j) && pair_spread(ekf, j) > iekf_spread;
         if (update_one(ekf, (uint16_t)j, z[i], iterate) == COSLAM_OK) {
+            ++n_updated;
             ekfslam_meta_t *m = &ekf->meta[j];
             m->last_seen = ekf->ctr.updates;
             exist_hit(&m->exist, sp);
@@ -2147,7 +2154,7 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
         }
         sc->matched[j] = 1;
     }
-    cekf_spread(ekf, ekf->cekf.upd_madds, 0);
+    cekf_spread(ekf, (double)n_updated * local_update_madds(ekf), 0);
 
     /* 4. negative evidence, highest index first (removal swaps in the last) */
     for (int j = (int)ekf->n_lm - 1; j >= 0; --j) {

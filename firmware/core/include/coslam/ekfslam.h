@@ -336,7 +336,6 @@ typedef struct {
     double spread_owed;                       /**< multiply-adds of completion owed: an update that
                                                    spent its share on its own pairings leaves it to
                                                    the next predict (cekf_spread) */
-    double upd_madds;                         /**< multiply-adds of the current update's pairings */
     ekfslam_pend_t gen[EKFSLAM_PEND_GENS];
     double pend_w[2][EKFSLAM_ACTIVE_DIM];     /**< scratch: psi u of one landmark */
     uint16_t pend_act[EKFSLAM_SPREAD_LM];     /**< scratch: flagged active landmarks */
