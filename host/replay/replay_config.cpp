@@ -127,7 +127,10 @@ double parse_double(const std::string &s)
     errno = 0;
     char *end = nullptr;
     const double v = std::strtod(s.c_str(), &end);
-    if (end == s.c_str() || *end != '\0' || errno == ERANGE || !std::isfinite(v)) {
+    // ERANGE also flags an underflow to a subnormal or zero, which is a
+    // finite value: "4.94066e-324" is what this file writes for 0x1p-1074
+    // (fuzz_replay_config's round trip); an overflow is +-HUGE_VAL (inf)
+    if (end == s.c_str() || *end != '\0' || (errno == ERANGE && std::fabs(v) >= HUGE_VAL) || !std::isfinite(v)) {
         throw std::invalid_argument("not a finite number: '" + s + "'");
     }
     return v;
@@ -255,6 +258,8 @@ std::vector<Key> keys_of(ReplayConfig &c)
         ikey("eval", "min_seen", &c.eval.min_seen, 0, 1000000),
         dkey("eval", "map_period_s", &c.eval.map_period_s),
         dkey("eval", "pose_period_s", &c.eval.pose_period_s),
+        ikey("eval", "pose_fit_min_matched", &c.eval.pose_fit_min_matched, 2, 1000000),
+        ikey("eval", "pose_fit_max_landmarks", &c.eval.pose_fit_max_landmarks, 0, 1000000),
     };
     k.insert(k.end(), rest.begin(), rest.end());
     return k;

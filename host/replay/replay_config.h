@@ -20,7 +20,7 @@
 //   [merge]     enabled, window_s, interval_s, gate_chi2, grid_cell_m,
 //               transform_uncertainty, reweight_particles, min_obs,
 //               range_check_chi2, sender_speed_mps, sender_turn_radps
-//   [eval]      gate_m, min_seen, map_period_s, pose_period_s
+//   [eval]      gate_m, min_seen, map_period_s, pose_period_s, pose_fit_min_matched
 //   [robotN]    per-robot overrides: filter, scale_v, scale_w, delay_s
 #ifndef COSLAM_HOST_REPLAY_CONFIG_H
 #define COSLAM_HOST_REPLAY_CONFIG_H
@@ -103,6 +103,16 @@ struct EvalConfig {
     int min_seen = 5;          ///< a true landmark is "missed" only if sighted this often
     double map_period_s = 5.0; ///< map error time series period
     double pose_period_s = 0.1;///< pose error samples
+    /// the pose in the map's fitted frame (pose.fit_rmse_m) is scored at a
+    /// map evaluation only when the fit matched this many landmarks: with
+    /// few identical markers the fit can lock onto a wrong correspondence
+    /// (MRCLAM Dataset 6, robot 4 early on: 55 deg with 2 or more allowed)
+    int pose_fit_min_matched = 6;
+    /// ... and only while the map holds at most this many landmarks: the
+    /// fit searches the correspondences (0.4 ms at 15 landmarks, 0.2 s at
+    /// 800 against 1,024), and every 5 s on the large world it took three
+    /// quarters of the replay's time; above, a note says it was skipped
+    int pose_fit_max_landmarks = 128;
 };
 
 struct RobotOverride {

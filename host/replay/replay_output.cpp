@@ -237,7 +237,10 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
                       {"heading_rmse_rad", or_null(pk, r.heading_rmse_rad)},
                       {"heading_rmse_deg", or_null(pk, r.heading_rmse_rad * 180.0 / M_PI)},
                       {"nees_mean", or_null(pk, r.pose_nees_mean)},
-                      {"final_err_m", or_null(pk, r.final_pos_err_m)}};
+                      {"final_err_m", or_null(pk, r.final_pos_err_m)},
+                      {"fit_samples", r.pose_fit_samples},
+                      {"fit_rmse_m", or_null(r.pose_fit_samples > 0, r.pose_fit_rmse_m)},
+                      {"fit_heading_rmse_deg", or_null(r.pose_fit_samples > 0, r.heading_fit_rmse_rad * 180.0 / M_PI)}};
         rj["map"] = score_json(r.final_score);
         rj["map_fit"] = fit_json(r.final_score);
         rj["first_merge_t_s"] = r.t_first_merge_s;
@@ -457,6 +460,9 @@ void print_summary(std::ostream &out, const ReplayResult &res, const ReplayOptio
     }
     out << "wall time " << std::setprecision(2) << res.wall_s << " s for " << (res.t_end_s - res.t_begin_s)
         << " s of data\n";
+    for (const auto &n : res.notes) {
+        out << "note: " << n << "\n";
+    }
     out.flags(flags);
 }
 

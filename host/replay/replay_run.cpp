@@ -55,6 +55,10 @@ struct Robot {
     // pose error sums
     double se_xy = 0.0;
     double se_th = 0.0;
+    // ... and in the map's fitted frame, at the map evaluations
+    double se_fit_xy = 0.0;
+    double se_fit_th = 0.0;
+    long fit_skipped = 0; // map evaluations above [eval] pose_fit_max_landmarks
     double nees_sum = 0.0;
     long nees_n = 0;
     RobotResult res;
@@ -171,6 +175,7 @@ private:
     uint64_t stamp_us(double t_s) const;
     double time_s(uint64_t stamp) const;
     MapScore score_now(Robot &r, std::shared_ptr<map_whole_t> *keep = nullptr);
+    void score_pose_in_fit(Robot &r, const map_whole_t &est);
     std::optional<pose2_t> truth_in_map(const Robot &r, double t) const;
 
     const Dataset &ds_;
@@ -178,6 +183,7 @@ private:
     ReplayOptions opt_;
     std::vector<std::unique_ptr<Robot>> robots_;
     std::map<int, int> truth_index_; // landmark id -> index into ds_.landmarks
+    std::vector<point2_t> truth_world_; // for the rigid-fit scores, which need no robot truth
     // the robots' clock and link: the simulator's radio hub, every datagram
     // delivered at once and in order (the recorded robots were in reach)
     std::unique_ptr<sim::SimClock> clock_;
@@ -195,6 +201,9 @@ void Replay::setup()
     }
     if (ids.empty()) {
         throw ReplayError("the dataset has no robots");
+    }
+    for (const auto &l : ds_.landmarks) {
+        truth_world_.push_back(l.pos);
     }
     if (ids.size() > COSLAM_MAX_ROBOTS) {
         throw ReplayError("at most " + std::to_string(COSLAM_MAX_ROBOTS) + " robots per replay");
@@ -324,6 +333,18 @@ void Replay::setup()
     }
 }
 
+// Adds est's squared position and heading errors against truth to the sums;
+// returns the squared position error.
+double add_pose_error(pose2_t est, pose2_t truth, double &se_xy, double &se_th)
+{
+    const double ex = est.x - truth.x;
+    const double ey = est.y - truth.y;
+    const double eh = angle_wrap(est.theta - truth.theta);
+    se_xy += ex * ex + ey * ey;
+    se_th += eh * eh;
+    return ex * ex + ey * ey;
+}
+
 std::optional<pose2_t> Replay::truth_in_map(const Robot &r, double t) const
 {
     if (!r.res.has_truth) {
@@ -349,6 +370,36 @@ MapScore Replay::score_now(Robot &r, std::shared_ptr<map_whole_t> *keep)
     return s;
 }
 
+// The pose in the frame of the map's best rigid fit to the true landmarks
+// at this moment: how well the robot knows where it is in its own map,
+// whatever that map's frame (a merge may move a robot's whole map and pose
+// towards its partner's frame, which the pose error in the start frame,
+// pose.rmse_m, counts as error). Needs robot truth and a fit that matched
+// at least [eval] pose_fit_min_matched landmarks.
+void Replay::score_pose_in_fit(Robot &r, const map_whole_t &est)
+{
+    if (!r.res.has_truth || truth_world_.empty()) {
+        return;
+    }
+    const auto tw = r.truth->at(r.t_filter);
+    if (!tw) {
+        return;
+    }
+    if (est.n_landmarks > cfg_.eval.pose_fit_max_landmarks) {
+        r.fit_skipped++;
+        return;
+    }
+    const FitScore fit = score_map_fit(est, truth_world_, r.res.n_seen, cfg_.eval);
+    if (!fit.valid || fit.n_matched < cfg_.eval.pose_fit_min_matched) {
+        return;
+    }
+    pose2_t est_pose;
+    cov3_t cov;
+    r.filter->pose(&est_pose, &cov);
+    (void)add_pose_error(pose2_compose(fit.transform, est_pose), *tw, r.se_fit_xy, r.se_fit_th);
+    r.res.pose_fit_samples++;
+}
+
 void Replay::sample(Robot &r)
 {
     const double eps = 1e-9;
@@ -358,13 +409,8 @@ void Replay::sample(Robot &r)
         r.filter->pose(&est, &cov);
         const auto tr = truth_in_map(r, r.t_filter);
         if (tr) {
-            const double ex = est.x - tr->x;
-            const double ey = est.y - tr->y;
-            const double eh = angle_wrap(est.theta - tr->theta);
-            r.se_xy += ex * ex + ey * ey;
-            r.se_th += eh * eh;
+            r.res.final_pos_err_m = std::sqrt(add_pose_error(est, *tr, r.se_xy, r.se_th));
             r.res.pose_samples++;
-            r.res.final_pos_err_m = std::sqrt(ex * ex + ey * ey);
             const double n = nees_pose(est, cov, *tr);
             if (std::isfinite(n)) {
                 r.nees_sum += n;
@@ -390,8 +436,13 @@ void Replay::sample(Robot &r)
         r.next_pose_t += cfg_.eval.pose_period_s;
     }
     while (r.t_filter >= r.next_map_t - eps) {
-        if (opt_.record_history) {
-            r.res.map_series.push_back({r.t_filter, score_now(r)});
+        if (opt_.record_history || r.res.has_truth) {
+            std::shared_ptr<map_whole_t> m;
+            const MapScore s = score_now(r, &m);
+            if (opt_.record_history) {
+                r.res.map_series.push_back({r.t_filter, s});
+            }
+            score_pose_in_fit(r, *m);
         }
         r.next_map_t += cfg_.eval.map_period_s;
     }
@@ -649,22 +700,28 @@ ReplayResult Replay::run()
             opt_.progress((evs[i].t - out_.t_begin_s) / span);
         }
     }
-    std::vector<point2_t> truth_world; // for the rigid-fit score, which needs no robot truth
-    for (const auto &l : ds_.landmarks) {
-        truth_world.push_back(l.pos);
-    }
     for (auto &rp : robots_) {
         Robot &r = *rp;
         advance(r, out_.t_end_s);
         RobotResult &res = r.res;
         res.final_score = score_now(r, &res.final_map);
-        res.final_score.fit = score_map_fit(*res.final_map, truth_world, res.n_seen, cfg_.eval);
+        res.final_score.fit = score_map_fit(*res.final_map, truth_world_, res.n_seen, cfg_.eval);
         if (opt_.record_history && (res.map_series.empty() || res.map_series.back().t_s < r.t_filter)) {
             res.map_series.push_back({r.t_filter, res.final_score});
         }
         if (res.pose_samples > 0) {
             res.pose_rmse_m = std::sqrt(r.se_xy / res.pose_samples);
             res.heading_rmse_rad = std::sqrt(r.se_th / res.pose_samples);
+        }
+        if (r.fit_skipped > 0) {
+            out_.notes.push_back("robot " + std::to_string(res.id) + ": the pose in the fitted map was not scored at " +
+                                 std::to_string(r.fit_skipped) + " map evaluations, the map holding more than " +
+                                 std::to_string(cfg_.eval.pose_fit_max_landmarks) +
+                                 " landmarks ([eval] pose_fit_max_landmarks)");
+        }
+        if (res.pose_fit_samples > 0) {
+            res.pose_fit_rmse_m = std::sqrt(r.se_fit_xy / res.pose_fit_samples);
+            res.heading_fit_rmse_rad = std::sqrt(r.se_fit_th / res.pose_fit_samples);
         }
         res.pose_nees_mean = r.nees_n > 0 ? r.nees_sum / static_cast<double>(r.nees_n) : 0.0;
         res.step_us_mean = res.frames > 0 ? r.step_us_sum / static_cast<double>(res.frames) : 0.0;

@@ -139,6 +139,12 @@ struct RobotResult {
     int pose_samples = 0;
     double pose_rmse_m = 0.0;
     double heading_rmse_rad = 0.0;
+    /// the pose in the frame of the map's rigid fit, at the map evaluations
+    /// (Replay::score_pose_in_fit): localisation in its own map, whatever
+    /// that map's frame
+    int pose_fit_samples = 0;
+    double pose_fit_rmse_m = 0.0;
+    double heading_fit_rmse_rad = 0.0;
     double pose_nees_mean = 0.0;
     double final_pos_err_m = 0.0;
     MapScore final_score;           ///< map frame (needs truth); .fit: rigid fit (every robot)

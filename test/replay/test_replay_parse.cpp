@@ -399,6 +399,12 @@ TEST(Config, ErrorsNameFileLineAndKey)
     EXPECT_TRUE(has(err("[robot4]\ndelay_s = 9\n"), "[robot4]"));
     EXPECT_TRUE(has(err("[input]\nmax_range_m = 0\n"), "[input]"));
     EXPECT_TRUE(has(err("[eval]\ngate_m = 0\n"), "[eval]"));
+    EXPECT_TRUE(has(err("[eval]\npose_fit_min_matched = 1\n"), "[eval] pose_fit_min_matched"));
+    // overflow is refused; an underflow to a subnormal is a finite value,
+    // and the form this file writes for it reads back (fuzz_replay_config)
+    EXPECT_TRUE(has(err("[merge]\nwindow_s = 1e999\n"), "not a finite number"));
+    EXPECT_EQ(err("[merge]\nwindow_s = 0x1p-1074\n"), "");
+    EXPECT_EQ(err("[merge]\nwindow_s = 4.94066e-324\n"), "");
     ReplayConfig c = replay_config_default();
     EXPECT_THROW(replay_config_load(c, "/nonexistent.ini"), ReplayError);
 }
