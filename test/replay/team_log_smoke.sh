@@ -35,6 +35,8 @@ merged=$(sed -n 's/^merges: \([0-9]*\).*/\1/p' "$WORK/s3.txt")
 "$PY" "$SRC/tools/team_table.py" "$WORK" 3 > "$WORK/table.md" 2>&1 || fail "team_table.py: $(tail -3 "$WORK/table.md")"
 grep -q '^3 robot-runs: ' "$WORK/table.md" || fail "the table does not count 3 robot-runs: $(tail -2 "$WORK/table.md")"
 [ "$(grep -c '^| 3 | [123] |' "$WORK/table.md")" -eq 3 ] || fail "not one row per robot"
+grep -q '^pose RMSE in the fitted map alone / merged [0-9.]* / [0-9.]* m' "$WORK/table.md" ||
+    fail "no pose in the fitted map: $(tail -1 "$WORK/table.md")"
 for bad in "--world loop --robots 2" "--world arena --robots 0" "--world arena --robots 10" "--world arena --robots x"; do
     # shellcheck disable=SC2086
     "$EVAL" $bad --seed0 1 --write-log "$WORK/bad" > "$WORK/bad.txt" 2>&1
@@ -46,4 +48,4 @@ done
 rc=$?
 [ "$rc" -eq 2 ] || fail "--robots without --write-log: exit $rc, not 2"
 grep -q -- '--robots is for --write-log' "$WORK/bad.txt" || fail "no message for --robots without --write-log"
-echo "team_log_smoke: ok ($merged merges; $(tail -2 "$WORK/table.md" | head -1))"
+echo "team_log_smoke: ok ($merged merges; $(grep '^3 robot-runs: ' "$WORK/table.md"))"
