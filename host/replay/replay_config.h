@@ -20,7 +20,8 @@
 //   [merge]     enabled, window_s, interval_s, gate_chi2, grid_cell_m,
 //               transform_uncertainty, reweight_particles, min_obs,
 //               range_check_chi2, sender_speed_mps, sender_turn_radps
-//   [eval]      gate_m, min_seen, map_period_s, pose_period_s, pose_fit_min_matched
+//   [eval]      gate_m, min_seen, map_period_s, pose_period_s, pose_fit_min_matched,
+//               pose_fit_max_landmarks
 //   [robotN]    per-robot overrides: filter, scale_v, scale_w, delay_s
 #ifndef COSLAM_HOST_REPLAY_CONFIG_H
 #define COSLAM_HOST_REPLAY_CONFIG_H

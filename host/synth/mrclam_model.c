@@ -1,5 +1,7 @@
 #include "mrclam_model.h"
 
+#include "coslam/pose2.h"
+
 slam_params_t mrclam_slam_params(void)
 {
     /* Fitted to MRCLAM Dataset 6 (docs/replay.md, "Parameters"): measured
@@ -29,8 +31,7 @@ slam_params_t mrclam_slam_params(void)
      * bearing 0.60 * (0.65 deg)^2; a Fast-SLAM landmark's covariance is
      * kept above it (slam_params.h). Derived, not searched. */
     p.track_offset_range_var_per_m2 = 0.94 * 0.0425 * 0.0425;
-    p.track_offset_bearing_var_rad2 = 0.60 * (0.65 * 3.14159265358979323846 / 180.0) *
-                                      (0.65 * 3.14159265358979323846 / 180.0);
+    p.track_offset_bearing_var_rad2 = 0.60 * (0.65 * COSLAM_PI / 180.0) * (0.65 * COSLAM_PI / 180.0);
     p.base_radius_m = 0.3;
     /* Camera footprint for negative evidence: bearings reach +-0.6 rad but
      * detections beyond +-0.45 rad are rare; the detection probability is
