@@ -121,6 +121,8 @@ std::map<std::string, long> RobotFilter::counters() const
         m["rejected_sightings"] = c.rejected_sightings;
         m["rejected_controls"] = c.rejected_controls;
         m["numeric_faults"] = c.numeric_faults;
+        m["closures"] = c.closures;
+        m["closure_moves"] = c.closure_moves;
     }
     m["coverage_keyframes"] = f_->coverage.n;
     m["coverage_thinned"] = f_->coverage.thinned;

@@ -387,6 +387,173 @@ static void test_fs2_proposal_matches_ekf(void **state)
     assert_true(fabs(mean[0] - mu0.x) > 10.0 * sqrt(post[0][0] / trials));
 }
 
+
+/* Revisits (fastslam.c "Revisits"): one Fast-SLAM 2.0 particle, sure of
+ * itself (no motion since its last sample) but with a pose marginal that
+ * says it may have drifted 0.3 m since an exact old landmark O was started.
+ * It sights O 0.5 m farther than predicted: outside the ordinary gate (a new
+ * landmark without the closure), inside the gate widened by the drift. The
+ * closure moves the pose by D g, g = Hp^T (S + Hp D Hp^T)^-1 nu (computed
+ * here from landmark_expect), a landmark R started later (anchor A_R, from
+ * the pose) by its share W_R Phi^T g = A_R g (through G_R, a rotation about
+ * its anchor), and neither a landmark E started exactly (no drift shared)
+ * nor a partner's landmark F. A second old landmark of O's class that explains the sighting nearly
+ * as well makes it ambiguous: no closure. */
+static void revisit_setup(fastslam_config_t *c, int with_twin)
+{
+    *c = config(1);
+    c->proposal = FASTSLAM_PROPOSAL_OPTIMAL;
+    c->slam.noise.range_var_m2 = 0.0004;
+    c->slam.noise.range_var_per_m2 = 0.0;
+    c->slam.noise.bearing_var_rad2 = 0.0004;
+    const pose2_t p0 = {0.0, 0.0, 0.0};
+    assert_int_equal(fastslam_init(&g_fs, c, p0, 7U), COSLAM_OK);
+    const cov3_t exact = cov3_zero();
+    const cov3_t a_r = cov3_diag(0.04, 0.04, 0.0009);
+    landmark_t o = make_lm(3.0, 0.0, cov2_make(1e-4, 0.0, 1e-4), 1U, 5.0f);
+    landmark_set_anchor(&o, &exact, (point2_t){0.0, 0.0});
+    landmark_t r = make_lm(-5.0, 4.0, cov2_make(1e-4, 0.0, 1e-4), 2U, 5.0f);
+    landmark_set_anchor(&r, &a_r, (point2_t){0.0, 0.0});
+    landmark_t e = make_lm(-6.0, -4.0, cov2_make(1e-4, 0.0, 1e-4), 3U, 5.0f);
+    landmark_set_anchor(&e, &exact, (point2_t){0.0, 0.0});
+    assert_int_equal(fastslam_particle_add(&g_fs, 0, &o), COSLAM_OK);
+    assert_int_equal(fastslam_particle_add(&g_fs, 0, &r), COSLAM_OK);
+    assert_int_equal(fastslam_particle_add(&g_fs, 0, &e), COSLAM_OK);
+    /* F: a partner's landmark (merged in), anchored like R */
+    landmark_t f = make_lm(-5.0, -6.0, cov2_make(1e-4, 0.0, 1e-4), 5U, 5.0f);
+    f.src_mask = 2U;
+    landmark_set_anchor(&f, &a_r, (point2_t){0.0, 0.0});
+    assert_int_equal(fastslam_particle_add(&g_fs, 0, &f), COSLAM_OK);
+    if (with_twin) {
+        landmark_t t = make_lm(3.0, 0.25, cov2_make(1e-4, 0.0, 1e-4), 4U, 5.0f);
+        landmark_set_anchor(&t, &exact, (point2_t){0.0, 0.0});
+        assert_int_equal(fastslam_particle_add(&g_fs, 0, &t), COSLAM_OK);
+    }
+    g_fs.particles[0].pose_marg = cov3_diag(0.09, 0.09, 0.0025);
+    g_fs.ctr.updates = 100U; /* the landmarks (last_seen 0) are old */
+}
+
+static void test_revisit_closes_the_loop(void **state)
+{
+    (void)state;
+    fastslam_config_t c;
+    revisit_setup(&c, 0);
+    const sighting_t z = {3.5, 0.0, 0}; /* range, bearing, class */
+    /* the expected closure, from the same expectation */
+    const landmark_t *o = fastslam_particle_lm(&g_fs, 0, 0);
+    lm_expect_t e;
+    assert_int_equal(landmark_expect(o, &c.slam, g_fs.particles[0].pose, &g_fs.particles[0].pending_cov, &e),
+                     COSLAM_OK);
+    assert_true(landmark_mahalanobis2(&e, z) > c.slam.new_landmark_chi2); /* ordinarily a new landmark */
+    const cov3_t d = g_fs.particles[0].pose_marg;                          /* O's anchor is exact */
+    cov2_t sw = e.s;
+    for (int a = 0; a < 2; ++a) {
+        for (int b = 0; b < 2; ++b) {
+            double acc = 0.0;
+            for (int i = 0; i < 3; ++i) {
+                for (int j = 0; j < 3; ++j) {
+                    acc += e.h_pose[a][i] * d.m[i][j] * e.h_pose[b][j];
+                }
+            }
+            if (a == 0 && b == 0) sw.xx += acc;
+            if (a == 0 && b == 1) sw.xy += acc;
+            if (a == 1 && b == 1) sw.yy += acc;
+        }
+    }
+    cov2_t si;
+    assert_int_equal(cov2_inverse(sw, &si), COSLAM_OK);
+    double nu[2];
+    observe_innovation(z, e.zhat, nu);
+    const double sn[2] = {si.xx * nu[0] + si.xy * nu[1], si.xy * nu[0] + si.yy * nu[1]};
+    double g[3];
+    for (int i = 0; i < 3; ++i) {
+        g[i] = e.h_pose[0][i] * sn[0] + e.h_pose[1][i] * sn[1];
+    }
+    double dpose[3];
+    for (int i = 0; i < 3; ++i) {
+        dpose[i] = d.m[i][0] * g[0] + d.m[i][1] * g[1] + d.m[i][2] * g[2];
+    }
+    /* R: anchor at the origin, A_R = diag(0.04, 0.04, 0.0009) (as floats) */
+    const double ax = (double)0.04f;
+    const double at = (double)0.0009f;
+    const double da[3] = {ax * g[0], ax * g[1], at * g[2]};
+    const point2_t r_shift = {da[0] - 4.0 * da[2], da[1] + (-5.0) * da[2]};
+
+    assert_int_equal(fastslam_update(&g_fs, &z, 1), COSLAM_OK);
+    const fastslam_particle_t *p = &g_fs.particles[0];
+    assert_int_equal(p->n_lm, 4); /* no copy of O */
+    assert_int_equal(g_fs.ctr.closures, 1U);
+    assert_true(dpose[0] < -0.4 && dpose[0] > -0.5); /* most of the 0.5 m */
+    ASSERT_NEAR(p->pose.x, dpose[0], 1e-9);
+    ASSERT_NEAR(p->pose.y, dpose[1], 1e-9);
+    ASSERT_NEAR(p->pose.theta, dpose[2], 1e-9);
+    const landmark_t *r = fastslam_particle_lm(&g_fs, 0, 1);
+    ASSERT_NEAR(r->mean.x, -5.0 + r_shift.x, 1e-6);
+    ASSERT_NEAR(r->mean.y, 4.0 + r_shift.y, 1e-6);
+    assert_true(fabs(r_shift.x) > 0.1); /* it moved with the pose, about 0.44 of it */
+    const landmark_t *ee = fastslam_particle_lm(&g_fs, 0, 2);
+    ASSERT_NEAR(ee->mean.x, -6.0, 1e-12);
+    ASSERT_NEAR(ee->mean.y, -4.0, 1e-12);
+    const landmark_t *ff = fastslam_particle_lm(&g_fs, 0, 3); /* a partner's errors: unmoved */
+    ASSERT_NEAR(ff->mean.x, -5.0, 1e-12);
+    ASSERT_NEAR(ff->mean.y, -6.0, 1e-12);
+    const landmark_t *o2 = fastslam_particle_lm(&g_fs, 0, 0);
+    assert_true(hypot(o2->mean.x - 3.0, o2->mean.y) < 0.02); /* the old landmark stays */
+    assert_int_equal(o2->last_seen, 101U);
+    /* the pose marginal learnt the drift */
+    assert_true(p->pose_marg.m[0][0] < 0.5 * 0.09);
+
+    /* off: the same sighting starts a copy, nothing moves */
+    revisit_setup(&c, 0);
+    c.closure_drift_ratio = 0.0;
+    g_fs.cfg.closure_drift_ratio = 0.0;
+    assert_int_equal(fastslam_update(&g_fs, &z, 1), COSLAM_OK);
+    assert_int_equal(g_fs.particles[0].n_lm, 5);
+    assert_int_equal(g_fs.ctr.closures, 0U);
+    ASSERT_NEAR(g_fs.particles[0].pose.x, 0.0, 1e-12);
+    ASSERT_NEAR(fastslam_particle_lm(&g_fs, 0, 1)->mean.x, -5.0, 1e-12);
+
+    /* recently seen: not a revisit */
+    revisit_setup(&c, 0);
+    g_fs.ctr.updates = 10U;
+    assert_int_equal(fastslam_update(&g_fs, &z, 1), COSLAM_OK);
+    assert_int_equal(g_fs.ctr.closures, 0U);
+    assert_int_equal(g_fs.particles[0].n_lm, 5);
+
+    /* O holds a partner's information (merged): its error is no longer its
+     * anchor's, so it closes nothing */
+    revisit_setup(&c, 0);
+    {
+        landmark_t om = *fastslam_particle_lm(&g_fs, 0, 0);
+        om.src_mask = 3U;
+        assert_int_equal(fastslam_particle_set(&g_fs, 0, 0, &om), COSLAM_OK);
+    }
+    assert_int_equal(fastslam_update(&g_fs, &z, 1), COSLAM_OK);
+    assert_int_equal(g_fs.ctr.closures, 0U);
+    assert_int_equal(g_fs.particles[0].n_lm, 5);
+
+    /* after a merge: no revisits at all (the merged map is in a frame the
+     * anchors do not describe) */
+    revisit_setup(&c, 0);
+    g_fs.merges = 1U;
+    assert_int_equal(fastslam_update(&g_fs, &z, 1), COSLAM_OK);
+    assert_int_equal(g_fs.ctr.closures, 0U);
+
+    /* a twin of O that explains the sighting nearly as well: ambiguous */
+    revisit_setup(&c, 1);
+    assert_int_equal(fastslam_update(&g_fs, &z, 1), COSLAM_OK);
+    assert_int_equal(g_fs.ctr.closures, 0U);
+    ASSERT_NEAR(g_fs.particles[0].pose.x, 0.0, 1e-12);
+
+    /* a bad configuration is refused */
+    c = config(1);
+    c.closure_drift_ratio = -1.0;
+    assert_int_equal(fastslam_init(&g_fs2, &c, (pose2_t){0.0, 0.0, 0.0}, 1U), COSLAM_E_ARG);
+    c = config(1);
+    c.closure_ambiguity_ll = NAN;
+    assert_int_equal(fastslam_init(&g_fs2, &c, (pose2_t){0.0, 0.0, 0.0}, 1U), COSLAM_E_ARG);
+}
+
 static void test_reproducible(void **state)
 {
     (void)state;
@@ -434,6 +601,7 @@ int main(void)
         cmocka_unit_test(test_negative_evidence),
         cmocka_unit_test(test_capacity_and_bad_input),
         cmocka_unit_test(test_fs2_proposal_matches_ekf),
+        cmocka_unit_test(test_revisit_closes_the_loop),
         cmocka_unit_test(test_reproducible),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

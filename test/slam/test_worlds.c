@@ -15,8 +15,11 @@
  *    the paper world;
  *  - Fast-SLAM 2.0 with 100 particles: mean pose RMSE at most 1.3x EKF-SLAM's
  *    on the paper world.
- * Fast-SLAM on the long loop is printed, not asserted: it closes 4/10
- * (100 particles) and 6/10 (1000), see docs/consistency.md.
+ *  - Fast-SLAM 2.0 (100 particles) on the long loop: at least 5 of the 10
+ *    CI runs (6 measured; 4 without the revisit closure of fastslam.c
+ *    "Revisits", which this bound polices), at least 14 of the 30 held-out
+ *    ones (18 measured, 12 without). Issue 9 asks 8 of 10; not met, see
+ *    docs/consistency.md.
  * The arena world (MRCLAM's regime) is bounded after a rigid fit, below.
  * CI runs world seeds 1-10; COSLAM_TEST_FULL adds the held-out seeds
  * 101-130, never used while choosing anything.
@@ -91,6 +94,11 @@ static void test_long_loop(void **state)
 #endif
     ASSERT_TRUE_MSG(ekf.closed * 10 >= 8 * ekf.n, "EKF-SLAM closed the loop %d of %d\n", ekf.closed, ekf.n);
     assert_nees(&ekf);
+#if COSLAM_TEST_FULL
+    ASSERT_TRUE_MSG(fs100.closed >= 14, "Fast-SLAM 2.0 (100) closed the loop %d of %d\n", fs100.closed, fs100.n);
+#else
+    ASSERT_TRUE_MSG(fs100.closed >= 5, "Fast-SLAM 2.0 (100) closed the loop %d of %d\n", fs100.closed, fs100.n);
+#endif
 }
 
 /* The arena (MRCLAM's regime, 15 identical landmarks in clusters, one or

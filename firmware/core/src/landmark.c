@@ -23,6 +23,7 @@ coslam_status_t landmark_init(landmark_t *lm, const slam_params_t *params, pose2
     lm->src_mask = src_mask;
     lm->signature = z.signature;
     lm->confirmed_once = 0;
+    lm->last_seen = 0;
     for (int i = 0; i < 6; ++i) {
         lm->anchor_cov[i] = 0.0f;
     }

@@ -587,6 +587,7 @@ coslam_status_t merge_into_fastslam(fastslam_t *fs, const merge_body_map_t *bm, 
     merge_stats_t local;
     stats = begin_merge(sc, bm, cfg, stats, &local);
     const slam_params_t *sp = &fs->cfg.slam;
+    fs->merges++;
     coslam_status_t result = COSLAM_OK;
     /* one identity per incoming landmark, shared by the particles that add it */
     for (uint16_t i = 0; i < bm->n; ++i) {
@@ -664,6 +665,7 @@ coslam_status_t merge_into_fastslam(fastslam_t *fs, const merge_body_map_t *bm, 
                 /* placed through this particle's pose: its pose error is the
                  * received landmark's anchor (marginal.h) */
                 landmark_set_anchor(&lm, &p->pose_marg, (point2_t){p->pose.x, p->pose.y});
+                lm.last_seen = (uint16_t)fs->ctr.updates; /* a revisit only after closure_gap */
                 if (fastslam_particle_add(fs, k, &lm) != COSLAM_OK) {
                     stats->capacity_drops++;
                     result = COSLAM_E_CAPACITY;

@@ -23,6 +23,16 @@ static cov3_t drift_since(const cov3_t *p, pose2_t pose, const cov3_t *anchor, p
     return *clipped ? cov3_clamp_psd(q) : q;
 }
 
+cov3_t marginal_drift(const cov3_t *p, pose2_t pose, const cov3_t *anchor, point2_t anchor_xy)
+{
+    if (!cov3_is_finite(*p) || !cov3_is_finite(*anchor)) {
+        return cov3_zero();
+    }
+    cov3_t shared;
+    int clipped;
+    return drift_since(p, pose, anchor, anchor_xy, &shared, &clipped);
+}
+
 cov2_t marginal_relative_drift(const cov3_t *p, pose2_t pose, const cov3_t *anchor, point2_t anchor_xy, point2_t rel)
 {
     if (!cov3_is_finite(*p) || !cov3_is_finite(*anchor)) {

@@ -33,6 +33,11 @@ typedef struct {
     uint8_t confirmed_once; /**< 1 once its evidence was seen at or above
                                  exist_confirm (set by exist_miss(); 0 from
                                  landmark_init() or a zeroed struct) */
+    uint16_t last_seen; /**< Fast-SLAM: the filter's update count (mod 2^16)
+                             when it was last sighted, started or received;
+                             a revisit is a sighting after closure_gap
+                             updates without one (fastslam.h). Fits the
+                             struct's padding: landmark_t stays 88 bytes */
     float anchor_cov[6];/**< robot pose marginal when the landmark was started
                              (xx, xy, xt, yy, yt, tt; marginal.h): the part of
                              the pose error it shares; all zero = exact */

@@ -65,6 +65,13 @@ cov2_t marginal_relative_drift(const cov3_t *p, pose2_t pose, const cov3_t *anch
                                point2_t rel);
 
 /**
+ * The drift since a landmark's anchor: P - Phi A Phi^T (Phi carries the
+ * anchor's heading error to the current position), negative directions
+ * clipped to zero. O(1).
+ */
+cov3_t marginal_drift(const cov3_t *p, pose2_t pose, const cov3_t *anchor, point2_t anchor_xy);
+
+/**
  * A covariance that bounds both a and b in the Loewner order (C >= a and
  * C >= b): with a = L L^T and L^-1 b L^-T = U diag(l) U^T,
  * C = L U diag(max(l, 1)) U^T L^T, the union of the two ellipses' bounds
