@@ -361,20 +361,10 @@ void fastslam_particle_clear(fastslam_t *fs, uint16_t k)
  * closures in one frame (never happens on the long loop).
  */
 
-/* Hp D Hp^T for a sighting's pose Jacobian. */
-static cov2_t drift_term(const double hp[2][3], const cov3_t *d)
+/* A sighting's noise about the drift (marginal.h): Hm cov Hm^T + Q. */
+static cov2_t sighting_noise(const lm_expect_t *e, const landmark_t *lm, const slam_params_t *sp)
 {
-    double r[2][2];
-    for (int a = 0; a < 2; ++a) {
-        for (int b = 0; b < 2; ++b) {
-            double acc = 0.0;
-            for (int i = 0; i < 3; ++i) {
-                acc += hp[a][i] * (d->m[i][0] * hp[b][0] + d->m[i][1] * hp[b][1] + d->m[i][2] * hp[b][2]);
-            }
-            r[a][b] = acc;
-        }
-    }
-    return cov2_make(r[0][0], 0.5 * (r[0][1] + r[1][0]), r[1][1]);
+    return cov2_add(cov2_congruence((double(*)[2])e->h_lm, lm->cov), observe_noise(sp, e->zhat.range_m));
 }
 
 /* The expectation with `add` in its innovation covariance; 0 if not PD. */
@@ -404,7 +394,7 @@ static int revisit_expect(const fastslam_t *fs, const fastslam_particle_t *p, co
     }
     const cov3_t a = landmark_anchor(lm);
     const cov3_t d = marginal_drift(&p->pose_marg, p->pose, &a, (point2_t){lm->anchor_xy[0], lm->anchor_xy[1]});
-    const cov2_t add = drift_term((const double(*)[3])e->h_pose, &d);
+    const cov2_t add = cov2_from_3x3((double(*)[3])e->h_pose, (double(*)[3])d.m); /* Hp D Hp^T */
     const cov2_t si = e->s_inv;
     const double ratio = add.xx * si.xx + 2.0 * add.xy * si.xy + add.yy * si.yy;
     if (!(ratio > fs->cfg.closure_drift_ratio)) {
@@ -480,7 +470,7 @@ static double close_revisit(fastslam_t *fs, fastslam_particle_t *p, uint16_t j, 
     }
     const cov3_t d = marginal_drift(&p->pose_marg, p->pose, &a_old, at_old);
     lm_expect_t ew = e;
-    if (!expect_widened(&ew, drift_term((const double(*)[3])e.h_pose, &d))) {
+    if (!expect_widened(&ew, cov2_from_3x3(e.h_pose, (double(*)[3])d.m))) {
         fs->ctr.numeric_faults++;
         return sp->new_landmark_log_lik;
     }
@@ -507,18 +497,9 @@ static double close_revisit(fastslam_t *fs, fastslam_particle_t *p, uint16_t j, 
             continue; /* a partner's errors, not this drift */
         }
         const point2_t al = {lc->anchor_xy[0], lc->anchor_xy[1]};
-        const double cx = al.x - at_old.x;
-        const double cy = al.y - at_old.y;
-        double phi[3][3] = {{1.0, 0.0, -cy}, {0.0, 1.0, cx}, {0.0, 0.0, 1.0}};
-        const cov3_t shared = cov3_congruence(phi, a_old);
+        /* W_l: the drift from the old anchor to l's (marginal.h) */
         const cov3_t al_cov = landmark_anchor(lc);
-        cov3_t w;
-        for (int r = 0; r < 3; ++r) {
-            for (int c = 0; c < 3; ++c) {
-                w.m[r][c] = al_cov.m[r][c] - shared.m[r][c];
-            }
-        }
-        w = cov3_clamp_psd(cov3_symmetrize(w));
+        const cov3_t w = marginal_drift(&al_cov, (pose2_t){al.x, al.y, 0.0}, &a_old, at_old);
         if (!(w.m[0][0] + w.m[1][1] + w.m[2][2] > 1e-12)) {
             continue;
         }
@@ -547,8 +528,8 @@ static double close_revisit(fastslam_t *fs, fastslam_particle_t *p, uint16_t j, 
     const landmark_t *o2 = lm_tree_get(&fs->lm_pool, p->lm_root, j);
     lm_expect_t e2;
     if (landmark_expect(o2, sp, p->pose, 0, &e2) == COSLAM_OK) {
-        const cov2_t n = cov2_add(cov2_congruence((double(*)[2])e2.h_lm, o2->cov), observe_noise(sp, e2.zhat.range_m));
-        if (marginal_pose_observe(&p->pose_marg, p->pose, &a_old, at_old, e2.h_pose, n) != COSLAM_OK) {
+        if (marginal_pose_observe(&p->pose_marg, p->pose, &a_old, at_old, e2.h_pose, sighting_noise(&e2, o2, sp)) !=
+            COSLAM_OK) {
             fs->ctr.numeric_faults++;
         }
     }
@@ -697,7 +678,7 @@ static coslam_status_t update_particle(fastslam_t *fs, uint16_t k, const sightin
          * revisit's was applied when it closed) */
         if (closure_j[i] < 0) {
             marg_obs_t *mo = &mobs[n_mobs++];
-            mo->n = cov2_add(cov2_congruence((double(*)[2])ep->h_lm, lm->cov), observe_noise(sp, ep->zhat.range_m));
+            mo->n = sighting_noise(ep, lm, sp);
             mo->anchor = landmark_anchor(lm);
             mo->at = (point2_t){lm->anchor_xy[0], lm->anchor_xy[1]};
             memcpy(mo->hp, ep->h_pose, sizeof mo->hp);
