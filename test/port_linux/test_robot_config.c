@@ -39,7 +39,18 @@ static void default_file_loads_and_is_the_default(void **state)
     (void)state;
     char msg[600];
     robot_config_default(&cfg);
-    assert_int_equal(robot_config_load(&cfg, COSLAM_ROBOT_INI, msg, sizeof msg), COSLAM_OK);
+    const coslam_status_t st = robot_config_load(&cfg, COSLAM_ROBOT_INI, msg, sizeof msg);
+    if (strcmp(COSLAM_PROFILE_NAME, "default") != 0) {
+        /* robot.ini names the default profile: a build of another profile
+         * refuses it, by name (the rest holds for the default build only) */
+        assert_int_not_equal(st, COSLAM_OK);
+        assert_non_null(strstr(msg, "capacity profile"));
+        skip();
+    }
+    if (st != COSLAM_OK) {
+        fprintf(stderr, "%s: %s\n", COSLAM_ROBOT_INI, msg);
+    }
+    assert_int_equal(st, COSLAM_OK);
     /* the documented file writes out exactly the built-in defaults */
     static robot_config_t def;
     robot_config_default(&def);

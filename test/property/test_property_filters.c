@@ -215,6 +215,24 @@ static void check_map(const map_estimate_t *m, const char *where)
     }
 }
 
+static ekfslam_t g_ekf_synced;
+/* the refused-input snapshot of a compressed EKF with entries pending */
+static int g_snap_readers;
+static pose2_t g_snap_pose;
+static cov3_t g_snap_pose_cov;
+static point2_t g_snap_lm[COSLAM_EKF_MAX_LANDMARKS];
+static cov2_t g_snap_lm_cov[COSLAM_EKF_MAX_LANDMARKS];
+
+/* Has the compressed EKF a local phase open or entries pending? */
+static int ekf_pending(const ekfslam_t *e)
+{
+    int n = e->cekf.local != 0U;
+    for (int g = 0; g < EKFSLAM_PEND_GENS; ++g) {
+        n += e->cekf.gen[g].n > 0;
+    }
+    return n > 0;
+}
+
 static void check_filter(int i, int full)
 {
     slam_filter_t *f = &g_f[i];
@@ -227,9 +245,31 @@ static void check_filter(int i, int full)
     }
     check_cov3(&pc, name);
     if (f->kind == SLAM_FILTER_EKF) {
+        /* the compressed EKF (profiles with COSLAM_EKF_MAX_ACTIVE > 0) keeps
+         * P's entries outside its active part with corrections pending: the
+         * covariance is what ekfslam_sync makes of a copy */
         const ekfslam_t *e = &f->u.ekf;
-        const int d = 3 + 2 * (int)e->n_lm;
         g_max_lm[i] = e->n_lm > g_max_lm[i] ? e->n_lm : g_max_lm[i];
+        if (ekf_pending(e)) {
+            if (!full) {
+                /* a copy costs the whole state: only on the full checks;
+                 * the pose (above) and the landmarks through the readers */
+                for (uint16_t j = 0; j < e->n_lm; ++j) {
+                    point2_t m;
+                    cov2_t c;
+                    ekfslam_landmark(e, j, &m, &c);
+                    if (!isfinite(m.x) || !isfinite(m.y)) {
+                        fail("EKF landmark not finite", name, m.x, m.y);
+                    }
+                    check_cov2(c, name);
+                }
+                return;
+            }
+            g_ekf_synced = *e;
+            ekfslam_sync(&g_ekf_synced);
+            e = &g_ekf_synced;
+        }
+        const int d = 3 + 2 * (int)e->n_lm;
         for (int r = 0; r < d; ++r) {
             const double prr = e->p[r * EKFSLAM_DIM + r];
             if (!isfinite(e->x[r]) || !isfinite(prr) || prr < 0.0) {
@@ -298,6 +338,41 @@ static void check_unchanged(int i, const char *why)
         if (x->n_lm != y->n_lm) {
             fail("refused input changed the EKF landmark count", why, x->n_lm, y->n_lm);
         }
+        if (g_snap_readers) {
+            /* entries were pending: a refused predict or merge may still
+             * complete some (its share of the deferred work, ekfslam_sync),
+             * which changes how P is stored, not the estimate; so the
+             * estimate through the const readers, to rounding (completions
+             * add in another order) */
+            pose2_t pose;
+            cov3_t pc;
+            ekfslam_pose(y, &pose, &pc);
+            const double tp[3] = {pose.x - g_snap_pose.x, pose.y - g_snap_pose.y, pose.theta - g_snap_pose.theta};
+            for (int r = 0; r < 3; ++r) {
+                if (!(fabs(tp[r]) <= 1e-9 * (1.0 + fabs(pose.x) + fabs(pose.y)))) {
+                    fail("refused input changed the EKF pose", why, r, tp[r]);
+                }
+                for (int c = 0; c < 3; ++c) {
+                    const double sc = sqrt(fabs(pc.m[r][r] * pc.m[c][c]));
+                    if (!(fabs(pc.m[r][c] - g_snap_pose_cov.m[r][c]) <= 1e-9 * sc)) {
+                        fail("refused input changed the EKF pose covariance", why, pc.m[r][c], g_snap_pose_cov.m[r][c]);
+                    }
+                }
+            }
+            for (uint16_t j = 0; j < y->n_lm; ++j) {
+                point2_t m;
+                cov2_t c;
+                ekfslam_landmark(y, j, &m, &c);
+                const cov2_t c0 = g_snap_lm_cov[j];
+                const double sc = sqrt(fabs(c0.xx * c0.yy));
+                if (!(hypot(m.x - g_snap_lm[j].x, m.y - g_snap_lm[j].y) <= 1e-9 * (1.0 + hypot(m.x, m.y))) ||
+                    !(fabs(c.xx - c0.xx) <= 1e-9 * c0.xx) || !(fabs(c.yy - c0.yy) <= 1e-9 * c0.yy) ||
+                    !(fabs(c.xy - c0.xy) <= 1e-9 * sc)) {
+                    fail("refused input changed an EKF landmark", why, j, m.x - g_snap_lm[j].x);
+                }
+            }
+            return;
+        }
         const int d = 3 + 2 * (int)x->n_lm;
         for (int r = 0; r < d; ++r) {
             if (memcmp(&x->x[r], &y->x[r], sizeof(double)) != 0) {
@@ -327,9 +402,23 @@ static void snapshot(int i)
 {
     g_before.kind = g_f[i].kind;
     if (g_f[i].kind == SLAM_FILTER_EKF) {
-        g_before.u.ekf.n_lm = g_f[i].u.ekf.n_lm;
-        memcpy(g_before.u.ekf.x, g_f[i].u.ekf.x, sizeof g_before.u.ekf.x);
-        memcpy(g_before.u.ekf.p, g_f[i].u.ekf.p, sizeof g_before.u.ekf.p);
+        const ekfslam_t *e = &g_f[i].u.ekf;
+        g_before.u.ekf.n_lm = e->n_lm;
+        g_snap_readers = ekf_pending(e);
+        if (g_snap_readers) {
+            /* the compressed EKF with entries pending (profiles with
+             * COSLAM_EKF_MAX_ACTIVE > 0): what its const readers say */
+            ekfslam_pose(e, &g_snap_pose, &g_snap_pose_cov);
+            for (uint16_t j = 0; j < e->n_lm; ++j) {
+                ekfslam_landmark(e, j, &g_snap_lm[j], &g_snap_lm_cov[j]);
+            }
+        } else {
+            const int d = 3 + 2 * (int)e->n_lm;
+            memcpy(g_before.u.ekf.x, e->x, (size_t)d * sizeof(double));
+            for (int r = 0; r < d; ++r) {
+                memcpy(&g_before.u.ekf.p[r * EKFSLAM_DIM], &e->p[r * EKFSLAM_DIM], (size_t)d * sizeof(double));
+            }
+        }
     } else {
         g_before.u.fs.cfg = g_f[i].u.fs.cfg;
         memcpy(g_before.u.fs.particles, g_f[i].u.fs.particles, sizeof g_before.u.fs.particles);

@@ -234,16 +234,19 @@ static void test_capacity_and_bad_input(void **state)
 {
     (void)state;
     ekfslam_config_t c = config();
-    c.slam.exist_confirm = c.slam.exist_init;
+    c.slam.exist_confirm = c.slam.exist_init; /* confirmed at once and never */
+    c.slam.exist_miss_confirmed = 0.0f;       /* decaying: no removal while filling */
     const pose2_t p0 = {0.0, 0.0, 0.0};
     assert_int_equal(ekfslam_init(&g_ekf, &c, p0), COSLAM_OK);
+    /* 10 ranges x 7 bearings, 7 classes among them; the next 70 in the
+     * next 7 classes (classes never pair), so the layout holds any capacity */
     for (int i = 0; g_ekf.n_lm < COSLAM_EKF_MAX_LANDMARKS; ++i) {
-        const sighting_t z = {1.0 + 0.4 * (i % 10), -0.4 + 0.8 * (double)(i / 10) / (COSLAM_EKF_MAX_LANDMARKS / 10.0),
-                              (uint8_t)(i % 7)};
+        const int q = i % 70;
+        const sighting_t z = {1.0 + 0.4 * (q % 10), -0.4 + 0.125 * (q / 10), (uint8_t)(i % 7 + 7 * ((i / 70) % 36))};
         assert_int_equal(ekfslam_update(&g_ekf, &z, 1), COSLAM_OK);
         assert_true(i < 4 * COSLAM_EKF_MAX_LANDMARKS);
     }
-    const sighting_t extra = {0.35, 0.0, 200};
+    const sighting_t extra = {0.35, 0.0, 255};
     assert_int_equal(ekfslam_update(&g_ekf, &extra, 1), COSLAM_E_CAPACITY);
     assert_int_equal(g_ekf.ctr.lm_capacity_drops, 1);
     assert_int_equal(g_ekf.n_lm, COSLAM_EKF_MAX_LANDMARKS);

@@ -256,10 +256,14 @@ static void test_capacity_and_bad_input(void **state)
     c.slam.exist_miss_confirmed = 0.0f;       /* decaying: no removal while filling */
     const pose2_t p0 = {0.0, 0.0, 0.0};
     assert_int_equal(fastslam_init(&g_fs, &c, p0, 7U), COSLAM_OK);
-    /* fill the map with well separated landmarks, one per update */
+    /* fill the map with well separated landmarks, one per update: 8 ranges
+     * x 8 bearings 0.1 rad apart, the next class for the next 64 (classes
+     * never pair), so the layout holds any capacity (64 in the default
+     * profile, 2,048 in the host one) */
     int added = 0;
     for (int i = 0; added < COSLAM_MAX_LANDMARKS; ++i) {
-        const sighting_t z = {1.0 + 0.5 * (i % 8), -0.4 + 0.8 * (i / 8) / (COSLAM_MAX_LANDMARKS / 8.0), 0};
+        const int q = i % 64;
+        const sighting_t z = {1.0 + 0.5 * (q % 8), -0.4 + 0.1 * (q / 8), (uint8_t)((i / 64) % 256)};
         const coslam_status_t st = fastslam_update(&g_fs, &z, 1);
         assert_int_equal(st, COSLAM_OK);
         added = g_fs.particles[0].n_lm;

@@ -90,6 +90,10 @@ TEST(VisionSource, FramesBecomeSightingFrames)
 
 TEST(VisionSource, SightingsBeyondTheFramesCapacityAreCounted)
 {
+    if (COSLAM_MAX_SIGHTINGS >= 22) {
+        GTEST_SKIP() << "22 markers in one image exceed only the default profile's " << 16
+                     << " sightings per frame; this build has " << COSLAM_MAX_SIGHTINGS;
+    }
     Rig r;
     ASSERT_EQ(vision_source_init(&r.vs, r.cam.handle(), r.det, r.buf.data(), r.buf.size()), HAL_OK);
     cv::Mat rgb(H, W, CV_8UC3, cv::Scalar(128, 128, 128));
