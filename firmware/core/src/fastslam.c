@@ -491,8 +491,11 @@ static double close_revisit(fastslam_t *fs, fastslam_particle_t *p, uint16_t j, 
     fs->ctr.closures++;
     /* every own landmark by its anchor's share of the drift */
     const uint16_t own = (uint16_t)(1U << fs->cfg.robot_id);
+    /* all of them in one walk of the tree (the scratch view is free after
+     * the near list; a write copies a leaf, never frees the one read) */
+    const landmark_t *const *all = fastslam_particle_landmarks(fs, (uint16_t)(p - fs->particles));
     for (uint16_t l = 0; l < p->n_lm; ++l) {
-        const landmark_t *lc = lm_tree_get(&fs->lm_pool, p->lm_root, l);
+        const landmark_t *lc = all[l];
         if (lc->src_mask != own) {
             continue; /* a partner's errors, not this drift */
         }
