@@ -209,6 +209,9 @@ std::vector<Key> keys_of(ReplayConfig &c)
         ikey("filter", "particles", &c.filter.particles, 1, COSLAM_MAX_PARTICLES),
         dkey("filter", "ess_fraction", &c.filter.ess_fraction),
         dkey("filter", "export_min_weight", &c.filter.export_min_weight),
+        dkey("filter", "closure_drift_ratio", &c.filter.closure_drift_ratio),
+        ikey("filter", "closure_gap", &c.filter.closure_gap, 0, 65535),
+        dkey("filter", "closure_ambiguity_ll", &c.filter.closure_ambiguity_ll),
         {"filter", "assoc",
          [&c](const std::string &s) {
              if (s == "jcbb") {
@@ -223,6 +226,7 @@ std::vector<Key> keys_of(ReplayConfig &c)
         ikey("filter", "jcbb_max_nodes", &c.filter.jcbb_max_nodes, 1, 100000000),
         ikey("filter", "fej", &c.filter.fej, 0, 1),
         ikey("filter", "iekf_max_iters", &c.filter.iekf_max_iters, 0, 255),
+        dkey("filter", "nis_inflate", &c.filter.nis_inflate),
         ikey("filter", "seed", &c.filter.seed, 0, 2000000000),
         dkey("filter", "predict_period_s", &c.filter.predict_period_s),
         dkey("input", "min_range_m", &c.input.min_range_m),
@@ -391,6 +395,13 @@ void replay_config_validate(const ReplayConfig &c)
     }
     if (!(c.filter.export_min_weight > 0.0 && c.filter.export_min_weight <= 1.0)) {
         bad("[filter] export_min_weight must be in (0, 1]");
+    }
+    if (!(c.filter.closure_drift_ratio >= 0.0 && c.filter.closure_drift_ratio < 1e12 &&
+          c.filter.closure_ambiguity_ll >= 0.0 && c.filter.closure_ambiguity_ll < 1e12)) {
+        bad("[filter] closure_drift_ratio and closure_ambiguity_ll must be finite and >= 0");
+    }
+    if (!(c.filter.nis_inflate >= 0.0 && c.filter.nis_inflate < 1e6)) {
+        bad("[filter] nis_inflate must be in [0, 1e6) (0: off)");
     }
     if (!(c.filter.predict_period_s > 0.0)) {
         bad("[filter] predict_period_s must be > 0");

@@ -12,7 +12,9 @@
 //               (same names, parser and per-key domains)
 //   [odometry]  scale_v, scale_w, delay_s (OdoModel)
 //   [filter]    type (fastslam1 | fastslam2 | ekf), particles, ess_fraction,
-//               export_min_weight, assoc (jcbb | nn), jcbb_max_nodes, fej,
+//               export_min_weight, closure_drift_ratio, closure_gap,
+//               closure_ambiguity_ll, assoc (jcbb | nn), jcbb_max_nodes, fej,
+//               nis_inflate,
 //               iekf_max_iters, seed, predict_period_s
 //   [input]     min_range_m, max_range_m (sightings outside are dropped, counted),
 //               known_id_gate_rad, known_id_gate_chi2, known_id_log_lik
@@ -50,10 +52,15 @@ struct FilterConfig {
     int particles = 100;
     double ess_fraction = 0.5;
     double export_min_weight = 0.5;
+    /// Fast-SLAM 2.0 revisits (fastslam_config_t; 0 switches them off).
+    double closure_drift_ratio = 4.0;
+    int closure_gap = 25;
+    double closure_ambiguity_ll = 2.302585093;
     ekfslam_assoc_t assoc = EKFSLAM_ASSOC_JCBB;
     uint32_t jcbb_max_nodes = 20000;
     int fej = 1;
     int iekf_max_iters = 0; ///< ekfslam_config_t::iekf_max_iters
+    double nis_inflate = 3.0; ///< ekfslam_config_t::nis_inflate (0: off)
     uint64_t seed = 1;
     /// Odometry is folded into one prediction at most this long [s] (and
     /// always right before a camera frame): the robot's control rate.

@@ -24,13 +24,18 @@ RobotFilter::RobotFilter(FilterKind kind, const ReplayConfig &cfg, uint8_t core_
     c.seed = seed;
     c.resample_ess_fraction = cfg.filter.ess_fraction;
     c.export_min_weight = cfg.filter.export_min_weight;
+    c.closure_drift_ratio = cfg.filter.closure_drift_ratio;
+    c.closure_gap = static_cast<uint16_t>(cfg.filter.closure_gap);
+    c.closure_ambiguity_ll = cfg.filter.closure_ambiguity_ll;
     c.assoc = cfg.filter.assoc;
     c.jcbb_max_nodes = cfg.filter.jcbb_max_nodes;
     c.fej = static_cast<uint8_t>(cfg.filter.fej);
     c.iekf_max_iters = static_cast<uint8_t>(cfg.filter.iekf_max_iters);
+    c.nis_inflate = cfg.filter.nis_inflate;
     if (slam_filter_init(f_.get(), &c, pose0) != COSLAM_OK) {
         throw ReplayError(std::string(slam_filter_kind_name(c.kind)) + ": the core refused the configuration");
     }
+
 }
 
 RobotFilter::~RobotFilter() = default;
@@ -107,6 +112,7 @@ std::map<std::string, long> RobotFilter::counters() const
         m["jcbb_closures_nonlinear"] = c.jcbb_closures_nonlinear;
         m["iekf_updates"] = c.iekf_updates;
         m["iekf_iterations"] = c.iekf_iterations;
+        m["nis_inflations"] = c.nis_inflations;
         m["landmarks_in_state"] = ekf->n_lm;
     } else {
         const fastslam_counters_t &c = fastslam()->ctr;

@@ -162,9 +162,41 @@ static void refused(const char *text, const char *want)
     assert_non_null(strstr(msg, want));
 }
 
+/* The Fast-SLAM revisit keys and EKF-SLAM's innovation monitor: the core's
+ * defaults, and they reach the filter. */
+static void closure_keys_reach_the_filter(void **state)
+{
+    (void)state;
+    char msg[600];
+    robot_config_default(&cfg);
+    const fastslam_config_t fc = fastslam_config_default();
+    assert_true(cfg.node.filter.closure_drift_ratio == fc.closure_drift_ratio);
+    assert_int_equal(cfg.node.filter.closure_gap, fc.closure_gap);
+    assert_true(cfg.node.filter.closure_ambiguity_ll == fc.closure_ambiguity_ll);
+    assert_true(cfg.node.filter.nis_inflate == ekfslam_config_default().nis_inflate);
+    const char *text = "[filter]\nclosure_drift_ratio = 0\nclosure_gap = 7\nclosure_ambiguity_ll = 1.5\nnis_inflate = 0\n";
+    assert_int_equal(robot_config_load_string(&cfg, text, "c.ini", msg, sizeof msg), COSLAM_OK);
+    assert_true(cfg.node.filter.closure_drift_ratio == 0.0);
+    assert_int_equal(cfg.node.filter.closure_gap, 7);
+    assert_true(cfg.node.filter.closure_ambiguity_ll == 1.5);
+    /* and the filter built from it holds them */
+    static slam_filter_t f;
+    cfg.node.filter.kind = SLAM_FILTER_FASTSLAM2;
+    assert_int_equal(slam_filter_init(&f, &cfg.node.filter, (pose2_t){0.0, 0.0, 0.0}), COSLAM_OK);
+    assert_true(f.u.fs.cfg.closure_drift_ratio == 0.0);
+    assert_int_equal(f.u.fs.cfg.closure_gap, 7);
+    assert_true(f.u.fs.cfg.closure_ambiguity_ll == 1.5);
+    cfg.node.filter.kind = SLAM_FILTER_EKF;
+    assert_int_equal(slam_filter_init(&f, &cfg.node.filter, (pose2_t){0.0, 0.0, 0.0}), COSLAM_OK);
+    assert_true(f.u.ekf.cfg.nis_inflate == 0.0);
+}
+
 static void bad_files_name_file_and_line(void **state)
 {
     (void)state;
+    refused("[filter]\nclosure_drift_ratio = -1\n", "bad.ini:2: [filter] closure_drift_ratio: -1 is outside its domain");
+    refused("[filter]\nclosure_gap = 70000\n", "bad.ini:2: [filter] closure_gap: 70000 is outside its domain");
+    refused("[filter]\nnis_inflate = -1\n", "bad.ini:2: [filter] nis_inflate: -1 is outside its domain");
     refused("[robot]\nid = 0\n\n[nosuch]\nkey = 1\n", "bad.ini:5: unknown section [nosuch]");
     refused("[laser]\ndevice = /dev/x\nspeed = 3\n", "bad.ini:3: unknown key 'speed' in [laser]");
     refused("[slam]\n\nrange_var_m3 = 1\n", "bad.ini:3: unknown key 'range_var_m3' in [slam]");
@@ -360,6 +392,7 @@ int main(int argc, char **argv)
         cmocka_unit_test(print_reads_back),
         cmocka_unit_test(link_keys_defaults_and_round_trip),
         cmocka_unit_test(meeting_noise_comes_from_slam),
+        cmocka_unit_test(closure_keys_reach_the_filter),
         cmocka_unit_test(bad_files_name_file_and_line),
         cmocka_unit_test(binary_exits_2_with_file_and_line),
         cmocka_unit_test(binary_refuses_a_bad_fleet_key),

@@ -10,6 +10,7 @@
 
 #include "replay_config.h"
 #include "replay_data.h"
+#include "replay_filter.h"
 #include "replay_odometry.h"
 #include "replay_truth.h"
 
@@ -373,6 +374,27 @@ TEST(Config, DefaultsValidateAndRoundTrip)
     EXPECT_EQ(b.odo_of(1).scale_w, a.odo.scale_w);
 }
 
+// The Fast-SLAM revisit keys and EKF-SLAM's innovation monitor default to the
+// core's values and reach the filter.
+TEST(Config, ClosureKeysReachTheFilter)
+{
+    const fastslam_config_t fc = fastslam_config_default();
+    ReplayConfig c = replay_config_default();
+    EXPECT_EQ(c.filter.closure_drift_ratio, fc.closure_drift_ratio);
+    EXPECT_EQ(c.filter.closure_gap, fc.closure_gap);
+    EXPECT_EQ(c.filter.closure_ambiguity_ll, fc.closure_ambiguity_ll);
+    EXPECT_EQ(c.filter.nis_inflate, ekfslam_config_default().nis_inflate);
+    replay_config_load_string(c, "[filter]\nclosure_drift_ratio = 0\nclosure_gap = 7\nclosure_ambiguity_ll = 1.5\n",
+                              "c.ini");
+    RobotFilter f(FilterKind::FastSlam2, c, 0, pose2_t{0.0, 0.0, 0.0}, 1);
+    EXPECT_EQ(f.app()->u.fs.cfg.closure_drift_ratio, 0.0);
+    EXPECT_EQ(f.app()->u.fs.cfg.closure_gap, 7);
+    EXPECT_EQ(f.app()->u.fs.cfg.closure_ambiguity_ll, 1.5);
+    replay_config_load_string(c, "[filter]\nnis_inflate = 0\n", "n.ini");
+    RobotFilter e(FilterKind::Ekf, c, 0, pose2_t{0.0, 0.0, 0.0}, 1);
+    EXPECT_EQ(e.app()->u.ekf.cfg.nis_inflate, 0.0);
+}
+
 TEST(Config, ErrorsNameFileLineAndKey)
 {
     auto err = [](const std::string &text) {
@@ -390,6 +412,9 @@ TEST(Config, ErrorsNameFileLineAndKey)
     EXPECT_TRUE(has(err("[slam]\ngate_chi2 = abc\n"), "x.ini:2: [slam] gate_chi2: not a finite number"));
     EXPECT_TRUE(has(err("[filter]\nparticles = 2.5\n"), "x.ini:2: [filter] particles: expected an integer"));
     EXPECT_TRUE(has(err("[filter]\ntype = kalman\n"), "unknown filter 'kalman'"));
+    EXPECT_TRUE(has(err("[filter]\nclosure_drift_ratio = -1\n"), "[filter] closure_drift_ratio"));
+    EXPECT_TRUE(has(err("[filter]\nclosure_gap = 70000\n"), "[filter] closure_gap"));
+    EXPECT_TRUE(has(err("[filter]\nnis_inflate = -1\n"), "[filter] nis_inflate"));
     EXPECT_TRUE(has(err("[merge]\nenabled = maybe\n"), "expected a boolean"));
     EXPECT_TRUE(has(err("[robot2]\nfoo = 1\n"), "x.ini:2: unknown key 'foo' in [robot2]"));
     EXPECT_TRUE(has(err("this is not ini\n"), "x.ini:1:"));

@@ -12,6 +12,8 @@ static ekfslam_t g_ekf;
 
 #define PE(e, r, c) ((e)->p[(long)(r) * EKFSLAM_DIM + (c)])
 
+#include "coslam/motion.h"
+
 static ekfslam_config_t config(void)
 {
     ekfslam_config_t c = ekfslam_config_default();
@@ -722,6 +724,163 @@ static void test_iterated_closure_is_map(void **state)
     assert_true(g_ekf.ctr.iekf_iterations >= 2U && g_ekf.ctr.iekf_iterations <= 10U);
 }
 
+
+/* Innovation monitor (ekfslam_config_t.nis_inflate): a robot circles inside
+ * a ring of 16 uniquely marked landmarks for n_frames frames (0.1 m and
+ * 0.1 rad per frame, the noise as the model says). Halfway the wheels slip:
+ * the robot turns by slip_rad more than its odometry reports (a fault the
+ * model does not describe). Returns the mean pose NEES over the 50 frames
+ * after the slip; *fired the frames the monitor inflated, *recover the
+ * frames until the heading error is back under 1 deg. */
+/* Innovation monitor (ekfslam_config_t.nis_inflate), a consistent world: a
+ * robot circles inside a ring of 16 uniquely marked landmarks (0.1 m and 0.1
+ * rad per frame, all noise as the model says, the map frame its start pose).
+ * Returns the mean pose NEES over the second half; *fired the frames the
+ * monitor inflated. */
+static double monitor_run(int n_frames, uint32_t *fired)
+{
+    ekfslam_config_t c = config();
+    c.slam.noise.init_xy_var_m2 = 1e-8;
+    c.slam.noise.init_theta_var_rad2 = 1e-8;
+    const pose2_t p0 = {1.0, 0.0, 1.5707963267948966};
+    assert_int_equal(ekfslam_init(&g_ekf, &c, p0), COSLAM_OK);
+    rng_t rng;
+    rng_seed(&rng, 20261204U);
+    point2_t lm[16];
+    for (int k = 0; k < 16; ++k) {
+        lm[k] = (point2_t){4.0 * cos(0.3927 * k), 4.0 * sin(0.3927 * k)};
+    }
+    const odo_increment_t u = {0.1, 0.0, 0.1};
+    pose2_t truth = p0;
+    double nees = 0.0;
+    int n_nees = 0;
+    for (int f = 0; f < n_frames; ++f) {
+        truth = motion_apply(truth, u);
+        assert_int_equal(ekfslam_predict(&g_ekf, motion_sample(&c.slam, u, &rng)), COSLAM_OK);
+        sighting_t z[16];
+        int nz = 0;
+        for (int k = 0; k < 16; ++k) {
+            const sighting_t t = observe_predict(truth, lm[k]);
+            if (t.range_m > c.slam.sensor_max_range_m || fabs(t.bearing_rad) > 0.5 * c.slam.sensor_fov_rad) {
+                continue;
+            }
+            z[nz].range_m = t.range_m + rng_normal(&rng, 0.0, sqrt(c.slam.noise.range_var_m2));
+            z[nz].bearing_rad = t.bearing_rad + rng_normal(&rng, 0.0, sqrt(c.slam.noise.bearing_var_rad2));
+            z[nz].signature = (uint8_t)k;
+            ++nz;
+        }
+        assert_int_equal(ekfslam_update(&g_ekf, z, nz), COSLAM_OK);
+        if (f >= n_frames / 2) {
+            pose2_t est;
+            cov3_t pc;
+            ekfslam_pose(&g_ekf, &est, &pc);
+            const double e[3] = {truth.x - est.x, truth.y - est.y, angle_wrap(truth.theta - est.theta)};
+            double d2 = 0.0;
+            assert_int_equal(cov3_mahalanobis2(pc, e, &d2), COSLAM_OK);
+            nees += d2;
+            ++n_nees;
+        }
+    }
+    *fired = g_ekf.ctr.nis_inflations;
+    return nees / n_nees;
+}
+
+static ekfslam_t g_twin;
+
+static void test_innovation_monitor(void **state)
+{
+    (void)state;
+    /* 1. the default threshold: the running average (weight 0.2) of
+     * chi^2(2) / 2 exceeds 3 with probability about 1e-4 per frame (Monte
+     * Carlo, 10^6 frames; the documented 99.99 % point) */
+    {
+        rng_t rng;
+        rng_seed(&rng, 7U);
+        double m = 1.0;
+        int above = 0;
+        const int n = 1000000;
+        for (int k = 0; k < n; ++k) {
+            const double g0 = rng_gauss(&rng);
+            const double g1 = rng_gauss(&rng);
+            m = 0.8 * m + 0.2 * 0.5 * (g0 * g0 + g1 * g1);
+            above += m > 3.0;
+        }
+        fprintf(stderr, "P(running average > 3) = %.2e\n", (double)above / n);
+        assert_true(above >= 50 && above <= 200);
+    }
+    /* 2. a consistent filter does not trip it (2,000 frames, 1-3 sightings
+     * each: fewer than 0.2 trips expected), and its pose NEES is sane */
+    uint32_t fired = 0;
+    const double nees = monitor_run(2000, &fired);
+    fprintf(stderr, "consistent world: pose NEES %.2f, inflations %u\n", nees, (unsigned)fired);
+    assert_int_equal(fired, 0);
+    assert_true(nees > 1.0 && nees < 6.0);
+    /* 3. the mechanism, exactly: two filters on the same frames, one with
+     * the monitor off; a stationary robot sees one landmark whose bearing
+     * is off by +-3 standard deviations in turn (inside the gate, d^2 about
+     * 9). They agree until the running average passes 3; in that frame the
+     * monitored one's pose block is the other's times average / 3, and the
+     * rest of the state is the same. */
+    ekfslam_config_t c = config();
+    ekfslam_config_t c_off = c;
+    c_off.nis_inflate = 0.0;
+    const pose2_t p0 = {0.0, 0.0, 0.0};
+    assert_int_equal(ekfslam_init(&g_ekf, &c, p0), COSLAM_OK);
+    assert_int_equal(ekfslam_init(&g_twin, &c_off, p0), COSLAM_OK);
+    const double sb = sqrt(c.slam.noise.bearing_var_rad2);
+    int tripped = -1;
+    for (int f = 0; f < 100 && tripped < 0; ++f) {
+        /* ten exact sightings, then the robot turns by 0.3 bearing standard
+         * deviations a frame that its odometry does not report (a slipping
+         * wheel, a gyro bias) */
+        const sighting_t z = {2.0, f < 10 ? 0.0 : -0.1 * sb * (f - 9), 0};
+        const odo_increment_t still = {0.0, 0.0, 0.0};
+        assert_int_equal(ekfslam_predict(&g_ekf, still), COSLAM_OK);
+        assert_int_equal(ekfslam_predict(&g_twin, still), COSLAM_OK);
+        assert_int_equal(ekfslam_update(&g_ekf, &z, 1), COSLAM_OK);
+        assert_int_equal(ekfslam_update(&g_twin, &z, 1), COSLAM_OK);
+        assert_int_equal(g_ekf.n_lm, 1);
+        assert_int_equal(g_twin.n_lm, 1);
+        assert_true(g_ekf.nis_avg == g_twin.nis_avg);
+        const int trip = g_twin.nis_avg > 3.0;
+        assert_int_equal(g_ekf.ctr.nis_inflations, trip ? 1U : 0U);
+        const double lam = trip ? fmin(g_twin.nis_avg / 3.0, 4.0) : 1.0;
+        for (int r = 0; r < 5; ++r) {
+            assert_true(g_ekf.x[r] == g_twin.x[r]);
+            for (int k = 0; k < 5; ++k) {
+                const double want = r < 3 && k < 3 ? lam * PE(&g_twin, r, k) : PE(&g_twin, r, k);
+                ASSERT_NEAR(PE(&g_ekf, r, k), want, 1e-15 * fabs(want));
+            }
+        }
+        if (trip) {
+            tripped = f;
+        }
+    }
+    fprintf(stderr, "unreported turn: tripped in frame %d\n", tripped);
+    assert_true(tripped >= 13); /* the average needs several frames to pass 3 */
+    /* and then: the monitored filter follows the turn with its one
+     * landmark; without the monitor the sighting leaves the gate and the
+     * filter starts a second landmark where there is one */
+    for (int f = tripped + 1; f < tripped + 40; ++f) {
+        const sighting_t z = {2.0, -0.1 * sb * (f - 9), 0};
+        const odo_increment_t still = {0.0, 0.0, 0.0};
+        assert_int_equal(ekfslam_predict(&g_ekf, still), COSLAM_OK);
+        assert_int_equal(ekfslam_predict(&g_twin, still), COSLAM_OK);
+        assert_int_equal(ekfslam_update(&g_ekf, &z, 1), COSLAM_OK);
+        assert_int_equal(ekfslam_update(&g_twin, &z, 1), COSLAM_OK);
+    }
+    pose2_t on, off;
+    cov3_t c_on, c_off3;
+    ekfslam_pose(&g_ekf, &on, &c_on);
+    ekfslam_pose(&g_twin, &off, &c_off3);
+    const double turn = 0.1 * sb * (tripped + 39 - 9);
+    fprintf(stderr, "after 39 more frames: landmarks %d / %d (monitor on / off), heading %.4f / %.4f rad (true %.4f), "
+                    "inflations %u\n", g_ekf.n_lm, g_twin.n_lm, on.theta, off.theta, turn, (unsigned)g_ekf.ctr.nis_inflations);
+    assert_int_equal(g_ekf.n_lm, 1);
+    assert_true(g_twin.n_lm > 1);
+    assert_true(fabs(on.theta - turn) < fabs(off.theta - turn));
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -738,6 +897,7 @@ int main(void)
         cmocka_unit_test(test_single_closure_margin),
         cmocka_unit_test(test_iterated_closure_is_map),
         cmocka_unit_test(test_second_pass_only_for_closures),
+        cmocka_unit_test(test_innovation_monitor),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

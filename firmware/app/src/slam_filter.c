@@ -18,10 +18,14 @@ slam_filter_config_t slam_filter_config_default(void)
     const ekfslam_config_t ec = ekfslam_config_default();
     c.resample_ess_fraction = fc.resample_ess_fraction;
     c.export_min_weight = fc.export_min_weight;
+    c.closure_drift_ratio = fc.closure_drift_ratio;
+    c.closure_gap = fc.closure_gap;
+    c.closure_ambiguity_ll = fc.closure_ambiguity_ll;
     c.assoc = ec.assoc;
     c.jcbb_max_nodes = ec.jcbb_max_nodes;
     c.fej = ec.fej;
     c.iekf_max_iters = ec.iekf_max_iters;
+    c.nis_inflate = ec.nis_inflate;
     return c;
 }
 
@@ -43,6 +47,9 @@ coslam_status_t slam_filter_init(slam_filter_t *f, const slam_filter_config_t *c
         c.robot_id = cfg->robot_id;
         c.resample_ess_fraction = cfg->resample_ess_fraction;
         c.export_min_weight = cfg->export_min_weight;
+        c.closure_drift_ratio = cfg->closure_drift_ratio;
+        c.closure_gap = cfg->closure_gap;
+        c.closure_ambiguity_ll = cfg->closure_ambiguity_ll;
         return fastslam_init(&f->u.fs, &c, pose0, cfg->seed);
     }
     case SLAM_FILTER_EKF: {
@@ -53,6 +60,7 @@ coslam_status_t slam_filter_init(slam_filter_t *f, const slam_filter_config_t *c
         c.jcbb_max_nodes = cfg->jcbb_max_nodes;
         c.fej = cfg->fej;
         c.iekf_max_iters = cfg->iekf_max_iters;
+        c.nis_inflate = cfg->nis_inflate;
         return ekfslam_init(&f->u.ekf, &c, pose0);
     }
     }

@@ -42,10 +42,14 @@ typedef struct {
     uint8_t robot_id;        /**< own provenance bit, < COSLAM_MAX_ROBOTS */
     double resample_ess_fraction; /**< Fast-SLAM: fastslam_config_t */
     double export_min_weight;     /**< Fast-SLAM: fastslam_config_t */
+    double closure_drift_ratio;   /**< Fast-SLAM 2.0 revisits: fastslam_config_t (0: off) */
+    uint16_t closure_gap;         /**< Fast-SLAM 2.0 revisits: fastslam_config_t */
+    double closure_ambiguity_ll;  /**< Fast-SLAM 2.0 revisits: fastslam_config_t */
     ekfslam_assoc_t assoc;        /**< EKF-SLAM: ekfslam_config_t */
     uint32_t jcbb_max_nodes;      /**< EKF-SLAM: ekfslam_config_t */
     uint8_t fej;                  /**< EKF-SLAM: ekfslam_config_t */
     uint8_t iekf_max_iters;       /**< EKF-SLAM: ekfslam_config_t */
+    double nis_inflate;           /**< EKF-SLAM: ekfslam_config_t (0: off) */
 } slam_filter_config_t;
 
 typedef struct {

@@ -135,6 +135,15 @@ typedef struct {
      *  robots and hurt one robot alone, and changed nothing on the
      *  synthetic worlds (docs/consistency.md). */
     uint8_t iekf_max_iters;
+    /** Innovation monitor (ekfslam.c "Innovation monitor"): the frame's
+     *  normalised innovation per degree of freedom (sum of the paired
+     *  sightings' d^2 over 2 per sighting), averaged over frames with
+     *  weight 0.2; above this threshold the pose block of P is scaled by
+     *  average / threshold (at most 4x per frame), as process noise. 0:
+     *  off; below about 2 it trips on a consistent filter. Default 3: the 99.99 % point of that average for a
+     *  consistent filter with one sighting per frame (more sightings give
+     *  a lower point), so a consistent filter almost never trips it. */
+    double nis_inflate;
     /** Compressed EKF (Guivant and Nebot 2001; ekfslam.c "Compressed
      *  EKF"): while the robot stays within this distance of where its
      *  local region was chosen, predictions and updates touch only the
@@ -192,6 +201,7 @@ typedef struct {
     uint32_t jcbb_closures_nonlinear; /**< frames with a loop closure held back as too nonlinear */
     uint32_t iekf_updates;            /**< loop-closing pairings applied by the iterated EKF */
     uint32_t iekf_iterations;         /**< their relinearisations, in all */
+    uint32_t nis_inflations;          /**< frames whose pose block was inflated (nis_inflate) */
     uint32_t cekf_global_updates;     /**< compressed EKF: local phases ended by a global update */
     uint32_t cekf_active_overflows;   /**< compressed EKF: regions with more than COSLAM_EKF_MAX_ACTIVE
                                            landmarks in reach (that frame used the full update) */
@@ -349,6 +359,8 @@ typedef struct {
     double x[EKFSLAM_DIM];
     point2_t lm_first[COSLAM_EKF_MAX_LANDMARKS]; /**< first estimate of each landmark (FEJ) */
     uint8_t merging;                         /**< 1 between ekfslam_merge_begin and _end */
+    double nis_avg;                          /**< running mean normalised innovation per degree
+                                                  of freedom (nis_inflate; kept when off too) */
     pose2_t pose_prior;                      /**< pose after the last prediction (FEJ) */
     double p[EKFSLAM_DIM * EKFSLAM_DIM];   /**< row-major, stride EKFSLAM_DIM */
     ekfslam_meta_t meta[COSLAM_EKF_MAX_LANDMARKS];
