@@ -382,7 +382,7 @@ int main(int argc, char **argv)
                    "<CycloneDDS><Domain id=\"any\"><General><Interfaces><NetworkInterface address=\"127.0.0.1\"/>"
                    "</Interfaces><AllowMulticast>false</AllowMulticast></General>"
                    "<Discovery><MaxAutoParticipantIndex>60</MaxAutoParticipantIndex></Discovery>"
-                   "<Tracing><Verbosity>severe</Verbosity></Tracing></Domain></CycloneDDS>\n",
+                   "<Tracing><Verbosity>severe</Verbosity><OutputFile>stderr</OutputFile></Tracing></Domain></CycloneDDS>\n",
                    0644);
     }
     const std::string partition = "coslam-e2e-" + std::to_string(getpid());

@@ -211,7 +211,7 @@ static inline void lt_inject(lt_bus_t *bus, int i, uint16_t src, const uint8_t *
     "<CycloneDDS><Domain id=\"any\"><General><Interfaces><NetworkInterface address=\"127.0.0.1\"/>"       \
     "</Interfaces><AllowMulticast>false</AllowMulticast></General>"                                       \
     "<Discovery><MaxAutoParticipantIndex>60</MaxAutoParticipantIndex></Discovery>"                        \
-    "<Tracing><Verbosity>severe</Verbosity></Tracing></Domain></CycloneDDS>"
+    "<Tracing><Verbosity>severe</Verbosity><OutputFile>stderr</OutputFile></Tracing></Domain></CycloneDDS>"
 
 /* A partition no other process uses: this test run's pid. */
 static inline const char *lt_partition(char *buf, size_t cap, const char *what, long pid)

@@ -311,7 +311,7 @@ static void binary_refuses_a_bad_fleet_key(void **state)
     /* loopback only, no multicast: the good-key dry run opens DDS */
     fputs("<CycloneDDS><Domain id=\"any\"><General><Interfaces><NetworkInterface address=\"127.0.0.1\"/>"
           "</Interfaces><AllowMulticast>false</AllowMulticast></General>"
-          "<Tracing><Verbosity>severe</Verbosity></Tracing></Domain></CycloneDDS>\n",
+          "<Tracing><Verbosity>severe</Verbosity><OutputFile>stderr</OutputFile></Tracing></Domain></CycloneDDS>\n",
           x);
     fclose(x);
     char text[1200];
