@@ -14,8 +14,7 @@
 //   [filter]    type (fastslam1 | fastslam2 | ekf), particles, ess_fraction,
 //               export_min_weight, closure_drift_ratio, closure_gap,
 //               closure_ambiguity_ll, assoc (jcbb | nn), jcbb_max_nodes, fej,
-//               nis_inflate,
-//               iekf_max_iters, seed, predict_period_s
+//               iekf_max_iters, nis_inflate, seed, predict_period_s
 //   [input]     min_range_m, max_range_m (sightings outside are dropped, counted),
 //               known_id_gate_rad, known_id_gate_chi2, known_id_log_lik
 //               (known-ids mode, see below)

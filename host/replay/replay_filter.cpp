@@ -35,7 +35,6 @@ RobotFilter::RobotFilter(FilterKind kind, const ReplayConfig &cfg, uint8_t core_
     if (slam_filter_init(f_.get(), &c, pose0) != COSLAM_OK) {
         throw ReplayError(std::string(slam_filter_kind_name(c.kind)) + ": the core refused the configuration");
     }
-
 }
 
 RobotFilter::~RobotFilter() = default;

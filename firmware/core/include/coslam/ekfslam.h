@@ -140,9 +140,10 @@ typedef struct {
      *  sightings' d^2 over 2 per sighting), averaged over frames with
      *  weight 0.2; above this threshold the pose block of P is scaled by
      *  average / threshold (at most 4x per frame), as process noise. 0:
-     *  off; below about 2 it trips on a consistent filter. Default 3: the 99.99 % point of that average for a
-     *  consistent filter with one sighting per frame (more sightings give
-     *  a lower point), so a consistent filter almost never trips it. */
+     *  off; below about 2 it trips on a consistent filter. Default 3: the
+     *  99.99 % point of that average for a consistent filter with one
+     *  sighting per frame (more sightings give a lower point), so a
+     *  consistent filter almost never trips it. */
     double nis_inflate;
     /** Compressed EKF (Guivant and Nebot 2001; ekfslam.c "Compressed
      *  EKF"): while the robot stays within this distance of where its
