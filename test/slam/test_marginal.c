@@ -288,7 +288,7 @@ static void test_pose_observe_floor_is_the_anchor(void **state)
                      COSLAM_OK);
     ASSERT_NEAR(p.m[0][0], carried.m[0][0], 1e-6);
     ASSERT_NEAR(p.m[1][1], carried.m[1][1], 1e-6);
-    /* never grows, for any input */
+    /* never grows, for any input (and any gain: marginal_pose_observe_gain) */
     rng_t rng;
     rng_seed(&rng, 21U);
     for (int t = 0; t < 300; ++t) {
@@ -296,20 +296,176 @@ static void test_pose_observe_floor_is_the_anchor(void **state)
         const cov3_t before = q;
         const cov3_t anc = random_spd3(&rng);
         double h[2][3];
+        double kk[3][2]; /* any gain, also one that overshoots */
         for (int i = 0; i < 2; ++i) {
             for (int j = 0; j < 3; ++j) {
                 h[i][j] = rng_gauss(&rng);
+                kk[j][i] = 3.0 * rng_gauss(&rng);
             }
         }
-        assert_int_equal(marginal_pose_observe(&q, (pose2_t){rng_gauss(&rng), rng_gauss(&rng), 0.0}, &anc,
-                                               (point2_t){0.0, 0.0}, h, cov2_make(0.1, 0.0, 0.1)),
+        const pose2_t at = {rng_gauss(&rng), rng_gauss(&rng), 0.0};
+        cov3_t qg = q;
+        assert_int_equal(marginal_pose_observe(&q, at, &anc, (point2_t){0.0, 0.0}, h, cov2_make(0.1, 0.0, 0.1)),
                          COSLAM_OK);
         assert_true(cov3_det(q) <= cov3_det(before) * (1.0 + 1e-9));
+        assert_int_equal(
+            marginal_pose_observe_gain(&qg, at, &anc, (point2_t){0.0, 0.0}, h, cov2_make(0.1, 0.0, 0.1), kk),
+            COSLAM_OK);
+        assert_true(cov3_det(qg) <= cov3_det(before) * (1.0 + 1e-9));
     }
     /* bad input changes nothing */
     cov3_t bad = cov3_diag(NAN, 1.0, 1.0);
     assert_int_equal(marginal_pose_observe(&bad, (pose2_t){0, 0, 0}, &a, (point2_t){0, 0}, hp, cov2_make(1, 0, 1)),
                      COSLAM_E_NOT_PD);
+}
+
+/* The drift left after a correction with any gain (Fast-SLAM 2.0's
+ * proposal): the optimal gain gives the Kalman posterior; zero gain (the
+ * pose not moved) leaves P; a suboptimal gain leaves what a Monte Carlo of
+ * d - K (Hp d + v) leaves; and P never grows. */
+static void test_pose_observe_with_the_gain_applied(void **state)
+{
+    (void)state;
+    const cov3_t none = cov3_zero();
+    const pose2_t pose = {2.0, 1.0, 0.3};
+    double hp[2][3] = {{-0.8, -0.6, 0.0}, {0.3, -0.4, -1.0}};
+    const cov2_t n = cov2_make(0.01, 0.002, 0.0009);
+    cov3_t prior = cov3_diag(0.09, 0.04, 0.01);
+    prior.m[0][1] = prior.m[1][0] = 0.01;
+    prior.m[0][2] = prior.m[2][0] = 0.004;
+    prior.m[1][2] = prior.m[2][1] = -0.002;
+    /* 1. the optimal gain D Hp^T (Hp D Hp^T + n)^-1: marginal_pose_observe */
+    double k[3][2];
+    {
+        double dht[3][2];
+        for (int i = 0; i < 3; ++i) {
+            for (int q = 0; q < 2; ++q) {
+                dht[i][q] = prior.m[i][0] * hp[q][0] + prior.m[i][1] * hp[q][1] + prior.m[i][2] * hp[q][2];
+            }
+        }
+        cov2_t s = n;
+        for (int q = 0; q < 2; ++q) {
+            const double sq0 = hp[q][0] * dht[0][0] + hp[q][1] * dht[1][0] + hp[q][2] * dht[2][0];
+            const double sq1 = hp[q][0] * dht[0][1] + hp[q][1] * dht[1][1] + hp[q][2] * dht[2][1];
+            if (q == 0) {
+                s.xx += sq0;
+                s.xy += sq1;
+            } else {
+                s.yy += sq1;
+            }
+        }
+        cov2_t si;
+        assert_int_equal(cov2_inverse(s, &si), COSLAM_OK);
+        for (int i = 0; i < 3; ++i) {
+            k[i][0] = dht[i][0] * si.xx + dht[i][1] * si.xy;
+            k[i][1] = dht[i][0] * si.xy + dht[i][1] * si.yy;
+        }
+    }
+    cov3_t a = prior;
+    cov3_t b = prior;
+    assert_int_equal(marginal_pose_observe(&a, pose, &none, (point2_t){0.0, 0.0}, hp, n), COSLAM_OK);
+    assert_int_equal(marginal_pose_observe_gain(&b, pose, &none, (point2_t){0.0, 0.0}, hp, n, k),
+                     COSLAM_OK);
+    for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) {
+            ASSERT_NEAR(b.m[i][j], a.m[i][j], 1e-12);
+        }
+    }
+    /* 2. the pose not moved: the drift stays whole */
+    double k0[3][2] = {{0.0, 0.0}, {0.0, 0.0}, {0.0, 0.0}};
+    cov3_t c = prior;
+    assert_int_equal(marginal_pose_observe_gain(&c, pose, &none, (point2_t){0.0, 0.0}, hp, n, k0), COSLAM_OK);
+    for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) {
+            ASSERT_NEAR(c.m[i][j], prior.m[i][j], 1e-12);
+        }
+    }
+    /* 3. a fifth of the optimal gain (a proposal whose prior is the motion
+     * since the last sample, smaller than the drift): Monte Carlo */
+    double ks[3][2];
+    for (int i = 0; i < 3; ++i) {
+        ks[i][0] = 0.2 * k[i][0];
+        ks[i][1] = 0.2 * k[i][1];
+    }
+    cov3_t g = prior;
+    assert_int_equal(marginal_pose_observe_gain(&g, pose, &none, (point2_t){0.0, 0.0}, hp, n, ks),
+                     COSLAM_OK);
+    double ld[3][3];
+    assert_int_equal(cov3_cholesky(prior, ld), COSLAM_OK);
+    const double ln00 = sqrt(n.xx);
+    const double ln10 = n.xy / ln00;
+    const double ln11 = sqrt(n.yy - ln10 * ln10);
+    rng_t rng;
+    rng_seed(&rng, 5U);
+    const int trials = 200000;
+    double acc[3][3] = {{0}};
+    for (int t = 0; t < trials; ++t) {
+        const double u[3] = {rng_gauss(&rng), rng_gauss(&rng), rng_gauss(&rng)};
+        double d[3];
+        for (int i = 0; i < 3; ++i) {
+            d[i] = ld[i][0] * u[0] + ld[i][1] * u[1] + ld[i][2] * u[2];
+        }
+        const double w0 = rng_gauss(&rng);
+        const double w1 = rng_gauss(&rng);
+        const double v[2] = {ln00 * w0, ln10 * w0 + ln11 * w1};
+        double zz[2];
+        for (int q = 0; q < 2; ++q) {
+            zz[q] = hp[q][0] * d[0] + hp[q][1] * d[1] + hp[q][2] * d[2] + v[q];
+        }
+        double e[3];
+        for (int i = 0; i < 3; ++i) {
+            e[i] = d[i] - (ks[i][0] * zz[0] + ks[i][1] * zz[1]);
+        }
+        for (int i = 0; i < 3; ++i) {
+            for (int j = 0; j < 3; ++j) {
+                acc[i][j] += e[i] * e[j];
+            }
+        }
+    }
+    for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) {
+            /* sampling sd of a covariance entry: sqrt((s_ii s_jj + s_ij^2) / N) */
+            const double tol = 5.0 * sqrt((g.m[i][i] * g.m[j][j] + g.m[i][j] * g.m[i][j]) / trials);
+            ASSERT_NEAR(acc[i][j] / trials, g.m[i][j], tol);
+        }
+        /* and more than the optimal correction leaves */
+        assert_true(g.m[i][i] > a.m[i][i]);
+    }
+    /* 4. never grows. A gain of five times the optimal one overshoots: the
+     * Joseph form alone would leave more than the prior (checked here),
+     * the result is intersected with the prior instead. Random gains and
+     * anchors: test_pose_observe_floor_is_the_anchor. */
+    double kb[3][2];
+    for (int i = 0; i < 3; ++i) {
+        kb[i][0] = 5.0 * k[i][0];
+        kb[i][1] = 5.0 * k[i][1];
+    }
+    double over = 0.0; /* hp-direction variance the Joseph form would leave, minus the prior's */
+    {
+        double a5[3][3];
+        for (int i = 0; i < 3; ++i) {
+            for (int j = 0; j < 3; ++j) {
+                a5[i][j] = (i == j ? 1.0 : 0.0) - (kb[i][0] * hp[0][j] + kb[i][1] * hp[1][j]);
+            }
+        }
+        const cov3_t j5 = cov3_congruence(a5, prior);
+        double tr_j = 0.0;
+        double tr_p = 0.0;
+        for (int i = 0; i < 3; ++i) {
+            tr_j += j5.m[i][i];
+            tr_p += prior.m[i][i];
+        }
+        over = tr_j - tr_p;
+    }
+    assert_true(over > 0.0);
+    cov3_t o = prior;
+    assert_int_equal(marginal_pose_observe_gain(&o, pose, &none, (point2_t){0.0, 0.0}, hp, n, kb), COSLAM_OK);
+    assert_true(cov3_det(o) <= cov3_det(prior) * (1.0 + 1e-9));
+    for (int i = 0; i < 3; ++i) {
+        assert_true(o.m[i][i] <= prior.m[i][i] * (1.0 + 1e-9));
+    }
+    cov3_t bad = cov3_diag(NAN, 1.0, 1.0);
+    assert_int_equal(marginal_pose_observe_gain(&bad, pose, &none, (point2_t){0, 0}, hp, n, k0), COSLAM_E_NOT_PD);
 }
 
 static void test_relative_drift(void **state)
@@ -339,6 +495,7 @@ int main(void)
         cmocka_unit_test(test_landmark_marginal_from_anchor),
         cmocka_unit_test(test_pose_observe_unanchored_is_kalman),
         cmocka_unit_test(test_pose_observe_floor_is_the_anchor),
+        cmocka_unit_test(test_pose_observe_with_the_gain_applied),
         cmocka_unit_test(test_relative_drift),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -15,11 +15,13 @@
  *    the paper world;
  *  - Fast-SLAM 2.0 with 100 particles: mean pose RMSE at most 1.3x EKF-SLAM's
  *    on the paper world.
- *  - Fast-SLAM 2.0 (100 particles) on the long loop: at least 5 of the 10
- *    CI runs (6 measured; 4 without the revisit closure of fastslam.c
- *    "Revisits", which this bound polices), at least 14 of the 30 held-out
- *    ones (18 measured, 12 without). Issue 9 asks 8 of 10; not met, see
- *    docs/consistency.md.
+ *  - Fast-SLAM 2.0 (100 particles) on the long loop: at least 8 of the 10
+ *    CI runs, issue 9's goal (8 measured; 6 before the pose marginal
+ *    followed the proposal's gain, marginal_pose_observe_gain, and 4
+ *    before the revisit closure of fastslam.c "Revisits": this bound
+ *    polices both), at least 16 of the 30 held-out ones (19 measured, 18
+ *    and 12 before; the bound leaves three runs of margin, as the CI one
+ *    leaves none: issue 9 asks 8 of 10, docs/consistency.md).
  * The arena world (MRCLAM's regime) is bounded after a rigid fit, below.
  * CI runs world seeds 1-10; COSLAM_TEST_FULL adds the held-out seeds
  * 101-130, never used while choosing anything.
@@ -95,9 +97,9 @@ static void test_long_loop(void **state)
     ASSERT_TRUE_MSG(ekf.closed * 10 >= 8 * ekf.n, "EKF-SLAM closed the loop %d of %d\n", ekf.closed, ekf.n);
     assert_nees(&ekf);
 #if COSLAM_TEST_FULL
-    ASSERT_TRUE_MSG(fs100.closed >= 14, "Fast-SLAM 2.0 (100) closed the loop %d of %d\n", fs100.closed, fs100.n);
+    ASSERT_TRUE_MSG(fs100.closed >= 16, "Fast-SLAM 2.0 (100) closed the loop %d of %d\n", fs100.closed, fs100.n);
 #else
-    ASSERT_TRUE_MSG(fs100.closed >= 5, "Fast-SLAM 2.0 (100) closed the loop %d of %d\n", fs100.closed, fs100.n);
+    ASSERT_TRUE_MSG(fs100.closed >= 8, "Fast-SLAM 2.0 (100) closed the loop %d of %d\n", fs100.closed, fs100.n);
 #endif
 }
 
@@ -107,9 +109,10 @@ static void test_long_loop(void **state)
  * Regression bounds, not goals: measured (seeds 1-10 / held-out 101-130)
  * EKF-SLAM 1.70 / 1.10 spurious landmarks per run, landmark RMSE 0.23 /
  * 0.17 m (0.60 / 1.40 and 0.32 / 0.20 m before jcbb_single_closure_d2);
- * Fast-SLAM 2.0 (100) 0.30 / 0.73 and 0.15 / 0.19 m. The path moved by the
- * map's fit (the robot's error in its own map): EKF-SLAM 1.40 / 1.50 m,
- * Fast-SLAM 2.0 0.42 / 0.55 m. Issue 8 asks at most 1 spurious landmark per
+ * Fast-SLAM 2.0 (100) 0.10 / 0.10 and 0.150 / 0.149 m (0.30 / 0.20 and
+ * 0.149 / 0.147 m before marginal_pose_observe_gain). The path moved by
+ * the map's fit (the robot's error in its own map): EKF-SLAM 1.40 / 1.50 m,
+ * Fast-SLAM 2.0 0.35 / 0.50 m (0.36 / 0.47 m before). Issue 8 asks at most 1 spurious landmark per
  * robot on MRCLAM; EKF-SLAM does not reach it here. */
 static void arena_set(run_filter_t f, int particles, double max_spurious_per_run, double max_rmse_m,
                       double max_pose_m)

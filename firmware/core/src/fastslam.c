@@ -182,7 +182,9 @@ static void fs2_improve_and_sample(fastslam_t *fs, fastslam_particle_t *p, const
                                    const int32_t *assign)
 {
     const slam_params_t *sp = &fs->cfg.slam;
+    double(*gain)[3][2] = fs->scratch.gain;
     for (int i = 0; i < ns; ++i) {
+        memset(gain[i], 0, sizeof gain[i]); /* no correction unless made below */
         if (assign[i] < 0) {
             continue;
         }
@@ -209,6 +211,7 @@ static void fs2_improve_and_sample(fastslam_t *fs, fastslam_particle_t *p, const
             k[r][0] = cht[r][0] * e.s_inv.xx + cht[r][1] * e.s_inv.xy;
             k[r][1] = cht[r][0] * e.s_inv.xy + cht[r][1] * e.s_inv.yy;
         }
+        memcpy(gain[i], k, sizeof k);
         p->pose.x += k[0][0] * nu[0] + k[0][1] * nu[1];
         p->pose.y += k[1][0] * nu[0] + k[1][1] * nu[1];
         p->pose.theta = angle_wrap(p->pose.theta + k[2][0] * nu[0] + k[2][1] * nu[1]);
@@ -238,6 +241,7 @@ typedef struct {
     double hp[2][3];
     cov2_t n;
     double key;
+    double (*k)[2]; /* the pose gain the particle applied (Fast-SLAM 2.0), else 0 */
 } marg_obs_t;
 
 /* Remove landmark j from particle p, keeping order irrelevant (the last
@@ -685,6 +689,12 @@ static coslam_status_t update_particle(fastslam_t *fs, uint16_t k, const sightin
             mo->anchor = landmark_anchor(lm);
             mo->at = (point2_t){lm->anchor_xy[0], lm->anchor_xy[1]};
             memcpy(mo->hp, ep->h_pose, sizeof mo->hp);
+            /* Fast-SLAM 2.0 moved the pose by the proposal's gain on this
+             * sighting (its prior: the motion since the last sample, not
+             * the drift since the anchor), and the marginal keeps the
+             * drift that correction left; Fast-SLAM 1.0 keeps the Kalman
+             * form (marginal.h) */
+            mo->k = fs2 && proposal_assign[i] == j ? sc->gain[i] : 0;
             mo->key = mo->anchor.m[0][0] + mo->anchor.m[1][1];
         }
         landmark_update(lm, sp, ep, z[i]);
@@ -704,8 +714,11 @@ static coslam_status_t update_particle(fastslam_t *fs, uint16_t k, const sightin
         }
     }
     for (int a = 0; a < n_mobs; ++a) {
-        if (marginal_pose_observe(&p->pose_marg, p->pose, &mobs[a].anchor, mobs[a].at, mobs[a].hp, mobs[a].n) !=
-            COSLAM_OK) {
+        marg_obs_t *mo = &mobs[a];
+        const coslam_status_t mst =
+            mo->k != 0 ? marginal_pose_observe_gain(&p->pose_marg, p->pose, &mo->anchor, mo->at, mo->hp, mo->n, mo->k)
+                       : marginal_pose_observe(&p->pose_marg, p->pose, &mo->anchor, mo->at, mo->hp, mo->n);
+        if (mst != COSLAM_OK) {
             fs->ctr.numeric_faults++;
         }
     }

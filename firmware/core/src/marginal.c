@@ -85,6 +85,51 @@ coslam_status_t marginal_pose_observe(cov3_t *p, pose2_t pose, const cov3_t *anc
     return COSLAM_OK;
 }
 
+coslam_status_t marginal_pose_observe_gain(cov3_t *p, pose2_t pose, const cov3_t *anchor, point2_t anchor_xy,
+                                           double hp[2][3], cov2_t n, double k[3][2])
+{
+    if (!cov3_is_finite(*p) || !cov3_is_finite(*anchor) || !cov2_is_pd(n)) {
+        return COSLAM_E_NOT_PD;
+    }
+    cov3_t shared;
+    int clipped;
+    cov3_t qc = drift_since(p, pose, anchor, anchor_xy, &shared, &clipped);
+    /* the drift after the correction the particle made, d - K (Hp d + v):
+     * (I - K Hp) Q (I - K Hp)^T + K n K^T (Joseph form, any gain) */
+    double a[3][3];
+    for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) {
+            a[i][j] = (i == j ? 1.0 : 0.0) - (k[i][0] * hp[0][j] + k[i][1] * hp[1][j]);
+        }
+    }
+    const cov3_t aq = cov3_congruence(a, qc);
+    double kt[3][2];
+    for (int i = 0; i < 3; ++i) {
+        kt[i][0] = k[i][0] * n.xx + k[i][1] * n.xy;
+        kt[i][1] = k[i][0] * n.xy + k[i][1] * n.yy;
+    }
+    cov3_t np;
+    for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) {
+            np.m[i][j] = shared.m[i][j] + aq.m[i][j] + kt[i][0] * k[j][0] + kt[i][1] * k[j][1];
+        }
+    }
+    np = cov3_symmetrize(np);
+    /* a gain larger than the drift warrants (a landmark anchored moments
+     * ago) can leave more than the prior: as for clipping, keep the
+     * covariance intersection of the two then, so that P never grows */
+    cov3_t room;
+    double chol[3][3];
+    for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) {
+            room.m[i][j] = p->m[i][j] - np.m[i][j];
+        }
+    }
+    const int within = cov3_cholesky(room, chol) == COSLAM_OK;
+    *p = clipped || !within ? cov3_ci(*p, np) : np;
+    return COSLAM_OK;
+}
+
 /* det of w a + (1 - w) b, symmetric 3x3 given by their upper triangles */
 static double det3_mix(const cov3_t *a, const cov3_t *b, double w)
 {

@@ -148,6 +148,7 @@ typedef struct {
     uint8_t n_near[COSLAM_MAX_SIGHTINGS];
     int32_t assign[COSLAM_MAX_SIGHTINGS];
     uint32_t new_id[COSLAM_MAX_SIGHTINGS];
+    double gain[COSLAM_MAX_SIGHTINGS][3][2]; /**< Fast-SLAM 2.0: the proposal's pose gain per sighting */
     uint16_t copies[COSLAM_MAX_PARTICLES];
     double weights[COSLAM_MAX_PARTICLES];
     const landmark_t *view[COSLAM_MAX_LANDMARKS]; /**< one particle's landmarks (tree query) */

@@ -21,8 +21,17 @@
  * 0: moving the whole map does not change a sighting).
  *  - prediction: P = F P F^T + V M V^T, as the EKF;
  *  - a sighting of a landmark anchored at (A, a): P = Phi A Phi^T + the
- *    Kalman posterior of d, prior P - Phi A Phi^T, sighting z = Hp d + n
- *    with n = Hm cov Hm^T + Q (marginal_pose_observe);
+ *    posterior of d, prior P - Phi A Phi^T, sighting z = Hp d + n with
+ *    n = Hm cov Hm^T + Q. The posterior is that of the correction the
+ *    particle made: Fast-SLAM 2.0 moves its pose by the proposal's gain K,
+ *    whose prior is the motion since the last sample, not the drift d, so
+ *    the drift left is (I - K Hp) D (I - K Hp)^T + K n K^T (Joseph form,
+ *    marginal_pose_observe_gain); where D is much larger than that prior
+ *    (an old landmark seen again after a long drift) the pose hardly moves
+ *    and neither does P, while the optimal update, which the particle did
+ *    not make, would claim the drift removed. Fast-SLAM 1.0 does not move
+ *    the pose at all; its marginal keeps the Kalman posterior
+ *    (marginal_pose_observe), the selection by weights doing that work;
  *  - a new landmark is anchored at the particle's current P.
  * The anchor is not moved by later sightings: a depleted filter does not
  * correct an old landmark's mean when the loop closes (its EKF averages the
@@ -53,6 +62,18 @@ extern "C" {
  */
 coslam_status_t marginal_pose_observe(cov3_t *p, pose2_t pose, const cov3_t *anchor, point2_t anchor_xy,
                                       double hp[2][3], cov2_t n);
+
+/**
+ * The same for a particle that corrected its pose with gain k (3x2) on the
+ * sighting's innovation (Fast-SLAM 2.0's proposal): the drift after that
+ * correction, (I - k Hp) D (I - k Hp)^T + k n k^T with D the drift since
+ * the anchor (Joseph form: any gain). Where that is not within the prior
+ * (clipping, or a gain larger than D warrants) the result is intersected
+ * with the prior, so P never grows. k = the optimal gain D Hp^T (Hp D Hp^T
+ * + n)^-1 gives marginal_pose_observe's result. O(1).
+ */
+coslam_status_t marginal_pose_observe_gain(cov3_t *p, pose2_t pose, const cov3_t *anchor, point2_t anchor_xy,
+                                           double hp[2][3], cov2_t n, double k[3][2]);
 
 /**
  * Covariance that the pose drift since a landmark's anchor adds to the
