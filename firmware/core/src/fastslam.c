@@ -713,6 +713,7 @@ static coslam_status_t update_particle(fastslam_t *fs, uint16_t k, const sightin
             mobs[b - 1] = tmp;
         }
     }
+    const cov3_t marg_frame = p->pose_marg;
     for (int a = 0; a < n_mobs; ++a) {
         marg_obs_t *mo = &mobs[a];
         const coslam_status_t mst =
@@ -722,6 +723,10 @@ static coslam_status_t update_particle(fastslam_t *fs, uint16_t k, const sightin
             fs->ctr.numeric_faults++;
         }
     }
+    /* the frame's sightings together never grow P (one may: a gain above
+     * what its drift warrants); bounded once a frame, not per sighting,
+     * which costs a covariance intersection each time (docs/consistency.md) */
+    marginal_bound(&marg_frame, &p->pose_marg);
 
     /* 5. negative evidence (before adding, so that freed slots can be reused);
      *    iterate downwards because removal swaps in the last landmark (which

@@ -115,19 +115,31 @@ coslam_status_t marginal_pose_observe_gain(cov3_t *p, pose2_t pose, const cov3_t
         }
     }
     np = cov3_symmetrize(np);
-    /* a gain larger than the drift warrants (a landmark anchored moments
-     * ago) can leave more than the prior: as for clipping, keep the
-     * covariance intersection of the two then, so that P never grows */
+    /* a gain larger than the drift warrants (a landmark anchored a step or
+     * two ago) leaves more than the prior in some direction: the particle
+     * moved further than the sighting justified, and P says so (callers
+     * bound a frame's sightings together: marginal_bound) */
+    *p = clipped ? cov3_ci(*p, np) : np;
+    return COSLAM_OK;
+}
+
+void marginal_bound(const cov3_t *before, cov3_t *p)
+{
+    if (!cov3_is_finite(*before) || !cov3_is_finite(*p)) {
+        return;
+    }
     cov3_t room;
     double chol[3][3];
+    /* within: before - p PSD (a relative margin for rounding) */
+    const double eps = 1e-12 * (before->m[0][0] + before->m[1][1] + before->m[2][2]);
     for (int i = 0; i < 3; ++i) {
         for (int j = 0; j < 3; ++j) {
-            room.m[i][j] = p->m[i][j] - np.m[i][j];
+            room.m[i][j] = before->m[i][j] - p->m[i][j] + (i == j ? eps : 0.0);
         }
     }
-    const int within = cov3_cholesky(room, chol) == COSLAM_OK;
-    *p = clipped || !within ? cov3_ci(*p, np) : np;
-    return COSLAM_OK;
+    if (cov3_cholesky(room, chol) != COSLAM_OK) {
+        *p = cov3_ci(*before, *p);
+    }
 }
 
 /* det of w a + (1 - w) b, symmetric 3x3 given by their upper triangles */

@@ -67,13 +67,24 @@ coslam_status_t marginal_pose_observe(cov3_t *p, pose2_t pose, const cov3_t *anc
  * The same for a particle that corrected its pose with gain k (3x2) on the
  * sighting's innovation (Fast-SLAM 2.0's proposal): the drift after that
  * correction, (I - k Hp) D (I - k Hp)^T + k n k^T with D the drift since
- * the anchor (Joseph form: any gain). Where that is not within the prior
- * (clipping, or a gain larger than D warrants) the result is intersected
- * with the prior, so P never grows. k = the optimal gain D Hp^T (Hp D Hp^T
- * + n)^-1 gives marginal_pose_observe's result. O(1).
+ * the anchor (Joseph form: any gain). A gain larger than D warrants (the
+ * proposal's prior above D: a landmark anchored a step or two ago) leaves
+ * more than the prior in some direction; the result says so. With D
+ * clipped the result is intersected with the prior, as in
+ * marginal_pose_observe. k = the optimal gain D Hp^T (Hp D Hp^T + n)^-1
+ * gives marginal_pose_observe's result. O(1).
  */
 coslam_status_t marginal_pose_observe_gain(cov3_t *p, pose2_t pose, const cov3_t *anchor, point2_t anchor_xy,
                                            double hp[2][3], cov2_t n, double k[3][2]);
+
+/**
+ * Keep *p (a pose marginal after a frame's sightings) within `before` (the
+ * marginal before them): if before - *p is not positive semi-definite,
+ * *p becomes their covariance intersection (cov3_ci), else it is left
+ * alone. A frame's sightings then never grow P, while one sighting may
+ * (marginal_pose_observe_gain). Non-finite input changes nothing. O(1).
+ */
+void marginal_bound(const cov3_t *before, cov3_t *p);
 
 /**
  * Covariance that the pose drift since a landmark's anchor adds to the
