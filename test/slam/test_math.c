@@ -175,6 +175,22 @@ static void test_cov3_ops(void **state)
     bad = a;
     bad.m[0][1] = 2.5; /* asymmetric */
     assert_false(cov3_is_pd(bad));
+    /* symmetrize: each off-diagonal pair replaced by its mean, in its own
+     * place (distinct values, so a swapped pair fails), the diagonal kept */
+    cov3_t asym;
+    for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) {
+            asym.m[i][j] = (double)(10 * i + j) + (i > j ? 0.5 : 0.0);
+        }
+    }
+    const cov3_t sy = cov3_symmetrize(asym);
+    for (int i = 0; i < 3; ++i) {
+        for (int j = 0; j < 3; ++j) {
+            ASSERT_NEAR(sy.m[i][j], 0.5 * (asym.m[i][j] + asym.m[j][i]), 0.0);
+        }
+    }
+    const cov3_t again = cov3_symmetrize(sy);
+    assert_memory_equal(&again, &sy, sizeof sy);
 }
 
 /* --- Jacobians against central differences ------------------------------ */
