@@ -188,11 +188,21 @@ static int pend_pair(const ekfslam_t *ekf, const ekfslam_pend_t *g, int j, int k
 
 static double dot_n(const double *a, const double *b, int n)
 {
-    double acc = 0.0;
-    for (int i = 0; i < n; ++i) {
-        acc += a[i] * b[i];
+    /* four partial sums: one running sum waits for each addition to finish
+     * (a dependency chain the FPU cannot overlap); the compressed EKF's
+     * deferred completion is mostly these products */
+    double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+    int i = 0;
+    for (; i + 4 <= n; i += 4) {
+        s0 += a[i] * b[i];
+        s1 += a[i + 1] * b[i + 1];
+        s2 += a[i + 2] * b[i + 2];
+        s3 += a[i + 3] * b[i + 3];
     }
-    return acc;
+    for (; i < n; ++i) {
+        s0 += a[i] * b[i];
+    }
+    return (s0 + s1) + (s2 + s3);
 }
 
 /* Generation g's correction of entry (r, c) (landmark states), 0 if none.
@@ -522,10 +532,19 @@ static double x_now(const ekfslam_t *ekf, int r)
         return ekf->x[r];
     }
     const ekfslam_cekf_t *ck = &ekf->cekf;
-    double acc = 0.0;
-    for (int i = 0; i < ck->na0; ++i) {
-        acc += P_(ekf, ck->idx[i], r) * ck->theta[i];
+    /* four partial sums, as dot_n */
+    double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+    int i = 0;
+    for (; i + 4 <= ck->na0; i += 4) {
+        s0 += P_(ekf, ck->idx[i], r) * ck->theta[i];
+        s1 += P_(ekf, ck->idx[i + 1], r) * ck->theta[i + 1];
+        s2 += P_(ekf, ck->idx[i + 2], r) * ck->theta[i + 2];
+        s3 += P_(ekf, ck->idx[i + 3], r) * ck->theta[i + 3];
     }
+    for (; i < ck->na0; ++i) {
+        s0 += P_(ekf, ck->idx[i], r) * ck->theta[i];
+    }
+    double acc = (s0 + s1) + (s2 + s3);
     for (int gi = 0; gi < EKFSLAM_PEND_GENS; ++gi) {
         const ekfslam_pend_t *g = &ck->gen[gi];
         const uint8_t f = g->flag[(r - 3) / 2];
