@@ -14,7 +14,8 @@
 //   [filter]    type (fastslam1 | fastslam2 | ekf), particles, ess_fraction,
 //               export_min_weight, closure_drift_ratio, closure_gap,
 //               closure_ambiguity_ll, assoc (jcbb | nn), jcbb_max_nodes, fej,
-//               iekf_max_iters, nis_inflate, seed, predict_period_s
+//               iekf_max_iters, nis_inflate, active_spread_madds, seed,
+//               predict_period_s
 //   [input]     min_range_m, max_range_m (sightings outside are dropped, counted),
 //               known_id_gate_rad, known_id_gate_chi2, known_id_log_lik
 //               (known-ids mode, see below)
@@ -60,6 +61,7 @@ struct FilterConfig {
     int fej = 1;
     int iekf_max_iters = 0; ///< ekfslam_config_t::iekf_max_iters
     double nis_inflate = 3.0; ///< ekfslam_config_t::nis_inflate (0: off)
+    uint32_t active_spread_madds = 8000000; ///< ekfslam_config_t::active_spread_madds
     uint64_t seed = 1;
     /// Odometry is folded into one prediction at most this long [s] (and
     /// always right before a camera frame): the robot's control rate.

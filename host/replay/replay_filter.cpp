@@ -32,6 +32,7 @@ RobotFilter::RobotFilter(FilterKind kind, const ReplayConfig &cfg, uint8_t core_
     c.fej = static_cast<uint8_t>(cfg.filter.fej);
     c.iekf_max_iters = static_cast<uint8_t>(cfg.filter.iekf_max_iters);
     c.nis_inflate = cfg.filter.nis_inflate;
+    c.active_spread_madds = cfg.filter.active_spread_madds;
     if (slam_filter_init(f_.get(), &c, pose0) != COSLAM_OK) {
         throw ReplayError(std::string(slam_filter_kind_name(c.kind)) + ": the core refused the configuration");
     }

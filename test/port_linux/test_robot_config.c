@@ -174,7 +174,9 @@ static void closure_keys_reach_the_filter(void **state)
     assert_int_equal(cfg.node.filter.closure_gap, fc.closure_gap);
     assert_true(cfg.node.filter.closure_ambiguity_ll == fc.closure_ambiguity_ll);
     assert_true(cfg.node.filter.nis_inflate == ekfslam_config_default().nis_inflate);
-    const char *text = "[filter]\nclosure_drift_ratio = 0\nclosure_gap = 7\nclosure_ambiguity_ll = 1.5\nnis_inflate = 0\n";
+    assert_true(cfg.node.filter.active_spread_madds == ekfslam_config_default().active_spread_madds);
+    const char *text = "[filter]\nclosure_drift_ratio = 0\nclosure_gap = 7\nclosure_ambiguity_ll = 1.5\nnis_inflate = 0\n"
+                       "active_spread_madds = 2000000\n";
     assert_int_equal(robot_config_load_string(&cfg, text, "c.ini", msg, sizeof msg), COSLAM_OK);
     assert_true(cfg.node.filter.closure_drift_ratio == 0.0);
     assert_int_equal(cfg.node.filter.closure_gap, 7);
@@ -189,6 +191,7 @@ static void closure_keys_reach_the_filter(void **state)
     cfg.node.filter.kind = SLAM_FILTER_EKF;
     assert_int_equal(slam_filter_init(&f, &cfg.node.filter, (pose2_t){0.0, 0.0, 0.0}), COSLAM_OK);
     assert_true(f.u.ekf.cfg.nis_inflate == 0.0);
+    assert_true(f.u.ekf.cfg.active_spread_madds == 2000000U);
 }
 
 static void bad_files_name_file_and_line(void **state)
@@ -197,6 +200,8 @@ static void bad_files_name_file_and_line(void **state)
     refused("[filter]\nclosure_drift_ratio = -1\n", "bad.ini:2: [filter] closure_drift_ratio: -1 is outside its domain");
     refused("[filter]\nclosure_gap = 70000\n", "bad.ini:2: [filter] closure_gap: 70000 is outside its domain");
     refused("[filter]\nnis_inflate = -1\n", "bad.ini:2: [filter] nis_inflate: -1 is outside its domain");
+    refused("[filter]\nactive_spread_madds = -1\n",
+            "bad.ini:2: [filter] active_spread_madds: -1 is outside its domain");
     refused("[robot]\nid = 0\n\n[nosuch]\nkey = 1\n", "bad.ini:5: unknown section [nosuch]");
     refused("[laser]\ndevice = /dev/x\nspeed = 3\n", "bad.ini:3: unknown key 'speed' in [laser]");
     refused("[slam]\n\nrange_var_m3 = 1\n", "bad.ini:3: unknown key 'range_var_m3' in [slam]");

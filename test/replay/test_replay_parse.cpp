@@ -390,9 +390,11 @@ TEST(Config, ClosureKeysReachTheFilter)
     EXPECT_EQ(f.app()->u.fs.cfg.closure_drift_ratio, 0.0);
     EXPECT_EQ(f.app()->u.fs.cfg.closure_gap, 7);
     EXPECT_EQ(f.app()->u.fs.cfg.closure_ambiguity_ll, 1.5);
-    replay_config_load_string(c, "[filter]\nnis_inflate = 0\n", "n.ini");
+    EXPECT_EQ(c.filter.active_spread_madds, ekfslam_config_default().active_spread_madds);
+    replay_config_load_string(c, "[filter]\nnis_inflate = 0\nactive_spread_madds = 2000000\n", "n.ini");
     RobotFilter e(FilterKind::Ekf, c, 0, pose2_t{0.0, 0.0, 0.0}, 1);
     EXPECT_EQ(e.app()->u.ekf.cfg.nis_inflate, 0.0);
+    EXPECT_EQ(e.app()->u.ekf.cfg.active_spread_madds, 2000000U);
 }
 
 TEST(Config, ErrorsNameFileLineAndKey)
@@ -415,6 +417,7 @@ TEST(Config, ErrorsNameFileLineAndKey)
     EXPECT_TRUE(has(err("[filter]\nclosure_drift_ratio = -1\n"), "[filter] closure_drift_ratio"));
     EXPECT_TRUE(has(err("[filter]\nclosure_gap = 70000\n"), "[filter] closure_gap"));
     EXPECT_TRUE(has(err("[filter]\nnis_inflate = -1\n"), "[filter] nis_inflate"));
+    EXPECT_TRUE(has(err("[filter]\nactive_spread_madds = -1\n"), "[filter] active_spread_madds"));
     EXPECT_TRUE(has(err("[merge]\nenabled = maybe\n"), "expected a boolean"));
     EXPECT_TRUE(has(err("[robot2]\nfoo = 1\n"), "x.ini:2: unknown key 'foo' in [robot2]"));
     EXPECT_TRUE(has(err("this is not ini\n"), "x.ini:1:"));

@@ -26,6 +26,7 @@ slam_filter_config_t slam_filter_config_default(void)
     c.fej = ec.fej;
     c.iekf_max_iters = ec.iekf_max_iters;
     c.nis_inflate = ec.nis_inflate;
+    c.active_spread_madds = ec.active_spread_madds;
     return c;
 }
 
@@ -61,6 +62,7 @@ coslam_status_t slam_filter_init(slam_filter_t *f, const slam_filter_config_t *c
         c.fej = cfg->fej;
         c.iekf_max_iters = cfg->iekf_max_iters;
         c.nis_inflate = cfg->nis_inflate;
+        c.active_spread_madds = cfg->active_spread_madds;
         return ekfslam_init(&f->u.ekf, &c, pose0);
     }
     }

@@ -50,6 +50,9 @@ typedef struct {
     uint8_t fej;                  /**< EKF-SLAM: ekfslam_config_t */
     uint8_t iekf_max_iters;       /**< EKF-SLAM: ekfslam_config_t */
     double nis_inflate;           /**< EKF-SLAM: ekfslam_config_t (0: off) */
+    uint32_t active_spread_madds; /**< EKF-SLAM: ekfslam_config_t (0: a global
+                                       update's deferred part at once); its time
+                                       per step depends on the CPU */
 } slam_filter_config_t;
 
 typedef struct {
