@@ -320,6 +320,7 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
                      {"vetoed_negative_info", e.stats.vetoed},
                      {"echoes", e.stats.echoes},
                      {"ambiguous", e.stats.ambiguous},
+                     {"unrefutable", e.stats.unrefutable},
                      {"t_shift", pose_json(e.stats.t_shift)}}},
                    {"map_before", score_json(e.before)},
                    {"map_after", score_json(e.after)},
@@ -453,7 +454,7 @@ void print_summary(std::ostream &out, const ReplayResult &res, const ReplayOptio
         }
         out << "  pairs " << e.stats.pairs << " NIS " << std::setprecision(1) << e.stats.nis << "/" << e.stats.nis_bound
             << std::setprecision(3) << " refused " << e.stats.vetoed << "+" << e.stats.echoes << "+"
-            << e.stats.ambiguous << "  fused " << e.stats.fused << " added " << e.stats.added << "  map rmse ";
+            << e.stats.ambiguous << "+" << e.stats.unrefutable << "  fused " << e.stats.fused << " added " << e.stats.added << "  map rmse ";
         cell(0, e.before.valid, e.before.rmse_m) << " -> ";
         cell(0, e.after.valid, e.after.rmse_m) << " (" << e.before.n_estimated << " -> " << e.after.n_estimated
                                                 << " landmarks)\n";

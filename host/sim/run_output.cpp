@@ -113,6 +113,7 @@ nlohmann::json merge_json(const MergeRecord &m)
                       {"vetoed_negative_info", m.stats.vetoed},
                       {"echoes", m.stats.echoes},
                       {"ambiguous", m.stats.ambiguous},
+                      {"unrefutable", m.stats.unrefutable},
                       {"t_shift", {m.stats.t_shift.x, m.stats.t_shift.y, m.stats.t_shift.theta}}};
         j["map_before"] = eval_json(m.before);
         j["map_after"] = eval_json(m.after);
@@ -359,7 +360,8 @@ std::string run_summary(const Simulation &sim, const std::string &out_dir)
           << m.stats.fused / per << " fused, " << m.stats.added / per << " added"
           << (m.stats.fused_ci ? ", " + std::to_string(m.stats.fused_ci / per) + " by CI" : std::string())
           << "; not added: " << m.stats.vetoed << " where it looked and saw nothing, " << m.stats.echoes
-          << " echoes, " << m.stats.ambiguous << " ambiguous), transform error " << std::setprecision(3) << m.transform_err_m << " m / " << std::setprecision(2)
+          << " echoes, " << m.stats.ambiguous << " ambiguous, " << m.stats.unrefutable
+          << " too uncertain to refute), transform error " << std::setprecision(3) << m.transform_err_m << " m / " << std::setprecision(2)
           << m.transform_err_rad * kRad2Deg << " deg, sightings " << std::setprecision(0) << m.dt_sightings_ms
           << " ms apart\n";
     }

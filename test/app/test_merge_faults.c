@@ -12,6 +12,7 @@
  *  - a partner with 20 % spurious landmarks where the receiver has looked
  *    and seen nothing: the merge is refused or the spurious landmarks are
  *    left out; never added;
+ *  - a landmark too uncertain for the receiver ever to refute is not added;
  *  - a chain A -> B -> C -> A adds nothing twice and shrinks no covariance.
  */
 #include <math.h>
@@ -332,6 +333,51 @@ static void test_unresolved_pair_is_not_added(void **state)
     }
 }
 
+/* A landmark only the sender holds, so uncertain relative to the receiver
+ * that the receiver could never refute it by not seeing it (position sd
+ * beyond merge_refute_sd_m of its parameters: never a certain miss), is
+ * not added by an EKF-SLAM receiver; the same landmark known to a third of
+ * that is added, and so is the uncertain one with refute_sd_factor 0 or by
+ * a Fast-SLAM receiver (docs/map-merge.md). Fused landmarks are not
+ * affected: every landmark of the world is there once either way. */
+static void test_unrefutable_landmark_is_not_added(void **state)
+{
+    (void)state;
+    const point2_t lone = {4.0, 4.6}; /* north-east, outside A's looks */
+    for (int k = 0; k < 2; ++k) {
+        for (int variant = 0; variant < 3; ++variant) {
+            setup_pair(kKinds[k], kKinds[1 - k]);
+            const double sd_ok = merge_refute_sd_m(slam_filter_params(&g_a));
+            assert_true(sd_ok > 0.3 && sd_ok < 0.6); /* 0.25 x 25 deg x 5 m x 0.9 */
+            const double sd = variant == 1 ? sd_ok / 3.0 : 1.5 * sd_ok;
+            assert_int_equal(slam_filter_export(&g_b, &g_msg), COSLAM_OK);
+            map_landmark_t *l = &g_msg.lm[g_msg.n_landmarks++];
+            *l = g_msg.lm[0];
+            l->mean = lone;
+            l->cov = cov2_make(sd * sd, 0.0, sd * sd);
+            l->cov_rel = l->cov;
+            l->id = 9100U;
+            merge_config_t mc = merge_config_default();
+            assert_true(mc.refute_sd_factor == 1.0);
+            if (variant == 2) {
+                mc.refute_sd_factor = 0.0;
+            }
+            const merge_geometry_t g = geometry(kPoseA, kPoseB, 0.0);
+            merge_stats_t st;
+            memset(&st, 0, sizeof st);
+            assert_int_equal(slam_filter_merge_map(&g_a, &g_msg, &g, &mc, NULL, &g_work, &st, NULL, NULL), COSLAM_OK);
+            assert_int_equal(slam_filter_export(&g_a, &g_after), COSLAM_OK);
+            const int kept = variant != 0 || kKinds[k] != SLAM_FILTER_EKF;
+            assert_int_equal(near_count(&g_after, lone, 0.5), kept);
+            assert_int_equal(st.unrefutable, kept ? 0U : 1U);
+            assert_int_equal(g_after.n_landmarks, N_WORLD + kept);
+            for (int i = 0; i < N_WORLD; ++i) {
+                assert_int_equal(near_count(&g_after, g_world[i], 0.15), 1);
+            }
+        }
+    }
+}
+
 static void test_chain_adds_nothing_twice(void **state)
 {
     (void)state;
@@ -397,6 +443,7 @@ int main(void)
         cmocka_unit_test(test_rotated_partner_is_refused_map_unchanged),
         cmocka_unit_test(test_spurious_partner_is_harmless),
         cmocka_unit_test(test_unresolved_pair_is_not_added),
+        cmocka_unit_test(test_unrefutable_landmark_is_not_added),
         cmocka_unit_test(test_chain_adds_nothing_twice),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -374,6 +374,16 @@ TEST(Config, DefaultsValidateAndRoundTrip)
     EXPECT_EQ(b.odo_of(1).scale_w, a.odo.scale_w);
 }
 
+// [merge] refute_sd_factor defaults to the core's value and is read.
+TEST(Config, RefuteKeyIsRead)
+{
+    ReplayConfig c = replay_config_default();
+    EXPECT_EQ(c.merge.core.refute_sd_factor, merge_config_default().refute_sd_factor);
+    EXPECT_EQ(c.merge.core.refute_sd_factor, 1.0);
+    replay_config_load_string(c, "[merge]\nrefute_sd_factor = 0\n", "r.ini");
+    EXPECT_EQ(c.merge.core.refute_sd_factor, 0.0);
+}
+
 // The Fast-SLAM revisit keys and EKF-SLAM's innovation monitor default to the
 // core's values and reach the filter.
 TEST(Config, ClosureKeysReachTheFilter)
@@ -419,6 +429,7 @@ TEST(Config, ErrorsNameFileLineAndKey)
     EXPECT_TRUE(has(err("[filter]\nnis_inflate = -1\n"), "[filter] nis_inflate"));
     EXPECT_TRUE(has(err("[filter]\nactive_spread_madds = -1\n"), "[filter] active_spread_madds"));
     EXPECT_TRUE(has(err("[merge]\nenabled = maybe\n"), "expected a boolean"));
+    EXPECT_TRUE(has(err("[merge]\nrefute_sd_factor = -0.5\n"), "[merge] agree_z"));
     EXPECT_TRUE(has(err("[robot2]\nfoo = 1\n"), "x.ini:2: unknown key 'foo' in [robot2]"));
     EXPECT_TRUE(has(err("this is not ini\n"), "x.ini:1:"));
     // values that parse but are out of their domain

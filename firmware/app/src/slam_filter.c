@@ -276,12 +276,14 @@ coslam_status_t slam_filter_merge_map(slam_filter_t *f, const map_estimate_t *in
         if (st != COSLAM_OK && st != COSLAM_E_CAPACITY) {
             return st;
         }
-        /* unresolved pairs are refused for EKF-SLAM receivers only: a
-         * Fast-SLAM receiver's per-particle association resolves them
-         * (merge_config_t, docs/map-merge.md) */
+        /* unresolved pairs and landmarks too uncertain to refute are
+         * refused for EKF-SLAM receivers only: a Fast-SLAM receiver's
+         * per-particle association resolves them, and on MRCLAM its maps
+         * were worse with either rule (merge_config_t, docs/map-merge.md) */
         merge_config_t check_cfg = *cfg;
         if (f->kind != SLAM_FILTER_EKF) {
             check_cfg.unresolved_chi2 = 0.0;
+            check_cfg.refute_sd_factor = 0.0;
         }
         st = merge_check(&w->own, &f->coverage, grid, sp, f->robot_id, &check_cfg, &w->body, &w->scratch, stats);
         if (st != COSLAM_OK) {

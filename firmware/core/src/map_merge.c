@@ -27,6 +27,7 @@ merge_config_t merge_config_default(void)
     c.max_contradict_fraction = 0.3;
     c.ambiguous_chi2 = 25.0;
     c.unresolved_chi2 = 9.21;
+    c.refute_sd_factor = 1.0;
     return c;
 }
 
@@ -529,7 +530,8 @@ static void pair_and_select(merge_scratch_t *sc, const merge_body_map_t *bm, con
 
 static int config_ok(const merge_config_t *cfg)
 {
-    return isfinite(cfg->gate_chi2) && cfg->gate_chi2 > 0.0 && isfinite(cfg->grid_cell_m) && cfg->grid_cell_m > 0.0;
+    return isfinite(cfg->gate_chi2) && cfg->gate_chi2 > 0.0 && isfinite(cfg->grid_cell_m) && cfg->grid_cell_m > 0.0 &&
+           isfinite(cfg->refute_sd_factor) && cfg->refute_sd_factor >= 0.0;
 }
 
 /* Common start of a merge: statistics sink, grid over the incoming map. */
@@ -911,6 +913,22 @@ uint16_t merge_coverage_looks(const merge_coverage_t *c, const slam_params_t *p,
 
 /* ---- check before trust ------------------------------------------------- */
 
+double merge_refute_sd_m(const slam_params_t *p)
+{
+    /* landmark_miss_is_certain: the bearing sd of the innovation at most
+     * exist_miss_bearing_sd_frac of half the field of view; a position sd
+     * s seen from range r gives about s / r of bearing, smallest at the
+     * farthest range at which the landmark counts as in view */
+    return p->exist_miss_bearing_sd_frac * 0.5 * p->sensor_fov_rad * p->sensor_max_range_m * p->visibility_margin;
+}
+
+/* Largest axis of a 2x2 covariance (its largest eigenvalue) [m^2]. */
+static double cov2_major_var(cov2_t c)
+{
+    const double h = 0.5 * (c.xx - c.yy);
+    return 0.5 * (c.xx + c.yy) + sqrt(h * h + c.xy * c.xy);
+}
+
 /* Chi-square quantile of `dof` degrees of freedom at normal quantile z
  * (Wilson-Hilferty; within 1 % for dof >= 2 at the tails used here). */
 static double chi2_bound(double dof, double z)
@@ -1145,6 +1163,8 @@ coslam_status_t merge_check(const map_whole_t *own, const merge_coverage_t *cove
     uint32_t vetoed = 0;
     uint32_t echoes = 0;
     uint32_t ambiguous = 0;
+    uint32_t unrefutable = 0;
+    const double refute_sd = cfg->refute_sd_factor * merge_refute_sd_m(own_params);
     for (uint16_t i = 0; i < bm->n; ++i) {
         sc->drop[i] = 0U;
     }
@@ -1162,6 +1182,12 @@ coslam_status_t merge_check(const map_whole_t *own, const merge_coverage_t *cove
             ambiguous++;
             continue;
         }
+        /* where the receiver could never see that it is not there (docs/map-merge.md) */
+        if (cfg->refute_sd_factor > 0.0 && !(cov2_major_var(bm->cov[i]) <= refute_sd * refute_sd)) {
+            unrefutable++;
+            sc->drop[i] = 1U;
+            continue;
+        }
         if (coverage != 0 && cfg->veto_looks > 0U &&
             merge_coverage_looks(coverage, own_params, grid, pose2_apply(own->pose, pose2_apply(t, bm->rel[i]))) >=
                 cfg->veto_looks) {
@@ -1172,6 +1198,7 @@ coslam_status_t merge_check(const map_whole_t *own, const merge_coverage_t *cove
     stats->vetoed = vetoed;
     stats->echoes = echoes;
     stats->ambiguous = ambiguous;
+    stats->unrefutable = unrefutable;
     if (vetoed >= 2U && (double)vetoed > cfg->max_contradict_fraction * (double)(n_pairs + vetoed)) {
         return COSLAM_E_MERGE_DISAGREE;
     }

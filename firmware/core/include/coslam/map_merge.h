@@ -173,6 +173,19 @@ typedef struct {
      *  on MRCLAM Fast-SLAM's maps were worse with the rule than without it
      *  (docs/map-merge.md). */
     double unresolved_chi2;
+    /** An unpaired incoming landmark is added only if the receiver could
+     *  refute it by its own sightings: the largest axis of its position sd
+     *  in the receiver's body frame (the transform's uncertainty included)
+     *  at most this factor times merge_refute_sd_m(receiver's parameters),
+     *  the sd up to which a miss is certain at the far edge of the view.
+     *  A landmark more uncertain than that is never removed by negative
+     *  evidence (landmark_miss_is_certain), so a spurious one would stay
+     *  and be passed on. Default 1 (derived, not fitted); 0 disables. A
+     *  paired (fused) landmark is not affected. The robot's merge path
+     *  (slam_filter_merge_map) applies it to EKF-SLAM receivers only, as
+     *  unresolved_chi2: with Fast-SLAM receivers it was worse on MRCLAM
+     *  (docs/map-merge.md). */
+    double refute_sd_factor;
 } merge_config_t;
 
 /** Defaults: gate 9.21 (99 %), cell 1 m, full uncertainty, no reweighting,
@@ -182,9 +195,16 @@ typedef struct {
  *  in [1e-6, 1e4] m^2 (1 mm .. 100 m standard deviation), bearing variance
  *  >= 1e-8 rad^2 (0.006 deg), check on with 3 refinements moving the map
  *  and counting as 2 independent pairs, agree_z 2.33 (99 %), veto_looks 5,
- *  contradict fraction 0.3, ambiguous_chi2 25, unresolved_chi2 9.21.
+ *  contradict fraction 0.3, ambiguous_chi2 25, unresolved_chi2 9.21,
+ *  refute_sd_factor 1.
  *  docs/map-merge.md says why and on what they were chosen. */
 merge_config_t merge_config_default(void);
+
+/** The position sd [m] up to which a landmark at the far edge of the view
+ *  (sensor_max_range_m x visibility_margin) is certainly missed when not
+ *  seen: exist_miss_bearing_sd_frac x half the field of view x that range
+ *  (landmark_miss_is_certain, bearing sd about position sd / range). */
+double merge_refute_sd_m(const slam_params_t *p);
 
 /** The incoming map in self's body frame (output of merge_transform_map). */
 typedef struct {
@@ -257,6 +277,8 @@ typedef struct {
     uint32_t echoes;        /**< unpaired, holding the receiver's own information */
     uint32_t ambiguous;     /**< unpaired, next to an unpaired own landmark or unresolved
                                  from another incoming one */
+    uint32_t unrefutable;   /**< unpaired, too uncertain for the receiver ever to refute
+                                 (refute_sd_factor) */
     double nis;             /**< joint normalised innovation squared of the pairs */
     double nis_bound;       /**< its chi-square bound (0: no pairs) */
     pose2_t t_shift;        /**< refined transform minus the sightings' one */
