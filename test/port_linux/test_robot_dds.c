@@ -416,6 +416,7 @@ static void two_robots_merge_over_dds(void **state)
         assert_int_equal(WEXITSTATUS(st[r]), 0);
         assert_non_null(strstr(log, "authenticated with key id 7): up"));
         assert_non_null(strstr(log, "meeting: merged robot "));
+        assert_non_null(strstr(log, " too uncertain to refute")); /* what the merge left out, said */
         assert_null(strstr(log, hex)); /* never printed */
         snprintf(path, sizeof path, "%s/r%d.json", dir, r); /* the one written at exit */
         slurp(path, json[r], sizeof json[r]);
