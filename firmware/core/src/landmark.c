@@ -226,10 +226,15 @@ void exist_hit(float *exist, const slam_params_t *params)
     *exist = v > params->exist_max ? params->exist_max : v;
 }
 
+double landmark_miss_bearing_sd_max(const slam_params_t *params)
+{
+    return params->exist_miss_bearing_sd_frac * 0.5 * params->sensor_fov_rad;
+}
+
 int landmark_miss_is_certain(const slam_params_t *params, const lm_expect_t *e)
 {
     /* compare variances: no square root, and a NaN variance is not certain */
-    const double sd_max = params->exist_miss_bearing_sd_frac * 0.5 * params->sensor_fov_rad;
+    const double sd_max = landmark_miss_bearing_sd_max(params);
     return e->s.yy <= sd_max * sd_max;
 }
 

@@ -915,18 +915,10 @@ uint16_t merge_coverage_looks(const merge_coverage_t *c, const slam_params_t *p,
 
 double merge_refute_sd_m(const slam_params_t *p)
 {
-    /* landmark_miss_is_certain: the bearing sd of the innovation at most
-     * exist_miss_bearing_sd_frac of half the field of view; a position sd
-     * s seen from range r gives about s / r of bearing, smallest at the
-     * farthest range at which the landmark counts as in view */
-    return p->exist_miss_bearing_sd_frac * 0.5 * p->sensor_fov_rad * p->sensor_max_range_m * p->visibility_margin;
-}
-
-/* Largest axis of a 2x2 covariance (its largest eigenvalue) [m^2]. */
-static double cov2_major_var(cov2_t c)
-{
-    const double h = 0.5 * (c.xx - c.yy);
-    return 0.5 * (c.xx + c.yy) + sqrt(h * h + c.xy * c.xy);
+    /* a position sd s seen from range r gives about s / r of bearing,
+     * smallest at the farthest range at which the landmark counts as in
+     * view (landmark_should_be_seen) */
+    return landmark_miss_bearing_sd_max(p) * p->sensor_max_range_m * p->visibility_margin;
 }
 
 /* Chi-square quantile of `dof` degrees of freedom at normal quantile z
@@ -1183,10 +1175,15 @@ coslam_status_t merge_check(const map_whole_t *own, const merge_coverage_t *cove
             continue;
         }
         /* where the receiver could never see that it is not there (docs/map-merge.md) */
-        if (cfg->refute_sd_factor > 0.0 && !(cov2_major_var(bm->cov[i]) <= refute_sd * refute_sd)) {
-            unrefutable++;
-            sc->drop[i] = 1U;
-            continue;
+        if (cfg->refute_sd_factor > 0.0) {
+            double lmin;
+            double lmax;
+            cov2_eigenvalues(bm->cov[i], &lmin, &lmax);
+            if (!(lmax <= refute_sd * refute_sd)) {
+                unrefutable++;
+                sc->drop[i] = 1U;
+                continue;
+            }
         }
         if (coverage != 0 && cfg->veto_looks > 0U &&
             merge_coverage_looks(coverage, own_params, grid, pose2_apply(own->pose, pose2_apply(t, bm->rel[i]))) >=

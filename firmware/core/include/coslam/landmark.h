@@ -137,6 +137,10 @@ void exist_hit(float *exist, const slam_params_t *params);
  */
 int landmark_miss_is_certain(const slam_params_t *params, const lm_expect_t *e);
 
+/** The largest bearing sd [rad] of a certain miss (landmark_miss_is_certain):
+ *  exist_miss_bearing_sd_frac * sensor_fov_rad / 2. */
+double landmark_miss_bearing_sd_max(const slam_params_t *params);
+
 /**
  * Negative evidence: the landmark (evidence *exist, flag *confirmed_once,
  * see landmark_t) should have been seen (landmark_should_be_seen) but was
