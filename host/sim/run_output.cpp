@@ -9,6 +9,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "app/slam_filter.h"
 #include "profile_json.hpp"
 #include "coslam/occ_grid.h"
 
@@ -355,13 +356,11 @@ std::string run_summary(const Simulation &sim, const std::string &out_dir)
     for (const auto &m : r.merges) {
         // Fast-SLAM merges into every particle: report per particle
         const uint32_t per = static_cast<uint32_t>(std::max(1, r.robots[static_cast<size_t>(m.robot)].particles));
+        char what[256];
+        (void)slam_filter_merge_format(&m.stats, per, what, sizeof what);
         s << "  merge t=" << std::setprecision(1) << m.t_s << " s: " << r.robots[static_cast<size_t>(m.robot)].name
           << " <- " << r.robots[static_cast<size_t>(m.peer)].name << " (" << m.n_landmarks_in << " landmarks: "
-          << m.stats.fused / per << " fused, " << m.stats.added / per << " added"
-          << (m.stats.fused_ci ? ", " + std::to_string(m.stats.fused_ci / per) + " by CI" : std::string())
-          << "; not added: " << m.stats.vetoed << " where it looked and saw nothing, " << m.stats.echoes
-          << " echoes, " << m.stats.ambiguous << " ambiguous, " << m.stats.unrefutable
-          << " too uncertain to refute), transform error " << std::setprecision(3) << m.transform_err_m << " m / " << std::setprecision(2)
+          << what << "), transform error " << std::setprecision(3) << m.transform_err_m << " m / " << std::setprecision(2)
           << m.transform_err_rad * kRad2Deg << " deg, sightings " << std::setprecision(0) << m.dt_sightings_ms
           << " ms apart\n";
     }

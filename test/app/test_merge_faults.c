@@ -378,6 +378,34 @@ static void test_unrefutable_landmark_is_not_added(void **state)
     }
 }
 
+/* The merge line the robot and the simulator print (slam_filter_merge_format):
+ * Fast-SLAM's fusions and additions per particle, the refusals as counted. */
+static void test_merge_line_format(void **state)
+{
+    (void)state;
+    merge_stats_t st;
+    memset(&st, 0, sizeof st);
+    st.fused = 500U;
+    st.added = 900U;
+    st.vetoed = 1U;
+    st.echoes = 2U;
+    st.ambiguous = 3U;
+    st.unrefutable = 4U;
+    char buf[256];
+    const char *want = "5 fused, 9 added; not added: 1 where it looked and saw nothing, 2 echoes, 3 ambiguous, "
+                       "4 too uncertain to refute";
+    assert_int_equal(slam_filter_merge_format(&st, 100U, buf, sizeof buf), (int)strlen(want));
+    assert_string_equal(buf, want);
+    st.fused_ci = 200U;
+    (void)slam_filter_merge_format(&st, 100U, buf, sizeof buf);
+    assert_non_null(strstr(buf, "5 fused, 9 added, 2 by CI; not added: 1 where"));
+    (void)slam_filter_merge_format(&st, 0U, buf, sizeof buf); /* 0 is taken as 1 (EKF-SLAM) */
+    assert_non_null(strstr(buf, "500 fused, 900 added, 200 by CI;"));
+    char small[8];
+    assert_true(slam_filter_merge_format(&st, 1U, small, sizeof small) > 7);
+    assert_string_equal(small, "500 fus"); /* cut, terminated */
+}
+
 static void test_chain_adds_nothing_twice(void **state)
 {
     (void)state;
@@ -444,6 +472,7 @@ int main(void)
         cmocka_unit_test(test_spurious_partner_is_harmless),
         cmocka_unit_test(test_unresolved_pair_is_not_added),
         cmocka_unit_test(test_unrefutable_landmark_is_not_added),
+        cmocka_unit_test(test_merge_line_format),
         cmocka_unit_test(test_chain_adds_nothing_twice),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -348,6 +348,23 @@ int slam_filter_limits(const slam_filter_t *f, slam_filter_limit_t out[SLAM_FILT
     return n;
 }
 
+int slam_filter_merge_format(const merge_stats_t *s, uint32_t per, char *buf, size_t cap)
+{
+    if (s == NULL || buf == NULL || cap == 0U) {
+        return 0;
+    }
+    const uint32_t k = per == 0U ? 1U : per;
+    char ci[32] = "";
+    if (s->fused_ci != 0U) {
+        (void)snprintf(ci, sizeof ci, ", %lu by CI", (unsigned long)(s->fused_ci / k));
+    }
+    return snprintf(buf, cap,
+                    "%lu fused, %lu added%s; not added: %lu where it looked and saw nothing, %lu echoes, %lu "
+                    "ambiguous, %lu too uncertain to refute",
+                    (unsigned long)(s->fused / k), (unsigned long)(s->added / k), ci, (unsigned long)s->vetoed,
+                    (unsigned long)s->echoes, (unsigned long)s->ambiguous, (unsigned long)s->unrefutable);
+}
+
 int slam_filter_limit_format(const slam_filter_limit_t *l, unsigned robot_id, char *buf, size_t cap)
 {
     if (l == NULL || buf == NULL || cap == 0U) {

@@ -255,19 +255,13 @@ static void log_meeting_events(int verbose)
     meeting_event_t ev;
     while (robot_node_take_event(&node, &ev) == COSLAM_OK) {
         if (ev.kind == MEETING_EV_MERGED) {
-            /* what the merge did and left out (as coslam-sim prints it);
-             * Fast-SLAM counts its fusions and additions in every particle */
-            const merge_stats_t *s = &ev.stats;
-            const uint32_t per = node.filter.kind == SLAM_FILTER_EKF || node.filter.u.fs.cfg.n_particles == 0U
-                                     ? 1U
-                                     : (uint32_t)node.filter.u.fs.cfg.n_particles;
-            fprintf(stderr,
-                    "coslam-robot: meeting: merged robot %u's map (seq %lu, %u landmarks: %lu fused, %lu added; "
-                    "not added: %lu where it looked and saw nothing, %lu echoes, %lu ambiguous, %lu too uncertain "
-                    "to refute%s)\n",
-                    (unsigned)ev.peer, (unsigned long)ev.seq, (unsigned)ev.n_landmarks, (unsigned long)(s->fused / per),
-                    (unsigned long)(s->added / per), (unsigned long)s->vetoed, (unsigned long)s->echoes,
-                    (unsigned long)s->ambiguous, (unsigned long)s->unrefutable,
+            /* what the merge did and left out, as coslam-sim prints it */
+            char what[256];
+            (void)slam_filter_merge_format(
+                &ev.stats, node.filter.kind == SLAM_FILTER_EKF ? 1U : node.filter.u.fs.cfg.n_particles, what,
+                sizeof what);
+            fprintf(stderr, "coslam-robot: meeting: merged robot %u's map (seq %lu, %u landmarks: %s%s)\n",
+                    (unsigned)ev.peer, (unsigned long)ev.seq, (unsigned)ev.n_landmarks, what,
                     ev.status == COSLAM_OK ? "" : "; partly: capacity");
         } else if (ev.kind == MEETING_EV_REFUSED) {
             fprintf(stderr, "coslam-robot: meeting: refused a map from robot %u (seq %lu): %s\n", (unsigned)ev.peer,

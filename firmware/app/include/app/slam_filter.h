@@ -207,6 +207,17 @@ int slam_filter_limits(const slam_filter_t *f, slam_filter_limit_t out[SLAM_FILT
  */
 int slam_filter_limit_format(const slam_filter_limit_t *l, unsigned robot_id, char *buf, size_t cap);
 
+/**
+ * What a merge did and left out, the same in the robot and the simulator:
+ *   "5 fused, 9 added; not added: 0 where it looked and saw nothing, 0
+ *    echoes, 0 ambiguous, 0 too uncertain to refute"
+ * (", 2 by CI" after "added" when covariance intersection fused any).
+ * `per`: the filter's particles for Fast-SLAM (its fusions and additions
+ * are counted in every particle), 1 for EKF-SLAM; 0 is taken as 1. No
+ * newline; snprintf's return, cut at cap - 1 as slam_filter_limit_format.
+ */
+int slam_filter_merge_format(const merge_stats_t *s, uint32_t per, char *buf, size_t cap);
+
 #ifdef __cplusplus
 }
 #endif
