@@ -7,7 +7,8 @@
 #   tools/merge_table.sh [BUILD] [OUT]     -> OUT/merge_table.md
 # BUILD: a host-profile build (default build-host, as `make replay` makes:
 # 300 particles need more than the default profile's 100).
-# Environment: COSLAM_DATA_DIR (folder holding mrclam/), PARTICLES, SEEDS.
+# Environment: COSLAM_DATA_DIR (folder holding mrclam/), PARTICLES, SEEDS,
+# CONFIG (another replay configuration, default host/replay/mrclam6.ini).
 # SEEDS (e.g. "1 2 3 4 5 6"): Fast-SLAM 2.0 is random and on this data one
 # robot's figures change from seed to seed by more than most merge changes
 # do, so the table then also runs it with each particle seed (merge and
@@ -17,6 +18,7 @@ build=${1:-build-host}
 out=${2:-out/merge_table}
 data=${COSLAM_DATA_DIR:-../shared/data}/mrclam
 particles=${PARTICLES:-300}
+config=${CONFIG:-host/replay/mrclam6.ini}
 bin="$build/host/replay/coslam-replay"
 for d in 6 1; do
   if [ ! -d "$data/MRCLAM_Dataset$d" ]; then
@@ -27,7 +29,7 @@ done
 mkdir -p "$out"
 run() { # dataset filter merge-flag [particle-seed]
   tag="d$1_$2${4:+_s$4}${3:+_alone}"
-  "$bin" run "$data/MRCLAM_Dataset$1" -c host/replay/mrclam6.ini -f "$2" -p "$particles" ${4:+--seed "$4"} $3 \
+  "$bin" run "$data/MRCLAM_Dataset$1" -c "$config" -f "$2" -p "$particles" ${4:+--seed "$4"} $3 \
     -q --no-plots -o "$out/$tag" > "$out/$tag.txt" 2>&1
 }
 for d in 6 1; do

@@ -9,20 +9,22 @@
 # than alone, landmark RMSE (after the rigid fit) and pose RMSE no worse.
 #   tools/team_table.sh [BUILD] [OUT] [FILTER] [SEEDS]  -> OUT/team_table_FILTER.md
 # BUILD: a host-profile build (default build-host); FILTER ekf | fastslam2
-# (100 particles, PARTICLES to change); SEEDS default "1 2 ... 10".
+# (100 particles, PARTICLES to change); SEEDS default "1 2 ... 10"; CONFIG
+# another replay configuration (default host/replay/synth/arena.ini).
 set -eu
 build=${1:-build-host}
 out=${2:-out/team_table}
 filter=${3:-ekf}
 seeds=${4:-$(seq 1 10)}
 particles=${PARTICLES:-100}
+config=${CONFIG:-host/replay/synth/arena.ini}
 bin="$build/host/replay/coslam-replay"
 gen="$build/host/eval/coslam-eval-worlds"
 mkdir -p "$out"
 run() { # seed merge-flag
   tag="$filter/s$1${2:+_alone}"
   mkdir -p "$out/$filter"
-  "$bin" run "$out/log$1" -c host/replay/synth/arena.ini -f "$filter" -p "$particles" --seed "$1" $2 \
+  "$bin" run "$out/log$1" -c "$config" -f "$filter" -p "$particles" --seed "$1" $2 \
     -q --no-plots -o "$out/$tag" > "$out/$tag.txt" 2>&1
 }
 for s in $seeds; do
