@@ -49,6 +49,7 @@ typedef struct {
     int deferred;         /* updates that left their share of the completion to the next predict */
     int active_pending;   /* ... in a local phase with pending P_A'B' entries */
     int forced_pending;   /* exports or merges while entries were pending */
+    int wide;             /* local updates with more pairings than one pass takes (EKFSLAM_BATCH) */
     double worst;         /* largest relative difference seen */
 } tally_t;
 
@@ -250,7 +251,13 @@ static void run_pair(const synth_config_t *sc, ekfslam_config_t cfg, double radi
         const uint32_t globals = g_cekf.ctr.cekf_global_updates;
         const uint32_t removed = g_cekf.ctr.landmarks_removed;
         const uint16_t n_before = g_cekf.n_lm;
+        const uint32_t added = g_cekf.ctr.landmarks_added;
+        const int was_local = g_cekf.cekf.local;
         assert_int_equal(ekfslam_update(&g_full, st.z, st.n_z), ekfslam_update(&g_cekf, st.z, st.n_z));
+        /* unique signatures: a sighting pairs or starts a landmark */
+        if (was_local && g_cekf.cekf.local && st.n_z - (int)(g_cekf.ctr.landmarks_added - added) > EKFSLAM_BATCH) {
+            t->wide++;
+        }
         assert_int_equal(g_full.n_lm, g_cekf.n_lm);
         assert_int_equal(g_full.ctr.landmarks_removed, g_cekf.ctr.landmarks_removed);
         if (g_cekf.cekf.spread_owed > 0.0) {
@@ -309,11 +316,12 @@ static void run_pair(const synth_config_t *sc, ekfslam_config_t cfg, double radi
     }
     ekfslam_sync(&g_cekf);
     compare_all(&g_full, &g_cekf, t);
-    print_message("cekf: %d global updates, %d forced, %d local updates, %d local adds, %d removals, %d passive "
+    print_message("cekf: %d global updates, %d forced, %d local updates (%d of more than %d pairings), %d local "
+                  "adds, %d removals, %d passive "
                   "reads (%d new x passive), %d checks with entries pending (%d with two generations, %d with active ones; "
                   "%d pending entries; %u rows spread, %u completions forced, %d exports/merges while pending), %d "
                   "landmarks, worst rel diff %.2g\n",
-                  t->global_updates, t->forced, t->local_updates, t->local_adds, t->local_removals, t->passive_checks,
+                  t->global_updates, t->forced, t->local_updates, t->wide, EKFSLAM_BATCH, t->local_adds, t->local_removals, t->passive_checks,
                   t->new_passive, t->pending_checks, t->two_gens, t->active_pending, t->pending_entries,
                   g_cekf.ctr.cekf_spread_rows,
                   g_cekf.ctr.cekf_spread_forced, t->forced_pending, g_cekf.n_lm, t->worst);
@@ -343,6 +351,7 @@ static void test_exact_default(void **state)
     assert_true(t.global_updates >= 5);
     assert_true(t.forced >= 3);
     assert_true(t.local_updates > 100);
+    assert_true(t.wide > 20); /* frames whose pairings take more than one pass */
     assert_true(t.local_adds >= 5);
     assert_true(t.passive_checks > 100);
     assert_true(t.new_passive > 10);

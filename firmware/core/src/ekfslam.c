@@ -996,56 +996,242 @@ static void cekf_prepare(ekfslam_t *ekf, double max_range_m)
     }
 }
 
-/* Auxiliaries after a sighting of active landmark j (derivation above):
- * theta += (H phi)^T S^-1 nu, psi += (H phi)^T S^-1 (H phi), phi -= K (H
- * phi), K over the active rows. O(N_A N_A0). */
-static void cekf_update_aux(ekfslam_t *ekf, uint16_t j, const lm_expect_t *e, const double nu[2],
-                            const double (*k)[2])
+/* ---- One pass for a frame's pairings (a local phase) -----------------------
+ *
+ * Pairing k of a frame updates, with P and phi as the pairings before it
+ * left them (the sequential EKF, relinearised at each pairing):
+ *   P_AA -= K_k (P H_k^T)^T,  phi -= K_k (H_k phi),
+ *   psi += (H_k phi)^T S_k^-1 (H_k phi),  theta += (H_k phi)^T S_k^-1 nu_k.
+ * Each is a rank-2 change of a whole block, and applied one pairing at a
+ * time they walk P_AA, phi and psi once per pairing (6-9 ms for 20
+ * pairings over 430 active states, the slowest steps of the large world).
+ * So the pairings' columns are kept (ekfslam_cekf_t bk, bp, bh, bs) and
+ * applied together (batch_flush), up to EKFSLAM_BATCH at a time; what a
+ * pairing reads before then - the 5 x 5 block of its pose and landmark
+ * (sparse_hph), the 5 rows of P and of phi it multiplies - is the stored
+ * value less the pending pairings' share. x and theta change at once. The
+ * same updates in another order of the sums: the numbers agree up to
+ * rounding. */
+
+/* Pending pairings' share of P_AA entry (pa, pb), active positions. */
+static double batch_p_corr(const ekfslam_t *ekf, int pa, int pb)
 {
-    ekfslam_cekf_t *ck = &ekf->cekf;
-    const int n0 = ck->na0;
-    const int s = ck->slot[j];
-    const cov2_t si = e->s_inv;
-    const double sinu0 = si.xx * nu[0] + si.xy * nu[1];
-    const double sinu1 = si.xy * nu[0] + si.yy * nu[1];
-    for (int i = 0; i < n0; ++i) {
-        double h[2];
-        for (int q = 0; q < 2; ++q) {
-            h[q] = e->h_pose[q][0] * PHI_(ekf, 0, i) + e->h_pose[q][1] * PHI_(ekf, 1, i) +
-                   e->h_pose[q][2] * PHI_(ekf, 2, i) + e->h_lm[q][0] * PHI_(ekf, s, i) +
-                   e->h_lm[q][1] * PHI_(ekf, s + 1, i);
-            ck->hphi[q][i] = h[q];
-        }
-        ck->shphi[0][i] = si.xx * h[0] + si.xy * h[1];
-        ck->shphi[1][i] = si.xy * h[0] + si.yy * h[1];
-        ck->theta[i] += h[0] * sinu0 + h[1] * sinu1;
+    const ekfslam_cekf_t *ck = &ekf->cekf;
+    double acc = 0.0;
+    for (int t = 0; t < 2 * ck->bn; ++t) {
+        acc += ck->bk[t][pa] * ck->bp[t][pb];
     }
-    /* psi is symmetric: each entry once, mirrored, in tiles (update_one) */
-    for (int r0 = 0; r0 < n0; r0 += EKF_TILE) {
-        const int r1 = r0 + EKF_TILE < n0 ? r0 + EKF_TILE : n0;
-        for (int c0 = r0; c0 < n0; c0 += EKF_TILE) {
-            const int c1 = c0 + EKF_TILE < n0 ? c0 + EKF_TILE : n0;
-            for (int i = r0; i < r1; ++i) {
-                for (int i2 = i > c0 ? i : c0; i2 < c1; ++i2) {
-                    const double v = ck->hphi[0][i] * ck->shphi[0][i2] + ck->hphi[1][i] * ck->shphi[1][i2];
-                    PSI_(ekf, i, i2) += v;
-                    if (i2 != i) {
-                        PSI_(ekf, i2, i) += v;
-                    }
+    return acc;
+}
+
+/* out[l] = sum_{t < nt} w[t] m[t][l] for l < len (rows of m at stride
+ * ADIM_), eight columns at a time held in registers over all t: one read of
+ * m and one write of out, not one per pairing. */
+static void batch_combine(const double *w, const double *m, int nt, int len, double *out)
+{
+    int l = 0;
+    for (; l + 8 <= len; l += 8) {
+        /* eight named sums: an array here is kept in memory by GCC */
+        double a0 = 0.0, a1 = 0.0, a2 = 0.0, a3 = 0.0, a4 = 0.0, a5 = 0.0, a6 = 0.0, a7 = 0.0;
+        for (int t = 0; t < nt; ++t) {
+            const double wt = w[t];
+            const double *mt = m + (long)t * ADIM_ + l;
+            a0 += wt * mt[0];
+            a1 += wt * mt[1];
+            a2 += wt * mt[2];
+            a3 += wt * mt[3];
+            a4 += wt * mt[4];
+            a5 += wt * mt[5];
+            a6 += wt * mt[6];
+            a7 += wt * mt[7];
+        }
+        out[l] = a0;
+        out[l + 1] = a1;
+        out[l + 2] = a2;
+        out[l + 3] = a3;
+        out[l + 4] = a4;
+        out[l + 5] = a5;
+        out[l + 6] = a6;
+        out[l + 7] = a7;
+    }
+    for (; l < len; ++l) {
+        double acc = 0.0;
+        for (int t = 0; t < nt; ++t) {
+            acc += w[t] * m[(long)t * ADIM_ + l];
+        }
+        out[l] = acc;
+    }
+}
+
+/* A symmetric n x n block of `mat` (rows and columns ix[k], or k where ix
+ * is null; row stride `stride`) plus sign sum_t w_t^T m_t over the pending
+ * pairings' rows w, m: each entry of the upper triangle once, written to
+ * both halves, in tiles (the mirrored writes walk a column of the
+ * row-major matrix, so a tile keeps them within a few rows at a time). */
+static void batch_sym_update(double *mat, long stride, const int32_t *ix, int n, const double (*wr)[ADIM_],
+                             const double (*mr)[ADIM_], int nt, double sign)
+{
+    double w[2 * EKFSLAM_BATCH];
+    double acc[EKF_TILE];
+    for (int r0 = 0; r0 < n; r0 += EKF_TILE) {
+        const int r1 = r0 + EKF_TILE < n ? r0 + EKF_TILE : n;
+        for (int c0 = r0; c0 < n; c0 += EKF_TILE) {
+            const int c1 = c0 + EKF_TILE < n ? c0 + EKF_TILE : n;
+            for (int r = r0; r < r1; ++r) {
+                const int cb = r > c0 ? r : c0;
+                for (int t = 0; t < nt; ++t) {
+                    w[t] = wr[t][r];
+                }
+                batch_combine(w, &mr[0][cb], nt, c1 - cb, acc);
+                const long pr = ix != 0 ? ix[r] : r;
+                for (int c = cb; c < c1; ++c) {
+                    const long pc = ix != 0 ? ix[c] : c;
+                    const double val = mat[pr * stride + pc] + sign * acc[c - cb];
+                    mat[pr * stride + pc] = val;
+                    mat[pc * stride + pr] = val;
                 }
             }
         }
     }
-    const double *restrict h0 = ck->hphi[0];
-    const double *restrict h1 = ck->hphi[1];
-    for (int r = 0; r < ck->na; ++r) {
-        const double k0 = k[r][0];
-        const double k1 = k[r][1];
+}
+
+/* Apply the pending pairings: P_AA -= sum_t bk_t bp_t^T, psi += sum_t
+ * bh_t^T bs_t, phi -= sum_t bk_t bh_t. */
+static void batch_flush(ekfslam_t *ekf)
+{
+    ekfslam_cekf_t *ck = &ekf->cekf;
+    const int nt = 2 * ck->bn;
+    if (COSLAM_EKF_MAX_ACTIVE == 0 || nt == 0) {
+        return; /* the first: the compiler drops the rest without an active part */
+    }
+    const int na = ck->na;
+    const int n0 = ck->na0;
+    batch_sym_update(ekf->p, D_, ck->idx, na, (const double(*)[ADIM_])ck->bk, (const double(*)[ADIM_])ck->bp, nt,
+                     -1.0);
+    batch_sym_update(ck->psi, ADIM_, 0, n0, (const double(*)[ADIM_])ck->bh, (const double(*)[ADIM_])ck->bs, nt,
+                     1.0);
+    double w[2 * EKFSLAM_BATCH];
+    double acc[ADIM_];
+    for (int r = 0; r < na; ++r) {
+        for (int t = 0; t < nt; ++t) {
+            w[t] = ck->bk[t][r];
+        }
+        batch_combine(w, ck->bh[0], nt, n0, acc);
         double *restrict row = &ck->phi[(long)r * ADIM_];
         for (int i = 0; i < n0; ++i) {
-            row[i] -= k0 * h0[i] + k1 * h1[i];
+            row[i] -= acc[i];
         }
     }
+    ck->bn = 0;
+}
+
+/* Pairing of landmark j (expectation e, innovation nu) in a local phase:
+ * its columns, x and theta now; P_AA, phi and psi at the next batch_flush. */
+static void batch_add(ekfslam_t *ekf, uint16_t j, const lm_expect_t *e, const double nu[2])
+{
+    ekfslam_cekf_t *ck = &ekf->cekf;
+    if (ck->bn == EKFSLAM_BATCH) {
+        batch_flush(ekf);
+    }
+    const int na = ck->na;
+    const int n0 = ck->na0;
+    const int32_t *ix = ck->idx;
+    const int s = ck->slot[j];
+    const int a = 3 + 2 * j;
+    const int pos[5] = {0, 1, 2, s, s + 1};
+    double h[2][5];
+    for (int q = 0; q < 2; ++q) {
+        h[q][0] = e->h_pose[q][0];
+        h[q][1] = e->h_pose[q][1];
+        h[q][2] = e->h_pose[q][2];
+        h[q][3] = e->h_lm[q][0];
+        h[q][4] = e->h_lm[q][1];
+    }
+    const int t0 = 2 * ck->bn;
+    /* the pending pairings seen through this one's H: g = H bp^T, gk = H bk^T */
+    double g[2][2 * EKFSLAM_BATCH];
+    double gk[2][2 * EKFSLAM_BATCH];
+    for (int t = 0; t < t0; ++t) {
+        for (int q = 0; q < 2; ++q) {
+            double ap = 0.0;
+            double ak = 0.0;
+            for (int v = 0; v < 5; ++v) {
+                ap += h[q][v] * ck->bp[t][pos[v]];
+                ak += h[q][v] * ck->bk[t][pos[v]];
+            }
+            g[q][t] = ap;
+            gk[q][t] = ak;
+        }
+    }
+    double *restrict p0 = ck->bp[t0];
+    double *restrict p1 = ck->bp[t0 + 1];
+    double *restrict k0 = ck->bk[t0];
+    double *restrict k1 = ck->bk[t0 + 1];
+    /* P H^T from the five rows of P that H reads (P is symmetric: a row,
+     * not five strided columns) */
+    const double *rw[5] = {&ekf->p[0], &ekf->p[(long)D_], &ekf->p[2L * D_], &ekf->p[(long)a * D_],
+                           &ekf->p[(long)(a + 1) * D_]};
+    for (int r = 0; r < na; ++r) {
+        const long c = ix[r];
+        const double v0 = rw[0][c];
+        const double v1 = rw[1][c];
+        const double v2 = rw[2][c];
+        const double v3 = rw[3][c];
+        const double v4 = rw[4][c];
+        p0[r] = v0 * h[0][0] + v1 * h[0][1] + v2 * h[0][2] + v3 * h[0][3] + v4 * h[0][4];
+        p1[r] = v0 * h[1][0] + v1 * h[1][1] + v2 * h[1][2] + v3 * h[1][3] + v4 * h[1][4];
+    }
+    for (int t = 0; t < t0; ++t) {
+        const double *restrict kt = ck->bk[t];
+        const double g0 = g[0][t];
+        const double g1 = g[1][t];
+        for (int r = 0; r < na; ++r) {
+            p0[r] -= kt[r] * g0;
+            p1[r] -= kt[r] * g1;
+        }
+    }
+    const cov2_t si = e->s_inv;
+    for (int r = 0; r < na; ++r) {
+        k0[r] = p0[r] * si.xx + p1[r] * si.xy;
+        k1[r] = p0[r] * si.xy + p1[r] * si.yy;
+    }
+    for (int r = 0; r < na; ++r) {
+        ekf->x[ix[r]] += k0[r] * nu[0] + k1[r] * nu[1];
+    }
+    ekf->x[2] = angle_wrap(ekf->x[2]);
+    /* H phi over A0, phi less the pending pairings' K bh */
+    double *restrict h0 = ck->bh[t0];
+    double *restrict h1 = ck->bh[t0 + 1];
+    for (int i = 0; i < n0; ++i) {
+        double v0 = 0.0;
+        double v1 = 0.0;
+        for (int v = 0; v < 5; ++v) {
+            const double ph = PHI_(ekf, pos[v], i);
+            v0 += h[0][v] * ph;
+            v1 += h[1][v] * ph;
+        }
+        h0[i] = v0;
+        h1[i] = v1;
+    }
+    for (int t = 0; t < t0; ++t) {
+        const double *restrict ht = ck->bh[t];
+        const double c0 = gk[0][t];
+        const double c1 = gk[1][t];
+        for (int i = 0; i < n0; ++i) {
+            h0[i] -= c0 * ht[i];
+            h1[i] -= c1 * ht[i];
+        }
+    }
+    double *restrict s0 = ck->bs[t0];
+    double *restrict s1 = ck->bs[t0 + 1];
+    const double sinu0 = si.xx * nu[0] + si.xy * nu[1];
+    const double sinu1 = si.xy * nu[0] + si.yy * nu[1];
+    for (int i = 0; i < n0; ++i) {
+        s0[i] = si.xx * h0[i] + si.xy * h1[i];
+        s1[i] = si.xy * h0[i] + si.yy * h1[i];
+        ck->theta[i] += h0[i] * sinu0 + h1[i] * sinu1;
+    }
+    ck->bn++;
 }
 
 coslam_status_t ekfslam_init(ekfslam_t *ekf, const ekfslam_config_t *cfg, pose2_t pose0)
@@ -1066,6 +1252,7 @@ coslam_status_t ekfslam_init(ekfslam_t *ekf, const ekfslam_config_t *cfg, pose2_
     ekf->merging = 0U;
     ekf->nis_avg = 0.0;
     ekf->cekf.local = 0U;
+    ekf->cekf.bn = 0;
     ekf->cekf.gain_stale = 0U;
     ekf->cekf.pend_seq = 0U;
     ekf->cekf.spread_owed = 0.0;
@@ -1226,13 +1413,27 @@ static void sparse_hph(const ekfslam_t *ekf, const lm_expect_t *ea, uint16_t ja,
         hb[q][3] = eb->h_lm[q][0];
         hb[q][4] = eb->h_lm[q][1];
     }
-    /* t = P_(ia, ib) Hb^T (5 x 2), then Ha t */
+    /* the block P_(ia, ib), less the pending pairings' share (batch_add) */
+    double blk[5][5];
+    for (int r1 = 0; r1 < 5; ++r1) {
+        for (int r2 = 0; r2 < 5; ++r2) {
+            blk[r1][r2] = P_(ekf, ia[r1], ib[r2]);
+        }
+    }
+    if (COSLAM_EKF_MAX_ACTIVE > 0 && ekf->cekf.bn > 0) {
+        for (int r1 = 0; r1 < 5; ++r1) {
+            for (int r2 = 0; r2 < 5; ++r2) {
+                blk[r1][r2] -= batch_p_corr(ekf, act_pos(ekf, ia[r1]), act_pos(ekf, ib[r2]));
+            }
+        }
+    }
+    /* t = blk Hb^T (5 x 2), then Ha t */
     double t[5][2];
     for (int r1 = 0; r1 < 5; ++r1) {
         for (int q = 0; q < 2; ++q) {
             double acc = 0.0;
             for (int r2 = 0; r2 < 5; ++r2) {
-                acc += P_(ekf, ia[r1], ib[r2]) * hb[q][r2];
+                acc += blk[r1][r2] * hb[q][r2];
             }
             t[r1][q] = acc;
         }
@@ -1376,15 +1577,17 @@ static coslam_status_t update_one(ekfslam_t *ekf, uint16_t j, sighting_t z, int 
         ekf->ctr.iekf_updates++;
         ekf->ctr.iekf_iterations += (uint32_t)iterate_linearisation(ekf, j, z, (int)ekf->cfg.iekf_max_iters, &e, nu);
     }
-    /* the whole state, or the active part in a local phase */
-    const int local = in_local(ekf);
-    const int d = local ? ekf->cekf.na : dim(ekf);
-    const int32_t *ix = ekf->cekf.idx;
+    if (in_local(ekf)) {
+        batch_add(ekf, j, &e, nu); /* the active part, with the frame's other pairings */
+        return COSLAM_OK;
+    }
+    /* the whole state */
+    const int d = dim(ekf);
     const int a = 3 + 2 * j;
     double(*pht)[2] = ekf->scratch.pht;
     double(*k)[2] = ekf->scratch.k;
     for (int r = 0; r < d; ++r) {
-        const double *row = &ekf->p[(long)(local ? ix[r] : r) * D_];
+        const double *row = &ekf->p[(long)r * D_];
         for (int q = 0; q < 2; ++q) {
             pht[r][q] = row[0] * e.h_pose[q][0] + row[1] * e.h_pose[q][1] + row[2] * e.h_pose[q][2] +
                         row[a] * e.h_lm[q][0] + row[a + 1] * e.h_lm[q][1];
@@ -1396,7 +1599,7 @@ static coslam_status_t update_one(ekfslam_t *ekf, uint16_t j, sighting_t z, int 
         k[r][1] = pht[r][0] * si.xy + pht[r][1] * si.yy;
     }
     for (int r = 0; r < d; ++r) {
-        ekf->x[local ? ix[r] : r] += k[r][0] * nu[0] + k[r][1] * nu[1];
+        ekf->x[r] += k[r][0] * nu[0] + k[r][1] * nu[1];
     }
     ekf->x[2] = angle_wrap(ekf->x[2]);
     const cov2_t s = e.s;
@@ -1412,20 +1615,15 @@ static coslam_status_t update_one(ekfslam_t *ekf, uint16_t j, sighting_t z, int 
                 /* ks = K_r S */
                 const double ks0 = k[r][0] * s.xx + k[r][1] * s.xy;
                 const double ks1 = k[r][0] * s.xy + k[r][1] * s.yy;
-                const int pr = local ? ix[r] : r;
                 for (int c = r > c0 ? r : c0; c < c1; ++c) {
                     const double delta = k[r][0] * pht[c][0] + k[r][1] * pht[c][1] + pht[r][0] * k[c][0] +
                                          pht[r][1] * k[c][1] - (ks0 * k[c][0] + ks1 * k[c][1]);
-                    const int pc = local ? ix[c] : c;
-                    const double val = P_(ekf, pr, pc) - delta;
-                    P_(ekf, pr, pc) = val;
-                    P_(ekf, pc, pr) = val;
+                    const double val = P_(ekf, r, c) - delta;
+                    P_(ekf, r, c) = val;
+                    P_(ekf, c, r) = val;
                 }
             }
         }
-    }
-    if (local) {
-        cekf_update_aux(ekf, j, &e, nu, (const double(*)[2])k);
     }
     return COSLAM_OK;
 }
@@ -2166,6 +2364,9 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
         }
         /* a revisit's pairing relinearised (iterate_linearisation): its
          * prior offset is uncertain against the range */
+        if (ekf->cfg.iekf_max_iters > 0U) {
+            batch_flush(ekf); /* pair_spread and the iteration read P */
+        }
         const int iterate = ekf->cfg.iekf_max_iters > 0U && pair_is_closure(ekf, j) && pair_spread(ekf, j) > iekf_spread;
         double d2 = 0.0;
         if (update_one(ekf, (uint16_t)j, z[i], iterate, &d2) == COSLAM_OK) {
@@ -2180,6 +2381,7 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
         }
         sc->matched[j] = 1;
     }
+    batch_flush(ekf);
     cekf_spread(ekf, (double)n_updated * local_update_madds(ekf), 0);
     /* Innovation monitor (Bar-Shalom, Li and Kirubarajan 2001, 5.4 and
      * 11.7: the innovation sequence tests the filter's consistency, and

@@ -272,6 +272,11 @@ typedef struct {
 /** Active states of the compressed EKF at most: the pose and COSLAM_EKF_MAX_ACTIVE landmarks. */
 #define EKFSLAM_ACTIVE_DIM (3 + 2 * COSLAM_EKF_MAX_ACTIVE)
 #define EKFSLAM_SYNC_BLOCK 8
+/** Pairings of one frame applied to the compressed EKF's active part in one
+ *  pass (ekfslam.c "One pass for a frame's pairings"); more are applied in
+ *  passes of this many. 4 EKFSLAM_ACTIVE_DIM doubles each: 264 KB in the host
+ *  profile, 67 KB in the large one, nothing where there is no active part. */
+#define EKFSLAM_BATCH (COSLAM_EKF_MAX_ACTIVE > 0 ? 8 : 1)
 /** Landmarks the deferred part of a global update keeps (1 where the
  *  compressed EKF is compiled out, so that the profile does not grow). */
 #define EKFSLAM_SPREAD_LM (COSLAM_EKF_MAX_ACTIVE > 0 ? COSLAM_EKF_MAX_LANDMARKS : 1)
@@ -336,8 +341,13 @@ typedef struct {
     double phi[EKFSLAM_ACTIVE_DIM * EKFSLAM_ACTIVE_DIM]; /**< na x na0, stride EKFSLAM_ACTIVE_DIM */
     double psi[EKFSLAM_ACTIVE_DIM * EKFSLAM_ACTIVE_DIM]; /**< na0 x na0 */
     double theta[EKFSLAM_ACTIVE_DIM];
-    double hphi[2][EKFSLAM_ACTIVE_DIM];       /**< scratch: H phi */
-    double shphi[2][EKFSLAM_ACTIVE_DIM];      /**< scratch: S^-1 H phi */
+    /* a frame's pairings not yet applied to P_AA, phi and psi (ekfslam.c
+     * "One pass for a frame's pairings"): columns 2k, 2k + 1 of pairing k */
+    int32_t bn;                               /**< pairings pending */
+    double bk[2 * EKFSLAM_BATCH][EKFSLAM_ACTIVE_DIM]; /**< K over the active states */
+    double bp[2 * EKFSLAM_BATCH][EKFSLAM_ACTIVE_DIM]; /**< P H^T, P before the pairing */
+    double bh[2 * EKFSLAM_BATCH][EKFSLAM_ACTIVE_DIM]; /**< H phi over A0, phi before the pairing */
+    double bs[2 * EKFSLAM_BATCH][EKFSLAM_ACTIVE_DIM]; /**< S^-1 H phi */
     /* scratch of the global update, in blocks of EKFSLAM_SYNC_BLOCK rows or
      * columns of B (each block reads the rows of A0 once) */
     double u[EKFSLAM_ACTIVE_DIM][EKFSLAM_SYNC_BLOCK];
