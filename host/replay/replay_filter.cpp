@@ -50,6 +50,11 @@ coslam_status_t RobotFilter::update(const sighting_t *z, int n)
     return slam_filter_update(f_.get(), z, n);
 }
 
+void RobotFilter::idle()
+{
+    slam_filter_idle(f_.get());
+}
+
 void RobotFilter::pose(pose2_t *mean, cov3_t *cov) const
 {
     slam_filter_pose(f_.get(), mean, cov);

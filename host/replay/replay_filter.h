@@ -38,6 +38,8 @@ public:
     FilterKind kind() const { return kind_; }
     coslam_status_t predict(odo_increment_t u, double dt_s);
     coslam_status_t update(const sighting_t *z, int n);
+    /// the idle time after a step, as the robot spends it (slam_filter_idle)
+    void idle();
     void pose(pose2_t *mean, cov3_t *cov) const;
     /// Exports the map estimate (non-const: the core uses scratch in the state).
     coslam_status_t export_map(map_estimate_t *out);

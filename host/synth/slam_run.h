@@ -55,6 +55,8 @@ typedef struct {
                                      error in its own map, a turned map frame taken out */
     double step_us_mean;        /**< wall time per control step (predict + update) */
     double step_us_max;
+    double idle_us_mean;        /**< EKF-SLAM: wall time per step of the idle call after it
+                                     (ekfslam_idle, as slam_filter_idle), not in step_us_* */
     uint32_t capacity_errors;
     uint32_t resamples;         /**< Fast-SLAM resampling events */
     double ess_mean;            /**< Fast-SLAM mean ESS fraction after updates */

@@ -432,6 +432,11 @@ static coslam_status_t run_drive(robot_node_t *n)
     return result;
 }
 
+void robot_node_idle(robot_node_t *n)
+{
+    slam_filter_idle(&n->filter);
+}
+
 coslam_status_t robot_node_step(robot_node_t *n)
 {
     if (n == NULL) {

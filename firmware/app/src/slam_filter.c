@@ -212,6 +212,13 @@ coslam_status_t slam_filter_update(slam_filter_t *f, const sighting_t *z, int n)
     return st;
 }
 
+void slam_filter_idle(slam_filter_t *f)
+{
+    if (f->kind == SLAM_FILTER_EKF) {
+        ekfslam_idle(&f->u.ekf, SLAM_FILTER_IDLE_SHARES);
+    }
+}
+
 void slam_filter_pose(const slam_filter_t *f, pose2_t *pose, cov3_t *cov)
 {
     if (f->kind == SLAM_FILTER_EKF) {

@@ -465,32 +465,12 @@ static double local_update_madds(const ekfslam_t *ekf)
     return 2.5 * d * (d + 1.0) + n0 * (n0 + 1.0) + 2.0 * d * n0;
 }
 
-/* A predict or update's share: whole landmark rows for about
- * active_spread_madds multiply-adds (at least one), the flagged active
- * landmarks' first in a local phase, then the oldest generation's. An
- * update runs it after its pairings and does only what its share leaves
- * after their own multiply-adds (`own_madds`); what it leaves is owed and
- * paid by the next predict (`pay_owed`), so a frame with many pairings is
- * not also the one that completes deferred rows, and the pace of the
- * completion stays the same. Which rows are completed when does not change
- * the numbers (they only add to entries no local step reads). */
-static void cekf_spread(ekfslam_t *ekf, double own_madds, int pay_owed)
+/* Complete deferred rows for about `budget` multiply-adds (at least one
+ * row): the flagged active landmarks' first in a local phase, then the
+ * oldest generation's. Returns the multiply-adds spent. */
+static double spread_rows(ekfslam_t *ekf, double budget)
 {
     ekfslam_cekf_t *ck = &ekf->cekf;
-    if (COSLAM_EKF_MAX_ACTIVE == 0 || pend_oldest(ck) < 0) {
-        ck->spread_owed = 0.0;
-        return;
-    }
-    /* a budget per generation with pending entries: a backlog (the robot
-     * leaving regions quickly) is worked off faster, before the next
-     * global update would have to complete the oldest at once */
-    int busy = 0;
-    for (int g2 = 0; g2 < EKFSLAM_PEND_GENS; ++g2) {
-        busy += ck->gen[g2].n > 0;
-    }
-    const double share = (double)ekf->cfg.active_spread_madds * (double)busy;
-    const double owed = ck->spread_owed + share;
-    const double budget = pay_owed ? owed : share - own_madds;
     double spent = 0.0;
     int act = in_local(ekf);
     while (spent < budget) {
@@ -521,8 +501,67 @@ static void cekf_spread(ekfslam_t *ekf, double own_madds, int pay_owed)
         pend_row(ekf, g, t);
         ekf->ctr.cekf_spread_rows++;
     }
-    ck->spread_owed = owed > spent && pend_oldest(ck) >= 0 ? owed - spent : 0.0;
+    return spent;
+}
+
+/* The share of one predict or update: active_spread_madds per generation
+ * with pending entries (a backlog, the robot leaving regions quickly, is
+ * worked off faster, before the next global update would have to complete
+ * the oldest at once). */
+static double spread_share(const ekfslam_t *ekf)
+{
+    int busy = 0;
+    for (int g2 = 0; g2 < EKFSLAM_PEND_GENS; ++g2) {
+        busy += ekf->cekf.gen[g2].n > 0;
+    }
+    return (double)ekf->cfg.active_spread_madds * (double)busy;
+}
+
+/* A predict or update's share: whole landmark rows for about
+ * active_spread_madds multiply-adds per busy generation (spread_rows). An
+ * update runs it after its pairings and does only what its share leaves
+ * after their own multiply-adds (`own_madds`); what it leaves is owed and
+ * paid by the next predict (`pay_owed`), so a frame with many pairings is
+ * not also the one that completes deferred rows, and the pace of the
+ * completion stays the same. Rows completed ahead in idle time
+ * (ekfslam_idle) are a credit (spread_owed < 0) that the steps use up
+ * before doing any themselves. Which rows are completed when does not
+ * change the numbers (they only add to entries no local step reads). */
+static void cekf_spread(ekfslam_t *ekf, double own_madds, int pay_owed)
+{
+    ekfslam_cekf_t *ck = &ekf->cekf;
+    if (COSLAM_EKF_MAX_ACTIVE == 0 || pend_oldest(ck) < 0) {
+        ck->spread_owed = 0.0;
+        return;
+    }
+    /* owed < 0: completed ahead in idle time (ekfslam_idle) */
+    const double owed = ck->spread_owed + spread_share(ekf);
+    const double own_budget = spread_share(ekf) - own_madds;
+    const double budget = pay_owed || owed < own_budget ? owed : own_budget;
+    const double spent = budget > 0.0 ? spread_rows(ekf, budget) : 0.0;
+    ck->spread_owed = pend_oldest(ck) < 0 ? 0.0 : owed <= 0.0 ? owed : owed > spent ? owed - spent : 0.0;
     cekf_drift(ekf);
+}
+
+void ekfslam_idle(ekfslam_t *ekf, uint32_t shares)
+{
+    COSLAM_ASSERT(ekf != 0);
+    ekfslam_cekf_t *ck = &ekf->cekf;
+    if (COSLAM_EKF_MAX_ACTIVE == 0 || pend_oldest(ck) < 0) {
+        return;
+    }
+    /* ahead by at most two steps' shares: if the idle time stops, the
+     * steps take up the pace again at once */
+    const double room = ck->spread_owed + 2.0 * spread_share(ekf);
+    const double want = (double)shares * (double)ekf->cfg.active_spread_madds;
+    const double budget = want < room ? want : room;
+    if (budget > 0.0) {
+        ck->spread_owed -= spread_rows(ekf, budget);
+        if (pend_oldest(ck) < 0) {
+            ck->spread_owed = 0.0;
+        }
+        cekf_drift(ekf);
+    }
 }
 
 /* x_r now, (3) for a passive state (with the pending entries' share). */

@@ -26,7 +26,8 @@
  * counted, and the schedule skips the missed deadlines (never a burst of
  * catch-up steps). Between steps: device service (lost devices closed,
  * missing ones retried), GPIO roles attached when the chip is there,
- * snapshot and status when due.
+ * snapshot and status when due, and, when at least half the period is
+ * left, the filter's deferred work (robot_node_idle).
  */
 #include <errno.h>
 #include <signal.h>
@@ -491,8 +492,14 @@ int main(int argc, char **argv)
             }
         }
 
-        /* the schedule: absolute deadlines; an overrun skips the missed ones */
+        /* the filter's deferred work in the step's idle time, when at
+         * least half the period is left (robot_node_idle) */
         (void)hal_clock_now_us(clock, &now);
+        if (now < next && next - now > period / 2U) {
+            robot_node_idle(&node);
+            (void)hal_clock_now_us(clock, &now);
+        }
+        /* the schedule: absolute deadlines; an overrun skips the missed ones */
         if (now > next) {
             const uint64_t late = now - next;
             loop.overruns++;

@@ -391,6 +391,7 @@ void Simulation::advance_to(double t_end_s, const std::function<void(const Simul
             for (size_t k = 0; k < nodes_.size(); ++k) {
                 const int was = robot_node_diverged(nodes_[k].get());
                 (void)robot_node_step(nodes_[k].get());
+                robot_node_idle(nodes_[k].get()); /* as the robot does in the rest of its period */
                 if (!was && robot_node_diverged(nodes_[k].get())) result_.robots[k].diverged_at_s.push_back(t_s);
                 collect_events(k, t_s);
             }

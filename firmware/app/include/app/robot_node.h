@@ -230,6 +230,10 @@ coslam_status_t robot_node_init(robot_node_t *n, const robot_node_config_t *cfg,
  */
 coslam_status_t robot_node_step(robot_node_t *n);
 
+/** Idle time after a step (the rest of the step period): the filter's
+ *  deferred work (slam_filter_idle). Changes no number. */
+void robot_node_idle(robot_node_t *n);
+
 /**
  * Start the filter from a saved map (slam_filter_seed: the robot did not
  * move while it was down, so it stands at map->pose) and continue the

@@ -389,6 +389,17 @@ ekfslam_config_t ekfslam_config_default(void);
 /** Start at pose0 with P = diag(w6, w6, w7) and no landmarks. E_ARG on a bad config. O(1). */
 coslam_status_t ekfslam_init(ekfslam_t *ekf, const ekfslam_config_t *cfg, pose2_t pose0);
 
+/**
+ * Idle time (between control steps): complete about `shares` x
+ * active_spread_madds multiply-adds of a global update's deferred part
+ * ahead of its pace, at most two steps' shares ahead (a step's share is
+ * active_spread_madds per pending generation); the next predicts and
+ * updates then do that much less of it themselves. No number changes,
+ * only when the work is done. A no-op with nothing pending or without the
+ * compressed EKF.
+ */
+void ekfslam_idle(ekfslam_t *ekf, uint32_t shares);
+
 /** Prediction with an odometry increment. Non-finite: E_NUMERIC, counted, no change. O(L). */
 coslam_status_t ekfslam_predict(ekfslam_t *ekf, odo_increment_t u);
 
