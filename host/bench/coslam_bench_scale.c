@@ -141,7 +141,7 @@ int main(int argc, char **argv)
         }
         for (int c = 0; c < nc; ++c) {
             if (idle_ms[c] > 0.0) {
-                fprintf(f, "\n%s: the compressed EKF's deferred completion runs in the idle time after each step "
+                fprintf(f, "\n%s: the compressed EKF's region switches and deferred completion run in the idle time after each step "
                            "(slam_filter_idle, as on the robot), not in the step times above: %.3f ms per step on average.\n",
                         cases[c].name, idle_ms[c]);
             }

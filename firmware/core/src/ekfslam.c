@@ -543,26 +543,6 @@ static void cekf_spread(ekfslam_t *ekf, double own_madds, int pay_owed)
     cekf_drift(ekf);
 }
 
-void ekfslam_idle(ekfslam_t *ekf, uint32_t shares)
-{
-    COSLAM_ASSERT(ekf != 0);
-    ekfslam_cekf_t *ck = &ekf->cekf;
-    if (COSLAM_EKF_MAX_ACTIVE == 0 || pend_oldest(ck) < 0) {
-        return;
-    }
-    /* ahead by at most two steps' shares: if the idle time stops, the
-     * steps take up the pace again at once */
-    const double room = ck->spread_owed + 2.0 * spread_share(ekf);
-    const double want = (double)shares * (double)ekf->cfg.active_spread_madds;
-    const double budget = want < room ? want : room;
-    if (budget > 0.0) {
-        ck->spread_owed -= spread_rows(ekf, budget);
-        if (pend_oldest(ck) < 0) {
-            ck->spread_owed = 0.0;
-        }
-        cekf_drift(ekf);
-    }
-}
 
 /* x_r now, (3) for a passive state (with the pending entries' share). */
 static double x_now(const ekfslam_t *ekf, int r)
@@ -998,40 +978,76 @@ static void cekf_select(ekfslam_t *ekf, double max_range_m)
  * moved by at most drift_gain |theta|, the stale variance plus w5_sum is an
  * upper bound; then the exact position, O(N_A), for the few that pass);
  * then start one if none runs. */
+/* In a local phase: has the robot left its region (more than
+ * active_radius_m from the centre), or can a passive landmark come within
+ * the association's reach (max_range_m)? */
+static int cekf_leaving(const ekfslam_t *ekf, double max_range_m)
+{
+    const ekfslam_cekf_t *ck = &ekf->cekf;
+    const pose2_t pose = robot_pose(ekf);
+    int leave = hypot(pose.x - ck->centre.x, pose.y - ck->centre.y) > ekf->cfg.active_radius_m;
+    const double var_r = P_(ekf, 0, 0) + P_(ekf, 1, 1);
+    double tn = 0.0;
+    for (int i = 0; i < ck->na0; ++i) {
+        tn += ck->theta[i] * ck->theta[i];
+    }
+    tn = sqrt(tn);
+    for (uint16_t j = 0; j < ekf->n_lm && !leave; ++j) {
+        if (ck->slot[j] >= 0) {
+            continue;
+        }
+        const int a = 3 + 2 * j;
+        const double reach =
+            near_reach(max_range_m, P_(ekf, a, a) + P_(ekf, a + 1, a + 1) + 2.0 * ck->w5_sum, var_r);
+        if (ck->drift_gain[j] >= 0.0 &&
+            hypot(ekf->x[a] - pose.x, ekf->x[a + 1] - pose.y) - ck->drift_gain[j] * tn > reach) {
+            continue;
+        }
+        leave = hypot(x_now(ekf, a) - pose.x, x_now(ekf, a + 1) - pose.y) <= reach;
+    }
+    return leave;
+}
+
 static void cekf_prepare(ekfslam_t *ekf, double max_range_m)
 {
-    ekfslam_cekf_t *ck = &ekf->cekf;
-    if (in_local(ekf)) {
-        const pose2_t pose = robot_pose(ekf);
-        int leave = hypot(pose.x - ck->centre.x, pose.y - ck->centre.y) > ekf->cfg.active_radius_m;
-        const double var_r = P_(ekf, 0, 0) + P_(ekf, 1, 1);
-        double tn = 0.0;
-        for (int i = 0; i < ck->na0; ++i) {
-            tn += ck->theta[i] * ck->theta[i];
-        }
-        tn = sqrt(tn);
-        for (uint16_t j = 0; j < ekf->n_lm && !leave; ++j) {
-            if (ck->slot[j] >= 0) {
-                continue;
-            }
-            const int a = 3 + 2 * j;
-            const double reach =
-                near_reach(max_range_m, P_(ekf, a, a) + P_(ekf, a + 1, a + 1) + 2.0 * ck->w5_sum, var_r);
-            if (ck->drift_gain[j] >= 0.0 &&
-                hypot(ekf->x[a] - pose.x, ekf->x[a + 1] - pose.y) - ck->drift_gain[j] * tn > reach) {
-                continue;
-            }
-            leave = hypot(x_now(ekf, a) - pose.x, x_now(ekf, a + 1) - pose.y) <= reach;
-        }
-        if (leave) {
-            cekf_end_phase(ekf);
-        }
+    if (in_local(ekf) && cekf_leaving(ekf, max_range_m)) {
+        cekf_end_phase(ekf);
     }
     if (!in_local(ekf)) {
         cekf_select(ekf, max_range_m);
         if (!in_local(ekf)) {
             cekf_finish(ekf); /* this frame runs the full EKF */
         }
+    }
+}
+
+void ekfslam_idle(ekfslam_t *ekf, uint32_t shares)
+{
+    COSLAM_ASSERT(ekf != 0);
+    ekfslam_cekf_t *ck = &ekf->cekf;
+    if (COSLAM_EKF_MAX_ACTIVE == 0) {
+        return;
+    }
+    /* a region left: the next one now, not in the next update (the update
+     * finds the robot inside it and goes on) */
+    if (in_local(ekf) && cekf_leaving(ekf, ekf->cfg.slam.sensor_max_range_m)) {
+        cekf_end_phase(ekf);
+        cekf_select(ekf, ekf->cfg.slam.sensor_max_range_m);
+    }
+    if (pend_oldest(ck) < 0) {
+        return;
+    }
+    /* ahead by at most two steps' shares: if the idle time stops, the
+     * steps take up the pace again at once */
+    const double room = ck->spread_owed + 2.0 * spread_share(ekf);
+    const double want = (double)shares * (double)ekf->cfg.active_spread_madds;
+    const double budget = want < room ? want : room;
+    if (budget > 0.0) {
+        ck->spread_owed -= spread_rows(ekf, budget);
+        if (pend_oldest(ck) < 0) {
+            ck->spread_owed = 0.0;
+        }
+        cekf_drift(ekf);
     }
 }
 

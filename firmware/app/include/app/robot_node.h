@@ -231,7 +231,7 @@ coslam_status_t robot_node_init(robot_node_t *n, const robot_node_config_t *cfg,
 coslam_status_t robot_node_step(robot_node_t *n);
 
 /** Idle time after a step (the rest of the step period): the filter's
- *  deferred work (slam_filter_idle). Changes no number. */
+ *  deferred work (slam_filter_idle). Changes no number beyond rounding. */
 void robot_node_idle(robot_node_t *n);
 
 /**

@@ -128,12 +128,13 @@ coslam_status_t slam_filter_update(slam_filter_t *f, const sighting_t *z, int n)
  *  ahead, the rest catches up a backlog of two generations. */
 #define SLAM_FILTER_IDLE_SHARES 4U
 
-/** Idle time between control steps (the rest of the step period): EKF-SLAM
- *  completes SLAM_FILTER_IDLE_SHARES shares of its deferred global update
- *  ahead of its pace (ekfslam_idle: no number changes, only when the work
- *  is done, so that the steps themselves do none of it); nothing for
- *  Fast-SLAM. The robot, the simulator, the replay and the benches call it
- *  after each step. */
+/** Idle time between control steps (the rest of the step period): the
+ *  compressed EKF switches regions and completes SLAM_FILTER_IDLE_SHARES
+ *  shares of its deferred global update ahead of its pace (ekfslam_idle:
+ *  no number changes beyond rounding, only when the work is done, so that
+ *  the steps themselves do little of it); nothing for Fast-SLAM. The
+ *  robot, the simulator, the replay and the benches call it after each
+ *  step. */
 void slam_filter_idle(slam_filter_t *f);
 
 /** Pose estimate and covariance in the robot's map frame. */

@@ -390,12 +390,14 @@ ekfslam_config_t ekfslam_config_default(void);
 coslam_status_t ekfslam_init(ekfslam_t *ekf, const ekfslam_config_t *cfg, pose2_t pose0);
 
 /**
- * Idle time (between control steps): complete about `shares` x
- * active_spread_madds multiply-adds of a global update's deferred part
- * ahead of its pace, at most two steps' shares ahead (a step's share is
- * active_spread_madds per pending generation); the next predicts and
- * updates then do that much less of it themselves. No number changes,
- * only when the work is done. A no-op with nothing pending or without the
+ * Idle time (between control steps), for the compressed EKF: a local phase
+ * whose region the robot has left ends here and the next region is
+ * selected (what the next update would do), and about `shares` x
+ * active_spread_madds multiply-adds of the deferred global updates are
+ * completed ahead of their pace, at most two steps' shares ahead (a step's
+ * share is active_spread_madds per pending generation); the next predicts
+ * and updates then do that much less of it themselves. Changes no number
+ * beyond rounding, only when the work is done. A no-op without the
  * compressed EKF.
  */
 void ekfslam_idle(ekfslam_t *ekf, uint32_t shares);
