@@ -365,15 +365,22 @@ static synth_config_t world(uint64_t seed)
 }
 
 /* JCBB, FEJ: the defaults */
+/* The defaults with the world's model and a small completion budget: a
+ * few landmark rows per step */
+static ekfslam_config_t spread_config(const synth_config_t *sc)
+{
+    ekfslam_config_t cfg = ekfslam_config_default();
+    cfg.slam = sc->truth;
+    cfg.active_spread_madds = 60000U;
+    return cfg;
+}
+
 static void test_exact_default(void **state)
 {
     (void)state;
     const synth_config_t sc = world(101U);
-    ekfslam_config_t cfg = ekfslam_config_default();
-    cfg.slam = sc.truth;
-    cfg.active_spread_madds = 60000U; /* a few landmark rows per step */
     tally_t t;
-    run_pair(&sc, cfg, 1.0, 70, &t);
+    run_pair(&sc, spread_config(&sc), 1.0, 70, &t);
     /* the run must exercise what it claims to test */
     assert_true(t.global_updates >= 5);
     assert_true(t.forced >= 3);
@@ -403,12 +410,9 @@ static void test_exact_idle(void **state)
 {
     (void)state;
     const synth_config_t sc = world(101U);
-    ekfslam_config_t cfg = ekfslam_config_default();
-    cfg.slam = sc.truth;
-    cfg.active_spread_madds = 60000U;
     tally_t t;
     g_idle_shares = 4;
-    run_pair(&sc, cfg, 1.0, 70, &t);
+    run_pair(&sc, spread_config(&sc), 1.0, 70, &t);
     g_idle_shares = 0;
     print_message("cekf idle: %u rows completed in idle time, %u in the steps; %u regions left in idle time, %d "
                   "in updates\n",

@@ -98,7 +98,7 @@ static int active_idx(const ekfslam_t *ekf, int k)
 static pose2_t robot_pose(const ekfslam_t *ekf);
 
 /* Side of the square tiles in which the symmetric updates of P and psi run
- * (update_one, cekf_update_aux). */
+ * (update_one, batch_flush). */
 #define EKF_TILE 32
 
 #define ADIM_ EKFSLAM_ACTIVE_DIM
@@ -452,9 +452,11 @@ static void cekf_drift(ekfslam_t *ekf)
     }
 }
 
-/* Multiply-adds of one update in a local phase (update_one,
- * cekf_update_aux): P_AA's entries (5 each), psi's (2), phi's (2); 0
- * outside a local phase, where nothing is pending. */
+/* Multiply-adds of one update in a local phase, counted as the update one
+ * pairing at a time did them: P_AA's entries (5 each), psi's (2), phi's
+ * (2); 0 outside a local phase, where nothing is pending. It sets the
+ * completion's pace (cekf_spread), which the one pass (batch_flush) left
+ * as it was. */
 static double local_update_madds(const ekfslam_t *ekf)
 {
     if (!in_local(ekf)) {
@@ -535,11 +537,18 @@ static void cekf_spread(ekfslam_t *ekf, double own_madds, int pay_owed)
         return;
     }
     /* owed < 0: completed ahead in idle time (ekfslam_idle) */
-    const double owed = ck->spread_owed + spread_share(ekf);
-    const double own_budget = spread_share(ekf) - own_madds;
+    const double share = spread_share(ekf);
+    const double owed = ck->spread_owed + share;
+    const double own_budget = share - own_madds;
     const double budget = pay_owed || owed < own_budget ? owed : own_budget;
     const double spent = budget > 0.0 ? spread_rows(ekf, budget) : 0.0;
-    ck->spread_owed = pend_oldest(ck) < 0 ? 0.0 : owed <= 0.0 ? owed : owed > spent ? owed - spent : 0.0;
+    if (pend_oldest(ck) < 0) {
+        ck->spread_owed = 0.0; /* all done: no debt, no credit */
+    } else if (owed <= 0.0) {
+        ck->spread_owed = owed; /* what is left of the credit */
+    } else {
+        ck->spread_owed = owed > spent ? owed - spent : 0.0;
+    }
     cekf_drift(ekf);
 }
 
