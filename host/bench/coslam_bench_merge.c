@@ -6,7 +6,10 @@
  * map holds M landmarks, half of them duplicates of own ones; and (1000,
  * 1024) receiving one message as the link carries it (221 landmarks). Also times a
  * naive all-pairs duplicate search (O(N M^2), the paper's complexity) for
- * comparison. Built against a core with 2048 landmarks per map and 1024
+ * comparison, and the merge in parts of merge_config_t.step_units as the
+ * robot runs it (the first part with the transform and the check in the
+ * step the message arrives, the rest in idle time): its calls and the
+ * largest one. Built against a core with 2048 landmarks per map and 1024
  * per message. Writes <out>/merge_time.{md,json}.
  *   coslam-bench-merge [--out DIR] [--reps N] [--no-naive]
  * --no-naive leaves out the naive search (most of the run's time; for
@@ -169,6 +172,8 @@ int main(int argc, char **argv)
      * link carries it, one message of COSLAM_LINK_MSG_LANDMARKS */
     const int cases[4][3] = {{100, 64, 64}, {1000, 256, 256}, {1000, 1024, 1024}, {1000, 1024, COSLAM_LINK_MSG_LANDMARKS}};
     double fs_us[4];
+    double part_us[4]; /* the largest call of the merge in parts */
+    int part_calls[4];
     double naive_us[4];
     rng_t r;
     rng_seed(&r, 1U);
@@ -203,6 +208,43 @@ int main(int argc, char **argv)
             }
         }
         fs_us[c] = best;
+        /* the same merge in parts of mc.step_units (the robot's merge path,
+         * slam_filter_merge_map then slam_filter_idle): the first call does
+         * the transform, the check and the first part */
+        part_us[c] = INFINITY;
+        for (int rep = 0; rep < reps; ++rep) {
+            build_own_maps(n, m, &r);
+            rng_seed(&r, 7U);
+            build_own_export(m, &r);
+            rng_seed(&r, 7U);
+            build_incoming(m_in, m, &r);
+            const pose2_t t = {0.0, 0.0, 0.0};
+            const cov3_t tc = cov3_diag(1e-4, 1e-4, 1e-5);
+            merge_stats_t st;
+            memset(&st, 0, sizeof st);
+            uint16_t left = 0;
+            double t0 = now_us();
+            merge_transform_map(&g_in, t, &tc, &mc, &g_bm, &st);
+            merge_check(&g_own, &g_cov, NULL, &g_fs.cfg.slam, 0U, &mc, &g_bm, &g_sc, &st);
+            merge_fastslam_begin(&g_fs, &g_bm, &mc, &g_sc);
+            merge_fastslam_run(&g_fs, &g_bm, &mc, &g_sc, &st, mc.step_units, &left);
+            double worst = now_us() - t0;
+            int calls = 1;
+            while (left > 0U) {
+                t0 = now_us();
+                merge_fastslam_run(&g_fs, &g_bm, &mc, &g_sc, &st, mc.step_units, &left);
+                const double dt = now_us() - t0;
+                worst = dt > worst ? dt : worst;
+                calls++;
+            }
+            part_us[c] = worst < part_us[c] ? worst : part_us[c];
+            part_calls[c] = calls;
+            const int dups = (m_in + 1) / 2;
+            if (rep == 0 && (st.fused != (uint32_t)(n * dups) || st.added != (uint32_t)(n * (m_in - dups)))) {
+                fprintf(stderr, "coslam-bench-merge: in parts, N=%d M=%d in %d fused %u added %u (expected %d and %d)\n",
+                        n, m, m_in, st.fused, st.added, n * dups, n * (m_in - dups));
+            }
+        }
         /* the naive search on the state before a merge */
         naive_us[c] = NAN;
         if (naive) {
@@ -256,11 +298,13 @@ int main(int argc, char **argv)
                    "landmarks per particle, M_in incoming (half duplicates), 64 keyframes of coverage. The last row is "
                    "a merge as the link carries it: one message holds at most %d landmarks.\n\n", reps,
                 COSLAM_LINK_MSG_LANDMARKS);
-        fprintf(o, "| Fast-SLAM (N, M, M_in) | merge [ms] | per particle and incoming landmark [ns] | naive all-pairs "
-                   "duplicate search alone [ms] |\n|---|---|---|---|\n");
+        fprintf(o, "| Fast-SLAM (N, M, M_in) | merge [ms] | per particle and incoming landmark [ns] | in parts of %u "
+                   "units: calls | largest call [ms] | naive all-pairs duplicate search alone [ms] |\n"
+                   "|---|---|---|---|---|---|\n", mc.step_units);
         for (int c = 0; c < 4; ++c) {
-            fprintf(o, "| (%d, %d, %d) | %.2f | %.1f | %.1f |\n", cases[c][0], cases[c][1], cases[c][2],
-                    fs_us[c] / 1000.0, 1000.0 * fs_us[c] / ((double)cases[c][0] * cases[c][2]), naive_us[c] / 1000.0);
+            fprintf(o, "| (%d, %d, %d) | %.2f | %.1f | %d | %.2f | %.1f |\n", cases[c][0], cases[c][1], cases[c][2],
+                    fs_us[c] / 1000.0, 1000.0 * fs_us[c] / ((double)cases[c][0] * cases[c][2]), part_calls[c],
+                    part_us[c] / 1000.0, naive_us[c] / 1000.0);
         }
         fprintf(o, "\n| EKF-SLAM M | merge [ms] |\n|---|---|\n");
         for (int c = 0; c < 2; ++c) {
@@ -270,8 +314,8 @@ int main(int argc, char **argv)
     fprintf(js, "{\"fastslam\": [");
     for (int c = 0; c < 4; ++c) {
         fprintf(js, "%s{\"particles\": %d, \"landmarks\": %d, \"incoming\": %d, \"merge_us\": %.1f, "
-                    "\"naive_search_us\": %.1f}",
-                c ? ", " : "", cases[c][0], cases[c][1], cases[c][2], fs_us[c], naive_us[c]);
+                    "\"part_calls\": %d, \"part_max_us\": %.1f, \"naive_search_us\": %.1f}",
+                c ? ", " : "", cases[c][0], cases[c][1], cases[c][2], fs_us[c], part_calls[c], part_us[c], naive_us[c]);
     }
     fprintf(js, "], \"ekfslam\": [{\"landmarks\": 64, \"merge_us\": %.1f}, {\"landmarks\": 256, \"merge_us\": %.1f}]}\n",
             ekf_us[0], ekf_us[1]);

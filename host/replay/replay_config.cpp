@@ -260,6 +260,7 @@ std::vector<Key> keys_of(ReplayConfig &c)
         dkey("merge", "ambiguous_chi2", &c.merge.core.ambiguous_chi2),
         dkey("merge", "unresolved_chi2", &c.merge.core.unresolved_chi2),
         dkey("merge", "refute_sd_factor", &c.merge.core.refute_sd_factor),
+        ikey("merge", "step_units", &c.merge.core.step_units, 0, 4294967295L),
         dkey("eval", "gate_m", &c.eval.gate_m),
         ikey("eval", "min_seen", &c.eval.min_seen, 0, 1000000),
         dkey("eval", "map_period_s", &c.eval.map_period_s),

@@ -134,6 +134,9 @@ std::map<std::string, long> RobotFilter::counters() const
         m["numeric_faults"] = c.numeric_faults;
         m["closures"] = c.closures;
         m["closure_moves"] = c.closure_moves;
+        m["resamples_deferred"] = c.resamples_deferred;
+        m["merges_in_parts"] = f_->merges_in_parts;
+        m["merges_forced"] = f_->merges_forced;
     }
     m["coverage_keyframes"] = f_->coverage.n;
     m["coverage_thinned"] = f_->coverage.thinned;

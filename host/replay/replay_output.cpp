@@ -309,6 +309,7 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
                    {"transform", pose_json(e.transform)},
                    {"transform_cov", cov3_json(e.transform_cov)},
                    {"fused", e.stats.fused},
+                   {"particles_due", e.particles_due},
                    {"fused_ci", e.stats.fused_ci},
                    {"added", e.stats.added},
                    {"capacity_drops", e.stats.capacity_drops},
@@ -454,7 +455,11 @@ void print_summary(std::ostream &out, const ReplayResult &res, const ReplayOptio
         }
         out << "  pairs " << e.stats.pairs << " NIS " << std::setprecision(1) << e.stats.nis << "/" << e.stats.nis_bound
             << std::setprecision(3) << " refused " << e.stats.vetoed << "+" << e.stats.echoes << "+"
-            << e.stats.ambiguous << "+" << e.stats.unrefutable << "  fused " << e.stats.fused << " added " << e.stats.added << "  map rmse ";
+            << e.stats.ambiguous << "+" << e.stats.unrefutable << "  fused " << e.stats.fused << " added " << e.stats.added;
+        if (e.particles_due > 0U) {
+            out << " (first part; " << e.particles_due << " particles in idle time)";
+        }
+        out << "  map rmse ";
         cell(0, e.before.valid, e.before.rmse_m) << " -> ";
         cell(0, e.after.valid, e.after.rmse_m) << " (" << e.before.n_estimated << " -> " << e.after.n_estimated
                                                 << " landmarks)\n";

@@ -616,6 +616,9 @@ void Replay::record_event(Robot &recv, const meeting_event_t &e, const MapScore 
     ev.transform_cov = e.other_in_self_cov;
     ev.stats = e.stats;
     ev.merge_us = merge_us;
+    if (const fastslam_t *fs = recv.filter->fastslam()) {
+        ev.particles_due = fs->merge_due_n;
+    }
     const bool merged = e.kind == MEETING_EV_MERGED;
     switch (e.status) {
     case COSLAM_OK:

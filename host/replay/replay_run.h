@@ -110,9 +110,10 @@ struct MergeEvent {
     double t_err_m = 0.0;
     double t_err_rad = 0.0;
     double t_nees = 0.0;
-    merge_stats_t stats{};
+    merge_stats_t stats{};              ///< of the call (a merge in parts: its first part)
+    unsigned particles_due = 0;         ///< Fast-SLAM particles left to idle time (merge in parts)
     MapScore before;
-    MapScore after;
+    MapScore after;                     ///< after the call (a merge in parts: its first part)
     double merge_us = 0.0;
 };
 

@@ -77,6 +77,7 @@ int merge_run(const synth2_config_t *scfg, const merge_run_opts_t *o, merge_run_
     if (!w || !st || !est[0] || !est[1] || !after || !work || !truth) {
         goto out;
     }
+    slam_merge_work_init(work);
     synth2_init(w, scfg);
     if (filter_init(&f[0], o->filter[0], o, 0) != 0 || filter_init(&f[1], o->filter[1], o, 1) != 0) {
         goto out;

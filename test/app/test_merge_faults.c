@@ -463,6 +463,70 @@ static void test_chain_adds_nothing_twice(void **state)
     }
 }
 
+/* A Fast-SLAM merge in parts (merge_config_t.step_units): the first part
+ * in slam_filter_merge_map, the rest in slam_filter_idle, the same map as
+ * the whole merge at once; a merge through the same working memory (here
+ * into another filter) finishes the one it holds first; an update finishes
+ * one the idle time has not, after SLAM_FILTER_MERGE_MAX_UPDATES. */
+static map_estimate_t g_whole;
+
+static coslam_status_t merge_b_into(slam_filter_t *f, uint32_t step_units)
+{
+    merge_config_t mc = merge_config_default();
+    mc.step_units = step_units;
+    const merge_geometry_t g = geometry(kPoseA, kPoseB, 0.0);
+    merge_stats_t st;
+    memset(&st, 0, sizeof st);
+    return slam_filter_merge_map(f, &g_msg, &g, &mc, NULL, &g_work, &st, NULL, NULL);
+}
+
+static void test_fastslam_merge_in_parts(void **state)
+{
+    (void)state;
+    setup_pair(SLAM_FILTER_FASTSLAM2, SLAM_FILTER_EKF);
+    assert_int_equal(slam_filter_export(&g_b, &g_msg), COSLAM_OK);
+    assert_int_equal(merge_b_into(&g_a, 0U), COSLAM_OK);
+    assert_null(g_a.merge_due);
+    assert_int_equal(slam_filter_export(&g_a, &g_whole), COSLAM_OK);
+    assert_int_equal(g_whole.n_landmarks, N_WORLD);
+
+    /* one particle a part: 20 parts, 19 of them in idle time */
+    setup_pair(SLAM_FILTER_FASTSLAM2, SLAM_FILTER_EKF);
+    assert_int_equal(merge_b_into(&g_a, 1U), COSLAM_OK);
+    assert_non_null(g_a.merge_due);
+    assert_int_equal(g_a.merges_in_parts, 1U);
+    int idles = 0;
+    while (g_a.merge_due != NULL && idles < 100) {
+        slam_filter_idle(&g_a);
+        idles++;
+    }
+    assert_int_equal(idles, 19);
+    assert_int_equal(slam_filter_export(&g_a, &g_after), COSLAM_OK);
+    assert_true(same_map(&g_after, &g_whole));
+    assert_true(g_a.merge_late.added + g_a.merge_late.fused > 0U);
+
+    /* the working memory taken by another filter's merge: A's is finished first */
+    setup_pair(SLAM_FILTER_FASTSLAM2, SLAM_FILTER_EKF);
+    init_filter(&g_c, SLAM_FILTER_FASTSLAM2, 2, kPoseA);
+    assert_int_equal(merge_b_into(&g_a, 1U), COSLAM_OK);
+    assert_non_null(g_a.merge_due);
+    (void)merge_b_into(&g_c, 1U);
+    assert_null(g_a.merge_due);
+    assert_int_equal(slam_filter_export(&g_a, &g_after), COSLAM_OK);
+    assert_true(same_map(&g_after, &g_whole));
+
+    /* no idle time: the updates finish it */
+    setup_pair(SLAM_FILTER_FASTSLAM2, SLAM_FILTER_EKF);
+    assert_int_equal(merge_b_into(&g_a, 1U), COSLAM_OK);
+    for (unsigned k = 0; k < SLAM_FILTER_MERGE_MAX_UPDATES; ++k) {
+        (void)slam_filter_update(&g_a, NULL, 0);
+        assert_non_null(g_a.merge_due);
+    }
+    (void)slam_filter_update(&g_a, NULL, 0);
+    assert_null(g_a.merge_due);
+    assert_int_equal(g_a.merges_forced, 1U);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -474,6 +538,7 @@ int main(void)
         cmocka_unit_test(test_unrefutable_landmark_is_not_added),
         cmocka_unit_test(test_merge_line_format),
         cmocka_unit_test(test_chain_adds_nothing_twice),
+        cmocka_unit_test(test_fastslam_merge_in_parts),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -534,6 +534,157 @@ static void test_fastslam_pairing_brute_force(void **state)
     }
 }
 
+/* A filter whose particles hold jittered copies of an own map, half of the
+ * incoming landmarks among them (as the brute-force case), and g_bm. */
+static fastslam_t g_fs_parts;
+
+static void parts_case(fastslam_t *fs, uint16_t n_particles, rng_t *r)
+{
+    fastslam_config_t c = fastslam_config_default();
+    c.n_particles = n_particles;
+    c.resample_ess_fraction = 1.0; /* every update that tells particles apart resamples */
+    const pose2_t p0 = {0.0, 0.0, 0.0};
+    assert_int_equal(fastslam_init(fs, &c, p0, 9U), COSLAM_OK);
+    memset(&g_bm, 0, sizeof g_bm);
+    g_bm.n = BF_IN;
+    for (int i = 0; i < g_bm.n; ++i) {
+        g_bm.mean[i] = (point2_t){1.0 + 5.0 * rng_uniform(r), -2.5 + 5.0 * rng_uniform(r)};
+        const double v = 0.005 + 0.02 * rng_uniform(r);
+        g_bm.cov[i] = cov2_make(v, 0.0, v);
+        g_bm.rel[i] = g_bm.mean[i];
+        g_bm.rel_cov[i] = g_bm.cov[i];
+        g_bm.src_mask[i] = 0x2U;
+        g_bm.n_obs[i] = 7;
+        g_bm.signature[i] = (uint8_t)(i % 2);
+        g_bm.id[i] = 100U + (uint32_t)i;
+    }
+    g_bm.t_cov = cov3_zero();
+    for (uint16_t k = 0; k < n_particles; ++k) {
+        fastslam_particle_t *pk = &fs->particles[k];
+        pk->pose = (pose2_t){0.1 * rng_gauss(r), 0.1 * rng_gauss(r), 0.02 * rng_gauss(r)};
+        for (int j = 0; j < BF_OWN; ++j) {
+            landmark_t lm;
+            memset(&lm, 0, sizeof lm);
+            const int i = 2 * j;
+            const point2_t body = j < BF_IN / 2 ? (point2_t){g_bm.mean[i].x + 0.1 * rng_gauss(r), g_bm.mean[i].y}
+                                                 : (point2_t){-8.0 + 4.0 * rng_uniform(r), 6.0 * rng_uniform(r)};
+            lm.signature = j < BF_IN / 2 ? g_bm.signature[i] : (uint8_t)(j % 2);
+            lm.mean = pose2_apply(pk->pose, body);
+            lm.cov = cov2_make(0.01, 0.0, 0.01);
+            lm.id = (uint32_t)(j + 1);
+            lm.exist = 6.0f;
+            lm.n_obs = 8;
+            lm.src_mask = 1;
+            assert_int_equal(fastslam_particle_add(fs, k, &lm), COSLAM_OK);
+        }
+    }
+    fs->next_id = 1000U; /* identities beyond the own ones */
+}
+
+/* The merge in parts (merge_fastslam_begin / merge_fastslam_run): with no
+ * step in between it is the whole merge bit for bit; with steps in between
+ * every particle is merged once, through the pose it had when the merge
+ * began, and resampling waits for the last part. */
+static void test_fastslam_merge_in_parts(void **state)
+{
+    (void)state;
+    rng_t r;
+    rng_seed(&r, 41U);
+    const uint16_t n = 24;
+    parts_case(&g_fs, n, &r);
+    memcpy(&g_fs_parts, &g_fs, sizeof g_fs); /* the pool is inside: an independent copy */
+    merge_config_t mc = merge_config_default();
+    mc.reweight_particles = 1U;
+    merge_stats_t whole;
+    memset(&whole, 0, sizeof whole);
+    assert_int_equal(merge_into_fastslam(&g_fs, &g_bm, &mc, &g_sc, &whole), COSLAM_OK);
+    /* in parts of about three particles */
+    const uint32_t budget = 3U * (BF_OWN + MERGE_UNITS_PER_INCOMING * BF_IN);
+    merge_stats_t parts;
+    memset(&parts, 0, sizeof parts);
+    assert_int_equal(merge_fastslam_begin(&g_fs_parts, &g_bm, &mc, &g_sc), COSLAM_OK);
+    int calls = 0;
+    uint16_t left = n;
+    while (left > 0U) {
+        assert_int_equal(merge_fastslam_run(&g_fs_parts, &g_bm, &mc, &g_sc, &parts, budget, &left), COSLAM_OK);
+        calls++;
+        if (calls == 1) {
+            assert_true(left > 0U && left < n);
+            /* a second merge while one is due is refused, nothing changed */
+            const uint32_t merges = g_fs_parts.merges;
+            assert_int_equal(merge_fastslam_begin(&g_fs_parts, &g_bm, &mc, &g_sc), COSLAM_E_MERGE_BUSY);
+            assert_int_equal(g_fs_parts.merges, merges);
+            assert_int_equal(g_fs_parts.merge_due_n, left);
+        }
+    }
+    assert_int_equal(calls, (n + 2) / 3);
+    assert_int_equal(parts.fused, whole.fused);
+    assert_int_equal(parts.added, whole.added);
+    assert_true(whole.fused > 0U && whole.added > 0U);
+    for (uint16_t k = 0; k < n; ++k) {
+        const fastslam_particle_t *a = &g_fs.particles[k];
+        const fastslam_particle_t *b = &g_fs_parts.particles[k];
+        assert_int_equal(a->n_lm, b->n_lm);
+        assert_true(a->log_w == b->log_w);
+        for (uint16_t j = 0; j < a->n_lm; ++j) {
+            assert_memory_equal(fastslam_particle_lm(&g_fs, k, j), fastslam_particle_lm(&g_fs_parts, k, j),
+                                sizeof(landmark_t));
+        }
+    }
+
+    /* steps between the parts */
+    rng_seed(&r, 41U);
+    parts_case(&g_fs_parts, n, &r);
+    mc.reweight_particles = 0U;
+    assert_int_equal(merge_fastslam_begin(&g_fs_parts, &g_bm, &mc, &g_sc), COSLAM_OK);
+    const uint32_t resamples = g_fs_parts.ctr.resamples;
+    int steps = 0;
+    left = n;
+    while (left > 0U) {
+        assert_int_equal(merge_fastslam_run(&g_fs_parts, &g_bm, &mc, &g_sc, NULL, budget, &left), COSLAM_OK);
+        if (left == 0U) {
+            break;
+        }
+        const odo_increment_t u = {0.05, 0.0, 0.01};
+        assert_int_equal(fastslam_predict(&g_fs_parts, u), COSLAM_OK);
+        const sighting_t z = {2.0, 0.1, 0};
+        (void)fastslam_update(&g_fs_parts, &z, 1);
+        steps++;
+        assert_int_equal(g_fs_parts.ctr.resamples, resamples); /* held back */
+    }
+    assert_true(steps > 1);
+    int moved = 0; /* the particles merged after steps moved in between */
+    assert_true(g_fs_parts.ctr.resamples_deferred > 0U);
+    for (uint16_t k = 0; k < n; ++k) {
+        const fastslam_particle_t *pk = &g_fs_parts.particles[k];
+        assert_false(pk->merge_due);
+        moved += fabs(pk->merge_pose.x - pk->pose.x) > 0.01;
+        /* the incoming landmarks this particle added are there once each,
+         * where its pose at the merge's start put them */
+        for (int i = 0; i < g_bm.n; ++i) {
+            const uint32_t id = g_sc.new_id[i];
+            int found = 0;
+            for (uint16_t j = 0; j < pk->n_lm; ++j) {
+                const landmark_t *lm = fastslam_particle_lm(&g_fs_parts, k, j);
+                if (lm->id != id) {
+                    continue;
+                }
+                found++;
+                if (lm->n_obs == g_bm.n_obs[i] && lm->src_mask == g_bm.src_mask[i]) {
+                    const point2_t w = pose2_apply(pk->merge_pose, g_bm.mean[i]);
+                    assert_true(fabs(lm->mean.x - w.x) < 1e-12 && fabs(lm->mean.y - w.y) < 1e-12);
+                }
+            }
+            assert_true(found <= 1);
+        }
+    }
+    assert_true(moved > n / 2);
+    /* the next update resamples again */
+    const sighting_t z = {2.0, 0.1, 0};
+    (void)fastslam_update(&g_fs_parts, &z, 1);
+    assert_true(g_fs_parts.ctr.resamples > resamples);
+}
+
 static void test_merge_into_ekfslam(void **state)
 {
     (void)state;
@@ -663,6 +814,7 @@ int main(void)
         cmocka_unit_test(test_session_replay),
         cmocka_unit_test(test_merge_into_fastslam),
         cmocka_unit_test(test_fastslam_pairing_brute_force),
+        cmocka_unit_test(test_fastslam_merge_in_parts),
         cmocka_unit_test(test_merge_into_ekfslam),
         cmocka_unit_test(test_relative_covariance),
     };

@@ -38,6 +38,11 @@ coslam_status_t slam_filter_init(slam_filter_t *f, const slam_filter_config_t *c
     f->kind = cfg->kind;
     f->robot_id = cfg->robot_id;
     merge_coverage_init(&f->coverage);
+    f->merge_due = NULL;
+    memset(&f->merge_late, 0, sizeof f->merge_late);
+    f->merges_in_parts = 0U;
+    f->merges_forced = 0U;
+    f->merge_due_updates = 0U;
     switch (cfg->kind) {
     case SLAM_FILTER_FASTSLAM1:
     case SLAM_FILTER_FASTSLAM2: {
@@ -201,8 +206,14 @@ coslam_status_t slam_filter_predict(slam_filter_t *f, odo_increment_t u, double 
     return f->kind == SLAM_FILTER_EKF ? ekfslam_predict(&f->u.ekf, u) : fastslam_predict(&f->u.fs, u);
 }
 
+static void merge_due_run(slam_merge_work_t *w, uint32_t budget);
+
 coslam_status_t slam_filter_update(slam_filter_t *f, const sighting_t *z, int n)
 {
+    if (f->merge_due != NULL && ++f->merge_due_updates > SLAM_FILTER_MERGE_MAX_UPDATES) {
+        f->merges_forced++;
+        merge_due_run(f->merge_due, 0U);
+    }
     const coslam_status_t st =
         f->kind == SLAM_FILTER_EKF ? ekfslam_update(&f->u.ekf, z, n) : fastslam_update(&f->u.fs, z, n);
     pose2_t pose;
@@ -212,10 +223,29 @@ coslam_status_t slam_filter_update(slam_filter_t *f, const sighting_t *z, int n)
     return st;
 }
 
+void slam_merge_work_init(slam_merge_work_t *w)
+{
+    w->due = NULL;
+}
+
+/* The next part of the merge in parts that w holds (budget 0: all of it). */
+static void merge_due_run(slam_merge_work_t *w, uint32_t budget)
+{
+    slam_filter_t *f = w->due;
+    uint16_t left = 0U;
+    (void)merge_fastslam_run(&f->u.fs, &w->body, &w->due_cfg, &w->scratch, &f->merge_late, budget, &left);
+    if (left == 0U) {
+        f->merge_due = NULL;
+        w->due = NULL;
+    }
+}
+
 void slam_filter_idle(slam_filter_t *f)
 {
     if (f->kind == SLAM_FILTER_EKF) {
         ekfslam_idle(&f->u.ekf, SLAM_FILTER_IDLE_SHARES);
+    } else if (f->merge_due != NULL) {
+        merge_due_run(f->merge_due, f->merge_due->due_cfg.step_units);
     }
 }
 
@@ -267,6 +297,15 @@ coslam_status_t slam_filter_merge_map(slam_filter_t *f, const map_estimate_t *in
     if (f == NULL || in == NULL || g == NULL || cfg == NULL || w == NULL || stats == NULL) {
         return COSLAM_E_ARG;
     }
+    /* merges never overlap: what is due in this filter, or in w (for any
+     * filter: its body map and scratch are about to be overwritten), is
+     * finished first */
+    if (f->merge_due != NULL) {
+        merge_due_run(f->merge_due, 0U);
+    }
+    if (w->due != NULL) {
+        merge_due_run(w, 0U);
+    }
     const slam_params_t *sp = slam_filter_params(f);
     coslam_status_t st = merge_prepare(in, g, sp, cfg, &w->body, stats);
     if (st != COSLAM_OK) {
@@ -301,7 +340,24 @@ coslam_status_t slam_filter_merge_map(slam_filter_t *f, const map_estimate_t *in
         }
 
     }
-    return slam_filter_merge(f, &w->body, cfg, &w->scratch, stats);
+    if (f->kind == SLAM_FILTER_EKF || cfg->step_units == 0U) {
+        return slam_filter_merge(f, &w->body, cfg, &w->scratch, stats);
+    }
+    /* Fast-SLAM: in parts of step_units, the first now (map_merge.h) */
+    st = merge_fastslam_begin(&f->u.fs, &w->body, cfg, &w->scratch);
+    if (st != COSLAM_OK) {
+        return st;
+    }
+    uint16_t left = 0U;
+    st = merge_fastslam_run(&f->u.fs, &w->body, cfg, &w->scratch, stats, cfg->step_units, &left);
+    if (left > 0U) {
+        w->due = f;
+        w->due_cfg = *cfg;
+        f->merge_due = w;
+        f->merge_due_updates = 0U;
+        f->merges_in_parts++;
+    }
+    return st;
 }
 
 int slam_filter_limits(const slam_filter_t *f, slam_filter_limit_t out[SLAM_FILTER_N_LIMITS])

@@ -91,11 +91,13 @@ coslam_status_t fastslam_init(fastslam_t *fs, const fastslam_config_t *cfg, pose
     rng_seed(&fs->rng, seed);
     fs->next_id = 1U;
     fs->merges = 0U;
+    fs->merge_due_n = 0U;
     fs->last_ess = (double)cfg->n_particles;
     lm_tree_pool_init(&fs->lm_pool, 0U, 0U);
     for (uint16_t k = 0; k < COSLAM_MAX_PARTICLES; ++k) {
         fs->particles[k].lm_root = LM_TREE_NIL;
         fs->particles[k].n_lm = 0;
+        fs->particles[k].merge_due = 0U;
     }
     const cov3_t p0 = cov3_diag(cfg->slam.noise.init_xy_var_m2, cfg->slam.noise.init_xy_var_m2,
                                 cfg->slam.noise.init_theta_var_rad2);
@@ -822,6 +824,12 @@ void fastslam_reweighted(fastslam_t *fs)
 {
     fs->last_ess = normalise_log_weights(fs);
     if (fs->last_ess < fs->cfg.resample_ess_fraction * (double)fs->cfg.n_particles) {
+        if (fs->merge_due_n > 0U) {
+            /* a merge in parts keeps its particles where they are until it
+             * has reached every one (map_merge.h): resampled later */
+            fs->ctr.resamples_deferred++;
+            return;
+        }
         fastslam_resample(fs);
     }
 }

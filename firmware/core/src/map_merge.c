@@ -28,6 +28,7 @@ merge_config_t merge_config_default(void)
     c.ambiguous_chi2 = 25.0;
     c.unresolved_chi2 = 9.21;
     c.refute_sd_factor = 1.0;
+    c.step_units = 524288U;
     return c;
 }
 
@@ -580,107 +581,162 @@ static double duplicate_weight(const merge_scratch_t *sc, const merge_body_map_t
 
 /* ---- Fast-SLAM ---------------------------------------------------------- */
 
-coslam_status_t merge_into_fastslam(fastslam_t *fs, const merge_body_map_t *bm, const merge_config_t *cfg,
-                                    merge_scratch_t *sc, merge_stats_t *stats)
+coslam_status_t merge_fastslam_begin(fastslam_t *fs, const merge_body_map_t *bm, const merge_config_t *cfg,
+                                     merge_scratch_t *sc)
 {
     if (!config_ok(cfg)) {
         return COSLAM_E_ARG;
     }
-    merge_stats_t local;
-    stats = begin_merge(sc, bm, cfg, stats, &local);
-    const slam_params_t *sp = &fs->cfg.slam;
+    if (fs->merge_due_n > 0U) {
+        return COSLAM_E_MERGE_BUSY; /* the particles due would lose the earlier merge */
+    }
+    grid_build(sc, bm, grid_cell_size(bm, cfg, cfg->gate_chi2));
     fs->merges++;
-    coslam_status_t result = COSLAM_OK;
     /* one identity per incoming landmark, shared by the particles that add it */
     for (uint16_t i = 0; i < bm->n; ++i) {
         sc->new_id[i] = fastslam_new_id(fs);
     }
     for (uint16_t k = 0; k < fs->cfg.n_particles; ++k) {
-        fastslam_particle_t *p = &fs->particles[k];
-        const double c = cos(p->pose.theta);
-        const double s = sin(p->pose.theta);
-        double rt[2][2] = {{c, s}, {-s, c}}; /* world -> body */
-        double r[2][2] = {{c, -s}, {s, c}};  /* body -> world */
-        /* own map in this particle's body frame: the landmarks that can
-         * pair with an incoming one (the others have none in their grid
-         * neighbourhood), in slot order; own_idx maps them back */
-        const landmark_t *const *own = fastslam_particle_landmarks(fs, k);
-        int n_cand = 0;
-        for (uint16_t j = 0; j < p->n_lm; ++j) {
-            const point2_t body = pose2_apply_inverse_cs(p->pose, c, s, own[j]->mean);
-            if (!grid_may_pair(sc, body)) {
+        fs->particles[k].merge_pose = fs->particles[k].pose;
+        fs->particles[k].merge_due = 1U;
+    }
+    fs->merge_due_n = fs->cfg.n_particles;
+    return COSLAM_OK;
+}
+
+/* The merge into particle k, through the pose it had when the merge began. */
+static coslam_status_t merge_particle(fastslam_t *fs, uint16_t k, const merge_body_map_t *bm,
+                                      const merge_config_t *cfg, merge_scratch_t *sc, merge_stats_t *stats)
+{
+    const slam_params_t *sp = &fs->cfg.slam;
+    coslam_status_t result = COSLAM_OK;
+    fastslam_particle_t *p = &fs->particles[k];
+    const pose2_t pose = p->merge_pose;
+    const double c = cos(pose.theta);
+    const double s = sin(pose.theta);
+    double rt[2][2] = {{c, s}, {-s, c}}; /* world -> body */
+    double r[2][2] = {{c, -s}, {s, c}};  /* body -> world */
+    /* own map in this particle's body frame: the landmarks that can
+     * pair with an incoming one (the others have none in their grid
+     * neighbourhood), in slot order; own_idx maps them back */
+    const landmark_t *const *own = fastslam_particle_landmarks(fs, k);
+    int n_cand = 0;
+    for (uint16_t j = 0; j < p->n_lm; ++j) {
+        const point2_t body = pose2_apply_inverse_cs(pose, c, s, own[j]->mean);
+        if (!grid_may_pair(sc, body)) {
+            continue;
+        }
+        sc->own_body[n_cand] = body;
+        sc->own_cov[n_cand] = cov2_congruence(rt, own[j]->cov);
+        sc->own_sig[n_cand] = own[j]->signature;
+        sc->own_idx[n_cand] = j;
+        n_cand++;
+    }
+    pair_and_select(sc, bm, cfg, n_cand, stats);
+    const double dup_w = duplicate_weight(sc, bm, cfg);
+    for (uint16_t i = 0; i < bm->n; ++i) {
+        const point2_t wm = pose2_apply_cs(pose, c, s, bm->mean[i]);
+        const int32_t j = sc->match_of_in[i] >= 0 ? (int32_t)sc->own_idx[sc->match_of_in[i]] : -1;
+        /* a duplicate's information scaled by dup_w: its covariance by 1 / dup_w */
+        const cov2_t wc = cov2_scale(cov2_congruence(r, bm->cov[i]), j >= 0 ? 1.0 / dup_w : 1.0);
+        if (j >= 0) {
+            landmark_t fused = *fastslam_particle_lm(fs, k, (uint16_t)j); /* maps are shared: */
+            landmark_t *lm = &fused;                                      /* written back below */
+            point2_t xm;
+            cov2_t xc;
+            coslam_status_t st;
+            if (cfg->reweight_particles) {
+                /* likelihood that the two are one point: N(b - a; 0, S_a + S_b) */
+                const cov2_t sum = cov2_add(lm->cov, wc);
+                p->log_w += -0.5 * sc->match_d2[i] - log(COSLAM_TWO_PI * sqrt(cov2_det(sum)));
+            }
+            if ((lm->src_mask & bm->src_mask[i]) == 0U) {
+                st = merge_fuse_kalman(lm->mean, lm->cov, wm, wc, &xm, &xc);
+            } else {
+                st = merge_fuse_ci(lm->mean, lm->cov, wm, wc, &xm, &xc, 0);
+                stats->fused_ci++;
+            }
+            if (st != COSLAM_OK || !cov2_is_pd(xc)) {
+                stats->skipped++;
                 continue;
             }
-            sc->own_body[n_cand] = body;
-            sc->own_cov[n_cand] = cov2_congruence(rt, own[j]->cov);
-            sc->own_sig[n_cand] = own[j]->signature;
-            sc->own_idx[n_cand] = j;
-            n_cand++;
-        }
-        pair_and_select(sc, bm, cfg, n_cand, stats);
-        const double dup_w = duplicate_weight(sc, bm, cfg);
-        for (uint16_t i = 0; i < bm->n; ++i) {
-            const point2_t wm = pose2_apply_cs(p->pose, c, s, bm->mean[i]);
-            const int32_t j = sc->match_of_in[i] >= 0 ? (int32_t)sc->own_idx[sc->match_of_in[i]] : -1;
-            /* a duplicate's information scaled by dup_w: its covariance by 1 / dup_w */
-            const cov2_t wc = cov2_scale(cov2_congruence(r, bm->cov[i]), j >= 0 ? 1.0 / dup_w : 1.0);
-            if (j >= 0) {
-                landmark_t fused = *fastslam_particle_lm(fs, k, (uint16_t)j); /* maps are shared: */
-                landmark_t *lm = &fused;                                      /* written back below */
-                point2_t xm;
-                cov2_t xc;
-                coslam_status_t st;
-                if (cfg->reweight_particles) {
-                    /* likelihood that the two are one point: N(b - a; 0, S_a + S_b) */
-                    const cov2_t sum = cov2_add(lm->cov, wc);
-                    p->log_w += -0.5 * sc->match_d2[i] - log(COSLAM_TWO_PI * sqrt(cov2_det(sum)));
-                }
-                if ((lm->src_mask & bm->src_mask[i]) == 0U) {
-                    st = merge_fuse_kalman(lm->mean, lm->cov, wm, wc, &xm, &xc);
-                } else {
-                    st = merge_fuse_ci(lm->mean, lm->cov, wm, wc, &xm, &xc, 0);
-                    stats->fused_ci++;
-                }
-                if (st != COSLAM_OK || !cov2_is_pd(xc)) {
-                    stats->skipped++;
-                    continue;
-                }
-                lm->mean = xm;
-                lm->cov = xc;
-                absorb_meta(&lm->src_mask, &lm->n_obs, &lm->exist, bm, i, sp);
-                if (fastslam_particle_set(fs, k, (uint16_t)j, lm) != COSLAM_OK) {
-                    stats->capacity_drops++;
-                    result = COSLAM_E_CAPACITY;
-                    continue;
-                }
-                stats->fused++;
+            lm->mean = xm;
+            lm->cov = xc;
+            absorb_meta(&lm->src_mask, &lm->n_obs, &lm->exist, bm, i, sp);
+            if (fastslam_particle_set(fs, k, (uint16_t)j, lm) != COSLAM_OK) {
+                stats->capacity_drops++;
+                result = COSLAM_E_CAPACITY;
+                continue;
+            }
+            stats->fused++;
+        } else {
+            landmark_t lm;
+            memset(&lm, 0, sizeof lm);
+            lm.mean = wm;
+            lm.cov = wc;
+            lm.id = sc->new_id[i];
+            lm.exist = sp->exist_max; /* the sender confirmed it and the check let it in */
+            lm.n_obs = bm->n_obs[i];
+            lm.src_mask = bm->src_mask[i];
+            lm.signature = bm->signature[i];
+            /* placed through this particle's pose: its pose error is the
+             * received landmark's anchor (marginal.h; the marginal is the
+             * present one when the merge comes in parts) */
+            landmark_set_anchor(&lm, &p->pose_marg, (point2_t){pose.x, pose.y});
+            lm.last_seen = (uint16_t)fs->ctr.updates; /* a revisit only after closure_gap */
+            if (fastslam_particle_add(fs, k, &lm) != COSLAM_OK) {
+                stats->capacity_drops++;
+                result = COSLAM_E_CAPACITY;
             } else {
-                landmark_t lm;
-                memset(&lm, 0, sizeof lm);
-                lm.mean = wm;
-                lm.cov = wc;
-                lm.id = sc->new_id[i];
-                lm.exist = sp->exist_max; /* the sender confirmed it and the check let it in */
-                lm.n_obs = bm->n_obs[i];
-                lm.src_mask = bm->src_mask[i];
-                lm.signature = bm->signature[i];
-                /* placed through this particle's pose: its pose error is the
-                 * received landmark's anchor (marginal.h) */
-                landmark_set_anchor(&lm, &p->pose_marg, (point2_t){p->pose.x, p->pose.y});
-                lm.last_seen = (uint16_t)fs->ctr.updates; /* a revisit only after closure_gap */
-                if (fastslam_particle_add(fs, k, &lm) != COSLAM_OK) {
-                    stats->capacity_drops++;
-                    result = COSLAM_E_CAPACITY;
-                } else {
-                    stats->added++;
-                }
+                stats->added++;
             }
         }
     }
-    if (cfg->reweight_particles) {
+    return result;
+}
+
+coslam_status_t merge_fastslam_run(fastslam_t *fs, const merge_body_map_t *bm, const merge_config_t *cfg,
+                                   merge_scratch_t *sc, merge_stats_t *stats, uint32_t budget, uint16_t *left)
+{
+    merge_stats_t local;
+    if (stats == 0) {
+        memset(&local, 0, sizeof local);
+        stats = &local;
+    }
+    coslam_status_t result = COSLAM_OK;
+    uint32_t spent = 0U;
+    for (uint16_t k = 0; k < fs->cfg.n_particles && fs->merge_due_n > 0U; ++k) {
+        fastslam_particle_t *p = &fs->particles[k];
+        if (!p->merge_due) {
+            continue;
+        }
+        if (budget > 0U && spent >= budget) {
+            break;
+        }
+        spent += (uint32_t)p->n_lm + MERGE_UNITS_PER_INCOMING * bm->n;
+        if (merge_particle(fs, k, bm, cfg, sc, stats) != COSLAM_OK) {
+            result = COSLAM_E_CAPACITY;
+        }
+        p->merge_due = 0U;
+        fs->merge_due_n--;
+    }
+    if (left != 0) {
+        *left = fs->merge_due_n;
+    }
+    if (fs->merge_due_n == 0U && cfg->reweight_particles) {
         fastslam_reweighted(fs); /* resample if the agreement test was decisive */
     }
     return result;
+}
+
+coslam_status_t merge_into_fastslam(fastslam_t *fs, const merge_body_map_t *bm, const merge_config_t *cfg,
+                                    merge_scratch_t *sc, merge_stats_t *stats)
+{
+    const coslam_status_t st = merge_fastslam_begin(fs, bm, cfg, sc);
+    if (st != COSLAM_OK) {
+        return st;
+    }
+    return merge_fastslam_run(fs, bm, cfg, sc, stats, 0U, 0);
 }
 
 /* ---- EKF-SLAM ----------------------------------------------------------- */

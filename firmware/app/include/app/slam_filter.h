@@ -55,12 +55,29 @@ typedef struct {
                                        per step depends on the CPU */
 } slam_filter_config_t;
 
-typedef struct {
+struct slam_merge_work_s;
+
+/** A merge in parts (merge_config_t.step_units) holds Fast-SLAM's resampling
+ *  back; if idle time has not finished it after this many updates (2 s at 5
+ *  Hz: an overloaded robot), the next update finishes it first. */
+#define SLAM_FILTER_MERGE_MAX_UPDATES 10U
+
+typedef struct slam_filter_s {
     slam_filter_kind_t kind;
     uint8_t robot_id;            /**< own provenance bit */
     /** Keyframes from which this robot looked (noted after every update);
      *  the merge's negative information (merge_check). */
     merge_coverage_t coverage;
+    /** A Fast-SLAM merge in parts not yet done (merge_config_t.step_units):
+     *  the working memory that holds it, NULL if none. */
+    struct slam_merge_work_s *merge_due;
+    /** What the parts of merges done after the call that began them
+     *  fused, added and dropped (that call's stats hold its own part). */
+    merge_stats_t merge_late;
+    uint32_t merges_in_parts;    /**< merges that did not finish in the call that began them */
+    uint32_t merges_forced;      /**< of which finished by an update, the idle time having
+                                      not sufficed for SLAM_FILTER_MERGE_MAX_UPDATES updates */
+    uint16_t merge_due_updates;  /**< updates since the merge in parts began */
     union {
         fastslam_t fs;
         ekfslam_t ekf;
@@ -132,7 +149,8 @@ coslam_status_t slam_filter_update(slam_filter_t *f, const sighting_t *z, int n)
  *  compressed EKF switches regions and completes SLAM_FILTER_IDLE_SHARES
  *  shares of its deferred global update ahead of its pace (ekfslam_idle:
  *  no number changes beyond rounding, only when the work is done, so that
- *  the steps themselves do little of it); nothing for Fast-SLAM. The
+ *  the steps themselves do little of it); Fast-SLAM merges the next part
+ *  of a merge in parts (merge_config_t.step_units), if one is due. The
  *  robot, the simulator, the replay and the benches call it after each
  *  step. */
 void slam_filter_idle(slam_filter_t *f);
@@ -157,12 +175,18 @@ coslam_status_t slam_filter_merge(slam_filter_t *f, const merge_body_map_t *bm, 
  *  meeting's compensation and the merge check use. */
 const slam_params_t *slam_filter_params(const slam_filter_t *f);
 
-/** Caller-owned working memory of one merge (the meeting holds one). */
-typedef struct {
+/** Caller-owned working memory of one merge (the meeting holds one; one may
+ *  serve several filters). Initialise with slam_merge_work_init. */
+typedef struct slam_merge_work_s {
     merge_body_map_t body;      /**< the incoming map in the own body frame */
     merge_scratch_t scratch;
     map_whole_t own;            /**< the own whole map, exported for the check */
+    struct slam_filter_s *due;  /**< the filter whose merge in parts this holds, or NULL */
+    merge_config_t due_cfg;     /**< that merge's configuration */
 } slam_merge_work_t;
+
+/** Empty working memory (no merge held). */
+void slam_merge_work_init(slam_merge_work_t *w);
 
 /**
  * The whole merge of a received map, the one path the robot, the replay
@@ -178,6 +202,11 @@ typedef struct {
  * sighting in the own body frame now), refined by the shared landmarks,
  * and the covariance the merge used (the sightings'; see merge_check).
  * O(merge_check + fusion).
+ * A Fast-SLAM fusion larger than cfg->step_units is merged in parts: this
+ * call does the first, slam_filter_idle the rest (merge_fastslam_run;
+ * *stats counts this call's part, f->merge_late the others). Any merge
+ * still due in f or in w is finished first, so merges never overlap and
+ * w may serve several filters.
  */
 coslam_status_t slam_filter_merge_map(slam_filter_t *f, const map_estimate_t *in, const merge_geometry_t *g,
                                       const merge_config_t *cfg, const occ_grid_t *grid, slam_merge_work_t *w,

@@ -118,6 +118,8 @@ typedef struct {
     uint16_t n_lm;         /**< landmarks: slots 0 .. n_lm-1 of the map */
     lm_tree_idx_t lm_root; /**< the map in fastslam_t.lm_pool (shared, copy-on-write:
                                 never write through it, see fastslam_particle_set) */
+    pose2_t merge_pose;    /**< the pose when a merge began (map_merge.h, merge_fastslam_begin) */
+    uint8_t merge_due;     /**< that merge has not reached this particle yet */
 } fastslam_particle_t;
 
 typedef struct {
@@ -132,6 +134,7 @@ typedef struct {
     uint32_t rejected_sightings;    /**< NaN/Inf, range <= 0 or beyond sighting_max_range_m, abs(bearing) > pi */
     uint32_t rejected_controls;     /**< NaN/Inf odometry, or beyond max_speed_mps / max_turn_radps (slam_filter_predict) */
     uint32_t numeric_faults;        /**< degenerate geometry skipped, weight collapse */
+    uint32_t resamples_deferred;    /**< resampling held back while a merge was due (fastslam_reweighted) */
     uint32_t tree_capacity_drops;   /**< the landmark tree pool ran out (only if
                                          LM_TREE_MAX_* were lowered): change skipped */
     uint32_t closures;              /**< revisits closed by the drift (closure_drift_ratio),
@@ -183,6 +186,8 @@ typedef struct {
     uint32_t merges;         /**< maps merged in (map_merge.c); revisits
                                   (closure_drift_ratio) stop at the first */
     double last_ess;         /**< effective sample size after the last update */
+    uint16_t merge_due_n;    /**< particles a merge in parts has not reached yet
+                                  (map_merge.h); no resampling until 0 */
     fastslam_counters_t ctr;
     fastslam_particle_t particles[COSLAM_MAX_PARTICLES];
     lm_tree_pool_t lm_pool;  /**< every particle's map (lm_tree.h) */
@@ -262,7 +267,9 @@ uint16_t fastslam_best_particle(const fastslam_t *fs);
 /**
  * After the log weights changed (an update, a merge that re-weights):
  * normalise them (max = 0), record the ESS in last_ess, and resample if it
- * fell below resample_ess_fraction * N. O(N) (resampling: see fastslam_resample).
+ * fell below resample_ess_fraction * N, unless a merge in parts is due
+ * (merge_due_n > 0: counted in resamples_deferred, resampled at a later
+ * update). O(N) (resampling: see fastslam_resample).
  */
 void fastslam_reweighted(fastslam_t *fs);
 

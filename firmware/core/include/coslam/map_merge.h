@@ -186,6 +186,17 @@ typedef struct {
      *  unresolved_chi2: with Fast-SLAM receivers it was worse on MRCLAM
      *  (docs/map-merge.md). */
     double refute_sd_factor;
+    /** Work units one call may spend on a Fast-SLAM merge in parts
+     *  (merge_fastslam_run; a particle costs one unit per own landmark and
+     *  MERGE_UNITS_PER_INCOMING per incoming one): the robot's merge path
+     *  (slam_filter_merge_map) merges that much in the step the message
+     *  arrives, and the rest in the idle time after the following steps
+     *  (slam_filter_idle). 0: the whole merge at once. Default 524,288:
+     *  4-5 ms a call on the bench's machine (coslam-bench-merge), so one
+     *  message into 1,000 particles of 1,024 landmarks takes 9 calls;
+     *  300 particles of 100 landmarks with 100 incoming, or anything
+     *  smaller, merge at once (docs/scale.md). */
+    uint32_t step_units;
 } merge_config_t;
 
 /** Defaults: gate 9.21 (99 %), cell 1 m, full uncertainty, no reweighting,
@@ -196,7 +207,7 @@ typedef struct {
  *  >= 1e-8 rad^2 (0.006 deg), check on with 3 refinements moving the map
  *  and counting as 2 independent pairs, agree_z 2.33 (99 %), veto_looks 5,
  *  contradict fraction 0.3, ambiguous_chi2 25, unresolved_chi2 9.21,
- *  refute_sd_factor 1.
+ *  refute_sd_factor 1, step_units 524,288.
  *  docs/map-merge.md says why and on what they were chosen. */
 merge_config_t merge_config_default(void);
 
@@ -228,6 +239,12 @@ typedef struct {
     int32_t in;
     double d2;
 } merge_pair_t;
+
+/** The cost of one incoming landmark in a particle's merge (moved into its
+ *  frame, looked up, fused or added through the tree), in own landmarks
+ *  (moved into the body frame and tested against the grid): measured with
+ *  coslam-bench-merge, about 146 against 8.5 ns (docs/scale.md). */
+#define MERGE_UNITS_PER_INCOMING 16U
 
 /** Candidate pairs kept per map (beyond: counted as skipped). */
 #define MERGE_MAX_PAIRS (4 * COSLAM_MAX_MSG_LANDMARKS)
@@ -345,9 +362,35 @@ coslam_status_t merge_transform_map(const map_estimate_t *in, pose2_t other_in_s
  * Step 3-4 for Fast-SLAM: into every particle. O(N (M_own + M_in)).
  * Returns E_CAPACITY (counted in stats and in the filter's counters) if some
  * particle's map could not hold every new landmark; the rest is merged.
+ * The same as merge_fastslam_begin, then merge_fastslam_run without a
+ * budget.
  */
 coslam_status_t merge_into_fastslam(fastslam_t *fs, const merge_body_map_t *bm, const merge_config_t *cfg,
-                                    merge_scratch_t *scratch, merge_stats_t *stats);
+                                    merge_scratch_t *sc, merge_stats_t *stats);
+
+/**
+ * A merge into Fast-SLAM in parts, so that no one call of a large one
+ * (1,000 particles, a thousand landmarks: tens of ms) takes a control
+ * step's time: merge_fastslam_begin gives the incoming landmarks their
+ * identities, builds the grid over them in sc, and marks every particle
+ * due at its present pose (fastslam_particle_t.merge_pose).
+ * merge_fastslam_run then fuses into the particles still due, in index
+ * order, until `budget` work units are spent (a particle costs one unit
+ * per own landmark and MERGE_UNITS_PER_INCOMING per incoming one; the
+ * particle that crosses the budget is finished; 0: no budget), and
+ * returns how many are left in *left.
+ * Each particle is merged through merge_pose, so the steps the filter runs
+ * in between (its predictions and updates) do not move where the incoming
+ * map lands; the filter holds resampling back while a particle is due
+ * (fastslam_reweighted), so every particle is merged exactly once. With no
+ * step in between, the parts give the whole merge bit for bit. bm, cfg and
+ * sc must stay as they are until *left is 0 (nothing else may use sc).
+ * Re-weighting (cfg->reweight_particles) is done when the last particle is.
+ */
+coslam_status_t merge_fastslam_begin(fastslam_t *fs, const merge_body_map_t *bm, const merge_config_t *cfg,
+                                     merge_scratch_t *sc);
+coslam_status_t merge_fastslam_run(fastslam_t *fs, const merge_body_map_t *bm, const merge_config_t *cfg,
+                                   merge_scratch_t *sc, merge_stats_t *stats, uint32_t budget, uint16_t *left);
 
 /**
  * Step 3-4 for EKF-SLAM, as one batch: the transform error joins the
