@@ -499,6 +499,7 @@ static const cfg_key_t keys[] = {
     N_("merge", "sender_speed_mps", K_F64, node.meeting.merge.peer_speed_mps, 0.0, 10.0),
     N_("merge", "sender_turn_radps", K_F64, node.meeting.merge.peer_turn_radps, 0.0, 10.0),
     B_("merge", "check", node.meeting.merge.check),
+    N_("merge", "step_units", K_U32, node.meeting.merge.step_units, 0, 4294967295.0),
 
     NO_("behaviour", "cruise_mps", K_F64, node.behaviour.cruise_mps, 0.0, 2.0),
     NO_("behaviour", "max_turn_radps", K_F64, node.behaviour.max_turn_radps, 0.0, 6.0),

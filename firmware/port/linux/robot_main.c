@@ -283,6 +283,7 @@ static void log_limits(void)
     static const char *seen_counter[SLAM_FILTER_N_LIMITS];
     static uint32_t seen_value[SLAM_FILTER_N_LIMITS];
     static uint32_t seen_dropped;
+    static uint32_t seen_forced;
     slam_filter_limit_t lim[SLAM_FILTER_N_LIMITS];
     const int n = slam_filter_limits(&node.filter, lim);
     for (int i = 0; i < n; ++i) {
@@ -305,6 +306,14 @@ static void log_limits(void)
                 "coslam-robot: LIMIT robot %u: %lu sightings dropped by the camera source: more in one frame than fit "
                 "(sightings_dropped; COSLAM_MAX_SIGHTINGS = %d in this build, profile %s)\n",
                 (unsigned)cfg.robot_id, (unsigned long)seen_dropped, (int)COSLAM_MAX_SIGHTINGS, COSLAM_PROFILE_NAME);
+    }
+    /* nothing is lost, but a step paid for the rest of a merge */
+    if (node.filter.merges_forced > seen_forced) {
+        seen_forced = node.filter.merges_forced;
+        fprintf(stderr,
+                "coslam-robot: robot %u: %lu merges in parts finished by an update: the idle time did not suffice "
+                "(merges_forced; lower [merge] step_units, now %lu)\n",
+                (unsigned)cfg.robot_id, (unsigned long)seen_forced, (unsigned long)node.meeting.cfg.merge.step_units);
     }
 }
 
