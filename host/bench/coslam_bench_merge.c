@@ -40,6 +40,7 @@ static merge_scratch_t g_sc;
 static merge_body_map_t g_bm;
 static map_estimate_t g_in;
 static map_whole_t g_own;
+static map_whole_t g_own_fs; /* the filter's own export (timed only; g_own is what the check reads) */
 static merge_coverage_t g_cov;
 
 /* M landmarks on a jittered grid 0.7 m apart (distinct, 4 classes). */
@@ -174,6 +175,7 @@ int main(int argc, char **argv)
     double fs_us[4];
     double part_us[4]; /* the largest call of the merge in parts */
     int part_calls[4];
+    double export_us[4]; /* the own whole map the check compares with (not in parts) */
     double naive_us[4];
     rng_t r;
     rng_seed(&r, 1U);
@@ -212,8 +214,15 @@ int main(int argc, char **argv)
          * slam_filter_merge_map then slam_filter_idle): the first call does
          * the transform, the check and the first part */
         part_us[c] = INFINITY;
+        export_us[c] = INFINITY;
         for (int rep = 0; rep < reps; ++rep) {
             build_own_maps(n, m, &r);
+            /* the robot's merge path (slam_filter_merge_map) exports its own
+             * whole map for the check first, in the step the message arrives */
+            const double te = now_us();
+            fastslam_export_whole(&g_fs, &g_own_fs);
+            const double dte = now_us() - te;
+            export_us[c] = dte < export_us[c] ? dte : export_us[c];
             rng_seed(&r, 7U);
             build_own_export(m, &r);
             rng_seed(&r, 7U);
@@ -300,13 +309,15 @@ int main(int argc, char **argv)
                    "a merge as the link carries it: one message holds at most %d landmarks.\n\n", reps,
                 COSLAM_LINK_MSG_LANDMARKS);
         fprintf(o, "| Fast-SLAM (N, M, M_in) | merge [ms] | per particle and incoming landmark [ns] | in parts of %u "
-                   "units: calls | largest call [ms] | naive all-pairs duplicate search alone [ms] |\n"
-                   "|---|---|---|---|---|---|\n", mc.step_units);
+                   "units: calls | largest call [ms] | own export for the check, not in parts [ms] | naive all-pairs "
+                   "duplicate search alone [ms] |\n|---|---|---|---|---|---|---|\n", mc.step_units);
         for (int c = 0; c < 4; ++c) {
-            fprintf(o, "| (%d, %d, %d) | %.2f | %.1f | %d | %.2f | %.1f |\n", cases[c][0], cases[c][1], cases[c][2],
-                    fs_us[c] / 1000.0, 1000.0 * fs_us[c] / ((double)cases[c][0] * cases[c][2]), part_calls[c],
-                    part_us[c] / 1000.0, naive_us[c] / 1000.0);
+            fprintf(o, "| (%d, %d, %d) | %.2f | %.1f | %d | %.2f | %.2f | %.1f |\n", cases[c][0], cases[c][1],
+                    cases[c][2], fs_us[c] / 1000.0, 1000.0 * fs_us[c] / ((double)cases[c][0] * cases[c][2]),
+                    part_calls[c], part_us[c] / 1000.0, export_us[c] / 1000.0, naive_us[c] / 1000.0);
         }
+        fprintf(o, "\nThe robot's merge path also exports its own whole map for the check (fastslam_export_whole, "
+                   "O(N M), every particle's every landmark) in the step the message arrives: that is not in parts.\n");
         fprintf(o, "\n| EKF-SLAM (M, M_in) | merge [ms] |\n|---|---|\n");
         for (int c = 0; c < 3; ++c) {
             fprintf(o, "| (%d, %d) | %.2f |\n", ekf_m[c][0], ekf_m[c][1], ekf_us[c] / 1000.0);
@@ -317,8 +328,9 @@ int main(int argc, char **argv)
     fprintf(js, "{\"fastslam\": [");
     for (int c = 0; c < 4; ++c) {
         fprintf(js, "%s{\"particles\": %d, \"landmarks\": %d, \"incoming\": %d, \"merge_us\": %.1f, "
-                    "\"part_calls\": %d, \"part_max_us\": %.1f, \"naive_search_us\": %.1f}",
-                c ? ", " : "", cases[c][0], cases[c][1], cases[c][2], fs_us[c], part_calls[c], part_us[c], naive_us[c]);
+                    "\"part_calls\": %d, \"part_max_us\": %.1f, \"own_export_us\": %.1f, \"naive_search_us\": %.1f}",
+                c ? ", " : "", cases[c][0], cases[c][1], cases[c][2], fs_us[c], part_calls[c], part_us[c], export_us[c],
+                naive_us[c]);
     }
     fprintf(js, "], \"ekfslam\": [");
     for (int c = 0; c < 3; ++c) {
