@@ -125,6 +125,19 @@ static void build_own_maps(int n, int m, rng_t *r)
     }
 }
 
+/* The own export the check reads and the incoming map of one case, and the
+ * transform between them (identity, small uncertainty). */
+static const pose2_t k_t = {0.0, 0.0, 0.0};
+static const cov3_t k_tc = {{{1e-4, 0.0, 0.0}, {0.0, 1e-4, 0.0}, {0.0, 0.0, 1e-5}}};
+
+static void build_message(int m, int m_in, rng_t *r)
+{
+    rng_seed(r, 7U);
+    build_own_export(m, r);
+    rng_seed(r, 7U);
+    build_incoming(m_in, m, r);
+}
+
 static double naive_pairs_us(int n_particles, int m)
 {
     /* all pairs per particle: the paper's O(N M^2) */
@@ -187,16 +200,11 @@ int main(int argc, char **argv)
         double best = INFINITY;
         for (int rep = 0; rep < reps; ++rep) {
             build_own_maps(n, m, &r);
-            rng_seed(&r, 7U);
-            build_own_export(m, &r);
-            rng_seed(&r, 7U);
-            build_incoming(m_in, m, &r);
-            const pose2_t t = {0.0, 0.0, 0.0};
-            const cov3_t tc = cov3_diag(1e-4, 1e-4, 1e-5);
+            build_message(m, m_in, &r);
             merge_stats_t st;
             memset(&st, 0, sizeof st);
             const double t0 = now_us();
-            merge_transform_map(&g_in, t, &tc, &mc, &g_bm, &st);
+            merge_transform_map(&g_in, k_t, &k_tc, &mc, &g_bm, &st);
             merge_check(&g_own, &g_cov, NULL, &g_fs.cfg.slam, 0U, &mc, &g_bm, &g_sc, &st);
             merge_into_fastslam(&g_fs, &g_bm, &mc, &g_sc, &st);
             const double dt = now_us() - t0;
@@ -223,17 +231,12 @@ int main(int argc, char **argv)
             fastslam_export_whole(&g_fs, &g_own_fs);
             const double dte = now_us() - te;
             export_us[c] = dte < export_us[c] ? dte : export_us[c];
-            rng_seed(&r, 7U);
-            build_own_export(m, &r);
-            rng_seed(&r, 7U);
-            build_incoming(m_in, m, &r);
-            const pose2_t t = {0.0, 0.0, 0.0};
-            const cov3_t tc = cov3_diag(1e-4, 1e-4, 1e-5);
+            build_message(m, m_in, &r);
             merge_stats_t st;
             memset(&st, 0, sizeof st);
             uint16_t left = 0;
             double t0 = now_us();
-            merge_transform_map(&g_in, t, &tc, &mc, &g_bm, &st);
+            merge_transform_map(&g_in, k_t, &k_tc, &mc, &g_bm, &st);
             merge_check(&g_own, &g_cov, NULL, &g_fs.cfg.slam, 0U, &mc, &g_bm, &g_sc, &st);
             merge_fastslam_begin(&g_fs, &g_bm, &mc, &g_sc);
             merge_fastslam_run(&g_fs, &g_bm, &mc, &g_sc, &st, mc.step_units, &left);
@@ -276,16 +279,11 @@ int main(int argc, char **argv)
             ekfslam_meta_t meta = {(uint32_t)(j + 1), 10.0f, 10, 1, (uint8_t)(j % 4), 0};
             ekfslam_add_landmark_body(&g_ekf, site(j, &r), cov2_make(0.01, 0.0, 0.01), &meta);
         }
-        rng_seed(&r, 7U);
-        build_own_export(m, &r);
-        rng_seed(&r, 7U);
-        build_incoming(ekf_m[c][1], m, &r);
-        const pose2_t t = {0.0, 0.0, 0.0};
-        const cov3_t tc = cov3_diag(1e-4, 1e-4, 1e-5);
+        build_message(m, ekf_m[c][1], &r);
         merge_stats_t st;
         memset(&st, 0, sizeof st);
         const double t0 = now_us();
-        merge_transform_map(&g_in, t, &tc, &mc, &g_bm, &st);
+        merge_transform_map(&g_in, k_t, &k_tc, &mc, &g_bm, &st);
         merge_check(&g_own, &g_cov, NULL, &g_ekf.cfg.slam, 0U, &mc, &g_bm, &g_sc, &st);
         merge_into_ekfslam(&g_ekf, &g_bm, &mc, &g_sc, &st);
         ekf_us[c] = now_us() - t0;
