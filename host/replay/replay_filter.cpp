@@ -136,6 +136,7 @@ std::map<std::string, long> RobotFilter::counters() const
         m["closure_moves"] = c.closure_moves;
         m["resamples_deferred"] = c.resamples_deferred;
         m["merges_in_parts"] = f_->merges_in_parts;
+        m["checks_waited"] = f_->checks_waited;
         m["merges_forced"] = f_->merges_forced;
     }
     m["coverage_keyframes"] = f_->coverage.n;

@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <set>
 
 #include "app/meeting.h"
@@ -50,6 +51,16 @@ struct Robot {
     double step_us_sum = 0.0;
     std::unique_ptr<meeting_t> meeting;  // the robot's meeting protocol
     hal_link_t *link = nullptr;
+    // a merge whose check waits for the own export in parts (meeting_t
+    // merge_waiting): the map before it, for its event when it comes
+    struct Waiting {
+        uint8_t peer = 0;
+        uint32_t seq = 0;
+        MapScore before;
+        std::shared_ptr<map_whole_t> before_map;
+        double merge_us = 0.0;
+    };
+    std::optional<Waiting> waiting;
     pose2_t odo_pose{0.0, 0.0, 0.0};     // dead reckoning, as the robot keeps it
     double travel_m = 0.0;               // odometer (wheel travel)
     // pose error sums
@@ -586,13 +597,26 @@ void Replay::poll_meeting(Robot &r)
         before = score_now(r, &before_map);
     }
     const auto t0 = Clock::now();
-    (void)meeting_poll(m, r.filter->app(), now, r.odo_pose, r.travel_m);
+    const coslam_status_t pst = meeting_poll(m, r.filter->app(), now, r.odo_pose, r.travel_m);
     const double merge_us = us_since(t0);
     meeting_event_t ev;
+    std::optional<Robot::Waiting> waited;
     while (meeting_take_event(m, &ev) == COSLAM_OK) {
-        if (ev.kind != MEETING_EV_SENT) {
+        if (ev.kind == MEETING_EV_SENT) {
+            continue;
+        }
+        if (r.waiting && ev.peer == r.waiting->peer && ev.seq == r.waiting->seq) {
+            // the outcome of the merge that waited: the map before it, and
+            // the time of the call that began it (the rest was idle time)
+            waited = std::move(r.waiting);
+            r.waiting.reset();
+            record_event(r, ev, &waited->before, waited->before_map, waited->merge_us);
+        } else {
             record_event(r, ev, pending ? &before : nullptr, before_map, merge_us);
         }
+    }
+    if (pst == COSLAM_E_MERGE_PENDING && pending && m->merge_waiting) {
+        r.waiting = Robot::Waiting{m->waiting_ev.peer, m->waiting_ev.seq, before, before_map, merge_us};
     }
 }
 
@@ -712,6 +736,12 @@ ReplayResult Replay::run()
     for (auto &rp : robots_) {
         Robot &r = *rp;
         advance(r, out_.t_end_s);
+        if (r.meeting && r.meeting->merge_waiting) {
+            // a merge whose check still waits for idle time: decided now, so
+            // that its event is recorded before the final map is scored
+            slam_merge_work_finish(&r.meeting->work);
+            poll_meeting(r);
+        }
         RobotResult &res = r.res;
         res.final_score = score_now(r, &res.final_map);
         res.final_score.fit = score_map_fit(*res.final_map, truth_world_, res.n_seen, cfg_.eval);

@@ -128,7 +128,12 @@ int merge_run(const synth2_config_t *scfg, const merge_run_opts_t *o, merge_run_
             pose2_t t;
             cov3_t tc;
             const double t0 = now_us();
-            const coslam_status_t mst = slam_filter_merge_map(f[k], est[ok], &g, &o->merge, NULL, work, &rr->stats, &t, &tc);
+            coslam_status_t mst = slam_filter_merge_map(f[k], est[ok], &g, &o->merge, NULL, work, &rr->stats, &t, &tc);
+            if (mst == COSLAM_E_MERGE_PENDING) {
+                /* the check waited for the own export in parts: decided now */
+                slam_merge_work_finish(work);
+                (void)slam_merge_work_outcome(work, &mst, &rr->stats, &t, &tc);
+            }
             const pose2_t t_true = pose2_between(st->r[k].true_pose, st->r[ok].true_pose);
             rr->t_err_refined_m = hypot(t.x - t_true.x, t.y - t_true.y);
             rr->t_err_refined_rad = fabs(angle_wrap(t.theta - t_true.theta));

@@ -178,6 +178,35 @@ static int count_events(meeting_event_kind_t kind, coslam_status_t status, meeti
     return n;
 }
 
+/* Robot 0 at the origin and robot 1 at kMeetB see each other at kMeetT;
+ * robot 1's message (one landmark at kMeetLm relative to itself) is taken
+ * from the link. */
+static const pose2_t kMeetB = {2.0, 0.5, 160.0 * COSLAM_PI / 180.0};
+static const point2_t kMeetLm = {1.5, -0.7};
+static const uint64_t kMeetT = 20000000;
+
+static void meet_robot1(hal_link_t *link)
+{
+    const pose2_t a = {0.0, 0.0, 0.0};
+    double r, b1, b2;
+    mutual(a, kMeetB, &r, &b1, &b2);
+    const uint64_t t = kMeetT;
+    meeting_on_sighting(&g_m, &g_filter, link, t + 4000, 1, r, b1, t, kOrigin, 0.0);
+    const size_t len = make_msg_from1(1, t + 3000, t, r, b2, kMeetLm, 1U << 1, 0);
+    inject(g_buf, len, 1, t + 3000 + g_m.cfg.link_latency_us);
+    assert_int_equal(meeting_poll_link(&g_m, link), 1);
+}
+
+/* Robot 1's landmark is in robot 0's map, where it is in the world. */
+static void assert_robot1_landmark_merged(void)
+{
+    assert_int_equal(slam_filter_export(&g_filter, &g_est), COSLAM_OK);
+    assert_int_equal(g_est.n_landmarks, 1);
+    const point2_t want = pose2_apply(kMeetB, kMeetLm);
+    assert_true(fabs(g_est.lm[0].mean.x - want.x) < 1e-6);
+    assert_true(fabs(g_est.lm[0].mean.y - want.y) < 1e-6);
+}
+
 /* ---- tests -------------------------------------------------------------------- */
 
 static void test_send_policy_and_message_fields(void **state)
@@ -293,16 +322,10 @@ static void test_merge_geometry_exact(void **state)
     (void)state;
     hal_link_t *link = fake_link_reset(0);
     setup_robot0(NULL);
-    const pose2_t a = {0.0, 0.0, 0.0};
-    const pose2_t b = {2.0, 0.5, 160.0 * COSLAM_PI / 180.0};
-    double r, b1, b2;
-    mutual(a, b, &r, &b1, &b2);
-    const uint64_t t = 20000000;
-    meeting_on_sighting(&g_m, &g_filter, link, t + 4000, 1, r, b1, t, kOrigin, 0.0);
-    const point2_t lm_rel = {1.5, -0.7};
-    const size_t len = make_msg_from1(1, t + 3000, t, r, b2, lm_rel, 1U << 1, 0);
-    inject(g_buf, len, 1, t + 3000 + g_m.cfg.link_latency_us);
-    assert_int_equal(meeting_poll_link(&g_m, link), 1);
+    meet_robot1(link);
+    const pose2_t b = kMeetB;
+    const point2_t lm_rel = kMeetLm;
+    const uint64_t t = kMeetT;
     assert_int_equal(meeting_poll(&g_m, &g_filter, t + 10000, kOrigin, 0.0), COSLAM_OK);
     meeting_event_t ev = {0};
     assert_int_equal(count_events(MEETING_EV_MERGED, COSLAM_OK, &ev), 1);
@@ -314,14 +337,12 @@ static void test_merge_geometry_exact(void **state)
     assert_true(fabs(angle_wrap(ev.other_in_self.theta - b.theta)) < 1e-9);
     assert_int_equal(ev.stats.added, 1);
     assert_true(meeting_merged_all(&g_m));
-    assert_int_equal(slam_filter_export(&g_filter, &g_est), COSLAM_OK);
-    assert_int_equal(g_est.n_landmarks, 1);
-    const point2_t want = pose2_apply(b, lm_rel);
-    assert_true(fabs(g_est.lm[0].mean.x - want.x) < 1e-6);
-    assert_true(fabs(g_est.lm[0].mean.y - want.y) < 1e-6);
+    assert_robot1_landmark_merged();
     assert_int_equal(g_est.lm[0].src_mask, 1U << 1);
     assert_int_equal(g_est.lm[0].signature, 2);
     /* the rest of the meeting's messages are ignored (remerge period) */
+    double r, b1, b2;
+    mutual((pose2_t){0.0, 0.0, 0.0}, b, &r, &b1, &b2);
     const size_t len2 = make_msg_from1(2, t + 1003000, t + 1000000, r, b2, lm_rel, 1U << 1, 0);
     inject(g_buf, len2, 1, t + 1005000);
     meeting_poll_link(&g_m, link);
@@ -586,6 +607,56 @@ static void test_event_queue_overflow_counted(void **state)
     assert_int_equal(n, COSLAM_APP_EVENT_QUEUE);
 }
 
+/* A Fast-SLAM receiver whose merge budget (merge.step_units) is smaller
+ * than its own export: meeting_poll returns COSLAM_E_MERGE_PENDING and
+ * queues nothing; the export, the check and the fusion run in idle time
+ * while the robot drives on; the next meeting_poll queues the merge's
+ * event. The landmark lands where the robot's pose at the message's
+ * arrival puts it, not where the robot has driven to since. */
+static void test_merge_waits_for_idle_time(void **state)
+{
+    (void)state;
+    hal_link_t *link = fake_link_reset(0);
+    meeting_config_t mc = meeting_config_default();
+    mc.merge.step_units = 1U;
+    setup_robot0(&mc);
+    slam_filter_config_t fc = slam_filter_config_default();
+    fc.kind = SLAM_FILTER_FASTSLAM2;
+    fc.n_particles = 8;
+    fc.slam.noise.init_xy_var_m2 = 0.0;
+    fc.slam.noise.init_theta_var_rad2 = 0.0;
+    assert_int_equal(slam_filter_init(&g_filter, &fc, kOrigin), COSLAM_OK);
+    meet_robot1(link);
+    const pose2_t b = kMeetB;
+    const uint64_t t = kMeetT;
+    assert_int_equal(meeting_poll(&g_m, &g_filter, t + 10000, kOrigin, 0.0), COSLAM_E_MERGE_PENDING);
+    assert_true(g_m.merge_waiting);
+    assert_int_equal(count_events(MEETING_EV_MERGED, COSLAM_OK, NULL), 0);
+    assert_int_equal(meeting_poll(&g_m, &g_filter, t + 20000, kOrigin, 0.0), COSLAM_E_MERGE_PENDING);
+    int idles = 0;
+    while (g_filter.merge_due != NULL && idles < 100) {
+        const odo_increment_t u = {0.02, 0.0, 0.01};
+        assert_int_equal(slam_filter_predict(&g_filter, u, 0.1), COSLAM_OK);
+        slam_filter_idle(&g_filter);
+        idles++;
+    }
+    assert_true(idles > 2 * fc.n_particles - 2);
+    meeting_event_t ev = {0};
+    assert_int_equal(meeting_poll(&g_m, &g_filter, t + 900000, kOrigin, 0.0), COSLAM_OK);
+    assert_false(g_m.merge_waiting);
+    assert_int_equal(count_events(MEETING_EV_MERGED, COSLAM_OK, &ev), 1);
+    assert_int_equal(ev.peer, 1);
+    assert_int_equal(ev.seq, 1);
+    assert_int_equal(ev.n_landmarks, 1);
+    assert_int_equal(ev.own_sighting_us, t);
+    assert_true(fabs(ev.other_in_self.x - b.x) < 1e-9);
+    assert_true(ev.stats.added >= 1U);
+    assert_int_equal(g_m.ctr.merged, 1);
+    assert_true(meeting_merged_all(&g_m));
+    assert_robot1_landmark_merged();
+    assert_true(g_est.pose.x > 0.1); /* the robot did drive on meanwhile */
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -601,6 +672,7 @@ int main(void)
         cmocka_unit_test(test_disagreeing_peer_not_retried),
         cmocka_unit_test(test_screening),
         cmocka_unit_test(test_event_queue_overflow_counted),
+        cmocka_unit_test(test_merge_waits_for_idle_time),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

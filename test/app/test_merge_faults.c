@@ -463,11 +463,14 @@ static void test_chain_adds_nothing_twice(void **state)
     }
 }
 
-/* A Fast-SLAM merge in parts (merge_config_t.step_units): the first part
- * in slam_filter_merge_map, the rest in slam_filter_idle, the same map as
- * the whole merge at once; a merge through the same working memory (here
- * into another filter) finishes the one it holds first; an update finishes
- * one the idle time has not, after SLAM_FILTER_MERGE_MAX_UPDATES. */
+/* A Fast-SLAM merge in parts (merge_config_t.step_units): the own export
+ * for the check, then the check and the fusion, spread over
+ * slam_filter_merge_map and slam_filter_idle, give the same map as the
+ * whole merge at once; the outcome of a merge whose check waited is taken
+ * once from the working memory; a merge through the same working memory
+ * (here into another filter) finishes the one it holds first and is refused
+ * until its outcome is taken; an export, or an update after
+ * SLAM_FILTER_MERGE_MAX_UPDATES, finishes one the idle time has not. */
 static map_estimate_t g_whole;
 
 static coslam_status_t merge_b_into(slam_filter_t *f, uint32_t step_units)
@@ -480,6 +483,19 @@ static coslam_status_t merge_b_into(slam_filter_t *f, uint32_t step_units)
     return slam_filter_merge_map(f, &g_msg, &g, &mc, NULL, &g_work, &st, NULL, NULL);
 }
 
+static void take_outcome_ok(void)
+{
+    coslam_status_t st = COSLAM_E_ARG;
+    merge_stats_t ms;
+    memset(&ms, 0, sizeof ms);
+    pose2_t t;
+    assert_int_equal(slam_merge_work_outcome(&g_work, &st, &ms, &t, NULL), 1);
+    assert_int_equal(st, COSLAM_OK);
+    assert_true(ms.fused + ms.added > 0U);
+    assert_true(fabs(t.x - (kPoseB.x - kPoseA.x)) < 0.3);
+    assert_int_equal(slam_merge_work_outcome(&g_work, &st, NULL, NULL, NULL), 0); /* taken once */
+}
+
 static void test_fastslam_merge_in_parts(void **state)
 {
     (void)state;
@@ -489,35 +505,58 @@ static void test_fastslam_merge_in_parts(void **state)
     assert_null(g_a.merge_due);
     assert_int_equal(slam_filter_export(&g_a, &g_whole), COSLAM_OK);
     assert_int_equal(g_whole.n_landmarks, N_WORLD);
+    const int n = g_a.u.fs.cfg.n_particles;
 
-    /* one particle a part: 20 parts, 19 of them in idle time */
+    /* one particle a part: the export's two passes (the first particle in
+     * the call that began it), the call that ends them also checks and
+     * fuses one particle, then one particle an idle call */
     setup_pair(SLAM_FILTER_FASTSLAM2, SLAM_FILTER_EKF);
-    assert_int_equal(merge_b_into(&g_a, 1U), COSLAM_OK);
+    assert_int_equal(merge_b_into(&g_a, 1U), COSLAM_E_MERGE_PENDING);
     assert_non_null(g_a.merge_due);
     assert_int_equal(g_a.merges_in_parts, 1U);
+    assert_int_equal(g_a.checks_waited, 1U);
+    assert_int_equal(slam_merge_work_outcome(&g_work, NULL, NULL, NULL, NULL), 0); /* not decided yet */
     int idles = 0;
-    while (g_a.merge_due != NULL && idles < 100) {
+    while (g_a.merge_due != NULL && idles < 1000) {
         slam_filter_idle(&g_a);
         idles++;
     }
-    assert_int_equal(idles, 19);
+    assert_int_equal(idles, (2 * n - 1) + (n - 1));
+    take_outcome_ok();
     assert_int_equal(slam_filter_export(&g_a, &g_after), COSLAM_OK);
     assert_true(same_map(&g_after, &g_whole));
     assert_true(g_a.merge_late.added + g_a.merge_late.fused > 0U);
+    assert_int_equal(g_a.merges_forced, 0U);
 
-    /* the working memory taken by another filter's merge: A's is finished first */
+    /* the working memory taken by another filter's merge: A's is finished
+     * first, and C's refused until A's outcome is taken */
     setup_pair(SLAM_FILTER_FASTSLAM2, SLAM_FILTER_EKF);
     init_filter(&g_c, SLAM_FILTER_FASTSLAM2, 2, kPoseA);
-    assert_int_equal(merge_b_into(&g_a, 1U), COSLAM_OK);
-    assert_non_null(g_a.merge_due);
-    (void)merge_b_into(&g_c, 1U);
+    assert_int_equal(merge_b_into(&g_a, 1U), COSLAM_E_MERGE_PENDING);
+    assert_int_equal(merge_b_into(&g_c, 1U), COSLAM_E_MERGE_BUSY);
     assert_null(g_a.merge_due);
+    assert_null(g_c.merge_due);
+    take_outcome_ok();
     assert_int_equal(slam_filter_export(&g_a, &g_after), COSLAM_OK);
     assert_true(same_map(&g_after, &g_whole));
+    assert_int_equal(merge_b_into(&g_c, 1U), COSLAM_E_MERGE_PENDING);
+    slam_merge_work_finish(&g_work);
+    assert_null(g_c.merge_due);
+    assert_int_equal(slam_merge_work_outcome(&g_work, NULL, NULL, NULL, NULL), 1);
+
+    /* an export needs the table the waiting check uses: it finishes it */
+    setup_pair(SLAM_FILTER_FASTSLAM2, SLAM_FILTER_EKF);
+    assert_int_equal(merge_b_into(&g_a, 1U), COSLAM_E_MERGE_PENDING);
+    slam_filter_idle(&g_a);
+    assert_int_equal(slam_filter_export(&g_a, &g_after), COSLAM_OK);
+    assert_null(g_a.merge_due);
+    assert_int_equal(g_a.merges_forced, 1U);
+    assert_true(same_map(&g_after, &g_whole));
+    take_outcome_ok();
 
     /* no idle time: the updates finish it */
     setup_pair(SLAM_FILTER_FASTSLAM2, SLAM_FILTER_EKF);
-    assert_int_equal(merge_b_into(&g_a, 1U), COSLAM_OK);
+    assert_int_equal(merge_b_into(&g_a, 1U), COSLAM_E_MERGE_PENDING);
     for (unsigned k = 0; k < SLAM_FILTER_MERGE_MAX_UPDATES; ++k) {
         (void)slam_filter_update(&g_a, NULL, 0);
         assert_non_null(g_a.merge_due);
@@ -525,6 +564,17 @@ static void test_fastslam_merge_in_parts(void **state)
     (void)slam_filter_update(&g_a, NULL, 0);
     assert_null(g_a.merge_due);
     assert_int_equal(g_a.merges_forced, 1U);
+    take_outcome_ok();
+
+    /* a budget the export fits in: decided in the call, the fusion in parts */
+    setup_pair(SLAM_FILTER_FASTSLAM2, SLAM_FILTER_EKF);
+    assert_int_equal(merge_b_into(&g_a, 2U * n * (FASTSLAM_EXPORT_UNITS_PARTICLE + N_WORLD * FASTSLAM_EXPORT_UNITS_PASS2)),
+                     COSLAM_OK);
+    assert_int_equal(g_a.checks_waited, 0U);
+    assert_int_equal(slam_merge_work_outcome(&g_work, NULL, NULL, NULL, NULL), 0);
+    slam_merge_work_finish(&g_work);
+    assert_int_equal(slam_filter_export(&g_a, &g_after), COSLAM_OK);
+    assert_true(same_map(&g_after, &g_whole));
 }
 
 int main(void)

@@ -595,6 +595,130 @@ static void test_reproducible(void **state)
     }
 }
 
+/* The export in parts (fastslam_export_begin / _run): with no step in
+ * between, fastslam_export_whole bit for bit; with predictions in between,
+ * still the export of the moment it began (weights, poses and pose
+ * marginals were taken then, and predictions move no landmark); resampling
+ * waits for it; a second export is refused while it runs; a landmark gone
+ * from every particle between the passes is left out, not exported with a
+ * zero covariance. */
+static void export_parts_world(void)
+{
+    synth_config_t sc = synth_config_default(12U, 20);
+    sc.loops = 0.5;
+    static synth_world_t w;
+    static synth_step_t st;
+    fastslam_config_t c = config(30);
+    c.proposal = FASTSLAM_PROPOSAL_OPTIMAL;
+    synth_init(&w, &sc);
+    assert_int_equal(fastslam_init(&g_fs, &c, synth_start_pose(&sc), 5U), COSLAM_OK);
+    while (synth_next(&w, &st)) {
+        fastslam_predict(&g_fs, st.u);
+        if (st.is_frame) {
+            fastslam_update(&g_fs, st.z, st.n_z);
+        }
+    }
+}
+
+static int export_in_parts(fastslam_t *fs, map_whole_t *out, int predict_between, coslam_status_t *st)
+{
+    int done = 0;
+    int calls = 0;
+    while (!done) {
+        uint32_t spent = 0U;
+        *st = fastslam_export_run(fs, out, 1U, &done, &spent);
+        assert_true(spent >= FASTSLAM_EXPORT_UNITS_PARTICLE);
+        calls++;
+        if (predict_between) {
+            const odo_increment_t u = {0.05, 0.01, 0.02};
+            assert_int_equal(fastslam_predict(fs, u), COSLAM_OK);
+        }
+    }
+    return calls;
+}
+
+static void assert_same_whole(const map_whole_t *a, const map_whole_t *b)
+{
+    assert_int_equal(a->n_landmarks, b->n_landmarks);
+    assert_memory_equal(&a->pose, &b->pose, sizeof a->pose);
+    assert_memory_equal(&a->pose_cov, &b->pose_cov, sizeof a->pose_cov);
+    assert_memory_equal(a->lm, b->lm, sizeof a->lm[0] * a->n_landmarks);
+}
+
+static void test_export_in_parts(void **state)
+{
+    (void)state;
+    export_parts_world();
+    static map_whole_t whole;
+    static map_whole_t parts;
+    static map_estimate_t est;
+    assert_int_equal(fastslam_export_whole(&g_fs, &whole), COSLAM_OK);
+    assert_true(whole.n_landmarks > 5);
+    const uint16_t n = g_fs.cfg.n_particles;
+
+    /* one particle a call: both passes, the whole export bit for bit */
+    memcpy(&g_fs2, &g_fs, sizeof g_fs);
+    assert_int_equal(fastslam_export_begin(&g_fs2), COSLAM_OK);
+    assert_int_equal(fastslam_export_begin(&g_fs2), COSLAM_E_MERGE_BUSY);
+    assert_int_equal(fastslam_export_whole(&g_fs2, &parts), COSLAM_E_MERGE_BUSY);
+    assert_int_equal(fastslam_export(&g_fs2, &est), COSLAM_E_MERGE_BUSY);
+    coslam_status_t st = COSLAM_E_ARG;
+    memset(&parts, 0, sizeof parts);
+    assert_int_equal(export_in_parts(&g_fs2, &parts, 0, &st), 2 * n);
+    assert_int_equal(st, COSLAM_OK);
+    assert_same_whole(&parts, &whole);
+    assert_false(g_fs2.export_due);
+    uint32_t spent = 0U;
+    int done = 0;
+    assert_int_equal(fastslam_export_run(&g_fs2, &parts, 0U, &done, &spent), COSLAM_E_ARG); /* none under way */
+
+    /* predictions in between: the export of the moment it began */
+    memcpy(&g_fs2, &g_fs, sizeof g_fs);
+    assert_int_equal(fastslam_export_begin(&g_fs2), COSLAM_OK);
+    memset(&parts, 0, sizeof parts);
+    (void)export_in_parts(&g_fs2, &parts, 1, &st);
+    assert_int_equal(st, COSLAM_OK);
+    assert_same_whole(&parts, &whole);
+    assert_true(g_fs2.particles[0].pose.x != g_fs.particles[0].pose.x); /* the predictions did move the particles */
+
+    /* resampling waits for the export */
+    memcpy(&g_fs2, &g_fs, sizeof g_fs);
+    assert_int_equal(fastslam_export_begin(&g_fs2), COSLAM_OK);
+    for (uint16_t k = 1; k < n; ++k) {
+        g_fs2.particles[k].log_w = -50.0;
+    }
+    const uint32_t resamples = g_fs2.ctr.resamples;
+    const uint32_t deferred = g_fs2.ctr.resamples_deferred;
+    fastslam_reweighted(&g_fs2);
+    assert_int_equal(g_fs2.ctr.resamples, resamples);
+    assert_int_equal(g_fs2.ctr.resamples_deferred, deferred + 1U);
+    assert_int_equal(fastslam_export_run(&g_fs2, &parts, 0U, &done, &spent), COSLAM_OK);
+    assert_true(done);
+    fastslam_reweighted(&g_fs2);
+    assert_int_equal(g_fs2.ctr.resamples, resamples + 1U);
+
+    /* every landmark gone between the passes: none exported */
+    memcpy(&g_fs2, &g_fs, sizeof g_fs);
+    assert_int_equal(fastslam_export_begin(&g_fs2), COSLAM_OK);
+    while (g_fs2.export_scratch.job_pass == 1U) {
+        assert_int_equal(fastslam_export_run(&g_fs2, &parts, 1U, &done, &spent), COSLAM_OK);
+    }
+    for (uint16_t k = 0; k < n; ++k) {
+        fastslam_particle_clear(&g_fs2, k);
+    }
+    assert_int_equal(fastslam_export_run(&g_fs2, &parts, 0U, &done, &spent), COSLAM_OK);
+    assert_true(done);
+    assert_int_equal(parts.n_landmarks, 0);
+
+    /* dropped: the table is free again */
+    memcpy(&g_fs2, &g_fs, sizeof g_fs);
+    assert_int_equal(fastslam_export_begin(&g_fs2), COSLAM_OK);
+    assert_int_equal(fastslam_export_run(&g_fs2, &parts, 1U, &done, &spent), COSLAM_OK);
+    fastslam_export_abort(&g_fs2);
+    assert_int_equal(fastslam_export_whole(&g_fs2, &parts), COSLAM_OK);
+    assert_same_whole(&parts, &whole);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -607,6 +731,7 @@ int main(void)
         cmocka_unit_test(test_fs2_proposal_matches_ekf),
         cmocka_unit_test(test_revisit_closes_the_loop),
         cmocka_unit_test(test_reproducible),
+        cmocka_unit_test(test_export_in_parts),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -602,7 +602,7 @@ static void test_fastslam_merge_in_parts(void **state)
     const uint32_t budget = 3U * (BF_OWN + MERGE_UNITS_PER_INCOMING * BF_IN);
     merge_stats_t parts;
     memset(&parts, 0, sizeof parts);
-    assert_int_equal(merge_fastslam_begin(&g_fs_parts, &g_bm, &mc, &g_sc), COSLAM_OK);
+    assert_int_equal(merge_fastslam_begin(&g_fs_parts, &g_bm, &mc, &g_sc, NULL), COSLAM_OK);
     int calls = 0;
     uint16_t left = n;
     while (left > 0U) {
@@ -612,7 +612,7 @@ static void test_fastslam_merge_in_parts(void **state)
             assert_true(left > 0U && left < n);
             /* a second merge while one is due is refused, nothing changed */
             const uint32_t merges = g_fs_parts.merges;
-            assert_int_equal(merge_fastslam_begin(&g_fs_parts, &g_bm, &mc, &g_sc), COSLAM_E_MERGE_BUSY);
+            assert_int_equal(merge_fastslam_begin(&g_fs_parts, &g_bm, &mc, &g_sc, NULL), COSLAM_E_MERGE_BUSY);
             assert_int_equal(g_fs_parts.merges, merges);
             assert_int_equal(g_fs_parts.merge_due_n, left);
         }
@@ -636,7 +636,7 @@ static void test_fastslam_merge_in_parts(void **state)
     rng_seed(&r, 41U);
     parts_case(&g_fs_parts, n, &r);
     mc.reweight_particles = 0U;
-    assert_int_equal(merge_fastslam_begin(&g_fs_parts, &g_bm, &mc, &g_sc), COSLAM_OK);
+    assert_int_equal(merge_fastslam_begin(&g_fs_parts, &g_bm, &mc, &g_sc, NULL), COSLAM_OK);
     const uint32_t resamples = g_fs_parts.ctr.resamples;
     int steps = 0;
     left = n;

@@ -294,7 +294,9 @@ static void accept_message(meeting_t *m, const hal_link_rx_info_t *info)
     } else if (!(p->acked && info->stamp_us - p->acked_at_us < m->cfg.remerge_period_us)) {
         p->sends = 0U; /* the sender sees us and still needs our map */
     }
-    if (p->merged && info->stamp_us - p->merged_at_us < m->cfg.remerge_period_us) {
+    if ((p->merged && info->stamp_us - p->merged_at_us < m->cfg.remerge_period_us) ||
+        (m->merge_waiting && m->waiting_ev.peer == from)) {
+        /* merged lately, or its merge is being decided in idle time */
         m->ctr.ignored_recent++;
         return;
     }
@@ -360,13 +362,72 @@ static uint64_t abs_diff(uint64_t a, uint64_t b)
     return a > b ? a - b : b - a;
 }
 
+/* A merge's outcome into the counters and the event queue; `ev` holds what
+ * was known before it (peer, seq, landmarks, sighting times). */
+static coslam_status_t merge_outcome(meeting_t *m, const meeting_event_t *ev0, uint64_t now_us, coslam_status_t st,
+                                     const merge_stats_t *stats, pose2_t t, cov3_t tc)
+{
+    const uint8_t from = ev0->peer;
+    const int merged = st == COSLAM_OK || st == COSLAM_E_CAPACITY;
+    if (!merged) {
+        if (st == COSLAM_E_MERGE_RANGE) {
+            m->ctr.refused_range++;
+        } else if (st == COSLAM_E_MERGE_IMPLAUSIBLE) {
+            m->ctr.refused_implausible++;
+        } else if (st == COSLAM_E_MERGE_DISAGREE) {
+            m->ctr.refused_disagree++;
+            m->peer[from].disagreed = 1U;
+            m->peer[from].disagreed_at_us = now_us;
+        } else {
+            m->ctr.merge_failures++;
+        }
+    } else {
+        m->ctr.merged++;
+        m->peer[from].merged = 1U;
+        m->peer[from].merged_at_us = now_us;
+    }
+    meeting_event_t *ev = push_event(m, merged ? MEETING_EV_MERGED : MEETING_EV_REFUSED, now_us, from, ev0->seq, st);
+    ev->n_landmarks = ev0->n_landmarks;
+    ev->own_sighting_us = ev0->own_sighting_us;
+    ev->sender_sighting_us = ev0->sender_sighting_us;
+    ev->other_in_self = t;
+    ev->other_in_self_cov = tc;
+    ev->stats = *stats;
+    return st;
+}
+
+/* The outcome of the merge that waited, if decided (finish: decide it
+ * now). COSLAM_E_EMPTY if none was taken. */
+static coslam_status_t take_waiting(meeting_t *m, uint64_t now_us, int finish)
+{
+    if (!m->merge_waiting) {
+        return COSLAM_E_EMPTY;
+    }
+    if (finish) {
+        slam_merge_work_finish(&m->work);
+    }
+    coslam_status_t st = COSLAM_OK;
+    merge_stats_t stats;
+    pose2_t t;
+    cov3_t tc;
+    if (!slam_merge_work_outcome(&m->work, &st, &stats, &t, &tc)) {
+        return COSLAM_E_EMPTY;
+    }
+    m->merge_waiting = 0U;
+    return merge_outcome(m, &m->waiting_ev, now_us, st, &stats, t, tc);
+}
+
 coslam_status_t meeting_poll(meeting_t *m, slam_filter_t *filter, uint64_t now_us, pose2_t odo_pose, double travel_m)
 {
     if (m == NULL || filter == NULL) {
         return COSLAM_E_ARG;
     }
+    const coslam_status_t waited = take_waiting(m, now_us, 0);
     if (!m->have_pending) {
-        return COSLAM_OK;
+        if (waited != COSLAM_E_EMPTY) {
+            return waited;
+        }
+        return m->merge_waiting ? COSLAM_E_MERGE_PENDING : COSLAM_OK;
     }
     const map_msg_t *msg = &m->rx;
     const uint8_t from = msg->sender_id;
@@ -394,6 +455,8 @@ coslam_status_t meeting_poll(meeting_t *m, slam_filter_t *filter, uint64_t now_u
         return COSLAM_E_MERGE_STALE;
     }
     m->have_pending = 0U;
+    /* merges never overlap: one still waiting for its check is decided first */
+    (void)take_waiting(m, now_us, 1);
 
     /* 5. the one merge path: set-up, check, fusion */
     merge_geometry_t g;
@@ -409,39 +472,20 @@ coslam_status_t meeting_poll(meeting_t *m, slam_filter_t *filter, uint64_t now_u
     cov3_t tc = cov3_zero();
     merge_stats_t stats;
     memset(&stats, 0, sizeof stats);
+    meeting_event_t ev0;
+    memset(&ev0, 0, sizeof ev0);
+    ev0.peer = from;
+    ev0.seq = msg->seq;
+    ev0.n_landmarks = msg->map.n_landmarks;
+    ev0.own_sighting_us = best->stamp_us;
+    ev0.sender_sighting_us = t_s;
     const coslam_status_t st = slam_filter_merge_map(filter, &msg->map, &g, &m->cfg.merge, m->grid, &m->work, &stats, &t, &tc);
-    if (st != COSLAM_OK && st != COSLAM_E_CAPACITY) {
-        if (st == COSLAM_E_MERGE_RANGE) {
-            m->ctr.refused_range++;
-        } else if (st == COSLAM_E_MERGE_IMPLAUSIBLE) {
-            m->ctr.refused_implausible++;
-        } else if (st == COSLAM_E_MERGE_DISAGREE) {
-            m->ctr.refused_disagree++;
-            m->peer[from].disagreed = 1U;
-            m->peer[from].disagreed_at_us = now_us;
-        } else {
-            m->ctr.merge_failures++;
-        }
-        meeting_event_t *ev = push_event(m, MEETING_EV_REFUSED, now_us, from, msg->seq, st);
-        ev->n_landmarks = msg->map.n_landmarks;
-        ev->own_sighting_us = best->stamp_us;
-        ev->sender_sighting_us = t_s;
-        ev->other_in_self = t;
-        ev->other_in_self_cov = tc;
-        ev->stats = stats;
+    if (st == COSLAM_E_MERGE_PENDING) {
+        m->merge_waiting = 1U;
+        m->waiting_ev = ev0;
         return st;
     }
-    m->ctr.merged++;
-    m->peer[from].merged = 1U;
-    m->peer[from].merged_at_us = now_us;
-    meeting_event_t *ev = push_event(m, MEETING_EV_MERGED, now_us, from, msg->seq, st);
-    ev->n_landmarks = msg->map.n_landmarks;
-    ev->own_sighting_us = best->stamp_us;
-    ev->sender_sighting_us = t_s;
-    ev->other_in_self = t;
-    ev->other_in_self_cov = tc;
-    ev->stats = stats;
-    return st;
+    return merge_outcome(m, &ev0, now_us, st, &stats, t, tc);
 }
 
 void meeting_set_grid(meeting_t *m, const occ_grid_t *grid)

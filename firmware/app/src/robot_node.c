@@ -503,6 +503,9 @@ coslam_status_t robot_node_step(robot_node_t *n)
     if (meeting_poll_link(&n->meeting, n->io.link) > 0 || n->meeting.have_pending) {
         flush_prediction(n);
         (void)meeting_poll(&n->meeting, &n->filter, now, n->odo_pose, n->travel_m);
+    } else if (n->meeting.merge_waiting) {
+        /* only the outcome of a merge whose check waited for idle time */
+        (void)meeting_poll(&n->meeting, &n->filter, now, n->odo_pose, n->travel_m);
     }
 
     n->cmd.vx_mps = 0.0;

@@ -42,6 +42,7 @@ coslam_status_t slam_filter_init(slam_filter_t *f, const slam_filter_config_t *c
     memset(&f->merge_late, 0, sizeof f->merge_late);
     f->merges_in_parts = 0U;
     f->merges_forced = 0U;
+    f->checks_waited = 0U;
     f->merge_due_updates = 0U;
     switch (cfg->kind) {
     case SLAM_FILTER_FASTSLAM1:
@@ -226,18 +227,137 @@ coslam_status_t slam_filter_update(slam_filter_t *f, const sighting_t *z, int n)
 void slam_merge_work_init(slam_merge_work_t *w)
 {
     w->due = NULL;
+    w->checking = 0U;
+    w->outcome_ready = 0U;
 }
 
-/* The next part of the merge in parts that w holds (budget 0: all of it). */
+/* w holds no merge any more. */
+static void merge_work_release(slam_merge_work_t *w)
+{
+    w->due->merge_due = NULL;
+    w->due = NULL;
+    w->checking = 0U;
+}
+
+/* Unchecked fusion of w->body into f (Fast-SLAM: in parts from the poses
+ * `at`, NULL: the present ones, spending at most `budget` units, 0: all;
+ * what is left stays due in w). */
+static coslam_status_t merge_fuse(slam_filter_t *f, slam_merge_work_t *w, const merge_config_t *cfg,
+                                  const pose2_t *at, uint32_t budget, merge_stats_t *stats)
+{
+    if (f->kind == SLAM_FILTER_EKF || cfg->step_units == 0U) {
+        return slam_filter_merge(f, &w->body, cfg, &w->scratch, stats);
+    }
+    coslam_status_t st = merge_fastslam_begin(&f->u.fs, &w->body, cfg, &w->scratch, at);
+    if (st != COSLAM_OK) {
+        return st;
+    }
+    uint16_t left = 0U;
+    st = merge_fastslam_run(&f->u.fs, &w->body, cfg, &w->scratch, stats, budget, &left);
+    if (left > 0U) {
+        w->due = f;
+        w->due_cfg = *cfg;
+        w->checking = 0U;
+        f->merge_due = w;
+        f->merge_due_updates = 0U;
+    }
+    return st;
+}
+
+/* What a part's budget leaves the fusion after the export spent `spent`
+ * units of it: the rest, at least 1 (one particle); 0 stays 0 (no budget). */
+static uint32_t budget_left(uint32_t budget, uint32_t spent)
+{
+    if (budget == 0U) {
+        return 0U;
+    }
+    return spent < budget ? budget - spent : 1U;
+}
+
+/* The check of w->body against w->own (the own export, done), then the
+ * fusion from the export's poses (`at`) within `budget`. */
+static coslam_status_t merge_check_fuse(slam_filter_t *f, slam_merge_work_t *w, const merge_config_t *cfg,
+                                        const occ_grid_t *grid, const pose2_t *at, uint32_t budget,
+                                        merge_stats_t *stats)
+{
+    /* unresolved pairs and landmarks too uncertain to refute are refused
+     * for EKF-SLAM receivers only: a Fast-SLAM receiver's per-particle
+     * association resolves them, and on MRCLAM its maps were worse with
+     * either rule (merge_config_t, docs/map-merge.md) */
+    merge_config_t check_cfg = *cfg;
+    if (f->kind != SLAM_FILTER_EKF) {
+        check_cfg.unresolved_chi2 = 0.0;
+        check_cfg.refute_sd_factor = 0.0;
+    }
+    const coslam_status_t st =
+        merge_check(&w->own, &f->coverage, grid, slam_filter_params(f), f->robot_id, &check_cfg, &w->body, &w->scratch, stats);
+    if (st != COSLAM_OK) {
+        return st;
+    }
+    return merge_fuse(f, w, cfg, at, budget, stats);
+}
+
+/* The next part of the merge that w holds (budget 0: all of it): the own
+ * export, then the check and the fusion's first part (the outcome into w),
+ * or the fusion's next part. */
 static void merge_due_run(slam_merge_work_t *w, uint32_t budget)
 {
     slam_filter_t *f = w->due;
-    uint16_t left = 0U;
-    (void)merge_fastslam_run(&f->u.fs, &w->body, &w->due_cfg, &w->scratch, &f->merge_late, budget, &left);
-    if (left == 0U) {
-        f->merge_due = NULL;
-        w->due = NULL;
+    fastslam_t *fs = &f->u.fs;
+    if (w->checking) {
+        int done = 0;
+        uint32_t spent = 0U;
+        const coslam_status_t est = fastslam_export_run(fs, &w->own, budget, &done, &spent);
+        if (!done) {
+            return;
+        }
+        merge_work_release(w);
+        merge_stats_t *stats = &w->outcome_stats;
+        coslam_status_t st = est;
+        if (est == COSLAM_OK || est == COSLAM_E_CAPACITY) {
+            st = merge_check_fuse(f, w, &w->due_cfg, w->due_grid, fs->export_scratch.job_pose,
+                                  budget_left(budget, spent), stats);
+        }
+        w->outcome = st;
+        w->outcome_t = w->body.t;
+        w->outcome_t_cov = w->body.t_cov;
+        w->outcome_ready = 1U;
+        return;
     }
+    uint16_t left = 0U;
+    (void)merge_fastslam_run(fs, &w->body, &w->due_cfg, &w->scratch, &f->merge_late, budget, &left);
+    if (left == 0U) {
+        merge_work_release(w);
+    }
+}
+
+void slam_merge_work_finish(slam_merge_work_t *w)
+{
+    while (w != NULL && w->due != NULL) {
+        merge_due_run(w, 0U);
+    }
+}
+
+int slam_merge_work_outcome(slam_merge_work_t *w, coslam_status_t *st, merge_stats_t *stats, pose2_t *t,
+                            cov3_t *t_cov)
+{
+    if (w == NULL || !w->outcome_ready) {
+        return 0;
+    }
+    w->outcome_ready = 0U;
+    if (st != NULL) {
+        *st = w->outcome;
+    }
+    if (stats != NULL) {
+        *stats = w->outcome_stats;
+    }
+    if (t != NULL) {
+        *t = w->outcome_t;
+    }
+    if (t_cov != NULL) {
+        *t_cov = w->outcome_t_cov;
+    }
+    return 1;
 }
 
 void slam_filter_idle(slam_filter_t *f)
@@ -246,6 +366,16 @@ void slam_filter_idle(slam_filter_t *f)
         ekfslam_idle(&f->u.ekf, SLAM_FILTER_IDLE_SHARES);
     } else if (f->merge_due != NULL) {
         merge_due_run(f->merge_due, f->merge_due->due_cfg.step_units);
+    }
+}
+
+/* Before an export: a check waiting for the own export needs the filter's
+ * export table, so it is finished first (its outcome stays in its w). */
+static void export_needs_table(slam_filter_t *f)
+{
+    if (f->merge_due != NULL && f->merge_due->checking) {
+        f->merges_forced++;
+        merge_due_run(f->merge_due, 0U);
     }
 }
 
@@ -260,11 +390,13 @@ void slam_filter_pose(const slam_filter_t *f, pose2_t *pose, cov3_t *cov)
 
 coslam_status_t slam_filter_export(slam_filter_t *f, map_estimate_t *out)
 {
+    export_needs_table(f);
     return f->kind == SLAM_FILTER_EKF ? ekfslam_export(&f->u.ekf, out) : fastslam_export(&f->u.fs, out);
 }
 
 coslam_status_t slam_filter_export_whole(slam_filter_t *f, map_whole_t *out)
 {
+    export_needs_table(f);
     return f->kind == SLAM_FILTER_EKF ? ekfslam_export_whole(&f->u.ekf, out) : fastslam_export_whole(&f->u.fs, out);
 }
 
@@ -301,10 +433,11 @@ coslam_status_t slam_filter_merge_map(slam_filter_t *f, const map_estimate_t *in
      * filter: its body map and scratch are about to be overwritten), is
      * finished first */
     if (f->merge_due != NULL) {
-        merge_due_run(f->merge_due, 0U);
+        slam_merge_work_finish(f->merge_due);
     }
-    if (w->due != NULL) {
-        merge_due_run(w, 0U);
+    slam_merge_work_finish(w);
+    if (w->outcome_ready) {
+        return COSLAM_E_MERGE_BUSY; /* an outcome nobody has taken */
     }
     const slam_params_t *sp = slam_filter_params(f);
     coslam_status_t st = merge_prepare(in, g, sp, cfg, &w->body, stats);
@@ -317,45 +450,52 @@ coslam_status_t slam_filter_merge_map(slam_filter_t *f, const map_estimate_t *in
     if (t_cov_out != NULL) {
         *t_cov_out = w->body.t_cov;
     }
-    if (cfg->check) {
+    if (!cfg->check) {
+        st = merge_fuse(f, w, cfg, NULL, cfg->step_units, stats);
+        if (f->merge_due != NULL) {
+            f->merges_in_parts++;
+        }
+        return st;
+    }
+    if (f->kind == SLAM_FILTER_EKF || cfg->step_units == 0U) {
         st = slam_filter_export_whole(f, &w->own);
         if (st != COSLAM_OK && st != COSLAM_E_CAPACITY) {
             return st;
         }
-        /* unresolved pairs and landmarks too uncertain to refute are
-         * refused for EKF-SLAM receivers only: a Fast-SLAM receiver's
-         * per-particle association resolves them, and on MRCLAM its maps
-         * were worse with either rule (merge_config_t, docs/map-merge.md) */
-        merge_config_t check_cfg = *cfg;
-        if (f->kind != SLAM_FILTER_EKF) {
-            check_cfg.unresolved_chi2 = 0.0;
-            check_cfg.refute_sd_factor = 0.0;
-        }
-        st = merge_check(&w->own, &f->coverage, grid, sp, f->robot_id, &check_cfg, &w->body, &w->scratch, stats);
+        st = merge_check_fuse(f, w, cfg, grid, NULL, 0U, stats);
+    } else {
+        /* Fast-SLAM: the own export in parts of step_units, then the check
+         * and the fusion, in this call as far as the budget goes */
+        fastslam_t *fs = &f->u.fs;
+        st = fastslam_export_begin(fs);
         if (st != COSLAM_OK) {
             return st;
         }
-        if (t_out != NULL) {
-            *t_out = w->body.t; /* refined by the shared landmarks */
+        int done = 0;
+        uint32_t spent = 0U;
+        st = fastslam_export_run(fs, &w->own, cfg->step_units, &done, &spent);
+        if (!done) {
+            w->due = f;
+            w->checking = 1U;
+            w->due_cfg = *cfg;
+            w->due_grid = grid;
+            f->merge_due = w;
+            f->merge_due_updates = 0U;
+            f->merges_in_parts++;
+            f->checks_waited++;
+            return COSLAM_E_MERGE_PENDING;
         }
-
+        if (st != COSLAM_OK && st != COSLAM_E_CAPACITY) {
+            return st;
+        }
+        st = merge_check_fuse(f, w, cfg, grid, fs->export_scratch.job_pose, budget_left(cfg->step_units, spent),
+                              stats);
+        if (f->merge_due != NULL) {
+            f->merges_in_parts++;
+        }
     }
-    if (f->kind == SLAM_FILTER_EKF || cfg->step_units == 0U) {
-        return slam_filter_merge(f, &w->body, cfg, &w->scratch, stats);
-    }
-    /* Fast-SLAM: in parts of step_units, the first now (map_merge.h) */
-    st = merge_fastslam_begin(&f->u.fs, &w->body, cfg, &w->scratch);
-    if (st != COSLAM_OK) {
-        return st;
-    }
-    uint16_t left = 0U;
-    st = merge_fastslam_run(&f->u.fs, &w->body, cfg, &w->scratch, stats, cfg->step_units, &left);
-    if (left > 0U) {
-        w->due = f;
-        w->due_cfg = *cfg;
-        f->merge_due = w;
-        f->merge_due_updates = 0U;
-        f->merges_in_parts++;
+    if (t_out != NULL) {
+        *t_out = w->body.t; /* refined by the shared landmarks */
     }
     return st;
 }

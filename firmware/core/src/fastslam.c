@@ -92,6 +92,8 @@ coslam_status_t fastslam_init(fastslam_t *fs, const fastslam_config_t *cfg, pose
     fs->next_id = 1U;
     fs->merges = 0U;
     fs->merge_due_n = 0U;
+    fs->export_due = 0U;
+    fs->export_scratch.job_pass = 0U;
     fs->last_ess = (double)cfg->n_particles;
     lm_tree_pool_init(&fs->lm_pool, 0U, 0U);
     for (uint16_t k = 0; k < COSLAM_MAX_PARTICLES; ++k) {
@@ -824,9 +826,10 @@ void fastslam_reweighted(fastslam_t *fs)
 {
     fs->last_ess = normalise_log_weights(fs);
     if (fs->last_ess < fs->cfg.resample_ess_fraction * (double)fs->cfg.n_particles) {
-        if (fs->merge_due_n > 0U) {
-            /* a merge in parts keeps its particles where they are until it
-             * has reached every one (map_merge.h): resampled later */
+        if (fs->merge_due_n > 0U || fs->export_due) {
+            /* a merge or an export in parts keeps its particles where they
+             * are until it has reached every one (map_merge.h,
+             * fastslam_export_begin): resampled later */
             fs->ctr.resamples_deferred++;
             return;
         }
@@ -1023,6 +1026,7 @@ static int export_slot(fastslam_export_scratch_t *t, uint32_t id, int insert)
             t->rxx[h] = 0.0;
             t->rxy[h] = 0.0;
             t->ryy[h] = 0.0;
+            t->w2[h] = 0.0;
             t->nobs[h] = 0.0;
             t->src_mask[h] = 0U;
             t->signature[h] = 0U;
@@ -1052,45 +1056,90 @@ static void sort_u32_by_key(uint32_t *v, int n, const fastslam_export_scratch_t 
     }
 }
 
-/* Both passes of the export: per identity, weight, mean and covariance
- * (map and relative) into the export table; the pose estimate. */
-static coslam_status_t export_accumulate(fastslam_t *fs, pose2_t *pose, cov3_t *pose_cov)
+/* An export begins: the particles' weights, poses and pose marginals and
+ * the pose estimate as they are now; the identity table emptied. */
+static void export_start(fastslam_t *fs)
 {
-    const uint16_t n = fs->cfg.n_particles;
+    fastslam_export_scratch_t *t = &fs->export_scratch;
+    fastslam_weights(fs, t->job_w);
+    fastslam_pose_estimate(fs, &t->job_est, &t->job_est_cov);
+    for (uint16_t k = 0; k < fs->cfg.n_particles; ++k) {
+        t->job_pose[k] = fs->particles[k].pose;
+        t->job_marg[k] = fs->particles[k].pose_marg;
+    }
+    memset(t->id, 0, sizeof t->id);
+    t->job_result = COSLAM_OK;
+    t->job_next = 0U;
+    t->job_pass = 1U;
+}
+
+/* One pass over particle k's confirmed landmarks, each at the pose, weight
+ * and pose marginal the particle had when the export began.
+ * Pass 1: total weight and weighted mean per identity.
+ * Pass 2: covariance = within-particle covariance + spread of the means. */
+static void export_particle(fastslam_t *fs, uint16_t k, int pass)
+{
     const slam_params_t *sp = &fs->cfg.slam;
     fastslam_export_scratch_t *t = &fs->export_scratch;
-    double *w = fs->scratch.weights;
-    coslam_status_t result = COSLAM_OK;
-    fastslam_weights(fs, w);
-    fastslam_pose_estimate(fs, pose, pose_cov);
-
-    memset(t->id, 0, sizeof t->id);
-    /* pass 1: total weight and weighted mean per identity */
-    for (uint16_t k = 0; k < n; ++k) {
-        const fastslam_particle_t *p = &fs->particles[k];
-        const landmark_t *const *lms = fastslam_particle_landmarks(fs, k);
-        for (uint16_t j = 0; j < p->n_lm; ++j) {
-            const landmark_t *lm = lms[j];
-            if (!landmark_is_confirmed(lm, sp)) {
-                continue;
-            }
+    const fastslam_particle_t *p = &fs->particles[k];
+    const double wk = t->job_w[k];
+    const pose2_t pose = t->job_pose[k];
+    const double c = cos(pose.theta);
+    const double sn = sin(pose.theta);
+    double rt[2][2] = {{c, sn}, {-sn, c}}; /* R^T: map -> this particle's body frame */
+    const landmark_t *const *lms = fastslam_particle_landmarks(fs, k);
+    for (uint16_t j = 0; j < p->n_lm; ++j) {
+        const landmark_t *lm = lms[j];
+        if (!landmark_is_confirmed(lm, sp)) {
+            continue;
+        }
+        const point2_t rel = pose2_apply_inverse_cs(pose, c, sn, lm->mean);
+        if (pass == 1) {
             const int s = export_slot(t, lm->id, 1);
             if (s < 0) {
                 fs->ctr.export_capacity_drops++;
-                result = COSLAM_E_CAPACITY;
+                t->job_result = COSLAM_E_CAPACITY;
                 continue;
             }
-            t->w[s] += w[k];
-            t->mx[s] += w[k] * lm->mean.x;
-            t->my[s] += w[k] * lm->mean.y;
-            const point2_t rel = pose2_apply_inverse(p->pose, lm->mean);
-            t->rx[s] += w[k] * rel.x;
-            t->ry[s] += w[k] * rel.y;
-            t->nobs[s] += w[k] * (double)lm->n_obs;
+            t->w[s] += wk;
+            t->mx[s] += wk * lm->mean.x;
+            t->my[s] += wk * lm->mean.y;
+            t->rx[s] += wk * rel.x;
+            t->ry[s] += wk * rel.y;
+            t->nobs[s] += wk * (double)lm->n_obs;
             t->src_mask[s] |= lm->src_mask;
             t->signature[s] = lm->signature;
+            continue;
         }
+        const int s = export_slot(t, lm->id, 0);
+        if (s < 0) {
+            continue; /* counted in pass 1 (or confirmed since) */
+        }
+        const double dx = lm->mean.x - t->mx[s];
+        const double dy = lm->mean.y - t->my[s];
+        const cov2_t g = landmark_marginal(lm);
+        t->w2[s] += wk;
+        t->cxx[s] += wk * (g.xx + dx * dx);
+        t->cxy[s] += wk * (g.xy + dx * dy);
+        t->cyy[s] += wk * (g.yy + dy * dy);
+        /* relative to this particle's pose, in its body frame: sensor
+         * noise plus the pose drift since the landmark's anchor
+         * (marginal_relative_drift) */
+        const cov3_t anchor = landmark_anchor(lm);
+        const cov2_t cr = cov2_add(cov2_congruence(rt, lm->cov),
+                                   marginal_relative_drift_cs(&t->job_marg[k], pose, c, sn, &anchor,
+                                                              (point2_t){lm->anchor_xy[0], lm->anchor_xy[1]}, rel));
+        const double ex = rel.x - t->rx[s];
+        const double ey = rel.y - t->ry[s];
+        t->rxx[s] += wk * (cr.xx + ex * ex);
+        t->rxy[s] += wk * (cr.xy + ex * ey);
+        t->ryy[s] += wk * (cr.yy + ey * ey);
     }
+}
+
+/* Between the passes: the sums of pass 1 into means. */
+static void export_means(fastslam_export_scratch_t *t)
+{
     for (int s = 0; s < COSLAM_MAX_EXPORT_IDS; ++s) {
         if (t->id[s] != 0U && t->w[s] > 0.0) {
             t->mx[s] /= t->w[s];
@@ -1099,44 +1148,38 @@ static coslam_status_t export_accumulate(fastslam_t *fs, pose2_t *pose, cov3_t *
             t->ry[s] /= t->w[s];
         }
     }
-    /* pass 2: covariance = within-particle covariance + spread of the means */
-    for (uint16_t k = 0; k < n; ++k) {
-        const fastslam_particle_t *p = &fs->particles[k];
-        const double c = cos(p->pose.theta);
-        const double sn = sin(p->pose.theta);
-        double rt[2][2] = {{c, sn}, {-sn, c}}; /* R^T: map -> this particle's body frame */
-        const landmark_t *const *lms = fastslam_particle_landmarks(fs, k);
-        for (uint16_t j = 0; j < p->n_lm; ++j) {
-            const landmark_t *lm = lms[j];
-            if (!landmark_is_confirmed(lm, sp)) {
-                continue;
+}
+
+/* Both passes from where the export is, particle by particle, until
+ * `budget` units are spent (0: no budget; at least one particle); 1 when
+ * both are done. */
+static int export_advance(fastslam_t *fs, uint32_t budget, uint32_t *spent_out)
+{
+    fastslam_export_scratch_t *t = &fs->export_scratch;
+    const uint16_t n = fs->cfg.n_particles;
+    uint32_t spent = 0U;
+    while (t->job_pass == 1U || t->job_pass == 2U) {
+        if (budget > 0U && spent >= budget) {
+            *spent_out = spent;
+            return 0;
+        }
+        const uint16_t k = t->job_next;
+        const uint32_t n_lm = fs->particles[k].n_lm;
+        export_particle(fs, k, t->job_pass);
+        spent += FASTSLAM_EXPORT_UNITS_PARTICLE +
+                 n_lm * (t->job_pass == 1U ? FASTSLAM_EXPORT_UNITS_PASS1 : FASTSLAM_EXPORT_UNITS_PASS2);
+        if (++t->job_next == n) {
+            t->job_next = 0U;
+            if (t->job_pass == 1U) {
+                export_means(t);
+                t->job_pass = 2U;
+            } else {
+                t->job_pass = 3U; /* both done: select and fill */
             }
-            const int s = export_slot(t, lm->id, 0);
-            if (s < 0) {
-                continue; /* counted in pass 1 */
-            }
-            const double dx = lm->mean.x - t->mx[s];
-            const double dy = lm->mean.y - t->my[s];
-            const cov2_t g = landmark_marginal(lm);
-            t->cxx[s] += w[k] * (g.xx + dx * dx);
-            t->cxy[s] += w[k] * (g.xy + dx * dy);
-            t->cyy[s] += w[k] * (g.yy + dy * dy);
-            /* relative to this particle's pose, in its body frame: sensor
-             * noise plus the pose drift since the landmark's anchor
-             * (marginal_relative_drift) */
-            const point2_t rel = pose2_apply_inverse(p->pose, lm->mean);
-            const cov3_t anchor = landmark_anchor(lm);
-            const cov2_t cr = cov2_add(cov2_congruence(rt, lm->cov),
-                                       marginal_relative_drift(&p->pose_marg, p->pose, &anchor,
-                                                               (point2_t){lm->anchor_xy[0], lm->anchor_xy[1]}, rel));
-            const double ex = rel.x - t->rx[s];
-            const double ey = rel.y - t->ry[s];
-            t->rxx[s] += w[k] * (cr.xx + ex * ex);
-            t->rxy[s] += w[k] * (cr.xy + ex * ey);
-            t->ryy[s] += w[k] * (cr.yy + ey * ey);
         }
     }
-    return result;
+    *spent_out = spent;
+    return 1;
 }
 
 /* Identities exported: weight >= export_min_weight, into t->sel; their count. */
@@ -1146,7 +1189,7 @@ static int export_select(fastslam_t *fs)
     uint32_t *sel = fs->export_scratch.sel;
     int n_sel = 0;
     for (int s = 0; s < COSLAM_MAX_EXPORT_IDS; ++s) {
-        if (t->id[s] != 0U && t->w[s] >= fs->cfg.export_min_weight - 1e-12) {
+        if (t->id[s] != 0U && t->w[s] >= fs->cfg.export_min_weight - 1e-12 && t->w2[s] > 0.0) {
             sel[n_sel++] = (uint32_t)s;
         }
     }
@@ -1160,10 +1203,11 @@ static void export_fill(const fastslam_export_scratch_t *t, const uint32_t *sel,
         const uint32_t s = sel[i];
         map_landmark_t *o = &lm[i];
         const double inv_w = 1.0 / t->w[s];
+        const double inv_w2 = 1.0 / t->w2[s]; /* inv_w unless the filter ran between the passes */
         o->mean.x = t->mx[s];
         o->mean.y = t->my[s];
-        o->cov = cov2_make(t->cxx[s] * inv_w, t->cxy[s] * inv_w, t->cyy[s] * inv_w);
-        o->cov_rel = cov2_make(t->rxx[s] * inv_w, t->rxy[s] * inv_w, t->ryy[s] * inv_w);
+        o->cov = cov2_make(t->cxx[s] * inv_w2, t->cxy[s] * inv_w2, t->cyy[s] * inv_w2);
+        o->cov_rel = cov2_make(t->rxx[s] * inv_w2, t->rxy[s] * inv_w2, t->ryy[s] * inv_w2);
         o->id = t->id[s];
         const double nobs = t->nobs[s] * inv_w + 0.5;
         o->n_obs = nobs >= 65535.0 ? (uint16_t)65535U : (uint16_t)nobs;
@@ -1172,13 +1216,13 @@ static void export_fill(const fastslam_export_scratch_t *t, const uint32_t *sel,
     }
 }
 
-/* Combine, select, keep the heaviest `cap` (the rest counted), fill lm by
- * identity; the pose estimate into pose and cov. */
-static coslam_status_t export_capped(fastslam_t *fs, pose2_t *pose, cov3_t *cov, map_landmark_t *lm, int cap,
+/* The passes done: select, keep the heaviest `cap` (the rest counted), fill
+ * lm by identity; the pose estimate into pose and cov. Ends the export. */
+static coslam_status_t export_finish(fastslam_t *fs, pose2_t *pose, cov3_t *cov, map_landmark_t *lm, int cap,
                                      uint16_t *n_out)
 {
     fastslam_export_scratch_t *t = &fs->export_scratch;
-    coslam_status_t result = export_accumulate(fs, pose, cov);
+    coslam_status_t result = t->job_result;
     int n_sel = export_select(fs);
     if (n_sel > cap) {
         sort_u32_by_key(t->sel, n_sel, t, 1);
@@ -1189,7 +1233,24 @@ static coslam_status_t export_capped(fastslam_t *fs, pose2_t *pose, cov3_t *cov,
     sort_u32_by_key(t->sel, n_sel, t, 0);
     export_fill(t, t->sel, n_sel, lm);
     *n_out = (uint16_t)n_sel;
+    *pose = t->job_est;
+    *cov = t->job_est_cov;
+    t->job_pass = 0U;
+    fs->export_due = 0U;
     return result;
+}
+
+/* The whole export in one call. */
+static coslam_status_t export_capped(fastslam_t *fs, pose2_t *pose, cov3_t *cov, map_landmark_t *lm, int cap,
+                                     uint16_t *n_out)
+{
+    if (fs->export_due) {
+        return COSLAM_E_MERGE_BUSY; /* its table would be lost */
+    }
+    export_start(fs);
+    uint32_t spent = 0U;
+    (void)export_advance(fs, 0U, &spent);
+    return export_finish(fs, pose, cov, lm, cap, n_out);
 }
 
 coslam_status_t fastslam_export(fastslam_t *fs, map_estimate_t *out)
@@ -1201,4 +1262,37 @@ coslam_status_t fastslam_export(fastslam_t *fs, map_estimate_t *out)
 coslam_status_t fastslam_export_whole(fastslam_t *fs, map_whole_t *out)
 {
     return export_capped(fs, &out->pose, &out->pose_cov, out->lm, COSLAM_MAX_LANDMARKS, &out->n_landmarks);
+}
+
+coslam_status_t fastslam_export_begin(fastslam_t *fs)
+{
+    if (fs == NULL) {
+        return COSLAM_E_ARG;
+    }
+    if (fs->export_due) {
+        return COSLAM_E_MERGE_BUSY;
+    }
+    export_start(fs);
+    fs->export_due = 1U;
+    return COSLAM_OK;
+}
+
+coslam_status_t fastslam_export_run(fastslam_t *fs, map_whole_t *out, uint32_t budget, int *done, uint32_t *spent)
+{
+    if (fs == NULL || out == NULL || done == NULL || spent == NULL || !fs->export_due) {
+        return COSLAM_E_ARG;
+    }
+    *done = export_advance(fs, budget, spent);
+    if (!*done) {
+        return COSLAM_OK;
+    }
+    return export_finish(fs, &out->pose, &out->pose_cov, out->lm, COSLAM_MAX_LANDMARKS, &out->n_landmarks);
+}
+
+void fastslam_export_abort(fastslam_t *fs)
+{
+    if (fs != NULL) {
+        fs->export_scratch.job_pass = 0U;
+        fs->export_due = 0U;
+    }
 }

@@ -582,7 +582,7 @@ static double duplicate_weight(const merge_scratch_t *sc, const merge_body_map_t
 /* ---- Fast-SLAM ---------------------------------------------------------- */
 
 coslam_status_t merge_fastslam_begin(fastslam_t *fs, const merge_body_map_t *bm, const merge_config_t *cfg,
-                                     merge_scratch_t *sc)
+                                     merge_scratch_t *sc, const pose2_t *at)
 {
     if (!config_ok(cfg)) {
         return COSLAM_E_ARG;
@@ -597,7 +597,7 @@ coslam_status_t merge_fastslam_begin(fastslam_t *fs, const merge_body_map_t *bm,
         sc->new_id[i] = fastslam_new_id(fs);
     }
     for (uint16_t k = 0; k < fs->cfg.n_particles; ++k) {
-        fs->particles[k].merge_pose = fs->particles[k].pose;
+        fs->particles[k].merge_pose = at != NULL ? at[k] : fs->particles[k].pose;
         fs->particles[k].merge_due = 1U;
     }
     fs->merge_due_n = fs->cfg.n_particles;
@@ -732,7 +732,7 @@ coslam_status_t merge_fastslam_run(fastslam_t *fs, const merge_body_map_t *bm, c
 coslam_status_t merge_into_fastslam(fastslam_t *fs, const merge_body_map_t *bm, const merge_config_t *cfg,
                                     merge_scratch_t *sc, merge_stats_t *stats)
 {
-    const coslam_status_t st = merge_fastslam_begin(fs, bm, cfg, sc);
+    const coslam_status_t st = merge_fastslam_begin(fs, bm, cfg, sc, NULL);
     if (st != COSLAM_OK) {
         return st;
     }

@@ -33,7 +33,8 @@ cov3_t marginal_drift(const cov3_t *p, pose2_t pose, const cov3_t *anchor, point
     return drift_since(p, pose, anchor, anchor_xy, &shared, &clipped);
 }
 
-cov2_t marginal_relative_drift(const cov3_t *p, pose2_t pose, const cov3_t *anchor, point2_t anchor_xy, point2_t rel)
+cov2_t marginal_relative_drift_cs(const cov3_t *p, pose2_t pose, double c, double s, const cov3_t *anchor,
+                                  point2_t anchor_xy, point2_t rel)
 {
     if (!cov3_is_finite(*p) || !cov3_is_finite(*anchor)) {
         return cov2_make(0.0, 0.0, 0.0);
@@ -42,10 +43,13 @@ cov2_t marginal_relative_drift(const cov3_t *p, pose2_t pose, const cov3_t *anch
     int clipped;
     cov3_t d = drift_since(p, pose, anchor, anchor_xy, &shared, &clipped);
     /* b = R^T (m - t): d b / d t = -R^T, d b / d theta = (b_y, -b_x) */
-    const double c = cos(pose.theta);
-    const double s = sin(pose.theta);
     double j[2][3] = {{-c, -s, rel.y}, {s, -c, -rel.x}};
     return cov2_from_3x3(j, d.m);
+}
+
+cov2_t marginal_relative_drift(const cov3_t *p, pose2_t pose, const cov3_t *anchor, point2_t anchor_xy, point2_t rel)
+{
+    return marginal_relative_drift_cs(p, pose, cos(pose.theta), sin(pose.theta), anchor, anchor_xy, rel);
 }
 
 coslam_status_t marginal_pose_observe(cov3_t *p, pose2_t pose, const cov3_t *anchor, point2_t anchor_xy,

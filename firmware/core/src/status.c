@@ -28,6 +28,7 @@ const char *coslam_status_str(coslam_status_t status)
     case COSLAM_E_MERGE_RANGE: return "E_MERGE_RANGE";
     case COSLAM_E_MERGE_IMPLAUSIBLE: return "E_MERGE_IMPLAUSIBLE";
     case COSLAM_E_MERGE_BUSY: return "E_MERGE_BUSY";
+    case COSLAM_E_MERGE_PENDING: return "E_MERGE_PENDING";
     case COSLAM_E_URG_TIMEOUT: return "E_URG_TIMEOUT";
     case COSLAM_E_URG_IO: return "E_URG_IO";
     case COSLAM_E_URG_CHECKSUM: return "E_URG_CHECKSUM";

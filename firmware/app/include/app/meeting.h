@@ -33,9 +33,11 @@
  * Receiving (meeting_poll_link, then meeting_poll):
  *  1. decode (every COSLAM_E_MSG_* refusal is counted and logged); drop
  *     messages not addressed to this robot, or without a sighting;
- *  2. ignore the sender for remerge_period_us after its map was merged (the
- *     remaining retries of the same meeting), or refused because the maps
- *     disagreed (a retry would pass the test only by chance);
+ *  2. ignore the sender while the merge of its map is being decided in
+ *     idle time (merge_waiting), and for remerge_period_us after its map
+ *     was merged (the remaining retries of the same meeting), or refused
+ *     because the maps disagreed (a retry would pass the test only by
+ *     chance);
  *  3. merge_session_accept: sequence number newer than the last accepted
  *     one from that sender, else refused as a replay (counted);
  *  4. the message waits (one pending slot; a newer one replaces it,
@@ -152,7 +154,8 @@ typedef struct {
     uint32_t rx_errors;         /**< link errors and undecodable messages */
     uint32_t not_for_me;        /**< addressed to another robot, or without a sighting */
     uint32_t wrong_sender;      /**< claimed sender != the link's sender id (refused) */
-    uint32_t ignored_recent;    /**< from a peer merged within remerge_period_us */
+    uint32_t ignored_recent;    /**< from a peer merged within remerge_period_us, or whose
+                                     merge is being decided (merge_waiting) */
     uint32_t replays;           /**< refused by the merge session (old sequence number) */
     uint32_t pending_replaced;  /**< a pending message replaced by a newer one */
     uint32_t stale;             /**< no own sighting within the window */
@@ -175,6 +178,11 @@ typedef struct {
     merge_session_t session;
     uint8_t have_pending;
     uint64_t pending_sender_us;  /**< t_s of the pending message */
+    /** A merge whose check waits for the own export in parts
+     *  (COSLAM_E_MERGE_PENDING, app/slam_filter.h): its event so far, the
+     *  outcome filled in when meeting_poll takes it from `work`. */
+    uint8_t merge_waiting;
+    meeting_event_t waiting_ev;
     map_msg_t rx;
     map_msg_t tx;
     uint8_t wire[MAP_MSG_MAX_BYTES];
@@ -232,8 +240,13 @@ int meeting_poll_link(meeting_t *m, hal_link_t *link);
  * Try to merge the pending message (steps 4-6): merge now, keep waiting,
  * or drop it as stale. odo_pose / travel_m: the own odometry state now;
  * the filter's pose must be up to date. Returns COSLAM_OK (merged or
- * nothing to do), COSLAM_E_EMPTY (still waiting), or the refusal / merge
- * status (also queued as an event). O(merge).
+ * nothing to do), COSLAM_E_EMPTY (still waiting), COSLAM_E_MERGE_PENDING
+ * (the merge's check waits for the own export, done in the filter's idle
+ * time: merge_waiting is set, and a later meeting_poll queues the event
+ * with the outcome and returns it), or the refusal / merge status (also
+ * queued as an event). A message to merge while a merge waits finishes
+ * that one first. Call it after every step while have_pending or
+ * merge_waiting is set. O(merge).
  */
 coslam_status_t meeting_poll(meeting_t *m, slam_filter_t *filter, uint64_t now_us, pose2_t odo_pose,
                              double travel_m);

@@ -22,6 +22,7 @@
 #include "coslam/map_merge.h"
 #include "coslam/motion.h"
 #include "coslam/observe.h"
+#include "coslam/occ_grid.h"
 #include "coslam/slam_params.h"
 
 #ifdef __cplusplus
@@ -68,15 +69,18 @@ typedef struct slam_filter_s {
     /** Keyframes from which this robot looked (noted after every update);
      *  the merge's negative information (merge_check). */
     merge_coverage_t coverage;
-    /** A Fast-SLAM merge in parts not yet done (merge_config_t.step_units):
-     *  the working memory that holds it, NULL if none. */
+    /** A Fast-SLAM merge in parts not yet done (merge_config_t.step_units),
+     *  its check waiting for the own export or its fusion: the working
+     *  memory that holds it, NULL if none. */
     struct slam_merge_work_s *merge_due;
     /** What the parts of merges done after the call that began them
      *  fused, added and dropped (that call's stats hold its own part). */
     merge_stats_t merge_late;
     uint32_t merges_in_parts;    /**< merges that did not finish in the call that began them */
+    uint32_t checks_waited;      /**< of which the check waited for the own export in parts */
     uint32_t merges_forced;      /**< of which finished by an update, the idle time having
-                                      not sufficed for SLAM_FILTER_MERGE_MAX_UPDATES updates */
+                                      not sufficed for SLAM_FILTER_MERGE_MAX_UPDATES updates,
+                                      or by an export that needed the filter's export table */
     uint16_t merge_due_updates;  /**< updates since the merge in parts began */
     union {
         fastslam_t fs;
@@ -181,8 +185,19 @@ typedef struct slam_merge_work_s {
     merge_body_map_t body;      /**< the incoming map in the own body frame */
     merge_scratch_t scratch;
     map_whole_t own;            /**< the own whole map, exported for the check */
-    struct slam_filter_s *due;  /**< the filter whose merge in parts this holds, or NULL */
+    struct slam_filter_s *due;  /**< the filter whose merge this holds (its check
+                                     or its fusion in parts), or NULL */
+    uint8_t checking;           /**< due's check waits for its own export in parts */
     merge_config_t due_cfg;     /**< that merge's configuration */
+    const occ_grid_t *due_grid; /**< and its occlusion grid (NULL: none) */
+    /** The outcome of a merge whose check waited (slam_filter_merge_map
+     *  returned COSLAM_E_MERGE_PENDING), once decided; taken by
+     *  slam_merge_work_outcome. */
+    uint8_t outcome_ready;
+    coslam_status_t outcome;    /**< as slam_filter_merge_map would have returned */
+    merge_stats_t outcome_stats; /**< its check and the fusion's first part */
+    pose2_t outcome_t;          /**< the transform used (*t_out) */
+    cov3_t outcome_t_cov;       /**< and its covariance (*t_cov_out) */
 } slam_merge_work_t;
 
 /** Empty working memory (no merge held). */
@@ -202,15 +217,39 @@ void slam_merge_work_init(slam_merge_work_t *w);
  * sighting in the own body frame now), refined by the shared landmarks,
  * and the covariance the merge used (the sightings'; see merge_check).
  * O(merge_check + fusion).
- * A Fast-SLAM fusion larger than cfg->step_units is merged in parts: this
- * call does the first, slam_filter_idle the rest (merge_fastslam_run;
- * *stats counts this call's part, f->merge_late the others). Any merge
- * still due in f or in w is finished first, so merges never overlap and
- * w may serve several filters.
+ * Fast-SLAM with cfg->step_units > 0 bounds the work of this call and of
+ * each idle call to about step_units (docs/scale.md "The merge in
+ * parts"): the own export for the check (fastslam_export_begin, taken at
+ * the poses of this call), then the check, then the fusion
+ * (merge_fastslam_run, each particle through the pose of this call).
+ * What does not fit is done by slam_filter_idle after the next steps:
+ *  - the fusion: this call returns the check's outcome, *stats counts its
+ *    own part, f->merge_late the others;
+ *  - the export: the check has not been made; this call returns
+ *    COSLAM_E_MERGE_PENDING (nothing changed yet, *t_out as merge_prepare
+ *    gave it) and the outcome is taken later from w
+ *    (slam_merge_work_outcome), as this call would have returned it.
+ * Until the export is done, Fast-SLAM holds resampling back, and
+ * slam_filter_export / slam_filter_export_whole finish the check first.
+ * Any merge still due in f or in w is finished first (its outcome, if its
+ * check waited, stays in w to be taken), so merges never overlap and w may
+ * serve several filters; an outcome not yet taken is refused with
+ * COSLAM_E_MERGE_BUSY (take it first).
  */
 coslam_status_t slam_filter_merge_map(slam_filter_t *f, const map_estimate_t *in, const merge_geometry_t *g,
                                       const merge_config_t *cfg, const occ_grid_t *grid, slam_merge_work_t *w,
                                       merge_stats_t *stats, pose2_t *t_out, cov3_t *t_cov_out);
+
+/** Finish now whatever merge w holds (check and fusion; slam_filter_idle
+ *  would do it in parts). O(the rest of it). */
+void slam_merge_work_finish(slam_merge_work_t *w);
+
+/** The outcome of a merge whose check waited (COSLAM_E_MERGE_PENDING),
+ *  once decided: 1 and the status, stats, transform and its covariance
+ *  (each may be NULL) the merge path would have given, taken once; else
+ *  0. */
+int slam_merge_work_outcome(slam_merge_work_t *w, coslam_status_t *st, merge_stats_t *stats, pose2_t *t,
+                            cov3_t *t_cov);
 
 /** "fastslam1", "fastslam2", "ekf", or "?" (static strings). */
 const char *slam_filter_kind_name(slam_filter_kind_t kind);

@@ -134,7 +134,8 @@ typedef struct {
     uint32_t rejected_sightings;    /**< NaN/Inf, range <= 0 or beyond sighting_max_range_m, abs(bearing) > pi */
     uint32_t rejected_controls;     /**< NaN/Inf odometry, or beyond max_speed_mps / max_turn_radps (slam_filter_predict) */
     uint32_t numeric_faults;        /**< degenerate geometry skipped, weight collapse */
-    uint32_t resamples_deferred;    /**< resampling held back while a merge was due (fastslam_reweighted) */
+    uint32_t resamples_deferred;    /**< resampling held back while a merge or an export in
+                                         parts was due (fastslam_reweighted) */
     uint32_t tree_capacity_drops;   /**< the landmark tree pool ran out (only if
                                          LM_TREE_MAX_* were lowered): change skipped */
     uint32_t closures;              /**< revisits closed by the drift (closure_drift_ratio),
@@ -176,7 +177,20 @@ typedef struct {
     double nobs[COSLAM_MAX_EXPORT_IDS];
     uint16_t src_mask[COSLAM_MAX_EXPORT_IDS];
     uint8_t signature[COSLAM_MAX_EXPORT_IDS];
+    double w2[COSLAM_MAX_EXPORT_IDS];       /**< the weight the covariances summed
+                                                 (pass 2; pass 1's w unless the
+                                                 filter ran between the parts) */
     uint32_t sel[COSLAM_MAX_EXPORT_IDS];    /**< selected slots */
+    /* The particles as the export began (fastslam_export_begin), stable
+     * until it ends because resampling waits for it: */
+    double job_w[COSLAM_MAX_PARTICLES];     /**< normalised weights */
+    pose2_t job_pose[COSLAM_MAX_PARTICLES]; /**< poses */
+    cov3_t job_marg[COSLAM_MAX_PARTICLES];  /**< pose marginals */
+    pose2_t job_est;                        /**< the pose estimate */
+    cov3_t job_est_cov;
+    coslam_status_t job_result;             /**< COSLAM_E_CAPACITY once the table overflowed */
+    uint16_t job_next;                      /**< next particle of the pass */
+    uint8_t job_pass;                       /**< 0: no export under way; 1, 2: the passes */
 } fastslam_export_scratch_t;
 
 typedef struct {
@@ -188,6 +202,8 @@ typedef struct {
     double last_ess;         /**< effective sample size after the last update */
     uint16_t merge_due_n;    /**< particles a merge in parts has not reached yet
                                   (map_merge.h); no resampling until 0 */
+    uint8_t export_due;      /**< an export in parts is under way
+                                  (fastslam_export_begin); no resampling until done */
     fastslam_counters_t ctr;
     fastslam_particle_t particles[COSLAM_MAX_PARTICLES];
     lm_tree_pool_t lm_pool;  /**< every particle's map (lm_tree.h) */
@@ -261,6 +277,41 @@ coslam_status_t fastslam_export(fastslam_t *fs, map_estimate_t *out);
  */
 coslam_status_t fastslam_export_whole(fastslam_t *fs, map_whole_t *out);
 
+/** Work units of an export in parts (fastslam_export_run), in the merge's
+ *  units (map_merge.h, merge_config_t.step_units: about 8.5 ns each on the
+ *  bench's machine): per landmark visited in pass 1 and in pass 2, and per
+ *  particle. From coslam-bench-merge's own-export timing, not from any
+ *  accuracy figure. */
+#define FASTSLAM_EXPORT_UNITS_PASS1 3U
+#define FASTSLAM_EXPORT_UNITS_PASS2 24U
+#define FASTSLAM_EXPORT_UNITS_PARTICLE 64U
+
+/**
+ * fastslam_export_whole in parts, so that no one call of a large one
+ * (1,000 particles x 1,024 landmarks: about 230 ms) takes a control step's
+ * time. fastslam_export_begin records every particle's normalised weight,
+ * pose and pose marginal and the pose estimate (O(N)); fastslam_export_run
+ * visits the particles' maps, pass 1 (weights and means) then pass 2
+ * (covariances), particle by particle in index order, until `budget` work
+ * units (FASTSLAM_EXPORT_UNITS_*; the particle that crosses the budget is
+ * finished, at least one per call; 0: no budget) are spent, sets *spent
+ * to the units this call spent, and *done to 1 when the map is in `out`
+ * (as fastslam_export_whole's, returned then).
+ * Resampling waits until the export is done (fastslam_reweighted), so the
+ * particles stay where they are; every landmark is taken relative to the
+ * pose and pose marginal its particle had when the export began. With no
+ * step in between, the parts give fastslam_export_whole bit for bit. With
+ * steps in between, each particle's landmarks are read when its part runs;
+ * the covariances are normalised by the weight pass 2 found, so a landmark
+ * a step removed from every particle between the passes is left out, not
+ * exported with a zero covariance. While an export is under way,
+ * fastslam_export, fastslam_export_whole and a second begin return
+ * COSLAM_E_MERGE_BUSY; fastslam_export_abort drops it (O(1)).
+ */
+coslam_status_t fastslam_export_begin(fastslam_t *fs);
+coslam_status_t fastslam_export_run(fastslam_t *fs, map_whole_t *out, uint32_t budget, int *done, uint32_t *spent);
+void fastslam_export_abort(fastslam_t *fs);
+
 /** Index of the particle with the largest weight. O(N). */
 uint16_t fastslam_best_particle(const fastslam_t *fs);
 
@@ -268,8 +319,9 @@ uint16_t fastslam_best_particle(const fastslam_t *fs);
  * After the log weights changed (an update, a merge that re-weights):
  * normalise them (max = 0), record the ESS in last_ess, and resample if it
  * fell below resample_ess_fraction * N, unless a merge in parts is due
- * (merge_due_n > 0: counted in resamples_deferred, resampled at a later
- * update). O(N) (resampling: see fastslam_resample).
+ * (merge_due_n > 0) or an export in parts is under way (export_due):
+ * counted in resamples_deferred, resampled at a later update. O(N)
+ * (resampling: see fastslam_resample).
  */
 void fastslam_reweighted(fastslam_t *fs);
 

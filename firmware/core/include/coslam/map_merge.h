@@ -373,7 +373,12 @@ coslam_status_t merge_into_fastslam(fastslam_t *fs, const merge_body_map_t *bm, 
  * (1,000 particles, a thousand landmarks: tens of ms) takes a control
  * step's time: merge_fastslam_begin gives the incoming landmarks their
  * identities, builds the grid over them in sc, and marks every particle
- * due at its present pose (fastslam_particle_t.merge_pose).
+ * due at its present pose (fastslam_particle_t.merge_pose), or at at[k]
+ * if `at` is not NULL: the poses the particles had when the incoming map
+ * was put in the body frame, if the filter has run since (the merge path
+ * does so when its check waited for an export in parts,
+ * fastslam_export_begin: the export's job_pose; the particles must not
+ * have been resampled since).
  * merge_fastslam_run then fuses into the particles still due, in index
  * order, until `budget` work units are spent (a particle costs one unit
  * per own landmark and MERGE_UNITS_PER_INCOMING per incoming one; the
@@ -388,7 +393,7 @@ coslam_status_t merge_into_fastslam(fastslam_t *fs, const merge_body_map_t *bm, 
  * Re-weighting (cfg->reweight_particles) is done when the last particle is.
  */
 coslam_status_t merge_fastslam_begin(fastslam_t *fs, const merge_body_map_t *bm, const merge_config_t *cfg,
-                                     merge_scratch_t *sc);
+                                     merge_scratch_t *sc, const pose2_t *at);
 coslam_status_t merge_fastslam_run(fastslam_t *fs, const merge_body_map_t *bm, const merge_config_t *cfg,
                                    merge_scratch_t *sc, merge_stats_t *stats, uint32_t budget, uint16_t *left);
 

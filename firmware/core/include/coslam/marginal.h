@@ -96,6 +96,11 @@ void marginal_bound(const cov3_t *before, cov3_t *p);
 cov2_t marginal_relative_drift(const cov3_t *p, pose2_t pose, const cov3_t *anchor, point2_t anchor_xy,
                                point2_t rel);
 
+/** The same with c = cos(pose.theta), s = sin(pose.theta) given (a caller
+ *  with many landmarks at one pose computes them once), bit for bit. */
+cov2_t marginal_relative_drift_cs(const cov3_t *p, pose2_t pose, double c, double s, const cov3_t *anchor,
+                                  point2_t anchor_xy, point2_t rel);
+
 /**
  * The drift since a landmark's anchor: P - Phi A Phi^T (Phi carries the
  * anchor's heading error to the current position), negative directions
