@@ -190,6 +190,8 @@ int main(int argc, char **argv)
     int part_calls[4];
     double export_us[4]; /* the own whole map the check compares with, in one call */
     double export_ns_per_lm[4][2]; /* its two passes, per landmark visited */
+    double send_us[4];             /* the largest call of the send export in parts */
+    int send_calls[4];
     double naive_us[4];
     rng_t r;
     rng_seed(&r, 1U);
@@ -271,6 +273,20 @@ int main(int argc, char **argv)
                 fprintf(stderr, "coslam-bench-merge: in parts, N=%d M=%d in %d fused %u added %u (expected %d and %d)\n",
                         n, m, m_in, st.fused, st.added, n * dups, n * (m_in - dups));
             }
+        }
+        /* the meeting's send export in parts of mc.step_units (the map a
+         * message carries, fastslam_export_run_msg): calls and the largest */
+        build_own_maps(n, m, &r);
+        send_us[c] = 0.0;
+        send_calls[c] = 0;
+        fastslam_export_begin(&g_fs);
+        for (int sent = 0; !sent;) {
+            uint32_t spent = 0U;
+            const double t0 = now_us();
+            fastslam_export_run_msg(&g_fs, &g_in, mc.step_units, &sent, &spent);
+            const double dt = now_us() - t0;
+            send_us[c] = dt > send_us[c] ? dt : send_us[c];
+            send_calls[c]++;
         }
         /* the export's cost per landmark in each pass (one particle a call),
          * against which FASTSLAM_EXPORT_UNITS_* are set */
@@ -357,6 +373,12 @@ int main(int argc, char **argv)
             fprintf(o, "| (%d, %d) | %.1f | %.1f |\n", cases[c][0], cases[c][1], export_ns_per_lm[c][0],
                     export_ns_per_lm[c][1]);
         }
+        fprintf(o, "\nThe meeting's export of the map it sends (at most %d landmarks), in parts of %u units "
+                   "(slam_filter_export_send):\n\n| (N, M) | calls | largest call [ms] |\n|---|---|---|\n",
+                COSLAM_MAX_MSG_LANDMARKS, mc.step_units);
+        for (int c = 0; c < 3; ++c) {
+            fprintf(o, "| (%d, %d) | %d | %.2f |\n", cases[c][0], cases[c][1], send_calls[c], send_us[c] / 1000.0);
+        }
         fprintf(o, "\n| EKF-SLAM (M, M_in) | merge [ms] |\n|---|---|\n");
         for (int c = 0; c < 3; ++c) {
             fprintf(o, "| (%d, %d) | %.2f |\n", ekf_m[c][0], ekf_m[c][1], ekf_us[c] / 1000.0);
@@ -368,9 +390,9 @@ int main(int argc, char **argv)
     for (int c = 0; c < 4; ++c) {
         fprintf(js, "%s{\"particles\": %d, \"landmarks\": %d, \"incoming\": %d, \"merge_us\": %.1f, "
                     "\"part_calls\": %d, \"part_max_us\": %.1f, \"own_export_us\": %.1f, \"export_pass1_ns\": %.1f, "
-                    "\"export_pass2_ns\": %.1f, \"naive_search_us\": %.1f}",
+                    "\"export_pass2_ns\": %.1f, \"send_calls\": %d, \"send_max_us\": %.1f, \"naive_search_us\": %.1f}",
                 c ? ", " : "", cases[c][0], cases[c][1], cases[c][2], fs_us[c], part_calls[c], part_us[c], export_us[c],
-                export_ns_per_lm[c][0], export_ns_per_lm[c][1], naive_us[c]);
+                export_ns_per_lm[c][0], export_ns_per_lm[c][1], send_calls[c], send_us[c], naive_us[c]);
     }
     fprintf(js, "], \"ekfslam\": [");
     for (int c = 0; c < 3; ++c) {

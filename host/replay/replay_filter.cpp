@@ -137,6 +137,8 @@ std::map<std::string, long> RobotFilter::counters() const
         m["resamples_deferred"] = c.resamples_deferred;
         m["merges_in_parts"] = f_->merges_in_parts;
         m["checks_waited"] = f_->checks_waited;
+        m["sends_in_parts"] = f_->sends_in_parts;
+        m["sends_forced"] = f_->sends_forced;
         m["merges_forced"] = f_->merges_forced;
     }
     m["coverage_keyframes"] = f_->coverage.n;

@@ -446,7 +446,10 @@ void Replay::sample(Robot &r)
         }
         r.next_pose_t += cfg_.eval.pose_period_s;
     }
-    while (r.t_filter >= r.next_map_t - eps) {
+    // the map evaluation is an observer: it waits while an export in parts
+    // holds the filter's export table (evaluating now would finish that
+    // export at once, which the robot, with no evaluations, never does)
+    while (r.t_filter >= r.next_map_t - eps && !slam_filter_export_busy(r.filter->app())) {
         if (opt_.record_history || r.res.has_truth) {
             std::shared_ptr<map_whole_t> m;
             const MapScore s = score_now(r, &m);
@@ -589,12 +592,15 @@ void Replay::poll_meeting(Robot &r)
     meeting_t *m = r.meeting.get();
     const uint64_t now = stamp_us(r.t_filter);
     clock_->advance_to(now);
+    if (m->send_waiting) {
+        (void)meeting_send_due(m, r.filter->app(), r.link, now); // an export done in idle time
+    }
     (void)meeting_poll_link(m, r.link);
     MapScore before;
     std::shared_ptr<map_whole_t> before_map;
     const bool pending = m->have_pending != 0U;
-    if (pending) {
-        before = score_now(r, &before_map);
+    if (pending && !slam_filter_export_busy(r.filter->app())) {
+        before = score_now(r, &before_map); // (an observer: not while an export in parts runs)
     }
     const auto t0 = Clock::now();
     const coslam_status_t pst = meeting_poll(m, r.filter->app(), now, r.odo_pose, r.travel_m);

@@ -207,6 +207,19 @@ static void assert_robot1_landmark_merged(void)
     assert_true(fabs(g_est.lm[0].mean.y - want.y) < 1e-6);
 }
 
+/* Robot 0 with Fast-SLAM 2.0 (8 particles) and a merge budget of one unit:
+ * every export and merge goes in parts. Its filter configuration. */
+static slam_filter_config_t setup_robot0_fastslam_in_parts(void)
+{
+    meeting_config_t mc = meeting_config_default();
+    mc.merge.step_units = 1U;
+    setup_robot0(&mc);
+    slam_filter_config_t fc = slam_filter_config_default();
+    fc.kind = SLAM_FILTER_FASTSLAM2;
+    fc.n_particles = 8;
+    return fc;
+}
+
 /* ---- tests -------------------------------------------------------------------- */
 
 static void test_send_policy_and_message_fields(void **state)
@@ -617,18 +630,27 @@ static void test_merge_waits_for_idle_time(void **state)
 {
     (void)state;
     hal_link_t *link = fake_link_reset(0);
-    meeting_config_t mc = meeting_config_default();
-    mc.merge.step_units = 1U;
-    setup_robot0(&mc);
-    slam_filter_config_t fc = slam_filter_config_default();
-    fc.kind = SLAM_FILTER_FASTSLAM2;
-    fc.n_particles = 8;
+    slam_filter_config_t fc = setup_robot0_fastslam_in_parts();
     fc.slam.noise.init_xy_var_m2 = 0.0;
     fc.slam.noise.init_theta_var_rad2 = 0.0;
     assert_int_equal(slam_filter_init(&g_filter, &fc, kOrigin), COSLAM_OK);
     meet_robot1(link);
     const pose2_t b = kMeetB;
     const uint64_t t = kMeetT;
+    /* robot 0's own send is exported in idle time too, first: the merge
+     * waits for the export table */
+    assert_int_equal(g_m.send_waiting, 2);
+    assert_int_equal(g_link.n_sent, 0);
+    assert_int_equal(meeting_poll(&g_m, &g_filter, t + 6000, kOrigin, 0.0), COSLAM_E_EMPTY);
+    assert_true(g_m.have_pending);
+    int sends = 0;
+    while (g_link.n_sent == 0 && sends < 100) {
+        slam_filter_idle(&g_filter);
+        (void)meeting_send_due(&g_m, &g_filter, link, t + 7000);
+        sends++;
+    }
+    assert_int_equal(g_link.n_sent, 1);
+    assert_int_equal(g_m.ctr.send_waits, 1);
     assert_int_equal(meeting_poll(&g_m, &g_filter, t + 10000, kOrigin, 0.0), COSLAM_E_MERGE_PENDING);
     assert_true(g_m.merge_waiting);
     assert_int_equal(count_events(MEETING_EV_MERGED, COSLAM_OK, NULL), 0);
@@ -657,6 +679,86 @@ static void test_merge_waits_for_idle_time(void **state)
     assert_true(g_est.pose.x > 0.1); /* the robot did drive on meanwhile */
 }
 
+/* A Fast-SLAM robot whose map export does not fit one step's budget: the
+ * sighting starts the export, the idle time runs it while the robot drives
+ * on, meeting_send_due sends it. The message carries the map and the pose
+ * of the sighting's moment (the export at once then, bit for bit up to the
+ * codec) and is stamped with the time it goes out, so that the receiver's
+ * estimate of the sighting's time (stamp_us - sighting.stamp_us before the
+ * arrival) holds. A second send due meanwhile keeps its slot. */
+static map_estimate_t g_seed;
+static map_estimate_t g_ref;
+
+static void test_send_exported_in_idle_time(void **state)
+{
+    (void)state;
+    hal_link_t *link = fake_link_reset(0);
+    slam_filter_config_t fc = setup_robot0_fastslam_in_parts();
+    memset(&g_seed, 0, sizeof g_seed);
+    g_seed.pose = (pose2_t){0.3, -0.2, 0.4};
+    g_seed.pose_cov = cov3_diag(0.01, 0.01, 0.001);
+    g_seed.n_landmarks = 5;
+    for (uint16_t i = 0; i < g_seed.n_landmarks; ++i) {
+        map_landmark_t *l = &g_seed.lm[i];
+        l->mean = (point2_t){1.0 + 0.7 * i, -1.0 + 0.4 * i};
+        l->cov = cov2_make(0.02, 0.0, 0.02);
+        l->cov_rel = cov2_make(0.01, 0.001, 0.015);
+        l->id = 10U + i;
+        l->n_obs = 9;
+        l->src_mask = 1U;
+        l->signature = (uint8_t)(i % 4);
+    }
+    assert_int_equal(slam_filter_seed(&g_filter, &fc, &g_seed), COSLAM_OK);
+    assert_int_equal(slam_filter_export(&g_filter, &g_ref), COSLAM_OK); /* the map at the sighting */
+    assert_int_equal(g_ref.n_landmarks, 5);
+    const uint64_t t = 30000000;
+    assert_int_equal(meeting_on_sighting(&g_m, &g_filter, link, t + 3000, 1, 2.0, 0.25, t, kOrigin, 0.0), COSLAM_OK);
+    assert_int_equal(g_link.n_sent, 0);
+    assert_int_equal(g_m.send_waiting, 2);
+    assert_int_equal(g_filter.sends_in_parts, 1U);
+    /* due again a second later (resend period) while the first is exported */
+    assert_int_equal(meeting_on_sighting(&g_m, &g_filter, link, t + 1003000, 1, 2.0, 0.25, t + 1000000, kOrigin, 0.0),
+                     COSLAM_OK);
+    assert_int_equal(g_m.ctr.send_busy, 1);
+    assert_int_equal(g_m.peer[1].sends, 1); /* its slot kept */
+    int idles = 0;
+    uint64_t now = t + 1010000;
+    while (g_link.n_sent == 0 && idles < 100) {
+        const odo_increment_t u = {0.02, 0.0, 0.01};
+        assert_int_equal(slam_filter_predict(&g_filter, u, 0.1), COSLAM_OK);
+        slam_filter_idle(&g_filter);
+        now += 10000;
+        (void)meeting_send_due(&g_m, &g_filter, link, now);
+        idles++;
+    }
+    assert_int_equal(idles, 2 * fc.n_particles - 1);
+    assert_int_equal(g_link.n_sent, 1);
+    assert_int_equal(g_m.send_waiting, 0);
+    assert_int_equal(g_filter.sends_forced, 0U);
+    map_msg_t got;
+    assert_int_equal(map_msg_decode(g_link.sent[0].data, g_link.sent[0].len, &got), COSLAM_OK);
+    assert_int_equal(got.stamp_us, now);
+    assert_int_equal(got.sighting.stamp_us, t);
+    assert_int_equal(got.map.n_landmarks, g_ref.n_landmarks);
+    assert_true(fabs(got.map.pose.x - g_ref.pose.x) < 1e-9);
+    assert_true(fabs(angle_wrap(got.map.pose.theta - g_ref.pose.theta)) < 1e-9);
+    for (uint16_t i = 0; i < got.map.n_landmarks; ++i) {
+        assert_int_equal(got.map.lm[i].id, g_ref.lm[i].id);
+        assert_true(fabs(got.map.lm[i].mean.x - g_ref.lm[i].mean.x) < 1e-6);
+        assert_true(fabs(got.map.lm[i].cov_rel.xx - g_ref.lm[i].cov_rel.xx) < 1e-6 * g_ref.lm[i].cov_rel.xx);
+    }
+    /* the robot did drive on meanwhile */
+    pose2_t pose;
+    cov3_t cov;
+    slam_filter_pose(&g_filter, &pose, &cov);
+    assert_true(pose.x - g_ref.pose.x > 0.2);
+    /* the next send goes out at once when its export fits the budget */
+    g_m.cfg.merge.step_units = 0U;
+    assert_int_equal(meeting_on_sighting(&g_m, &g_filter, link, t + 2100000, 1, 2.0, 0.25, t + 2100000, kOrigin, 0.0),
+                     COSLAM_OK);
+    assert_int_equal(g_link.n_sent, 2);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -673,6 +775,7 @@ int main(void)
         cmocka_unit_test(test_screening),
         cmocka_unit_test(test_event_queue_overflow_counted),
         cmocka_unit_test(test_merge_waits_for_idle_time),
+        cmocka_unit_test(test_send_exported_in_idle_time),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -655,6 +655,8 @@ static void test_export_in_parts(void **state)
     assert_int_equal(fastslam_export_whole(&g_fs, &whole), COSLAM_OK);
     assert_true(whole.n_landmarks > 5);
     const uint16_t n = g_fs.cfg.n_particles;
+    uint32_t spent = 0U;
+    int done = 0;
 
     /* one particle a call: both passes, the whole export bit for bit */
     memcpy(&g_fs2, &g_fs, sizeof g_fs);
@@ -668,9 +670,24 @@ static void test_export_in_parts(void **state)
     assert_int_equal(st, COSLAM_OK);
     assert_same_whole(&parts, &whole);
     assert_false(g_fs2.export_due);
-    uint32_t spent = 0U;
-    int done = 0;
     assert_int_equal(fastslam_export_run(&g_fs2, &parts, 0U, &done, &spent), COSLAM_E_ARG); /* none under way */
+
+    /* the message's map (fastslam_export's, capped) in parts */
+    static map_estimate_t est_parts;
+    assert_int_equal(fastslam_export(&g_fs, &est), COSLAM_OK);
+    memcpy(&g_fs2, &g_fs, sizeof g_fs);
+    assert_int_equal(fastslam_export_begin(&g_fs2), COSLAM_OK);
+    memset(&est_parts, 0, sizeof est_parts);
+    int msg_calls = 0;
+    done = 0;
+    while (!done) {
+        assert_int_equal(fastslam_export_run_msg(&g_fs2, &est_parts, 1U, &done, &spent), COSLAM_OK);
+        msg_calls++;
+    }
+    assert_int_equal(msg_calls, 2 * n);
+    assert_int_equal(est_parts.n_landmarks, est.n_landmarks);
+    assert_memory_equal(&est_parts.pose, &est.pose, sizeof est.pose);
+    assert_memory_equal(est_parts.lm, est.lm, sizeof est.lm[0] * est.n_landmarks);
 
     /* predictions in between: the export of the moment it began */
     memcpy(&g_fs2, &g_fs, sizeof g_fs);

@@ -151,17 +151,20 @@ static double robot_range_var(const meeting_t *m, double range_m)
     return m->cfg.robot_range_var_m2 + m->cfg.robot_range_var_per_m2 * range_m * range_m;
 }
 
-/* Export, encode and send the map to `peer`, with the sighting just made. */
-static coslam_status_t send_map(meeting_t *m, slam_filter_t *filter, hal_link_t *link, uint64_t now_us, uint8_t peer,
-                                const meeting_sighting_t *s)
+/* Encode and send the map exported into m->send_map (status st) to
+ * m->send_peer, with the sighting m->send_sighting. */
+static coslam_status_t send_exported(meeting_t *m, hal_link_t *link, uint64_t now_us, coslam_status_t st)
 {
-    map_msg_t *msg = &m->tx;
-    map_msg_init(msg);
-    coslam_status_t st = slam_filter_export(filter, &msg->map);
+    m->send_waiting = 0U;
     if (st != COSLAM_OK && st != COSLAM_E_CAPACITY) {
         m->ctr.send_failures++;
         return st;
     }
+    const uint8_t peer = m->send_peer;
+    const meeting_sighting_t *s = &m->send_sighting;
+    map_msg_t *msg = &m->tx;
+    map_msg_init(msg);
+    msg->map = m->send_map;
     /* weakly supported landmarks stay home: they would spread to every
      * partner before this robot has had the chance to drop them */
     uint16_t kept = 0;
@@ -207,6 +210,50 @@ static coslam_status_t send_map(meeting_t *m, slam_filter_t *filter, hal_link_t 
     return COSLAM_OK;
 }
 
+/* Export the map for `peer` with the sighting just made and send it: now,
+ * or, if the export must wait or goes in parts (slam_filter_export_send),
+ * from meeting_send_due. */
+static coslam_status_t send_map(meeting_t *m, slam_filter_t *filter, hal_link_t *link, uint64_t now_us, uint8_t peer,
+                                const meeting_sighting_t *s)
+{
+    m->send_peer = peer;
+    m->send_sighting = *s;
+    const coslam_status_t st = slam_filter_export_send(filter, &m->send_map, m->cfg.merge.step_units);
+    if (st == COSLAM_E_MERGE_PENDING || st == COSLAM_E_MERGE_BUSY) {
+        m->send_waiting = st == COSLAM_E_MERGE_PENDING ? 2U : 1U;
+        m->ctr.send_waits++;
+        return COSLAM_OK;
+    }
+    return send_exported(m, link, now_us, st);
+}
+
+coslam_status_t meeting_send_due(meeting_t *m, slam_filter_t *filter, hal_link_t *link, uint64_t now_us)
+{
+    if (m == NULL || filter == NULL || link == NULL) {
+        return COSLAM_E_ARG;
+    }
+    coslam_status_t st = COSLAM_OK;
+    if (m->send_waiting == 1U) {
+        /* the export table was taken when the send was due: try again */
+        st = slam_filter_export_send(filter, &m->send_map, m->cfg.merge.step_units);
+        if (st == COSLAM_E_MERGE_BUSY) {
+            return COSLAM_E_MERGE_PENDING;
+        }
+        if (st == COSLAM_E_MERGE_PENDING) {
+            m->send_waiting = 2U;
+            return st;
+        }
+        return send_exported(m, link, now_us, st);
+    }
+    if (m->send_waiting == 2U) {
+        if (!slam_filter_send_ready(filter, &st)) {
+            return COSLAM_E_MERGE_PENDING;
+        }
+        return send_exported(m, link, now_us, st);
+    }
+    return COSLAM_OK;
+}
+
 coslam_status_t meeting_on_sighting(meeting_t *m, slam_filter_t *filter, hal_link_t *link, uint64_t now_us,
                                     uint8_t peer, double range_m, double bearing_rad, uint64_t stamp_us,
                                     pose2_t odo_pose, double travel_m)
@@ -240,6 +287,11 @@ coslam_status_t meeting_on_sighting(meeting_t *m, slam_filter_t *filter, hal_lin
         (p->acked && p->acked_at_us >= p->meeting_start_us && now_us - p->acked_at_us < m->cfg.remerge_period_us)) {
         /* an acknowledgement counts within its meeting only: holding some of
          * our landmarks from an earlier meeting is not holding our map now */
+        return COSLAM_OK;
+    }
+    if (m->send_waiting && meeting_send_due(m, filter, link, now_us) == COSLAM_E_MERGE_PENDING) {
+        /* the last send is still being exported: this one's slot is kept */
+        m->ctr.send_busy++;
         return COSLAM_OK;
     }
     p->sends++; /* a failed send still uses up its slot: no retry storm */
@@ -453,6 +505,9 @@ coslam_status_t meeting_poll(meeting_t *m, slam_filter_t *filter, uint64_t now_u
         ev->n_landmarks = msg->map.n_landmarks;
         ev->sender_sighting_us = t_s;
         return COSLAM_E_MERGE_STALE;
+    }
+    if (m->send_waiting == 2U) {
+        return COSLAM_E_EMPTY; /* the filter's export table is the send's until it is out */
     }
     m->have_pending = 0U;
     /* merges never overlap: one still waiting for its check is decided first */

@@ -500,6 +500,9 @@ coslam_status_t robot_node_step(robot_node_t *n)
         }
     }
     read_sightings(n);
+    if (n->meeting.send_waiting) {
+        (void)meeting_send_due(&n->meeting, &n->filter, n->io.link, now);
+    }
     if (meeting_poll_link(&n->meeting, n->io.link) > 0 || n->meeting.have_pending) {
         flush_prediction(n);
         (void)meeting_poll(&n->meeting, &n->filter, now, n->odo_pose, n->travel_m);

@@ -44,6 +44,13 @@ coslam_status_t slam_filter_init(slam_filter_t *f, const slam_filter_config_t *c
     f->merges_forced = 0U;
     f->checks_waited = 0U;
     f->merge_due_updates = 0U;
+    f->send_out = NULL;
+    f->send_state = 0U;
+    f->send_status = COSLAM_OK;
+    f->send_units = 0U;
+    f->send_updates = 0U;
+    f->sends_in_parts = 0U;
+    f->sends_forced = 0U;
     switch (cfg->kind) {
     case SLAM_FILTER_FASTSLAM1:
     case SLAM_FILTER_FASTSLAM2: {
@@ -209,11 +216,36 @@ coslam_status_t slam_filter_predict(slam_filter_t *f, odo_increment_t u, double 
 
 static void merge_due_run(slam_merge_work_t *w, uint32_t budget);
 
+/* The next part of the send export under way (budget 0: all of it). */
+static void send_run(slam_filter_t *f, uint32_t budget)
+{
+    int done = 0;
+    uint32_t spent = 0U;
+    const coslam_status_t st = fastslam_export_run_msg(&f->u.fs, f->send_out, budget, &done, &spent);
+    if (done) {
+        f->send_state = 2U;
+        f->send_status = st;
+    }
+}
+
+/* A send export under way is finished at once (counted): something else
+ * needs the filter's export table, or the particles. */
+static void send_finish_now(slam_filter_t *f)
+{
+    if (f->send_state == 1U) {
+        f->sends_forced++;
+        send_run(f, 0U);
+    }
+}
+
 coslam_status_t slam_filter_update(slam_filter_t *f, const sighting_t *z, int n)
 {
     if (f->merge_due != NULL && ++f->merge_due_updates > SLAM_FILTER_MERGE_MAX_UPDATES) {
         f->merges_forced++;
         merge_due_run(f->merge_due, 0U);
+    }
+    if (f->send_state == 1U && ++f->send_updates > SLAM_FILTER_MERGE_MAX_UPDATES) {
+        send_finish_now(f);
     }
     const coslam_status_t st =
         f->kind == SLAM_FILTER_EKF ? ekfslam_update(&f->u.ekf, z, n) : fastslam_update(&f->u.fs, z, n);
@@ -366,7 +398,57 @@ void slam_filter_idle(slam_filter_t *f)
         ekfslam_idle(&f->u.ekf, SLAM_FILTER_IDLE_SHARES);
     } else if (f->merge_due != NULL) {
         merge_due_run(f->merge_due, f->merge_due->due_cfg.step_units);
+    } else if (f->send_state == 1U) {
+        send_run(f, f->send_units);
     }
+}
+
+coslam_status_t slam_filter_export_send(slam_filter_t *f, map_estimate_t *out, uint32_t step_units)
+{
+    if (f == NULL || out == NULL) {
+        return COSLAM_E_ARG;
+    }
+    if (f->send_state != 0U || (f->merge_due != NULL && f->merge_due->checking)) {
+        return COSLAM_E_MERGE_BUSY; /* the export table is taken */
+    }
+    if (f->kind == SLAM_FILTER_EKF || step_units == 0U) {
+        return slam_filter_export(f, out);
+    }
+    fastslam_t *fs = &f->u.fs;
+    coslam_status_t st = fastslam_export_begin(fs);
+    if (st != COSLAM_OK) {
+        return st;
+    }
+    int done = 0;
+    uint32_t spent = 0U;
+    st = fastslam_export_run_msg(fs, out, step_units, &done, &spent);
+    if (done) {
+        return st;
+    }
+    f->send_out = out;
+    f->send_state = 1U;
+    f->send_units = step_units;
+    f->send_updates = 0U;
+    f->sends_in_parts++;
+    return COSLAM_E_MERGE_PENDING;
+}
+
+int slam_filter_export_busy(const slam_filter_t *f)
+{
+    return f != NULL && ((f->merge_due != NULL && f->merge_due->checking) || f->send_state == 1U);
+}
+
+int slam_filter_send_ready(slam_filter_t *f, coslam_status_t *st)
+{
+    if (f == NULL || f->send_state != 2U) {
+        return 0;
+    }
+    f->send_state = 0U;
+    f->send_out = NULL;
+    if (st != NULL) {
+        *st = f->send_status;
+    }
+    return 1;
 }
 
 /* Before an export: a check waiting for the own export needs the filter's
@@ -377,6 +459,7 @@ static void export_needs_table(slam_filter_t *f)
         f->merges_forced++;
         merge_due_run(f->merge_due, 0U);
     }
+    send_finish_now(f);
 }
 
 void slam_filter_pose(const slam_filter_t *f, pose2_t *pose, cov3_t *cov)
@@ -436,6 +519,7 @@ coslam_status_t slam_filter_merge_map(slam_filter_t *f, const map_estimate_t *in
         slam_merge_work_finish(f->merge_due);
     }
     slam_merge_work_finish(w);
+    send_finish_now(f); /* its export table, and the particles, are the merge's now */
     if (w->outcome_ready) {
         return COSLAM_E_MERGE_BUSY; /* an outcome nobody has taken */
     }

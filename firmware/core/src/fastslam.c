@@ -1277,16 +1277,35 @@ coslam_status_t fastslam_export_begin(fastslam_t *fs)
     return COSLAM_OK;
 }
 
-coslam_status_t fastslam_export_run(fastslam_t *fs, map_whole_t *out, uint32_t budget, int *done, uint32_t *spent)
+/* The next part of the export under way; ends it into (pose, cov, lm,
+ * cap, n_out) once both passes are done. */
+static coslam_status_t export_run(fastslam_t *fs, uint32_t budget, int *done, uint32_t *spent, pose2_t *pose,
+                                  cov3_t *cov, map_landmark_t *lm, int cap, uint16_t *n_out)
 {
-    if (fs == NULL || out == NULL || done == NULL || spent == NULL || !fs->export_due) {
+    if (done == NULL || spent == NULL || !fs->export_due) {
         return COSLAM_E_ARG;
     }
     *done = export_advance(fs, budget, spent);
-    if (!*done) {
-        return COSLAM_OK;
+    return *done ? export_finish(fs, pose, cov, lm, cap, n_out) : COSLAM_OK;
+}
+
+coslam_status_t fastslam_export_run(fastslam_t *fs, map_whole_t *out, uint32_t budget, int *done, uint32_t *spent)
+{
+    if (fs == NULL || out == NULL) {
+        return COSLAM_E_ARG;
     }
-    return export_finish(fs, &out->pose, &out->pose_cov, out->lm, COSLAM_MAX_LANDMARKS, &out->n_landmarks);
+    return export_run(fs, budget, done, spent, &out->pose, &out->pose_cov, out->lm, COSLAM_MAX_LANDMARKS,
+                      &out->n_landmarks);
+}
+
+coslam_status_t fastslam_export_run_msg(fastslam_t *fs, map_estimate_t *out, uint32_t budget, int *done,
+                                        uint32_t *spent)
+{
+    if (fs == NULL || out == NULL) {
+        return COSLAM_E_ARG;
+    }
+    return export_run(fs, budget, done, spent, &out->pose, &out->pose_cov, out->lm, COSLAM_MAX_MSG_LANDMARKS,
+                      &out->n_landmarks);
 }
 
 void fastslam_export_abort(fastslam_t *fs)

@@ -1,7 +1,8 @@
 /*
  * Minimal bare-metal image for the Cortex-M cross check (tools/cross_core.sh).
  * It owns the state a robot holds statically - one filter, the map message
- * buffers (outgoing and incoming), and the merge's scratch - and calls the
+ * buffers (outgoing and incoming, and the map a send exports in parts), and
+ * the merge's scratch - and calls the
  * public API, so that the linker keeps the code and .bss shows the real
  * footprint of the default configuration. Build with -DFOOTPRINT_FASTSLAM or
  * -DFOOTPRINT_EKFSLAM: a robot runs one filter.
@@ -25,6 +26,7 @@ static ekfslam_t g_filter;
 #endif
 static map_msg_t g_out;
 static map_msg_t g_in;
+static map_estimate_t g_send; /* the meeting's send export, done in parts (meeting_t.send_map) */
 static uint8_t g_wire[MAP_MSG_MAX_BYTES];
 static merge_body_map_t g_body;
 static merge_scratch_t g_merge_scratch;
@@ -52,6 +54,12 @@ int main(void)
     map_msg_init(&g_out);
     (void)fastslam_export(&g_filter, &g_out.map);
     (void)fastslam_export_whole(&g_filter, &g_own);
+    if (fastslam_export_begin(&g_filter) == COSLAM_OK) {
+        int done = 0;
+        uint32_t spent = 0U;
+        while (!done && fastslam_export_run_msg(&g_filter, &g_send, mcfg.step_units, &done, &spent) == COSLAM_OK) {
+        }
+    }
 #else
     const ekfslam_config_t cfg = ekfslam_config_default();
     if (ekfslam_init(&g_filter, &cfg, start) != COSLAM_OK) {
@@ -62,6 +70,7 @@ int main(void)
     map_msg_init(&g_out);
     (void)ekfslam_export(&g_filter, &g_out.map);
     (void)ekfslam_export_whole(&g_filter, &g_own);
+    (void)ekfslam_export(&g_filter, &g_send);
 #endif
     (void)map_msg_encode(&g_out, g_wire, sizeof g_wire, &len);
     if (map_msg_decode(g_wire, len, &g_in) == COSLAM_OK) {

@@ -18,15 +18,20 @@
  *  - The message (coslam/map_msg.h) is addressed to j and carries:
  *      map        the sender's map estimate exported NOW (pose, pose
  *                 covariance, landmarks with cov and cov_rel), map frame;
- *      stamp_us   the export time (sender's clock);
+ *                 a Fast-SLAM export that does not fit one step's budget
+ *                 (merge.step_units) is done in the idle time after the
+ *                 following steps and sent by meeting_send_due, the map
+ *                 and pose still those of this moment;
+ *      stamp_us   the time the message goes out (sender's clock);
  *      sighting   the sender's sighting of j in the frame just processed:
  *                 range, bearing (sender's body frame), their variances
  *                 (robot_range_var_m2 + robot_range_var_per_m2 range^2,
  *                 robot_bearing_var_rad2) and the
  *                 frame's capture stamp_us (sender's clock).
  *    So the exported pose is the sender's pose at its sighting of j, up to
- *    stamp_us - sighting.stamp_us (less than one control period: the export
- *    follows the frame's update in the same control step). Only differences
+ *    one control period (the export begins after the frame's update in the
+ *    same control step), and stamp_us - sighting.stamp_us is the
+ *    sighting's age when the message leaves. Only differences
  *    of the sender's stamps are used by the receiver, never its absolute
  *    clock: robots need no common time base.
  *
@@ -166,6 +171,9 @@ typedef struct {
     uint32_t refused_disagree;  /**< the maps disagree (COSLAM_E_MERGE_DISAGREE) */
     uint32_t ignored_disagreed; /**< from a peer whose map disagreed within remerge_period_us */
     uint32_t weak_not_sent;     /**< landmarks left out of sent maps (below export_min_obs) */
+    uint32_t send_waits;        /**< sends whose export waited or went in parts (meeting_send_due) */
+    uint32_t send_busy;         /**< sends due while the last one was still being exported (its
+                                     slot kept: the next sighting tries again) */
     uint32_t events_dropped;    /**< events overwritten before they were read */
 } meeting_counters_t;
 
@@ -183,6 +191,13 @@ typedef struct {
      *  outcome filled in when meeting_poll takes it from `work`. */
     uint8_t merge_waiting;
     meeting_event_t waiting_ev;
+    /** A send whose export waits (1: for the filter's export table) or runs
+     *  in idle time (2) (slam_filter_export_send); meeting_send_due sends
+     *  it when the export is done. */
+    uint8_t send_waiting;
+    uint8_t send_peer;
+    meeting_sighting_t send_sighting;  /**< the sighting the message carries */
+    map_estimate_t send_map;           /**< the export for it */
     map_msg_t rx;
     map_msg_t tx;
     uint8_t wire[MAP_MSG_MAX_BYTES];
@@ -227,6 +242,20 @@ coslam_status_t meeting_init(meeting_t *m, const meeting_config_t *cfg, uint8_t 
 coslam_status_t meeting_on_sighting(meeting_t *m, slam_filter_t *filter, hal_link_t *link, uint64_t now_us,
                                     uint8_t peer, double range_m, double bearing_rad, uint64_t stamp_us,
                                     pose2_t odo_pose, double travel_m);
+
+/**
+ * A send whose export waited for the filter's export table or went in
+ * parts (Fast-SLAM, merge.step_units: slam_filter_export_send): send it
+ * once the export is done. Call it after every step while send_waiting is
+ * set (meeting_on_sighting also does). The message is stamped with the
+ * time it goes out (stamp_us = now_us, so the receiver's estimate of the
+ * sighting's time stays right) and carries the map as it was exported at
+ * the sighting. Returns COSLAM_OK (sent, or nothing waits),
+ * COSLAM_E_MERGE_PENDING (still exporting), or the send's error (counted
+ * in send_failures). While the export runs, meeting_poll holds a message
+ * to merge back (COSLAM_E_EMPTY). O(encode) when sending, else O(1).
+ */
+coslam_status_t meeting_send_due(meeting_t *m, slam_filter_t *filter, hal_link_t *link, uint64_t now_us);
 
 /**
  * Take up to MEETING_RX_BUDGET datagrams from the link (timeout 0), decode

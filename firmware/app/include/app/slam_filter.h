@@ -82,6 +82,16 @@ typedef struct slam_filter_s {
                                       not sufficed for SLAM_FILTER_MERGE_MAX_UPDATES updates,
                                       or by an export that needed the filter's export table */
     uint16_t merge_due_updates;  /**< updates since the merge in parts began */
+    /** The export of a map the meeting sends, in parts
+     *  (slam_filter_export_send): where it goes, and how far it is. */
+    map_estimate_t *send_out;
+    uint8_t send_state;          /**< 0: none; 1: under way; 2: done, not taken yet */
+    coslam_status_t send_status; /**< the export's status once done */
+    uint32_t send_units;         /**< its budget per idle call */
+    uint16_t send_updates;       /**< updates since it began */
+    uint32_t sends_in_parts;     /**< exports of a sent map that did not fit the call that began them */
+    uint32_t sends_forced;       /**< of which finished at once: by an update after
+                                      SLAM_FILTER_MERGE_MAX_UPDATES, a merge or another export */
     union {
         fastslam_t fs;
         ekfslam_t ekf;
@@ -239,6 +249,34 @@ void slam_merge_work_init(slam_merge_work_t *w);
 coslam_status_t slam_filter_merge_map(slam_filter_t *f, const map_estimate_t *in, const merge_geometry_t *g,
                                       const merge_config_t *cfg, const occ_grid_t *grid, slam_merge_work_t *w,
                                       merge_stats_t *stats, pose2_t *t_out, cov3_t *t_cov_out);
+
+/**
+ * The map a meeting sends (slam_filter_export's, at most
+ * COSLAM_MAX_MSG_LANDMARKS) into *out. EKF-SLAM, or step_units 0: at once.
+ * Fast-SLAM: the export in parts of step_units (fastslam_export_begin,
+ * docs/scale.md "The export in parts"): if it is done within this call,
+ * its status; else COSLAM_E_MERGE_PENDING, the rest is done by
+ * slam_filter_idle, and slam_filter_send_ready says when *out holds it
+ * (*out must stay valid until then; the map is the one of this call's
+ * moment, every particle at the pose it had then). COSLAM_E_MERGE_BUSY:
+ * the filter's export table is taken (a merge's check waits for its own
+ * export, or a send export is under way): try again later. Until it is
+ * done Fast-SLAM holds resampling back; a merge, another export, or an
+ * update after SLAM_FILTER_MERGE_MAX_UPDATES finish it first
+ * (sends_forced).
+ */
+coslam_status_t slam_filter_export_send(slam_filter_t *f, map_estimate_t *out, uint32_t step_units);
+
+/** 1 while an export in parts holds the filter's export table (a merge's
+ *  check waits for it, or a send's export runs): an export now
+ *  (slam_filter_export, slam_filter_export_whole) would finish it at once
+ *  (counted). Observers that may wait, such as the replay's map
+ *  evaluations, ask this first. O(1). */
+int slam_filter_export_busy(const slam_filter_t *f);
+
+/** 1 once the export slam_filter_export_send left to idle time is in its
+ *  *out (its status into *st, may be NULL), taken once; else 0. */
+int slam_filter_send_ready(slam_filter_t *f, coslam_status_t *st);
 
 /** Finish now whatever merge w holds (check and fusion; slam_filter_idle
  *  would do it in parts). O(the rest of it). */

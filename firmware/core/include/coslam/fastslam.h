@@ -310,6 +310,10 @@ coslam_status_t fastslam_export_whole(fastslam_t *fs, map_whole_t *out);
  */
 coslam_status_t fastslam_export_begin(fastslam_t *fs);
 coslam_status_t fastslam_export_run(fastslam_t *fs, map_whole_t *out, uint32_t budget, int *done, uint32_t *spent);
+/** The same, ending as fastslam_export (the map a message carries: at most
+ *  COSLAM_MAX_MSG_LANDMARKS, the heaviest). */
+coslam_status_t fastslam_export_run_msg(fastslam_t *fs, map_estimate_t *out, uint32_t budget, int *done,
+                                        uint32_t *spent);
 void fastslam_export_abort(fastslam_t *fs);
 
 /** Index of the particle with the largest weight. O(N). */
