@@ -483,6 +483,8 @@ static coslam_status_t merge_b_into(slam_filter_t *f, uint32_t step_units)
     return slam_filter_merge_map(f, &g_msg, &g, &mc, NULL, &g_work, &st, NULL, NULL);
 }
 
+static merge_stats_t g_outcome_stats;
+
 static void take_outcome_ok(void)
 {
     coslam_status_t st = COSLAM_E_ARG;
@@ -490,6 +492,7 @@ static void take_outcome_ok(void)
     memset(&ms, 0, sizeof ms);
     pose2_t t;
     assert_int_equal(slam_merge_work_outcome(&g_work, &st, &ms, &t, NULL), 1);
+    g_outcome_stats = ms;
     assert_int_equal(st, COSLAM_OK);
     assert_true(ms.fused + ms.added > 0U);
     assert_true(fabs(t.x - (kPoseB.x - kPoseA.x)) < 0.3);
@@ -544,7 +547,10 @@ static void test_fastslam_merge_in_parts(void **state)
     assert_null(g_c.merge_due);
     assert_int_equal(slam_merge_work_outcome(&g_work, NULL, NULL, NULL, NULL), 1);
 
-    /* an export needs the table the waiting check uses: it finishes it */
+    /* an export needs the table the waiting check uses: it finishes it;
+     * the outcome's figures are this merge's, as the one before's */
+    const merge_stats_t first = g_outcome_stats;
+    const uint32_t first_late = g_a.merge_late.fused + g_a.merge_late.added;
     setup_pair(SLAM_FILTER_FASTSLAM2, SLAM_FILTER_EKF);
     assert_int_equal(merge_b_into(&g_a, 1U), COSLAM_E_MERGE_PENDING);
     slam_filter_idle(&g_a);
@@ -553,6 +559,10 @@ static void test_fastslam_merge_in_parts(void **state)
     assert_int_equal(g_a.merges_forced, 1U);
     assert_true(same_map(&g_after, &g_whole));
     take_outcome_ok();
+    assert_int_equal(g_outcome_stats.pairs, first.pairs);
+    assert_int_equal(g_outcome_stats.skipped, first.skipped);
+    assert_int_equal(g_outcome_stats.fused + g_outcome_stats.added + g_a.merge_late.fused + g_a.merge_late.added,
+                     first.fused + first.added + first_late);
 
     /* no idle time: the updates finish it */
     setup_pair(SLAM_FILTER_FASTSLAM2, SLAM_FILTER_EKF);

@@ -559,6 +559,7 @@ coslam_status_t slam_filter_merge_map(slam_filter_t *f, const map_estimate_t *in
         uint32_t spent = 0U;
         st = fastslam_export_run(fs, &w->own, cfg->step_units, &done, &spent);
         if (!done) {
+            w->outcome_stats = *stats; /* merge_prepare's; the check and the fusion add theirs */
             w->due = f;
             w->checking = 1U;
             w->due_cfg = *cfg;

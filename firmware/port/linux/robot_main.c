@@ -283,6 +283,7 @@ static void log_limits(void)
     static const char *seen_counter[SLAM_FILTER_N_LIMITS];
     static uint32_t seen_value[SLAM_FILTER_N_LIMITS];
     static uint32_t seen_dropped;
+    static uint32_t seen_sends_forced;
     static uint32_t seen_forced;
     slam_filter_limit_t lim[SLAM_FILTER_N_LIMITS];
     const int n = slam_filter_limits(&node.filter, lim);
@@ -307,13 +308,21 @@ static void log_limits(void)
                 "(sightings_dropped; COSLAM_MAX_SIGHTINGS = %d in this build, profile %s)\n",
                 (unsigned)cfg.robot_id, (unsigned long)seen_dropped, (int)COSLAM_MAX_SIGHTINGS, COSLAM_PROFILE_NAME);
     }
-    /* nothing is lost, but a step paid for the rest of a merge */
+    /* nothing is lost, but a step paid for the rest of a merge or a send */
     if (node.filter.merges_forced > seen_forced) {
         seen_forced = node.filter.merges_forced;
         fprintf(stderr,
-                "coslam-robot: robot %u: %lu merges in parts finished by an update: the idle time did not suffice "
-                "(merges_forced; lower [merge] step_units, now %lu)\n",
+                "coslam-robot: robot %u: %lu merges in parts finished at once by an update or an export: the idle "
+                "time did not suffice (merges_forced; lower [merge] step_units, now %lu)\n",
                 (unsigned)cfg.robot_id, (unsigned long)seen_forced, (unsigned long)node.meeting.cfg.merge.step_units);
+    }
+    if (node.filter.sends_forced > seen_sends_forced) {
+        seen_sends_forced = node.filter.sends_forced;
+        fprintf(stderr,
+                "coslam-robot: robot %u: %lu map exports for a send finished at once by an update or a merge: the "
+                "idle time did not suffice (sends_forced; lower [merge] step_units, now %lu)\n",
+                (unsigned)cfg.robot_id, (unsigned long)seen_sends_forced,
+                (unsigned long)node.meeting.cfg.merge.step_units);
     }
 }
 
