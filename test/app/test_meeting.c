@@ -670,6 +670,7 @@ static void test_merge_waits_for_idle_time(void **state)
     assert_int_equal(ev.peer, 1);
     assert_int_equal(ev.seq, 1);
     assert_int_equal(ev.n_landmarks, 1);
+    assert_int_equal(ev.stamp_us, t + 10000); /* when it began: the transform's body frame */
     assert_int_equal(ev.own_sighting_us, t);
     assert_true(fabs(ev.other_in_self.x - b.x) < 1e-9);
     assert_true(ev.stats.added >= 1U);

@@ -414,8 +414,10 @@ static uint64_t abs_diff(uint64_t a, uint64_t b)
     return a > b ? a - b : b - a;
 }
 
-/* A merge's outcome into the counters and the event queue; `ev` holds what
- * was known before it (peer, seq, landmarks, sighting times). */
+/* A merge's outcome, decided at now_us, into the counters and the event
+ * queue; `ev0` holds what was known before it (peer, seq, landmarks,
+ * sighting times, and the time the merge began, whose body frame the
+ * transform is in: the event's stamp). */
 static coslam_status_t merge_outcome(meeting_t *m, const meeting_event_t *ev0, uint64_t now_us, coslam_status_t st,
                                      const merge_stats_t *stats, pose2_t t, cov3_t tc)
 {
@@ -438,7 +440,8 @@ static coslam_status_t merge_outcome(meeting_t *m, const meeting_event_t *ev0, u
         m->peer[from].merged = 1U;
         m->peer[from].merged_at_us = now_us;
     }
-    meeting_event_t *ev = push_event(m, merged ? MEETING_EV_MERGED : MEETING_EV_REFUSED, now_us, from, ev0->seq, st);
+    meeting_event_t *ev =
+        push_event(m, merged ? MEETING_EV_MERGED : MEETING_EV_REFUSED, ev0->stamp_us, from, ev0->seq, st);
     ev->n_landmarks = ev0->n_landmarks;
     ev->own_sighting_us = ev0->own_sighting_us;
     ev->sender_sighting_us = ev0->sender_sighting_us;
@@ -529,6 +532,7 @@ coslam_status_t meeting_poll(meeting_t *m, slam_filter_t *filter, uint64_t now_u
     memset(&stats, 0, sizeof stats);
     meeting_event_t ev0;
     memset(&ev0, 0, sizeof ev0);
+    ev0.stamp_us = now_us;
     ev0.peer = from;
     ev0.seq = msg->seq;
     ev0.n_landmarks = msg->map.n_landmarks;

@@ -154,12 +154,18 @@ static robot_snapshots_t snaps;
 static robot_snapshot_t snap;
 static robot_status_t status;
 
+/* The landmarks the status reports: an export of the map. While an
+ * export in parts runs (a merge's check or a send, docs/scale.md "The
+ * export in parts") the last count is kept: exporting now would finish
+ * that one in this step. */
 static uint16_t count_landmarks(void)
 {
-    if (robot_node_export(&node, &snap.map) == COSLAM_E_ARG) {
-        return 0U;
+    static uint16_t last;
+    if (slam_filter_export_busy(&node.filter)) {
+        return last;
     }
-    return snap.map.n_landmarks;
+    last = robot_node_export(&node, &snap.map) == COSLAM_E_ARG ? 0U : snap.map.n_landmarks;
+    return last;
 }
 
 /* Export and save the next generation; report per `verbose` (failures always). */
@@ -487,7 +493,9 @@ int main(int argc, char **argv)
         log_meeting_events(opt.verbose);
 
         (void)hal_clock_now_us(clock, &now);
-        if (snap_us > 0U && now >= next_snap) {
+        /* a periodic snapshot waits while an export in parts runs (its
+         * export would finish that one at once; the shutdown's does) */
+        if (snap_us > 0U && now >= next_snap && !slam_filter_export_busy(&node.filter)) {
             (void)save_snapshot(opt.verbose, "periodic", now);
             (void)hal_clock_now_us(clock, &now);
             next_snap = now + snap_us;

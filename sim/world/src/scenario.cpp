@@ -398,6 +398,7 @@ void read_meeting(const toml::table &t, MeetingSpec &m)
     r.num("max_range_m", m.max_range_m, 0.01, 1000.0);
     r.boolean("transform_uncertainty", m.transform_uncertainty);
     r.num("gate_chi2", m.gate_chi2, 0.01, 1000.0);
+    r.integer("step_units", m.step_units, -1, 2147483647);
     r.done();
 }
 

@@ -170,6 +170,9 @@ Simulation::Simulation(const Scenario &sc, const SimulationOptions &opt)
         c.meeting.max_range_m = sc.meeting.max_range_m;
         c.meeting.merge.transform_uncertainty = sc.meeting.transform_uncertainty ? 1u : 0u;
         c.meeting.merge.gate_chi2 = sc.meeting.gate_chi2;
+        if (sc.meeting.step_units >= 0) {
+            c.meeting.merge.step_units = static_cast<uint32_t>(sc.meeting.step_units);
+        }
         c.behaviour.explore_s = rs.explore_s.value_or(sc.behaviour.explore_s);
         c.behaviour.cruise_mps = sc.behaviour.cruise_mps;
         c.behaviour.max_turn_radps = sc.behaviour.max_turn_dps * kDeg;
@@ -342,7 +345,12 @@ void Simulation::sample(double t_s)
         pose2_t est;
         cov3_t cov;
         robot_node_pose(nodes_[k].get(), &est, &cov);
-        MapSnapshot s = snapshot(k, t_s);
+        // the map sample is an observer: while an export in parts holds the
+        // filter's export table (a merge's check or a send), it keeps the
+        // last sample's map rather than finish that export at once, which
+        // the robot never does for it
+        MapSnapshot s = slam_filter_export_busy(&nodes_[k]->filter) && last_sample_[k].valid ? last_sample_[k]
+                                                                                              : snapshot(k, t_s);
         ErrorSample e;
         e.t_s = t_s;
         e.pos_err_m = std::hypot(est.x - truth.x, est.y - truth.y);

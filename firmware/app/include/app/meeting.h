@@ -139,7 +139,9 @@ typedef enum {
 
 typedef struct {
     meeting_event_kind_t kind;
-    uint64_t stamp_us;          /**< when (own clock) */
+    uint64_t stamp_us;          /**< when (own clock); for a merge, when it began (the
+                                     moment of the body frame of other_in_self), also
+                                     if its check waited for idle time */
     uint8_t peer;               /**< the other robot (0xFF: unknown, undecodable message) */
     uint32_t seq;               /**< the message's sequence number */
     coslam_status_t status;     /**< COSLAM_OK, or the reason of a refusal / partial merge */

@@ -125,6 +125,10 @@ struct MeetingSpec {
     double max_range_m = 3.0;             ///< robot sightings beyond this start no meeting
     bool transform_uncertainty = true;    ///< false: the paper's eq. 3 (rotation only)
     double gate_chi2 = 9.21;
+    /// Fast-SLAM's merge and send-export work per step (merge_config_t
+    /// step_units, docs/scale.md "The export in parts"); -1: the robot's
+    /// default
+    int step_units = -1;
 };
 
 struct RobotSpec {
