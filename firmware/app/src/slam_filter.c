@@ -351,8 +351,6 @@ static void merge_due_run(slam_merge_work_t *w, uint32_t budget)
                                   budget_left(budget, spent), stats);
         }
         w->outcome = st;
-        w->outcome_t = w->body.t;
-        w->outcome_t_cov = w->body.t_cov;
         w->outcome_ready = 1U;
         return;
     }
@@ -384,10 +382,10 @@ int slam_merge_work_outcome(slam_merge_work_t *w, coslam_status_t *st, merge_sta
         *stats = w->outcome_stats;
     }
     if (t != NULL) {
-        *t = w->outcome_t;
+        *t = w->body.t;
     }
     if (t_cov != NULL) {
-        *t_cov = w->outcome_t_cov;
+        *t_cov = w->body.t_cov;
     }
     return 1;
 }

@@ -205,9 +205,9 @@ typedef struct slam_merge_work_s {
      *  slam_merge_work_outcome. */
     uint8_t outcome_ready;
     coslam_status_t outcome;    /**< as slam_filter_merge_map would have returned */
-    merge_stats_t outcome_stats; /**< its check and the fusion's first part */
-    pose2_t outcome_t;          /**< the transform used (*t_out) */
-    cov3_t outcome_t_cov;       /**< and its covariance (*t_cov_out) */
+    merge_stats_t outcome_stats; /**< its check and the fusion's first part; the
+                                      transform it used stays in body (t, t_cov):
+                                      no merge begins until the outcome is taken */
 } slam_merge_work_t;
 
 /** Empty working memory (no merge held). */
