@@ -723,16 +723,22 @@ static void test_send_exported_in_idle_time(void **state)
     assert_int_equal(g_m.ctr.send_busy, 1);
     assert_int_equal(g_m.peer[1].sends, 1); /* its slot kept */
     int idles = 0;
+    int more_calls = 0;
+    int more = 1;
     uint64_t now = t + 1010000;
     while (g_link.n_sent == 0 && idles < 100) {
         const odo_increment_t u = {0.02, 0.0, 0.01};
         assert_int_equal(slam_filter_predict(&g_filter, u, 0.1), COSLAM_OK);
-        slam_filter_idle(&g_filter);
+        more = slam_filter_idle(&g_filter);
+        more_calls += more;
         now += 10000;
         (void)meeting_send_due(&g_m, &g_filter, link, now);
         idles++;
     }
     assert_int_equal(idles, 2 * fc.n_particles - 1);
+    /* idle said "more to do" after every part but the last */
+    assert_int_equal(more_calls, idles - 1);
+    assert_int_equal(more, 0);
     assert_int_equal(g_link.n_sent, 1);
     assert_int_equal(g_m.send_waiting, 0);
     assert_int_equal(g_filter.sends_forced, 0U);
@@ -760,6 +766,108 @@ static void test_send_exported_in_idle_time(void **state)
     assert_int_equal(g_link.n_sent, 2);
 }
 
+/* An observer's export (coslam-robot's status count and periodic snapshot,
+ * slam_filter_export_observe) goes in parts like a send's but yields: a
+ * send due meanwhile aborts it (or drops its result not yet taken) and goes
+ * ahead at once instead of waiting or finishing it; the observer begins
+ * again and gets the export of its moment. */
+static map_estimate_t g_obs;
+
+static int idle_until_polled(const map_estimate_t *out, int max_calls)
+{
+    int calls = 0;
+    coslam_status_t st = COSLAM_E_ARG;
+    while (slam_filter_export_poll(&g_filter, out, &st) == 0 && calls < max_calls) {
+        (void)slam_filter_idle(&g_filter);
+        calls++;
+    }
+    assert_int_equal(st, COSLAM_OK);
+    return calls;
+}
+
+static void test_observer_export_yields(void **state)
+{
+    (void)state;
+    hal_link_t *link = fake_link_reset(0);
+    slam_filter_config_t fc = setup_robot0_fastslam_in_parts();
+    memset(&g_seed, 0, sizeof g_seed);
+    g_seed.pose = (pose2_t){-0.4, 0.1, -0.3};
+    g_seed.pose_cov = cov3_diag(0.01, 0.01, 0.001);
+    g_seed.n_landmarks = 4;
+    for (uint16_t i = 0; i < g_seed.n_landmarks; ++i) {
+        map_landmark_t *l = &g_seed.lm[i];
+        l->mean = (point2_t){0.5 + 0.9 * i, 1.0 - 0.3 * i};
+        l->cov = cov2_make(0.03, 0.002, 0.02);
+        l->cov_rel = cov2_make(0.01, 0.0, 0.01);
+        l->id = 20U + i;
+        l->n_obs = 9;
+        l->src_mask = 1U;
+        l->signature = (uint8_t)(i % 3);
+    }
+    assert_int_equal(slam_filter_seed(&g_filter, &fc, &g_seed), COSLAM_OK);
+    assert_int_equal(slam_filter_export_poll(&g_filter, &g_obs, NULL), -1); /* nothing begun */
+    /* 1. begun, then a send is due: the observer's export is aborted, the
+     * send's goes in parts at once (no wait, no busy slot) */
+    assert_int_equal(slam_filter_export_observe(&g_filter, &g_obs, 1U), COSLAM_E_MERGE_PENDING);
+    assert_int_equal(g_filter.observes_in_parts, 1U);
+    assert_int_equal(slam_filter_export_poll(&g_filter, &g_obs, NULL), 0);
+    assert_int_equal(slam_filter_idle(&g_filter), 1);
+    const uint64_t t = 40000000;
+    assert_int_equal(meeting_on_sighting(&g_m, &g_filter, link, t + 3000, 1, 2.0, 0.25, t, kOrigin, 0.0), COSLAM_OK);
+    assert_int_equal(g_filter.observes_yielded, 1U);
+    assert_int_equal(slam_filter_export_poll(&g_filter, &g_obs, NULL), -1);
+    assert_int_equal(g_m.send_waiting, 2);
+    assert_int_equal(g_m.ctr.send_busy, 0);
+    assert_int_equal(g_filter.sends_in_parts, 1U);
+    /* an observer cannot begin while the send's export runs */
+    assert_int_equal(slam_filter_export_observe(&g_filter, &g_obs, 1U), COSLAM_E_MERGE_BUSY);
+    int calls = 0;
+    while (g_link.n_sent == 0 && calls < 100) {
+        (void)slam_filter_idle(&g_filter);
+        (void)meeting_send_due(&g_m, &g_filter, link, t + 10000 * (uint64_t)(calls + 1));
+        calls++;
+    }
+    assert_int_equal(g_link.n_sent, 1);
+    assert_int_equal(g_filter.sends_forced, 0U);
+    /* 2. the observer begins again and gets the export of its moment */
+    const odo_increment_t u = {0.05, 0.01, 0.02};
+    assert_int_equal(slam_filter_predict(&g_filter, u, 0.1), COSLAM_OK);
+    assert_int_equal(slam_filter_export(&g_filter, &g_ref), COSLAM_OK);
+    memset(&g_obs, 0, sizeof g_obs);
+    assert_int_equal(slam_filter_export_observe(&g_filter, &g_obs, 1U), COSLAM_E_MERGE_PENDING);
+    assert_int_equal(idle_until_polled(&g_obs, 100), 2 * fc.n_particles - 1);
+    assert_int_equal(slam_filter_export_poll(&g_filter, &g_obs, NULL), -1); /* taken once */
+    assert_int_equal(g_obs.n_landmarks, g_ref.n_landmarks);
+    assert_true(fabs(g_obs.pose.x - g_ref.pose.x) < 1e-12);
+    for (uint16_t i = 0; i < g_obs.n_landmarks; ++i) {
+        assert_int_equal(g_obs.lm[i].id, g_ref.lm[i].id);
+        assert_true(fabs(g_obs.lm[i].mean.y - g_ref.lm[i].mean.y) < 1e-12);
+        assert_true(fabs(g_obs.lm[i].cov.xx - g_ref.lm[i].cov.xx) < 1e-12);
+    }
+    /* 3. done but not taken when a send is due: dropped, the send goes */
+    assert_int_equal(slam_filter_export_observe(&g_filter, &g_obs, 1U), COSLAM_E_MERGE_PENDING);
+    while (slam_filter_idle(&g_filter)) {
+    }
+    assert_int_equal(g_filter.send_state, 2);
+    g_m.cfg.merge.step_units = 0U;
+    assert_int_equal(meeting_on_sighting(&g_m, &g_filter, link, t + 5003000, 1, 2.0, 0.25, t + 5000000, kOrigin, 0.0),
+                     COSLAM_OK);
+    assert_int_equal(g_link.n_sent, 2);
+    assert_int_equal(g_filter.observes_yielded, 2U);
+    assert_int_equal(slam_filter_export_poll(&g_filter, &g_obs, NULL), -1);
+    /* 4. a send's export is never preempted by an observer, and an
+     * observer's export finished by an update is not a forced send */
+    assert_int_equal(slam_filter_export_observe(&g_filter, &g_obs, 1U), COSLAM_E_MERGE_PENDING);
+    sighting_t none[1];
+    memset(none, 0, sizeof none);
+    for (unsigned k = 0; k <= SLAM_FILTER_MERGE_MAX_UPDATES; ++k) {
+        assert_int_equal(slam_filter_update(&g_filter, none, 0), COSLAM_OK);
+    }
+    assert_int_equal(slam_filter_export_poll(&g_filter, &g_obs, NULL), 1);
+    assert_int_equal(g_filter.sends_forced, 0U);
+    assert_int_equal(g_filter.observes_in_parts, 4U);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -777,6 +885,7 @@ int main(void)
         cmocka_unit_test(test_event_queue_overflow_counted),
         cmocka_unit_test(test_merge_waits_for_idle_time),
         cmocka_unit_test(test_send_exported_in_idle_time),
+        cmocka_unit_test(test_observer_export_yields),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -6,6 +6,9 @@
  *   sigterm       with the landmark-log replay source: SIGTERM stops it
  *                 within a bound, status 0, the final snapshot is on disk,
  *                 complete, and the next start loads exactly it;
+ *   observers_in_parts  a merge budget of one work unit: the status
+ *                 count's and the periodic snapshot's exports go in parts
+ *                 over several idle calls a step, and both still come;
  *   kill_restart  SIGKILL at seeded random moments (20 times in CI, 120 with
  *                 COSLAM_TEST_LEVEL=full), snapshots every 20 ms so that
  *                 many kills land in a write: after every kill both
@@ -242,12 +245,36 @@ static const char *base_config =
     "[fleet]\nkey_file =\n" /* no fleet key: no link (these tests are about one robot) */
     "[filter]\ntype = %s\nparticles = 30\n";
 
-static void config(const char *dir, const char *laser, const char *status_s, const char *snap_s, const char *camera,
-                   const char *store, const char *filter)
+/* The configuration, with `extra` lines after it. */
+static void config_with(const char *dir, const char *laser, const char *status_s, const char *snap_s,
+                        const char *camera, const char *store, const char *filter, const char *extra)
 {
     char body[4096];
     snprintf(body, sizeof body, base_config, status_s, snap_s, dir, laser, dir, camera, store, filter);
+    strncat(body, extra, sizeof body - strlen(body) - 1U);
     write_config(dir, body);
+}
+
+static void config(const char *dir, const char *laser, const char *status_s, const char *snap_s, const char *camera,
+                   const char *store, const char *filter)
+{
+    config_with(dir, laser, status_s, snap_s, camera, store, filter, "");
+}
+
+/* The landmark-log replay camera (the log written to dir/lm.log, looped)
+ * and the storage at dir/store: their configuration values. */
+typedef struct {
+    char camera[300];
+    char store[300];
+} replay_rig_t;
+
+static void replay_rig(const char *dir, replay_rig_t *rig)
+{
+    snprintf(rig->camera, sizeof rig->camera, "replay_log = %s/lm.log\nreplay_loop = true", dir);
+    snprintf(rig->store, sizeof rig->store, "%s/store", dir);
+    char logp[300];
+    snprintf(logp, sizeof logp, "%s/lm.log", dir);
+    write_log(logp);
 }
 
 /* The URG emulator on a pty at dir/urg (urg_pty_bridge). */
@@ -274,6 +301,21 @@ static void stop_bridge(pid_t pid)
     kill(pid, SIGTERM);
     const int st = wait_exit(pid, 3000);
     assert_true(WIFEXITED(st) && WEXITSTATUS(st) == 0);
+}
+
+/* SIGTERM to the robot: it must exit with status 0 (its log printed if
+ * not). Returns its log. */
+static const char *stop_robot(pid_t pid, const char *err_path)
+{
+    kill(pid, SIGTERM);
+    const int st = wait_exit(pid, 5000);
+    const char *log = slurp(err_path);
+    if (!(WIFEXITED(st) && WEXITSTATUS(st) == 0)) {
+        fprintf(stderr, "%s\n", log);
+    }
+    assert_true(WIFEXITED(st));
+    assert_int_equal(WEXITSTATUS(st), 0);
+    return log;
 }
 
 /* The last value of `key=` in the log, or -1. */
@@ -309,14 +351,7 @@ static void degraded(void **state)
     const pid_t pid = spawn_robot(dir, err, NULL, NULL);
     sleep_ms(1500);
     assert_int_equal(waitpid(pid, NULL, WNOHANG), 0); /* still running */
-    kill(pid, SIGTERM);
-    const int st = wait_exit(pid, 5000);
-    const char *log = slurp(err);
-    if (!(WIFEXITED(st) && WEXITSTATUS(st) == 0)) {
-        fprintf(stderr, "%s\n", log);
-    }
-    assert_true(WIFEXITED(st));
-    assert_int_equal(WEXITSTATUS(st), 0);
+    const char *log = stop_robot(pid, err);
     /* each missing device by name, with what it is and why */
     assert_non_null(strstr(log, "coslam-robot: laser (URG on "));
     assert_non_null(strstr(log, "no-laser at 115200 baud): down: "));
@@ -359,14 +394,9 @@ static void sigterm(void **state)
     (void)state;
     char dir[64];
     make_dir(dir, sizeof dir);
-    char camera[300];
-    snprintf(camera, sizeof camera, "replay_log = %s/lm.log\nreplay_loop = true", dir);
-    char store[300];
-    snprintf(store, sizeof store, "%s/store", dir);
-    char logp[300];
-    snprintf(logp, sizeof logp, "%s/lm.log", dir);
-    write_log(logp);
-    config(dir, "no-laser", "0.5", "30", camera, store, "fastslam2");
+    replay_rig_t rig;
+    replay_rig(dir, &rig);
+    config(dir, "no-laser", "0.5", "30", rig.camera, rig.store, "fastslam2");
     char err[300];
     snprintf(err, sizeof err, "%s/err", dir);
     char status_path[300];
@@ -408,6 +438,41 @@ static void sigterm(void **state)
     remove_dir(dir);
 }
 
+/* ---- the map's observers in parts ------------------------------------------- */
+
+/* With a merge budget of one work unit, the status count's and the periodic
+ * snapshot's export cannot fit one call: it goes in parts
+ * (slam_filter_export_observe) through several idle calls a step, and the
+ * snapshots and status counts still come. */
+static void observers_in_parts(void **state)
+{
+    (void)state;
+    char dir[64];
+    make_dir(dir, sizeof dir);
+    replay_rig_t rig;
+    replay_rig(dir, &rig);
+    config_with(dir, "no-laser", "0.3", "0.5", rig.camera, rig.store, "fastslam2", "[merge]\nstep_units = 1\n");
+    char err[300];
+    snprintf(err, sizeof err, "%s/err", dir);
+    const pid_t pid = spawn_robot(dir, err, NULL, NULL);
+    sleep_ms(2500);
+    const char *log = stop_robot(pid, err);
+    const long steps = last_value(log, "steps");
+    const long idle = last_value(log, "idle_calls");
+    const long observes = last_value(log, "observes_in_parts");
+    fprintf(stderr, "observers in parts: %ld steps, %ld idle calls, %ld observer exports in parts, landmarks %ld\n",
+            steps, idle, observes, last_value(log, "landmarks"));
+    assert_true(observes >= 3);       /* status every 0.3 s, snapshot every 0.5 s: all in parts */
+    assert_true(idle > steps);        /* several idle calls a step while parts remain */
+    assert_true(last_value(log, "landmarks") >= 4);
+    assert_non_null(strstr(log, "(periodic)"));
+    assert_int_equal(last_value(log, "sends_forced"), 0);
+    const disk_t d = scan_disk(dir);
+    assert_int_equal(d.invalid, 0);
+    assert_true(d.newest >= 3); /* periodic ones and the final one */
+    remove_dir(dir);
+}
+
 /* ---- kill and restart ------------------------------------------------------ */
 
 static void kill_restart(void **state)
@@ -415,16 +480,11 @@ static void kill_restart(void **state)
     (void)state;
     char dir[64];
     make_dir(dir, sizeof dir);
-    char camera[300];
-    snprintf(camera, sizeof camera, "replay_log = %s/lm.log\nreplay_loop = true", dir);
-    char store[300];
-    snprintf(store, sizeof store, "%s/store", dir);
-    char logp[300];
-    snprintf(logp, sizeof logp, "%s/lm.log", dir);
-    write_log(logp);
+    replay_rig_t rig;
+    replay_rig(dir, &rig);
     /* a snapshot every 20 ms: many kills land inside a write; the laser is
      * the URG emulator on a pty, streaming across the restarts */
-    config(dir, "urg", "0", "0.02", camera, store, "ekf");
+    config(dir, "urg", "0", "0.02", rig.camera, rig.store, "ekf");
     const pid_t bridge = spawn_bridge(dir);
     char err[300];
     snprintf(err, sizeof err, "%s/err", dir);
@@ -547,6 +607,7 @@ int main(int argc, char **argv)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(degraded),
         cmocka_unit_test(sigterm),
+        cmocka_unit_test(observers_in_parts),
         cmocka_unit_test(kill_restart),
         cmocka_unit_test(laser_pty),
     };

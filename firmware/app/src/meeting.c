@@ -246,8 +246,12 @@ coslam_status_t meeting_send_due(meeting_t *m, slam_filter_t *filter, hal_link_t
         return send_exported(m, link, now_us, st);
     }
     if (m->send_waiting == 2U) {
-        if (!slam_filter_send_ready(filter, &st)) {
+        const int ready = slam_filter_export_poll(filter, &m->send_map, &st);
+        if (ready == 0) {
             return COSLAM_E_MERGE_PENDING;
+        }
+        if (ready < 0) {
+            st = COSLAM_E_EMPTY; /* a send's export is never aborted: counted as a failure */
         }
         return send_exported(m, link, now_us, st);
     }

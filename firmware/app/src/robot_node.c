@@ -432,9 +432,9 @@ static coslam_status_t run_drive(robot_node_t *n)
     return result;
 }
 
-void robot_node_idle(robot_node_t *n)
+int robot_node_idle(robot_node_t *n)
 {
-    slam_filter_idle(&n->filter);
+    return slam_filter_idle(&n->filter);
 }
 
 coslam_status_t robot_node_step(robot_node_t *n)
@@ -619,6 +619,19 @@ coslam_status_t robot_node_export(robot_node_t *n, map_estimate_t *out)
         return COSLAM_E_ARG;
     }
     return slam_filter_export(&n->filter, out);
+}
+
+coslam_status_t robot_node_export_observe(robot_node_t *n, map_estimate_t *out)
+{
+    if (n == NULL || out == NULL) {
+        return COSLAM_E_ARG;
+    }
+    return slam_filter_export_observe(&n->filter, out, n->meeting.cfg.merge.step_units);
+}
+
+int robot_node_export_poll(robot_node_t *n, const map_estimate_t *out, coslam_status_t *st)
+{
+    return n == NULL ? -1 : slam_filter_export_poll(&n->filter, out, st);
 }
 
 coslam_status_t robot_node_take_event(robot_node_t *n, meeting_event_t *ev)

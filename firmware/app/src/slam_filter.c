@@ -51,6 +51,9 @@ coslam_status_t slam_filter_init(slam_filter_t *f, const slam_filter_config_t *c
     f->send_updates = 0U;
     f->sends_in_parts = 0U;
     f->sends_forced = 0U;
+    f->send_yields = 0U;
+    f->observes_in_parts = 0U;
+    f->observes_yielded = 0U;
     switch (cfg->kind) {
     case SLAM_FILTER_FASTSLAM1:
     case SLAM_FILTER_FASTSLAM2: {
@@ -233,9 +236,29 @@ static void send_run(slam_filter_t *f, uint32_t budget)
 static void send_finish_now(slam_filter_t *f)
 {
     if (f->send_state == 1U) {
-        f->sends_forced++;
+        if (!f->send_yields) {
+            f->sends_forced++;
+        }
         send_run(f, 0U);
     }
+}
+
+/* A send or a merge needs the export table: an observer's export under
+ * way is aborted, one done but not taken is dropped (the observer begins
+ * again); a send's under way is finished at once. */
+static void export_table_for_robot(slam_filter_t *f)
+{
+    if (f->send_state != 0U && f->send_yields) {
+        if (f->send_state == 1U) {
+            fastslam_export_abort(&f->u.fs);
+        }
+        f->send_state = 0U;
+        f->send_out = NULL;
+        f->send_yields = 0U;
+        f->observes_yielded++;
+        return;
+    }
+    send_finish_now(f);
 }
 
 coslam_status_t slam_filter_update(slam_filter_t *f, const sighting_t *z, int n)
@@ -390,21 +413,28 @@ int slam_merge_work_outcome(slam_merge_work_t *w, coslam_status_t *st, merge_sta
     return 1;
 }
 
-void slam_filter_idle(slam_filter_t *f)
+int slam_filter_idle(slam_filter_t *f)
 {
     if (f->kind == SLAM_FILTER_EKF) {
         ekfslam_idle(&f->u.ekf, SLAM_FILTER_IDLE_SHARES);
-    } else if (f->merge_due != NULL) {
+        return 0;
+    }
+    if (f->merge_due != NULL) {
         merge_due_run(f->merge_due, f->merge_due->due_cfg.step_units);
     } else if (f->send_state == 1U) {
         send_run(f, f->send_units);
     }
+    return f->merge_due != NULL || f->send_state == 1U;
 }
 
-coslam_status_t slam_filter_export_send(slam_filter_t *f, map_estimate_t *out, uint32_t step_units)
+/* An export in parts into *out for a send (yields 0) or an observer (1). */
+static coslam_status_t export_in_parts(slam_filter_t *f, map_estimate_t *out, uint32_t step_units, uint8_t yields)
 {
     if (f == NULL || out == NULL) {
         return COSLAM_E_ARG;
+    }
+    if (!yields && f->send_yields) {
+        export_table_for_robot(f); /* a send goes before an observer */
     }
     if (f->send_state != 0U || (f->merge_due != NULL && f->merge_due->checking)) {
         return COSLAM_E_MERGE_BUSY; /* the export table is taken */
@@ -425,10 +455,25 @@ coslam_status_t slam_filter_export_send(slam_filter_t *f, map_estimate_t *out, u
     }
     f->send_out = out;
     f->send_state = 1U;
+    f->send_yields = yields;
     f->send_units = step_units;
     f->send_updates = 0U;
-    f->sends_in_parts++;
+    if (yields) {
+        f->observes_in_parts++;
+    } else {
+        f->sends_in_parts++;
+    }
     return COSLAM_E_MERGE_PENDING;
+}
+
+coslam_status_t slam_filter_export_send(slam_filter_t *f, map_estimate_t *out, uint32_t step_units)
+{
+    return export_in_parts(f, out, step_units, 0U);
+}
+
+coslam_status_t slam_filter_export_observe(slam_filter_t *f, map_estimate_t *out, uint32_t step_units)
+{
+    return export_in_parts(f, out, step_units, 1U);
 }
 
 int slam_filter_export_busy(const slam_filter_t *f)
@@ -436,13 +481,17 @@ int slam_filter_export_busy(const slam_filter_t *f)
     return f != NULL && ((f->merge_due != NULL && f->merge_due->checking) || f->send_state == 1U);
 }
 
-int slam_filter_send_ready(slam_filter_t *f, coslam_status_t *st)
+int slam_filter_export_poll(slam_filter_t *f, const map_estimate_t *out, coslam_status_t *st)
 {
-    if (f == NULL || f->send_state != 2U) {
+    if (f == NULL || out == NULL || f->send_state == 0U || f->send_out != out) {
+        return -1;
+    }
+    if (f->send_state != 2U) {
         return 0;
     }
     f->send_state = 0U;
     f->send_out = NULL;
+    f->send_yields = 0U;
     if (st != NULL) {
         *st = f->send_status;
     }
@@ -517,7 +566,7 @@ coslam_status_t slam_filter_merge_map(slam_filter_t *f, const map_estimate_t *in
         slam_merge_work_finish(f->merge_due);
     }
     slam_merge_work_finish(w);
-    send_finish_now(f); /* its export table, and the particles, are the merge's now */
+    export_table_for_robot(f); /* its export table, and the particles, are the merge's now */
     if (w->outcome_ready) {
         return COSLAM_E_MERGE_BUSY; /* an outcome nobody has taken */
     }

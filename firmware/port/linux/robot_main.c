@@ -26,8 +26,10 @@
  * counted, and the schedule skips the missed deadlines (never a burst of
  * catch-up steps). Between steps: device service (lost devices closed,
  * missing ones retried), GPIO roles attached when the chip is there,
- * snapshot and status when due, and, when at least half the period is
- * left, the filter's deferred work (robot_node_idle).
+ * snapshot and status when due (their map export goes in parts and yields
+ * to the robot's own sends and merges), and, while at least half the
+ * period is left, the filter's deferred work (robot_node_idle, again while
+ * parts of a merge or an export remain).
  */
 #include <errno.h>
 #include <signal.h>
@@ -154,22 +156,28 @@ static robot_snapshots_t snaps;
 static robot_snapshot_t snap;
 static robot_status_t status;
 
-/* The landmarks the status reports: an export of the map. While an
- * export in parts runs (a merge's check or a send, docs/scale.md "The
- * export in parts") the last count is kept: exporting now would finish
- * that one in this step. */
-static uint16_t count_landmarks(void)
-{
-    static uint16_t last;
-    if (slam_filter_export_busy(&node.filter)) {
-        return last;
-    }
-    last = robot_node_export(&node, &snap.map) == COSLAM_E_ARG ? 0U : snap.map.n_landmarks;
-    return last;
-}
+/* The map's observers: the status count and the periodic snapshot. Their
+ * export goes in parts into snap.map (robot_node_export_observe: the
+ * merge's step_units per call, the rest in idle time) and yields to the
+ * robot's own sends and merges, so an observer never takes a whole export's
+ * time in one step (215 ms at 1,000 particles and 1,024 landmarks). What
+ * fell due waits for it; a status report that waited OBSERVE_WAIT_US goes
+ * out with the last count. */
+#define OBSERVE_WAIT_US 2000000U
+typedef struct {
+    int running;        /* an export into snap.map under way */
+    int want_snap;      /* a periodic snapshot waits for it */
+    int want_line;      /* a status line waits for it */
+    int want_file;      /* a status file waits for it */
+    uint64_t status_since_us;
+    uint16_t landmarks; /* the last export's count */
+} map_observer_t;
 
-/* Export and save the next generation; report per `verbose` (failures always). */
-static int save_snapshot(int verbose, const char *why, uint64_t now_us)
+static map_observer_t observer;
+
+/* Save snap.map, the export just made, as the next generation; report per
+ * `verbose` (failures always). */
+static int save_snapshot_map(int verbose, const char *why, uint64_t now_us)
 {
     hal_storage_t *st = robot_devices_storage(&dev);
     robot_snapshots_set_storage(&snaps, st);
@@ -177,13 +185,6 @@ static int save_snapshot(int verbose, const char *why, uint64_t now_us)
         if (verbose) {
             fprintf(stderr, "coslam-robot: snapshot: storage down, %s snapshot not written\n", why);
         }
-        snaps.save_failures++;
-        return -1;
-    }
-    memset(&snap, 0, sizeof snap);
-    const coslam_status_t es = robot_node_export(&node, &snap.map);
-    if (es != COSLAM_OK && es != COSLAM_E_CAPACITY) {
-        fprintf(stderr, "coslam-robot: snapshot: export failed (%s)\n", coslam_status_str(es));
         snaps.save_failures++;
         return -1;
     }
@@ -206,6 +207,47 @@ static int save_snapshot(int verbose, const char *why, uint64_t now_us)
                 (unsigned long long)snap.seq, (unsigned)snap.map.n_landmarks, why);
     }
     return 0;
+}
+
+/* Export now (whole, in this step) and save the next generation: the final
+ * snapshot. */
+static int save_snapshot(int verbose, const char *why, uint64_t now_us)
+{
+    memset(&snap, 0, sizeof snap);
+    observer.running = 0; /* an observer's export into snap.map is finished by this one */
+    const coslam_status_t es = robot_node_export(&node, &snap.map);
+    if (es != COSLAM_OK && es != COSLAM_E_CAPACITY) {
+        fprintf(stderr, "coslam-robot: snapshot: export failed (%s)\n", coslam_status_str(es));
+        snaps.save_failures++;
+        return -1;
+    }
+    (void)robot_node_export_poll(&node, &snap.map, NULL); /* the observer's, finished above: taken */
+    observer.landmarks = snap.map.n_landmarks;
+    return save_snapshot_map(verbose, why, now_us);
+}
+
+/* The observers' export: begin it, or see whether it is done. Returns 1
+ * when snap.map holds a new export (status into *es), else 0. */
+static int observe_map(coslam_status_t *es)
+{
+    if (observer.running) {
+        const int r = robot_node_export_poll(&node, &snap.map, es);
+        if (r == 0) {
+            return 0;
+        }
+        observer.running = 0;
+        if (r == 1) {
+            return 1;
+        }
+        /* yielded to a send or a merge: begin again */
+    }
+    memset(&snap, 0, sizeof snap);
+    *es = robot_node_export_observe(&node, &snap.map);
+    if (*es == COSLAM_E_MERGE_PENDING) {
+        observer.running = 1;
+        return 0;
+    }
+    return *es != COSLAM_E_MERGE_BUSY; /* busy: the export table is taken, try next step */
 }
 
 /* At start (or when the storage comes back): the newest generation. With
@@ -493,37 +535,63 @@ int main(int argc, char **argv)
         log_meeting_events(opt.verbose);
 
         (void)hal_clock_now_us(clock, &now);
-        /* a periodic snapshot waits while an export in parts runs (its
-         * export would finish that one at once; the shutdown's does) */
-        if (snap_us > 0U && now >= next_snap && !slam_filter_export_busy(&node.filter)) {
-            (void)save_snapshot(opt.verbose, "periodic", now);
-            (void)hal_clock_now_us(clock, &now);
+        /* the map's observers: what falls due waits for their export in parts */
+        if (snap_us > 0U && now >= next_snap) {
+            observer.want_snap = 1;
             next_snap = now + snap_us;
         }
-        const int due_line = status_us > 0U && now >= next_status;
-        const int due_file = opt.status_file != NULL && now >= next_file;
-        if (due_line || due_file) {
+        if (status_us > 0U && now >= next_status) {
+            observer.want_line = 1;
+            next_status = now + status_us;
+        }
+        if (opt.status_file != NULL && now >= next_file) {
+            observer.want_file = 1;
+            next_file = now + file_us;
+        }
+        if (!(observer.want_line || observer.want_file)) {
+            observer.status_since_us = now;
+        }
+        if (observer.want_snap || observer.want_line || observer.want_file) {
+            coslam_status_t es = COSLAM_OK;
+            if (observe_map(&es)) {
+                if (es != COSLAM_OK && es != COSLAM_E_CAPACITY) {
+                    fprintf(stderr, "coslam-robot: map export failed (%s)\n", coslam_status_str(es));
+                    if (observer.want_snap) {
+                        snaps.save_failures++;
+                    }
+                } else {
+                    observer.landmarks = snap.map.n_landmarks;
+                    if (observer.want_snap) {
+                        (void)save_snapshot_map(opt.verbose, "periodic", now);
+                    }
+                }
+                observer.want_snap = 0;
+                observer.status_since_us = 0U; /* the status goes out now */
+            }
+        }
+        if ((observer.want_line || observer.want_file) && now - observer.status_since_us >= OBSERVE_WAIT_US) {
             const double cpu = cpu_seconds();
             loop.cpu_pct = now > cpu_mark_us ? 100.0 * (cpu - cpu_mark) / ((double)(now - cpu_mark_us) * 1e-6) : 0.0;
             cpu_mark = cpu;
             cpu_mark_us = now;
             loop.uptime_s = (double)(now - t_start) * 1e-6;
-            loop.landmarks = count_landmarks();
-            report_status(&opt, due_line, &loop);
-            if (due_line) {
-                next_status = now + status_us;
-            }
-            if (due_file) {
-                next_file = now + file_us;
-            }
+            loop.landmarks = observer.landmarks;
+            report_status(&opt, observer.want_line, &loop);
+            observer.want_line = 0;
+            observer.want_file = 0;
         }
 
-        /* the filter's deferred work in the step's idle time, when at
-         * least half the period is left (robot_node_idle) */
+        /* the filter's deferred work in the step's idle time, while at
+         * least half the period is left and parts of a merge or an export
+         * remain (robot_node_idle) */
         (void)hal_clock_now_us(clock, &now);
-        if (now < next && next - now > period / 2U) {
-            robot_node_idle(&node);
+        while (now < next && next - now > period / 2U) {
+            const int more = robot_node_idle(&node);
+            loop.idle_calls++;
             (void)hal_clock_now_us(clock, &now);
+            if (!more) {
+                break;
+            }
         }
         /* the schedule: absolute deadlines; an overrun skips the missed ones */
         if (now > next) {
@@ -558,7 +626,7 @@ int main(int argc, char **argv)
     (void)hal_clock_now_us(clock, &now);
     const int saved = save_snapshot(1, "final", now);
     loop.uptime_s = (double)(now - t_start) * 1e-6;
-    loop.landmarks = count_landmarks();
+    loop.landmarks = observer.landmarks;
     loop.cpu_pct = 100.0 * cpu_seconds() / (loop.uptime_s > 0.0 ? loop.uptime_s : 1.0);
     /* the last map messages: acknowledged by the peers before DDS goes */
     robot_link_flush(&dev.link, 200000U);

@@ -106,6 +106,15 @@ void robot_status_collect(robot_status_t *s, robot_node_t *node, const robot_dev
     u64(s, "mt_refused_range", m->refused_range);
     u64(s, "mt_refused_disagree", m->refused_disagree);
     u64(s, "mt_events_dropped", m->events_dropped);
+    /* work in parts (docs/scale.md): merges, sends and the observers' exports */
+    const slam_filter_t *fl = &node->filter;
+    u64(s, "idle_calls", loop->idle_calls);
+    u64(s, "merges_in_parts", fl->merges_in_parts);
+    u64(s, "merges_forced", fl->merges_forced);
+    u64(s, "sends_in_parts", fl->sends_in_parts);
+    u64(s, "sends_forced", fl->sends_forced);
+    u64(s, "observes_in_parts", fl->observes_in_parts);
+    u64(s, "observes_yielded", fl->observes_yielded);
 
     const urg_scip2_stats_t *u = robot_node_laser_stats(node);
     u64(s, "urg_scans_ok", u->scans_ok);

@@ -65,7 +65,8 @@ typedef struct {
     uint32_t overruns;                     /**< steps that ended after the next deadline */
     uint32_t late_max_us;                  /**< largest lateness */
     double cpu_pct;                        /**< over the last report period */
-    uint16_t landmarks;                    /**< exported landmarks */
+    uint16_t landmarks;                    /**< exported landmarks (the observers' last export) */
+    uint64_t idle_calls;                   /**< robot_node_idle calls (several a step while parts remain) */
 } robot_loop_stats_t;
 
 /** Gather the report (the node's counters read as they are now). O(pairs). */

@@ -231,8 +231,11 @@ coslam_status_t robot_node_init(robot_node_t *n, const robot_node_config_t *cfg,
 coslam_status_t robot_node_step(robot_node_t *n);
 
 /** Idle time after a step (the rest of the step period): the filter's
- *  deferred work (slam_filter_idle). Changes no number beyond rounding. */
-void robot_node_idle(robot_node_t *n);
+ *  deferred work (slam_filter_idle): the compressed EKF's global update,
+ *  the next part of a merge or an export in parts. Returns 1 if a merge or
+ *  an export in parts is still due (coslam-robot calls it again while its
+ *  period has time left), else 0. */
+int robot_node_idle(robot_node_t *n);
 
 /**
  * Start the filter from a saved map (slam_filter_seed: the robot did not
@@ -301,6 +304,16 @@ void robot_node_odometry(const robot_node_t *n, pose2_t *pose, double *travel_m)
 
 /** Export the current map estimate into *out (slam_filter_export). */
 coslam_status_t robot_node_export(robot_node_t *n, map_estimate_t *out);
+
+/** Begin an observer's export of the map into *out in parts of the merge's
+ *  step_units (slam_filter_export_observe: it yields to sends and merges;
+ *  robot_node_idle runs the rest, robot_node_export_poll says when *out
+ *  holds it). Returns as slam_filter_export_observe. */
+coslam_status_t robot_node_export_observe(robot_node_t *n, map_estimate_t *out);
+
+/** slam_filter_export_poll on the node's filter: 1 done (taken), 0 running,
+ *  -1 none into *out (yielded: begin again). */
+int robot_node_export_poll(robot_node_t *n, const map_estimate_t *out, coslam_status_t *st);
 
 /** Oldest queued meeting event (sent, merged, refused): COSLAM_OK / COSLAM_E_EMPTY. */
 coslam_status_t robot_node_take_event(robot_node_t *n, meeting_event_t *ev);

@@ -86,12 +86,18 @@ typedef struct slam_filter_s {
      *  (slam_filter_export_send): where it goes, and how far it is. */
     map_estimate_t *send_out;
     uint8_t send_state;          /**< 0: none; 1: under way; 2: done, not taken yet */
+    uint8_t send_yields;         /**< it is an observer's (slam_filter_export_observe):
+                                      a send or a merge aborts it instead of finishing it */
     coslam_status_t send_status; /**< the export's status once done */
     uint32_t send_units;         /**< its budget per idle call */
     uint16_t send_updates;       /**< updates since it began */
     uint32_t sends_in_parts;     /**< exports of a sent map that did not fit the call that began them */
     uint32_t sends_forced;       /**< of which finished at once: by an update after
                                       SLAM_FILTER_MERGE_MAX_UPDATES, a merge or another export */
+    uint32_t observes_in_parts;  /**< observers' exports (slam_filter_export_observe) that
+                                      did not fit the call that began them */
+    uint32_t observes_yielded;   /**< of which aborted or dropped for a send or a merge (the
+                                      observer begins again) */
     union {
         fastslam_t fs;
         ekfslam_t ekf;
@@ -164,10 +170,14 @@ coslam_status_t slam_filter_update(slam_filter_t *f, const sighting_t *z, int n)
  *  shares of its deferred global update ahead of its pace (ekfslam_idle:
  *  no number changes beyond rounding, only when the work is done, so that
  *  the steps themselves do little of it); Fast-SLAM merges the next part
- *  of a merge in parts (merge_config_t.step_units), if one is due. The
- *  robot, the simulator, the replay and the benches call it after each
- *  step. */
-void slam_filter_idle(slam_filter_t *f);
+ *  of a merge in parts (merge_config_t.step_units), if one is due, else
+ *  the next part of an export in parts. The robot, the simulator, the
+ *  replay and the benches call it after each step; the robot calls it
+ *  again while its period has time left and it returns 1.
+ *  Returns 1 if a merge or an export in parts is still due after this
+ *  call (another call would do the next part), else 0 (EKF-SLAM: always
+ *  0, its deferred work keeps its own pace). */
+int slam_filter_idle(slam_filter_t *f);
 
 /** Pose estimate and covariance in the robot's map frame. */
 void slam_filter_pose(const slam_filter_t *f, pose2_t *pose, cov3_t *cov);
@@ -256,7 +266,7 @@ coslam_status_t slam_filter_merge_map(slam_filter_t *f, const map_estimate_t *in
  * Fast-SLAM: the export in parts of step_units (fastslam_export_begin,
  * docs/scale.md "The export in parts"): if it is done within this call,
  * its status; else COSLAM_E_MERGE_PENDING, the rest is done by
- * slam_filter_idle, and slam_filter_send_ready says when *out holds it
+ * slam_filter_idle, and slam_filter_export_poll says when *out holds it
  * (*out must stay valid until then; the map is the one of this call's
  * moment, every particle at the pose it had then). COSLAM_E_MERGE_BUSY:
  * the filter's export table is taken (a merge's check waits for its own
@@ -274,9 +284,22 @@ coslam_status_t slam_filter_export_send(slam_filter_t *f, map_estimate_t *out, u
  *  evaluations, ask this first. O(1). */
 int slam_filter_export_busy(const slam_filter_t *f);
 
-/** 1 once the export slam_filter_export_send left to idle time is in its
- *  *out (its status into *st, may be NULL), taken once; else 0. */
-int slam_filter_send_ready(slam_filter_t *f, coslam_status_t *st);
+/**
+ * An export for an observer (a status count, a periodic snapshot) into
+ * *out, as slam_filter_export_send does it (in parts of step_units, the
+ * rest in idle time), except that it yields: a send or a merge that needs
+ * the export table aborts it (or drops its result not yet taken) instead
+ * of finishing it (observes_yielded), and the observer begins again later.
+ * So an observer never delays the robot's own work and never takes a whole
+ * export's time in one step. Returns as slam_filter_export_send.
+ */
+coslam_status_t slam_filter_export_observe(slam_filter_t *f, map_estimate_t *out, uint32_t step_units);
+
+/** The export in parts into *out (slam_filter_export_send or _observe):
+ *  1 once done, taken once (its status into *st, may be NULL); 0 while it
+ *  runs; -1 if no export into *out is under way or waiting (never begun,
+ *  taken already, or an observer's that yielded). */
+int slam_filter_export_poll(slam_filter_t *f, const map_estimate_t *out, coslam_status_t *st);
 
 /** Finish now whatever merge w holds (check and fusion; slam_filter_idle
  *  would do it in parts). O(the rest of it). */
