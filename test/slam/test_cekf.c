@@ -640,6 +640,108 @@ static void test_exact_loop_world(void **state)
     }
 }
 
+/* A merge's updates kept pending and applied to P together (merge_batch,
+ * ekfslam.c "A merge's updates together") against each applied at once
+ * (merge_batch 1): the same map (a run of the full filter), the same merge
+ * of duplicates (information in both directions, through an uncertain
+ * transform), additions, and duplicates of the added landmarks after them.
+ * The readers between the updates (ekfslam_landmark_relative, ekfslam_p,
+ * ekfslam_pose), which add the pending columns' share, agree with the
+ * filter that applied them, and so do x and P at the end, to 1e-9
+ * relative. */
+static void test_merge_batched(void **state)
+{
+    (void)state;
+    const synth_config_t sc = world(202U);
+    ekfslam_config_t cfg = spread_config(&sc);
+    cfg.active_radius_m = 0.0;
+    assert_int_equal(ekfslam_init(&g_full, &cfg, synth_start_pose(&sc)), COSLAM_OK);
+    synth_init(&g_world, &sc);
+    synth_step_t st;
+    int steps = 0;
+    while (synth_next(&g_world, &st) && steps < 1500) {
+        ++steps;
+        assert_int_equal(ekfslam_predict(&g_full, st.u), COSLAM_OK);
+        if (st.is_frame) {
+            (void)ekfslam_update(&g_full, st.z, st.n_z);
+        }
+    }
+    assert_true(g_full.n_lm >= 60);
+    memcpy(&g_cekf, &g_full, sizeof g_full);
+    g_full.cfg.merge_batch = 1U;  /* each at once */
+    g_cekf.cfg.merge_batch = 16U; /* several flushes in this merge */
+    const pose2_t t_hat = {0.4, -0.3, 0.2};
+    const cov3_t t_cov = cov3_diag(0.01, 0.02, 0.001);
+    assert_int_equal(ekfslam_merge_begin(&g_full, &t_cov), COSLAM_OK);
+    assert_int_equal(ekfslam_merge_begin(&g_cekf, &t_cov), COSLAM_OK);
+    const pose2_t t_inv = pose2_inverse(t_hat);
+    int pending_seen = 0;
+    int reads = 0;
+    const double ps = scale_of(&g_full);
+    const uint16_t n_own = g_full.n_lm;
+    for (int pass = 0; pass < 2; ++pass) {
+        const uint16_t j0 = pass == 0 ? 0U : n_own;
+        const uint16_t j1 = pass == 0 ? n_own : g_full.n_lm;
+        for (uint16_t j = j0; j < j1; j = (uint16_t)(j + (pass == 0 ? 2U : 1U))) {
+            point2_t rel;
+            cov2_t rel_cov;
+            ekfslam_landmark_relative(&g_full, j, &rel, &rel_cov);
+            const point2_t off = {rel.x + 0.03 * ((j % 5) - 2.0), rel.y - 0.02 * ((j % 3) - 1.0)};
+            const point2_t rel_other = pose2_apply(t_inv, off);
+            cov2_t info;
+            assert_int_equal(cov2_inverse(cov2_make(0.02 + 0.001 * (j % 7), 0.004, 0.03), &info), COSLAM_OK);
+            assert_int_equal(ekfslam_merge_observe(&g_full, j, t_hat, rel_other, info), COSLAM_OK);
+            assert_int_equal(ekfslam_merge_observe(&g_cekf, j, t_hat, rel_other, info), COSLAM_OK);
+            pending_seen += g_cekf.merge_bn > 0;
+            assert_int_equal(g_full.merge_bn, 0);
+            if (j % 3 == 0) {
+                /* the readers, with columns pending */
+                const uint16_t k = (uint16_t)((j * 7U) % g_full.n_lm);
+                point2_t mf, mc;
+                cov2_t cf, cc;
+                ekfslam_landmark_relative(&g_full, k, &mf, &cf);
+                ekfslam_landmark_relative(&g_cekf, k, &mc, &cc);
+                ASSERT_NEAR(mc.x, mf.x, REL_TOL);
+                ASSERT_NEAR(mc.y, mf.y, REL_TOL);
+                ASSERT_NEAR(cc.xx, cf.xx, REL_TOL * ps);
+                ASSERT_NEAR(cc.xy, cf.xy, REL_TOL * ps);
+                ASSERT_NEAR(cc.yy, cf.yy, REL_TOL * ps);
+                const int a = 3 + 2 * k;
+                ASSERT_NEAR(ekfslam_p(&g_cekf, 0, a), ekfslam_p(&g_full, 0, a), REL_TOL * ps);
+                ASSERT_NEAR(ekfslam_p(&g_cekf, a + 1, 2), ekfslam_p(&g_full, a + 1, 2), REL_TOL * ps);
+                pose2_t pf, pc;
+                cov3_t qf, qc;
+                ekfslam_pose(&g_full, &pf, &qf);
+                ekfslam_pose(&g_cekf, &pc, &qc);
+                ASSERT_NEAR(qc.m[0][2], qf.m[0][2], REL_TOL * ps);
+                reads++;
+            }
+        }
+        if (pass == 0) {
+            /* additions: the pending columns go in first */
+            for (int i = 0; i < 6; ++i) {
+                ekfslam_meta_t meta = {(uint32_t)(90000 + i), 10.0f, 5, 2U, (uint8_t)i, 0};
+                const point2_t rel_other = {2.0 + 0.5 * i, -1.0 + 0.3 * i};
+                const cov2_t noise = cov2_make(0.05, 0.01, 0.04);
+                assert_int_equal(ekfslam_merge_add(&g_full, t_hat, rel_other, noise, &meta), COSLAM_OK);
+                assert_int_equal(ekfslam_merge_add(&g_cekf, t_hat, rel_other, noise, &meta), COSLAM_OK);
+                assert_int_equal(g_cekf.merge_bn, 0);
+            }
+        }
+    }
+    ekfslam_merge_end(&g_full);
+    ekfslam_merge_end(&g_cekf);
+    assert_int_equal(g_cekf.merge_bn, 0);
+    tally_t t;
+    memset(&t, 0, sizeof t);
+    compare_all(&g_full, &g_cekf, &t);
+    print_message("merge batched: %u landmarks, %d updates with columns pending, %d reads between, worst rel diff "
+                  "%.2g\n",
+                  (unsigned)g_full.n_lm, pending_seen, reads, t.worst);
+    assert_true(pending_seen > 20);
+    assert_true(reads > 10);
+}
+
 static void test_config(void **state)
 {
     (void)state;
@@ -665,6 +767,7 @@ int main(void)
         cmocka_unit_test(test_removal_moves_pending),
         cmocka_unit_test(test_exact_loop_world),
         cmocka_unit_test(test_local_phase_is_small),
+        cmocka_unit_test(test_merge_batched),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -173,6 +173,12 @@ typedef struct {
      *  800 landmarks the pending entries then end within the next local
      *  phase). */
     uint32_t active_spread_madds;
+    /** A map merge's scalar updates kept pending and applied to P together
+     *  (ekfslam.c "A merge's updates together"), at most; fewer where the
+     *  compressed EKF's phi buffer, which holds them, is smaller than this
+     *  many columns of the state. 1 (or a profile without the compressed
+     *  EKF): each at once. Equal up to rounding. Default 128. */
+    uint16_t merge_batch;
 } ekfslam_config_t;
 
 /** Per-landmark bookkeeping beside the state (same meaning as in landmark_t). */
@@ -381,6 +387,12 @@ typedef struct {
     uint8_t lm_confirmed_once[COSLAM_EKF_MAX_LANDMARKS];
     ekfslam_cekf_t cekf;
     ekfslam_scratch_t scratch;
+    /** A merge's updates not yet applied to p (ekfslam.c "A merge's updates
+     *  together"): P = p - sum_t w_t w_t^T over merge_len active
+     *  positions, the columns w_t held in cekf.phi (free while merging: no
+     *  local phase then). */
+    int32_t merge_bn;
+    int32_t merge_len;
 } ekfslam_t;
 
 /** Defaults: slam_params_default(), robot 0, JCBB with a 20000-node budget, FEJ on. */
