@@ -411,6 +411,51 @@ static void test_pairs_nearest_own_sighting(void **state)
     assert_int_equal(ev.own_sighting_us, t + 200000);
 }
 
+/* A camera faster than a third of the pairing window (30 Hz here) would
+ * shorten the own sighting history to half a second; it is thinned in the
+ * middle instead (hist_push), so that it still reaches 1.6 s back (16 x
+ * 300 ms / 3) and a message whose sender sighted us 1.1 s ago (its export
+ * went in parts) pairs with an own sighting close to that time. At 10 Hz
+ * nothing is thinned: the plain ring of the last 16 sightings. */
+static void test_history_reaches_back_at_fast_rates(void **state)
+{
+    (void)state;
+    hal_link_t *link = fake_link_reset(0);
+    setup_robot0(NULL);
+    const uint64_t t0 = 50000000;
+    uint64_t t = t0;
+    for (int i = 0; i < 30; ++i, t += 100000) { /* 10 Hz for 3 s */
+        meeting_on_sighting(&g_m, &g_filter, link, t, 1, 2.0, 0.0, t, kOrigin, 0.0);
+    }
+    assert_int_equal(g_m.ctr.history_thinned, 0);
+    assert_int_equal(g_m.peer[1].n_hist, COSLAM_APP_SIGHTING_HISTORY);
+    meeting_sighting_t last;
+    assert_int_equal(meeting_last_sighting(&g_m, 1, &last), COSLAM_OK);
+    assert_int_equal(last.stamp_us, t - 100000);
+    /* 30 Hz for 3 s */
+    for (int i = 0; i < 90; ++i, t += 33333) {
+        meeting_on_sighting(&g_m, &g_filter, link, t, 1, 2.0, 0.0, t, kOrigin, 0.0);
+    }
+    const uint64_t now = t - 33333;
+    assert_int_equal(meeting_last_sighting(&g_m, 1, &last), COSLAM_OK);
+    assert_int_equal(last.stamp_us, now); /* the newest always kept */
+    /* the sender's sighting 1.1 s before now */
+    const uint64_t t_s = now - 1100000;
+    const size_t len = make_msg_from1(1, 2600000, 1500000, 2.0, 0.0, (point2_t){1.0, 0.0}, 1U << 1, 0);
+    inject(g_buf, len, 1, now + g_m.cfg.link_latency_us);
+    meeting_poll_link(&g_m, link);
+    assert_int_equal(meeting_poll(&g_m, &g_filter, now + 1000, kOrigin, 0.0), COSLAM_OK);
+    meeting_event_t ev = {0};
+    assert_int_equal(count_events(MEETING_EV_MERGED, COSLAM_OK, &ev), 1);
+    assert_int_equal(ev.sender_sighting_us, t_s);
+    const uint64_t dt = ev.own_sighting_us > t_s ? ev.own_sighting_us - t_s : t_s - ev.own_sighting_us;
+    print_message("history at 30 Hz: paired 1.1 s back with an own sighting %.1f ms away; %u thinned\n",
+                  (double)dt / 1000.0, (unsigned)g_m.ctr.history_thinned);
+    assert_true(dt <= 60000U);
+    assert_int_equal(g_m.ctr.stale, 0);
+    assert_true(g_m.ctr.history_thinned > 50U);
+}
+
 static void test_waits_then_stale(void **state)
 {
     (void)state;
@@ -878,6 +923,7 @@ int main(void)
         cmocka_unit_test(test_merge_compensates_own_motion),
         cmocka_unit_test(test_pairs_nearest_own_sighting),
         cmocka_unit_test(test_waits_then_stale),
+        cmocka_unit_test(test_history_reaches_back_at_fast_rates),
         cmocka_unit_test(test_replay_refused),
         cmocka_unit_test(test_implausible_refused),
         cmocka_unit_test(test_disagreeing_peer_not_retried),

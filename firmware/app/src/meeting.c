@@ -107,6 +107,49 @@ static const meeting_sighting_t *hist_at(const meeting_peer_t *p, unsigned age)
     return &p->hist[idx];
 }
 
+/* Room in peer p's history for a sighting at stamp_us, the newest. The
+ * history should reach back at least COSLAM_APP_SIGHTING_HISTORY times a
+ * third of the pairing window (1.6 s at 300 ms: a message whose export in
+ * parts or whose link took that long still finds a sighting to pair with),
+ * whatever the camera's rate. So when it is full and spans less than that,
+ * it keeps its oldest sighting and gives up the one whose neighbours are
+ * closest together in time (within a third of the window at the rate
+ * that makes this happen: the nearest sighting then stays within the
+ * window); else the oldest goes, as a plain ring. At 10 Hz and the default
+ * window the history is the plain ring of the last 16 sightings. */
+static meeting_sighting_t *hist_push(meeting_t *m, meeting_peer_t *p, uint64_t stamp_us)
+{
+    const unsigned n = COSLAM_APP_SIGHTING_HISTORY;
+    if (p->n_hist == n && n >= 3U) {
+        const uint64_t reach = (uint64_t)n * (m->cfg.pair_window_us / 3U);
+        const uint64_t oldest = hist_at(p, n - 1U)->stamp_us;
+        if (stamp_us >= oldest && stamp_us - oldest < reach) {
+            /* the middle sighting (age 1 .. n - 2) between the closest neighbours */
+            unsigned drop = 1U;
+            uint64_t best = UINT64_MAX;
+            for (unsigned a = 1U; a + 1U < n; ++a) {
+                const uint64_t gap = hist_at(p, a - 1U)->stamp_us - hist_at(p, a + 1U)->stamp_us;
+                if (gap < best) {
+                    best = gap;
+                    drop = a;
+                }
+            }
+            /* close the gap: the newer sightings move one slot back */
+            for (unsigned a = drop; a > 0U; --a) {
+                p->hist[(p->head + 2U * n - 1U - a) % n] = p->hist[(p->head + 2U * n - a) % n];
+            }
+            m->ctr.history_thinned++;
+            return &p->hist[(p->head + n - 1U) % n];
+        }
+    }
+    meeting_sighting_t *s = &p->hist[p->head];
+    p->head = (uint8_t)((p->head + 1U) % n);
+    if (p->n_hist < n) {
+        p->n_hist++;
+    }
+    return s;
+}
+
 coslam_status_t meeting_last_sighting(const meeting_t *m, uint8_t peer, meeting_sighting_t *out)
 {
     if (m == NULL || out == NULL || peer >= COSLAM_MAX_ROBOTS) {
@@ -271,16 +314,12 @@ coslam_status_t meeting_on_sighting(meeting_t *m, slam_filter_t *filter, hal_lin
         return COSLAM_OK;
     }
     meeting_peer_t *p = &m->peer[peer];
-    meeting_sighting_t *s = &p->hist[p->head];
+    meeting_sighting_t *s = hist_push(m, p, stamp_us);
     s->stamp_us = stamp_us;
     s->range_m = range_m;
     s->bearing_rad = bearing_rad;
     s->odo_pose = odo_pose;
     s->travel_m = travel_m;
-    p->head = (uint8_t)((p->head + 1U) % COSLAM_APP_SIGHTING_HISTORY);
-    if (p->n_hist < COSLAM_APP_SIGHTING_HISTORY) {
-        p->n_hist++;
-    }
     if (!p->in_meeting || stamp_us - p->last_seen_us > m->cfg.meeting_gap_us) {
         p->in_meeting = 1U;
         p->sends = 0U;

@@ -101,6 +101,7 @@ void robot_status_collect(robot_status_t *s, robot_node_t *node, const robot_dev
     u64(s, "mt_ignored_recent", m->ignored_recent);
     u64(s, "mt_replays", m->replays);
     u64(s, "mt_stale", m->stale);
+    u64(s, "mt_history_thinned", m->history_thinned);
     u64(s, "mt_merged", m->merged);
     u64(s, "mt_merge_failures", m->merge_failures);
     u64(s, "mt_refused_range", m->refused_range);

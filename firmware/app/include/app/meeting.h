@@ -52,7 +52,12 @@
  *         t_s = arrival_us - link_latency_us - (stamp_us - sighting.stamp_us);
  *     the own sighting nearest to t_s is used if |t_own - t_s| <=
  *     pair_window_us. If none comes before now > t_s + pair_window_us the
- *     message is dropped as stale (COSLAM_E_MERGE_STALE, counted);
+ *     message is dropped as stale (COSLAM_E_MERGE_STALE, counted). The own
+ *     sightings of a peer are kept in a history of
+ *     COSLAM_APP_SIGHTING_HISTORY that reaches at least that many times
+ *     pair_window_us / 3 back (1.6 s by default) whatever the camera's
+ *     rate: sightings that come faster are thinned in the middle, never
+ *     the newest (history_thinned);
  *  5. slam_filter_merge_map, the one merge path (app/slam_filter.h): the
  *     two sightings, this robot's odometry since its own sighting (noise
  *     from the filter's own parameters) and |t_own - t_s| go to
@@ -114,7 +119,8 @@ typedef struct {
 } meeting_sighting_t;
 
 typedef struct {
-    meeting_sighting_t hist[COSLAM_APP_SIGHTING_HISTORY]; /**< ring, newest at head - 1 */
+    meeting_sighting_t hist[COSLAM_APP_SIGHTING_HISTORY]; /**< ring, newest at head - 1 (thinned
+                                                                 when sightings come fast, meeting.c hist_push) */
     uint8_t n_hist;
     uint8_t head;
     uint8_t in_meeting;
@@ -177,6 +183,9 @@ typedef struct {
     uint32_t send_busy;         /**< sends due while the last one was still being exported (its
                                      slot kept: the next sighting tries again) */
     uint32_t events_dropped;    /**< events overwritten before they were read */
+    uint32_t history_thinned;   /**< own sightings of a peer dropped from the middle of its
+                                     history, which sightings faster than a third of
+                                     pair_window_us would otherwise shorten (meeting.c hist_push) */
 } meeting_counters_t;
 
 typedef struct {
