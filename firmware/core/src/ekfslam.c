@@ -1410,7 +1410,9 @@ void ekfslam_pose(const ekfslam_t *ekf, pose2_t *pose, cov3_t *cov)
     *pose = robot_pose(ekf);
     for (int r = 0; r < 3; ++r) {
         for (int c = 0; c < 3; ++c) {
-            cov->m[r][c] = p_now(ekf, r, c);
+            /* the pose is never passive: only a merge's pending columns
+             * (p_final) stand between it and the stored P */
+            cov->m[r][c] = ekf->merge_bn > 0 ? p_final(ekf, r, c) : P_(ekf, r, c);
         }
     }
 }
