@@ -100,11 +100,15 @@ coslam_status_t meeting_take_event(meeting_t *m, meeting_event_t *ev)
     return COSLAM_OK;
 }
 
+/* Slot of the sighting `age` in peer p's ring (age 0 = newest). */
+static unsigned hist_slot(const meeting_peer_t *p, unsigned age)
+{
+    return (p->head + COSLAM_APP_SIGHTING_HISTORY - 1U - age) % COSLAM_APP_SIGHTING_HISTORY;
+}
+
 static const meeting_sighting_t *hist_at(const meeting_peer_t *p, unsigned age)
 {
-    /* age 0 = newest */
-    const unsigned idx = (p->head + COSLAM_APP_SIGHTING_HISTORY - 1U - age) % COSLAM_APP_SIGHTING_HISTORY;
-    return &p->hist[idx];
+    return &p->hist[hist_slot(p, age)];
 }
 
 /* Room in peer p's history for a sighting at stamp_us, the newest. The
@@ -136,10 +140,10 @@ static meeting_sighting_t *hist_push(meeting_t *m, meeting_peer_t *p, uint64_t s
             }
             /* close the gap: the newer sightings move one slot back */
             for (unsigned a = drop; a > 0U; --a) {
-                p->hist[(p->head + 2U * n - 1U - a) % n] = p->hist[(p->head + 2U * n - a) % n];
+                p->hist[hist_slot(p, a)] = p->hist[hist_slot(p, a - 1U)];
             }
             m->ctr.history_thinned++;
-            return &p->hist[(p->head + n - 1U) % n];
+            return &p->hist[hist_slot(p, 0U)];
         }
     }
     meeting_sighting_t *s = &p->hist[p->head];

@@ -837,7 +837,7 @@ static void sync_spread(ekfslam_t *ekf)
 
 void ekfslam_sync(ekfslam_t *ekf)
 {
-    merge_flush(ekf); /* a merge's updates still pending */
+    merge_flush(ekf); /* a merge's updates still pending (none outside a merge) */
     ekfslam_cekf_t *ck = &ekf->cekf;
     cekf_finish(ekf); /* an earlier global update's rest: this phase's P_BB(0) */
     if (!in_local(ekf)) {
@@ -1041,7 +1041,6 @@ static void cekf_prepare(ekfslam_t *ekf, double max_range_m)
 void ekfslam_idle(ekfslam_t *ekf, uint32_t shares)
 {
     COSLAM_ASSERT(ekf != 0);
-    merge_flush(ekf);
     ekfslam_cekf_t *ck = &ekf->cekf;
     if (COSLAM_EKF_MAX_ACTIVE == 0) {
         return;
@@ -1443,7 +1442,6 @@ coslam_status_t ekfslam_predict(ekfslam_t *ekf, odo_increment_t u)
         ekf->ctr.rejected_controls++;
         return COSLAM_E_NUMERIC;
     }
-    merge_flush(ekf);
     cekf_spread(ekf, 0.0, 1);
     const slam_params_t *sp = &ekf->cfg.slam;
     const pose2_t pose = robot_pose(ekf);
@@ -1758,7 +1756,6 @@ static coslam_status_t update_one(ekfslam_t *ekf, uint16_t j, sighting_t z, int 
 static coslam_status_t add_landmark(ekfslam_t *ekf, point2_t m, double gr[2][3], double gt[2][3], cov2_t noise,
                                     const ekfslam_meta_t *meta)
 {
-    merge_flush(ekf); /* the new rows are built from whole rows of P */
     if (ekf->n_lm >= COSLAM_EKF_MAX_LANDMARKS) {
         ekf->ctr.lm_capacity_drops++;
         return COSLAM_E_CAPACITY;
@@ -2382,7 +2379,6 @@ static void jcbb_associate(ekfslam_t *ekf, const sighting_t *z, int ns, int n_pa
 coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
 {
     COSLAM_ASSERT(ekf != 0 && (z_in != 0 || n_in == 0));
-    merge_flush(ekf);
     const slam_params_t *sp = &ekf->cfg.slam;
     ekfslam_scratch_t *sc = &ekf->scratch;
     coslam_status_t result = COSLAM_OK;
@@ -2694,7 +2690,10 @@ static coslam_status_t scalar_update(ekfslam_t *ekf, const int *idx, const doubl
  * linearised where the sequential EKF would linearise it: the same updates
  * in another order of the sums, equal up to rounding. Where cekf.phi holds
  * fewer than two columns of the state (no compressed EKF compiled in) the
- * update is applied at once, as before. */
+ * update is applied at once, as before. Columns are pending only between
+ * ekfslam_merge_begin and _end: ekfslam_merge_add and _end apply them (so
+ * do ekfslam_sync and everything built on it), the readers add their
+ * share; the filter's steps never see any. */
 /* Active position of state index r while merging (tau after the state). */
 static int merge_pos(const ekfslam_t *ekf, int r)
 {
@@ -2835,7 +2834,6 @@ coslam_status_t ekfslam_merge_begin(ekfslam_t *ekf, const cov3_t *t_cov)
         return COSLAM_E_NUMERIC;
     }
     ekfslam_sync(ekf); /* the merge runs on the whole state */
-    ekf->merge_bn = 0;
     const int d = dim(ekf);
     for (int q = 0; q < 3; ++q) {
         ekf->x[TAU_ + q] = 0.0;
@@ -2920,7 +2918,7 @@ coslam_status_t ekfslam_merge_add(ekfslam_t *ekf, pose2_t t_hat, point2_t rel_ot
     if (!ekf->merging) {
         return COSLAM_E_ARG;
     }
-    merge_flush(ekf); /* the new landmark's cross-covariances read whole rows of P */
+    merge_flush(ekf); /* add_landmark builds the new rows from whole rows of P */
     const pose2_t pose = robot_pose(ekf);
     const pose2_t t = merge_t_now(ekf, t_hat);
     const point2_t b = pose2_apply(t, rel_other);

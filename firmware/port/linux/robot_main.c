@@ -169,7 +169,7 @@ typedef struct {
     int want_snap;      /* a periodic snapshot waits for it */
     int want_line;      /* a status line waits for it */
     int want_file;      /* a status file waits for it */
-    uint64_t status_since_us;
+    uint64_t status_due_us; /* when the waiting status report fell due */
     uint16_t landmarks; /* the last export's count */
 } map_observer_t;
 
@@ -540,6 +540,9 @@ int main(int argc, char **argv)
             observer.want_snap = 1;
             next_snap = now + snap_us;
         }
+        if (!(observer.want_line || observer.want_file)) {
+            observer.status_due_us = now;
+        }
         if (status_us > 0U && now >= next_status) {
             observer.want_line = 1;
             next_status = now + status_us;
@@ -548,12 +551,11 @@ int main(int argc, char **argv)
             observer.want_file = 1;
             next_file = now + file_us;
         }
-        if (!(observer.want_line || observer.want_file)) {
-            observer.status_since_us = now;
-        }
+        int fresh = 0; /* snap.map holds an export made for them now */
         if (observer.want_snap || observer.want_line || observer.want_file) {
             coslam_status_t es = COSLAM_OK;
-            if (observe_map(&es)) {
+            fresh = observe_map(&es);
+            if (fresh) {
                 if (es != COSLAM_OK && es != COSLAM_E_CAPACITY) {
                     fprintf(stderr, "coslam-robot: map export failed (%s)\n", coslam_status_str(es));
                     if (observer.want_snap) {
@@ -566,10 +568,9 @@ int main(int argc, char **argv)
                     }
                 }
                 observer.want_snap = 0;
-                observer.status_since_us = 0U; /* the status goes out now */
             }
         }
-        if ((observer.want_line || observer.want_file) && now - observer.status_since_us >= OBSERVE_WAIT_US) {
+        if ((observer.want_line || observer.want_file) && (fresh || now - observer.status_due_us >= OBSERVE_WAIT_US)) {
             const double cpu = cpu_seconds();
             loop.cpu_pct = now > cpu_mark_us ? 100.0 * (cpu - cpu_mark) / ((double)(now - cpu_mark_us) * 1e-6) : 0.0;
             cpu_mark = cpu;
