@@ -1096,43 +1096,67 @@ static double batch_p_corr(const ekfslam_t *ekf, int pa, int pb)
     return acc;
 }
 
-/* out[l] = sum_{t < nt} w[t] m[t][l] for l < len (rows of m at stride
- * `stride`), eight columns at a time held in registers over all t: one read
- * of m and one write of out, not one per pairing. */
-static inline void combine_rows(const double *restrict w, const double *restrict m, long stride, int nt, int len,
-                                double *restrict out)
+/* out0[l] = sum_{t < nt} w0[t] m[t][l] and out1[l] the same with w1, for
+ * l < len (rows of m at stride `stride`): two rows of output, eight
+ * columns at a time held in registers over all t, so each value of m is
+ * read once for both and the sixteen sums are independent chains (the
+ * additions' latency hidden; eight, one row, left the x86-64 build waiting
+ * for them). Each output is summed over t in order. A single row passes
+ * w1 = w0 and ignores out1. */
+static inline void combine_rows(const double *restrict w0, const double *restrict w1, const double *restrict m,
+                                long stride, int nt, int len, double *restrict out0, double *restrict out1)
 {
     int l = 0;
     for (; l + 8 <= len; l += 8) {
-        /* eight named sums: an array here is kept in memory by GCC */
         double a0 = 0.0, a1 = 0.0, a2 = 0.0, a3 = 0.0, a4 = 0.0, a5 = 0.0, a6 = 0.0, a7 = 0.0;
+        double b0 = 0.0, b1 = 0.0, b2 = 0.0, b3 = 0.0, b4 = 0.0, b5 = 0.0, b6 = 0.0, b7 = 0.0;
         for (int t = 0; t < nt; ++t) {
-            const double wt = w[t];
+            const double u = w0[t];
+            const double v = w1[t];
             const double *mt = m + (long)t * stride + l;
-            a0 += wt * mt[0];
-            a1 += wt * mt[1];
-            a2 += wt * mt[2];
-            a3 += wt * mt[3];
-            a4 += wt * mt[4];
-            a5 += wt * mt[5];
-            a6 += wt * mt[6];
-            a7 += wt * mt[7];
+            a0 += u * mt[0];
+            a1 += u * mt[1];
+            a2 += u * mt[2];
+            a3 += u * mt[3];
+            a4 += u * mt[4];
+            a5 += u * mt[5];
+            a6 += u * mt[6];
+            a7 += u * mt[7];
+            b0 += v * mt[0];
+            b1 += v * mt[1];
+            b2 += v * mt[2];
+            b3 += v * mt[3];
+            b4 += v * mt[4];
+            b5 += v * mt[5];
+            b6 += v * mt[6];
+            b7 += v * mt[7];
         }
-        out[l] = a0;
-        out[l + 1] = a1;
-        out[l + 2] = a2;
-        out[l + 3] = a3;
-        out[l + 4] = a4;
-        out[l + 5] = a5;
-        out[l + 6] = a6;
-        out[l + 7] = a7;
+        out0[l] = a0;
+        out0[l + 1] = a1;
+        out0[l + 2] = a2;
+        out0[l + 3] = a3;
+        out0[l + 4] = a4;
+        out0[l + 5] = a5;
+        out0[l + 6] = a6;
+        out0[l + 7] = a7;
+        out1[l] = b0;
+        out1[l + 1] = b1;
+        out1[l + 2] = b2;
+        out1[l + 3] = b3;
+        out1[l + 4] = b4;
+        out1[l + 5] = b5;
+        out1[l + 6] = b6;
+        out1[l + 7] = b7;
     }
     for (; l < len; ++l) {
-        double acc = 0.0;
+        double a = 0.0;
+        double b = 0.0;
         for (int t = 0; t < nt; ++t) {
-            acc += w[t] * m[(long)t * stride + l];
+            a += w0[t] * m[(long)t * stride + l];
+            b += w1[t] * m[(long)t * stride + l];
         }
-        out[l] = acc;
+        out0[l] = a;
+        out1[l] = b;
     }
 }
 
@@ -1140,14 +1164,16 @@ static inline void combine_rows(const double *restrict w, const double *restrict
  * pairings), or at any stride (a merge's columns): the constant keeps the
  * rows' offsets out of the loop (the large world's EKF-SLAM frames were 45 %
  * slower with one function for both). */
-static void batch_combine(const double *w, const double *m, int nt, int len, double *out)
+static void batch_combine(const double *w0, const double *w1, const double *m, int nt, int len, double *out0,
+                          double *out1)
 {
-    combine_rows(w, m, ADIM_, nt, len, out);
+    combine_rows(w0, w1, m, ADIM_, nt, len, out0, out1);
 }
 
-static void stride_combine(const double *w, const double *m, long stride, int nt, int len, double *out)
+static void stride_combine(const double *w0, const double *w1, const double *m, long stride, int nt, int len,
+                           double *out0, double *out1)
 {
-    combine_rows(w, m, stride, nt, len, out);
+    combine_rows(w0, w1, m, stride, nt, len, out0, out1);
 }
 
 /* Pending columns a symmetric block update combines at most: a frame's
@@ -1177,8 +1203,8 @@ static long sym_at(const sym_map_t *m, int k)
 static void batch_sym_update(double *mat, long stride, const sym_map_t *map, int n, const double *wr,
                              const double *mr, long vstride, int nt, double sign)
 {
-    double w[EKF_SYM_MAX_T];
-    double acc[EKF_TILE];
+    double w[2][EKF_SYM_MAX_T];
+    double acc[2][EKF_TILE];
     long at_c[EKF_TILE]; /* the tile's columns in mat */
     for (int r0 = 0; r0 < n; r0 += EKF_TILE) {
         const int r1 = r0 + EKF_TILE < n ? r0 + EKF_TILE : n;
@@ -1187,23 +1213,31 @@ static void batch_sym_update(double *mat, long stride, const sym_map_t *map, int
             for (int c = c0; c < c1; ++c) {
                 at_c[c - c0] = sym_at(map, c);
             }
-            for (int r = r0; r < r1; ++r) {
+            /* two rows at a time over the columns from the first row's
+             * diagonal on; the second row's entry left of its diagonal is
+             * the first row's mirror and is not written */
+            for (int r = r0; r < r1; r += 2) {
+                const int two = r + 1 < r1;
                 const int cb = r > c0 ? r : c0;
                 for (int t = 0; t < nt; ++t) {
-                    w[t] = wr[(long)t * vstride + r];
+                    w[0][t] = wr[(long)t * vstride + r];
+                    w[1][t] = wr[(long)t * vstride + (two ? r + 1 : r)];
                 }
                 if (vstride == ADIM_) {
-                    batch_combine(w, &mr[cb], nt, c1 - cb, acc);
+                    batch_combine(w[0], w[1], &mr[cb], nt, c1 - cb, acc[0], acc[1]);
                 } else {
-                    stride_combine(w, &mr[cb], vstride, nt, c1 - cb, acc);
+                    stride_combine(w[0], w[1], &mr[cb], vstride, nt, c1 - cb, acc[0], acc[1]);
                 }
-                const long pr = sym_at(map, r);
-                double *row = &mat[pr * stride];
-                for (int c = cb; c < c1; ++c) {
-                    const long pc = at_c[c - c0];
-                    const double val = row[pc] + sign * acc[c - cb];
-                    row[pc] = val;
-                    mat[pc * stride + pr] = val;
+                for (int h = 0; h <= two; ++h) {
+                    const int rr = r + h;
+                    const long pr = sym_at(map, rr);
+                    double *row = &mat[pr * stride];
+                    for (int c = cb > rr ? cb : rr; c < c1; ++c) {
+                        const long pc = at_c[c - c0];
+                        const double val = row[pc] + sign * acc[h][c - cb];
+                        row[pc] = val;
+                        mat[pc * stride + pr] = val;
+                    }
                 }
             }
         }
@@ -1225,16 +1259,20 @@ static void batch_flush(ekfslam_t *ekf)
     const sym_map_t plain = {0, n0, 0};
     batch_sym_update(ekf->p, D_, &active, na, ck->bk[0], ck->bp[0], ADIM_, nt, -1.0);
     batch_sym_update(ck->psi, ADIM_, &plain, n0, ck->bh[0], ck->bs[0], ADIM_, nt, 1.0);
-    double w[2 * EKFSLAM_BATCH];
-    double acc[ADIM_];
-    for (int r = 0; r < na; ++r) {
+    double w[2][2 * EKFSLAM_BATCH];
+    double acc[2][ADIM_];
+    for (int r = 0; r < na; r += 2) {
+        const int two = r + 1 < na;
         for (int t = 0; t < nt; ++t) {
-            w[t] = ck->bk[t][r];
+            w[0][t] = ck->bk[t][r];
+            w[1][t] = ck->bk[t][two ? r + 1 : r];
         }
-        batch_combine(w, ck->bh[0], nt, n0, acc);
-        double *restrict row = &ck->phi[(long)r * ADIM_];
-        for (int i = 0; i < n0; ++i) {
-            row[i] -= acc[i];
+        batch_combine(w[0], w[1], ck->bh[0], nt, n0, acc[0], acc[1]);
+        for (int h = 0; h <= two; ++h) {
+            double *restrict row = &ck->phi[(long)(r + h) * ADIM_];
+            for (int i = 0; i < n0; ++i) {
+                row[i] -= acc[h][i];
+            }
         }
     }
     ck->bn = 0;
