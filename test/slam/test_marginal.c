@@ -122,6 +122,16 @@ static void test_clamp_psd_matches_jacobi(void **state)
             }
         }
     }
+    /* an exact multiple of I (a zero drift: the anchor is the present pose
+     * marginal): the eigen route's matrix, bit for bit */
+    const double qs[4] = {0.0, 2.5, -1.5, 1e-300};
+    for (int k = 0; k < 4; ++k) {
+        const cov3_t a = cov3_diag(qs[k], qs[k], qs[k]);
+        const cov3_t fast = cov3_clamp_psd(a);
+        const cov3_t ref = cov3_clamp_eigen(a, 0.0);
+        assert_memory_equal(&fast, &ref, sizeof fast);
+        ASSERT_NEAR(fast.m[1][1], qs[k] > 0.0 ? qs[k] : 0.0, 0.0);
+    }
 }
 
 static void test_loewner_max(void **state)

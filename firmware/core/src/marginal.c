@@ -371,8 +371,17 @@ cov3_t cov3_clamp_psd(cov3_t a)
     const double d1 = m[1][1] - q;
     const double d2 = m[2][2] - q;
     const double p = sqrt((d0 * d0 + d1 * d1 + d2 * d2 + 2.0 * off) / 6.0);
+    if (p == 0.0 && isfinite(q)) {
+        /* a multiple of I (a zero drift, where the anchor is the present
+         * pose marginal): kept, or zero, as cov3_clamp_eigen gives it */
+        cov3_t out = cov3_zero();
+        for (int i = 0; i < 3; ++i) {
+            out.m[i][i] = q > 0.0 ? q : 0.0;
+        }
+        return out;
+    }
     if (!(p > 0.0) || !isfinite(p)) {
-        return cov3_clamp_eigen(a, 0.0); /* a multiple of I, or not finite */
+        return cov3_clamp_eigen(a, 0.0); /* not finite */
     }
     const double ip = 1.0 / p;
     const double b00 = d0 * ip, b11 = d1 * ip, b22 = d2 * ip;
