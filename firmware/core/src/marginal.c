@@ -374,11 +374,8 @@ cov3_t cov3_clamp_psd(cov3_t a)
     if (p == 0.0 && isfinite(q)) {
         /* a multiple of I (a zero drift, where the anchor is the present
          * pose marginal): kept, or zero, as cov3_clamp_eigen gives it */
-        cov3_t out = cov3_zero();
-        for (int i = 0; i < 3; ++i) {
-            out.m[i][i] = q > 0.0 ? q : 0.0;
-        }
-        return out;
+        const double v = q > 0.0 ? q : 0.0;
+        return cov3_diag(v, v, v);
     }
     if (!(p > 0.0) || !isfinite(p)) {
         return cov3_clamp_eigen(a, 0.0); /* not finite */
