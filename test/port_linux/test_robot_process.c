@@ -16,6 +16,13 @@
  *                 snapshot CRC), every start loads the newest one (its
  *                 sequence number never goes back), no start reports a
  *                 damaged snapshot, and the map goes on growing.
+ *   slow_storage  fsync blocks while a gate file exists (fsync_gate.so):
+ *                 the control loop goes on stepping and reporting while a
+ *                 snapshot's write is held for seconds (status lines keep
+ *                 coming, no step waits for the storage, the snapshots that
+ *                 fall due meanwhile are skipped and counted), the write
+ *                 lands when the gate opens, and a write that never returns
+ *                 costs the final snapshot but not the clean stop.
  * Usage: test_robot_process <case> (one CTest entry per case).
  */
 #include <dirent.h>
@@ -303,12 +310,17 @@ static void stop_bridge(pid_t pid)
     assert_true(WIFEXITED(st) && WEXITSTATUS(st) == 0);
 }
 
-/* SIGTERM to the robot: it must exit with status 0 (its log printed if
- * not). Returns its log. */
-static const char *stop_robot(pid_t pid, const char *err_path)
+/* SIGTERM to the robot: it must exit with status 0 within timeout_ms (its
+ * log printed if not). Returns its log; *dt_ms (if not NULL) how long it
+ * took. */
+static const char *stop_robot_within(pid_t pid, const char *err_path, uint64_t timeout_ms, uint64_t *dt_ms)
 {
+    const uint64_t t0 = now_ms();
     kill(pid, SIGTERM);
-    const int st = wait_exit(pid, 5000);
+    const int st = wait_exit(pid, timeout_ms);
+    if (dt_ms != NULL) {
+        *dt_ms = now_ms() - t0;
+    }
     const char *log = slurp(err_path);
     if (!(WIFEXITED(st) && WEXITSTATUS(st) == 0)) {
         fprintf(stderr, "%s\n", log);
@@ -316,6 +328,11 @@ static const char *stop_robot(pid_t pid, const char *err_path)
     assert_true(WIFEXITED(st));
     assert_int_equal(WEXITSTATUS(st), 0);
     return log;
+}
+
+static const char *stop_robot(pid_t pid, const char *err_path)
+{
+    return stop_robot_within(pid, err_path, 5000, NULL);
 }
 
 /* The last value of `key=` in the log, or -1. */
@@ -403,17 +420,9 @@ static void sigterm(void **state)
     snprintf(status_path, sizeof status_path, "%s/status.json", dir);
     const pid_t pid2 = spawn_robot(dir, err, "--status-file", status_path);
     sleep_ms(2000);
-    const uint64_t t0 = now_ms();
-    kill(pid2, SIGTERM);
-    const int st = wait_exit(pid2, 5000);
-    const uint64_t dt = now_ms() - t0;
-    const char *log = slurp(err);
+    uint64_t dt = 0;
+    const char *log = stop_robot_within(pid2, err, 5000, &dt);
     fprintf(stderr, "sigterm: exit after %llu ms\n", (unsigned long long)dt);
-    if (!(WIFEXITED(st) && WEXITSTATUS(st) == 0)) {
-        fprintf(stderr, "%s\n", log);
-    }
-    assert_true(WIFEXITED(st));
-    assert_int_equal(WEXITSTATUS(st), 0);
     assert_true(dt < 2000); /* the bound: well under a second in practice */
     const char *fin = strstr(log, "(final)");
     assert_non_null(fin);
@@ -599,6 +608,106 @@ static void laser_pty(void **state)
     remove_dir(dir);
 }
 
+/* ---- a storage that blocks ------------------------------------------------- */
+
+static void touch(const char *path)
+{
+    FILE *f = fopen(path, "w");
+    assert_non_null(f);
+    fclose(f);
+}
+
+/* spawn_robot with fsync held while `gate` exists (fsync_gate.so). */
+static pid_t spawn_robot_gated(const char *dir, const char *err, const char *gate)
+{
+    static char asan[512];
+    const char *old = getenv("ASAN_OPTIONS");
+    /* the shim comes before the sanitizer runtime in a SANITIZE=1 build */
+    snprintf(asan, sizeof asan, "%s%sverify_asan_link_order=0", old != NULL ? old : "", old != NULL ? ":" : "");
+    static char old_asan[512];
+    snprintf(old_asan, sizeof old_asan, "%s", old != NULL ? old : "");
+    setenv("ASAN_OPTIONS", asan, 1);
+    setenv("LD_PRELOAD", COSLAM_FSYNC_GATE, 1);
+    setenv("COSLAM_TEST_FSYNC_GATE", gate, 1);
+    const pid_t pid = spawn_robot(dir, err, NULL, NULL);
+    unsetenv("LD_PRELOAD");
+    unsetenv("COSLAM_TEST_FSYNC_GATE");
+    if (old_asan[0] != '\0') {
+        setenv("ASAN_OPTIONS", old_asan, 1);
+    } else {
+        unsetenv("ASAN_OPTIONS");
+    }
+    return pid;
+}
+
+static void slow_storage(void **state)
+{
+    (void)state;
+    char dir[64];
+    make_dir(dir, sizeof dir);
+    replay_rig_t rig;
+    replay_rig(dir, &rig);
+    config(dir, "no-laser", "0.2", "0.3", rig.camera, rig.store, "fastslam2");
+    char err[300];
+    snprintf(err, sizeof err, "%s/err", dir);
+    char gate[300];
+    snprintf(gate, sizeof gate, "%s/gate", dir);
+
+    /* the first periodic snapshot (0.3 s) is held at its fsync for seconds */
+    touch(gate);
+    pid_t pid = spawn_robot_gated(dir, err, gate);
+    sleep_ms(2500);
+    const char *log = slurp(err);
+    const long steps = last_value(log, "steps");
+    const long writing = last_value(log, "snap_writing_ms");
+    const long skips = last_value(log, "snap_busy_skips");
+    const long late = last_value(log, "late_max_us");
+    fprintf(stderr, "slow storage: %ld steps, write in flight %ld ms, %ld snapshots skipped, late_max_us %ld\n", steps,
+            writing, skips, late);
+    assert_true(writing >= 1000);    /* status lines came while the write was held */
+    assert_true(steps >= 100);       /* and the loop stepped */
+    assert_true(late >= 0 && late < 1000000); /* no step waited for the storage (held 2 s) */
+    assert_true(skips >= 2);
+    assert_non_null(strstr(log, "periodic snapshot skipped"));
+    assert_int_equal(last_value(log, "snap_saves"), 0);
+    assert_int_equal(scan_disk(dir).newest, 0); /* nothing renamed into place yet */
+
+    /* the gate opens: the held write lands, the next ones follow */
+    assert_int_equal(unlink(gate), 0);
+    sleep_ms(800);
+    log = stop_robot(pid, err);
+    const char *first = strstr(log, "saved snapshot.a seq=1 ");
+    assert_non_null(first);
+    const char *w = strstr(first, "(periodic) in ");
+    assert_non_null(w);
+    const double held_ms = strtod(w + 14, NULL);
+    fprintf(stderr, "slow storage: the held write took %.0f ms\n", held_ms);
+    assert_true(held_ms >= 1500.0);
+    disk_t d = scan_disk(dir);
+    assert_int_equal(d.invalid, 0);
+    assert_true(d.newest >= 2);
+    char want[64];
+    snprintf(want, sizeof want, "seq=%llu landmarks=%d (final)", (unsigned long long)d.newest, d.landmarks);
+    assert_non_null(strstr(log, want));
+
+    /* a write that never returns: no final snapshot, but a clean stop */
+    const uint64_t before = d.newest;
+    touch(gate);
+    pid = spawn_robot_gated(dir, err, gate);
+    sleep_ms(1000);
+    uint64_t dt = 0;
+    log = stop_robot_within(pid, err, 10000, &dt); /* the final snapshot waits 5 s for the stuck write */
+    fprintf(stderr, "slow storage: stuck write, exit after %llu ms\n", (unsigned long long)dt);
+    assert_true(loaded_seq(log) == before);
+    assert_non_null(strstr(log, "does not return (storage stuck): no final snapshot"));
+    assert_non_null(strstr(log, "(no final snapshot)"));
+    assert_int_equal(unlink(gate), 0);
+    d = scan_disk(dir);
+    assert_int_equal(d.invalid, 0);
+    assert_true(d.newest == before); /* the generations on disk as they were */
+    remove_dir(dir);
+}
+
 int main(int argc, char **argv)
 {
     if (argc > 1) {
@@ -610,6 +719,7 @@ int main(int argc, char **argv)
         cmocka_unit_test(observers_in_parts),
         cmocka_unit_test(kill_restart),
         cmocka_unit_test(laser_pty),
+        cmocka_unit_test(slow_storage),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

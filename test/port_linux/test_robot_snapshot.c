@@ -4,10 +4,15 @@
  * when the newest is torn or corrupt (reported by name), and seeding a
  * filter from a snapshot gives back the same exported map (means, cov_rel,
  * pose, bookkeeping; cov as documented in slam_filter_seed) for EKF-SLAM
- * and Fast-SLAM, and through robot_node_restore.
+ * and Fast-SLAM, and through robot_node_restore. The writer thread takes a
+ * write the caller hands over without holding the caller, however long the
+ * storage blocks, writes the bytes it was given, reports failures, and can
+ * be stopped with a write that does not return.
  */
+#include <errno.h>
 #include <fcntl.h>
 #include <math.h>
+#include <pthread.h>
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -25,6 +30,7 @@
 #include "hal/hal_clock_linux.h"
 #include "hal/hal_storage_linux.h"
 #include "robot_snapshot.h"
+#include "robot_snapshot_writer.h"
 
 /* ---- a map to save: a filter driven round landmarks --------------------- */
 
@@ -281,6 +287,178 @@ static void generations_fall_back_to_the_older(void **state)
     assert_int_equal(system(cmd), 0);
 }
 
+/* ---- the writer thread ------------------------------------------------------ */
+
+/* A storage in front of the real one whose writes wait at a gate the test
+ * opens, and may be told to fail. */
+typedef struct {
+    hal_storage_t dev;
+    hal_storage_t *inner;
+    pthread_mutex_t mu;
+    pthread_cond_t cv;
+    int open;          /* writes pass */
+    int entered;       /* writes that reached the gate */
+    int finished;      /* writes that returned */
+    hal_status_t fault;
+} gated_t;
+
+static gated_t gated;
+
+static hal_status_t gated_write(hal_storage_t *d, const char *name, const uint8_t *data, size_t len)
+{
+    gated_t *g = d->backend;
+    pthread_mutex_lock(&g->mu);
+    g->entered++;
+    pthread_cond_broadcast(&g->cv);
+    while (!g->open) {
+        pthread_cond_wait(&g->cv, &g->mu);
+    }
+    const hal_status_t fault = g->fault;
+    pthread_mutex_unlock(&g->mu);
+    const hal_status_t r = fault != HAL_OK ? fault : hal_storage_write(g->inner, name, data, len);
+    pthread_mutex_lock(&g->mu);
+    g->finished++;
+    pthread_cond_broadcast(&g->cv);
+    pthread_mutex_unlock(&g->mu);
+    return r;
+}
+
+static hal_status_t gated_read(hal_storage_t *d, const char *name, uint8_t *buf, size_t cap, size_t *len)
+{
+    return hal_storage_read(((gated_t *)d->backend)->inner, name, buf, cap, len);
+}
+
+static const hal_storage_ops_t gated_ops = {.write = gated_write, .read = gated_read};
+
+static void gate_set(int open, hal_status_t fault)
+{
+    pthread_mutex_lock(&gated.mu);
+    gated.open = open;
+    gated.fault = fault;
+    pthread_cond_broadcast(&gated.cv);
+    pthread_mutex_unlock(&gated.mu);
+}
+
+/* Wait until `*counter` reaches n (the writer thread got there). */
+static void gate_wait(const int *counter, int n)
+{
+    pthread_mutex_lock(&gated.mu);
+    while (*counter < n) {
+        pthread_cond_wait(&gated.cv, &gated.mu);
+    }
+    pthread_mutex_unlock(&gated.mu);
+}
+
+static robot_snapshot_writer_t writer;
+static robot_snapshot_writer_t writer2;
+
+static void writer_does_not_hold_the_caller(void **state)
+{
+    (void)state;
+    snprintf(dir, sizeof dir, "/tmp/coslam-snapw-XXXXXX");
+    assert_non_null(mkdtemp(dir));
+    assert_int_equal(hal_storage_linux_open(&store, dir), HAL_OK);
+    memset(&gated, 0, sizeof gated);
+    gated.dev.ops = &gated_ops;
+    gated.dev.backend = &gated;
+    gated.inner = &store.dev;
+    pthread_mutex_init(&gated.mu, NULL);
+    pthread_cond_init(&gated.cv, NULL);
+    robot_snapshots_init(&gens, &gated.dev);
+    const char *name = NULL;
+
+    /* not started: nothing taken */
+    assert_int_equal(robot_snapshot_writer_submit(&writer, &gated.dev, "x", buf, 1), ESRCH);
+    assert_int_equal(robot_snapshot_writer_take(&writer, 0, NULL, NULL), -1);
+    assert_int_equal(robot_snapshot_writer_start(&writer), 0);
+    assert_int_equal(robot_snapshot_writer_take(&writer, 10, NULL, NULL), -1); /* nothing handed over */
+
+    /* generation 1, written in the caller's thread */
+    gate_set(1, HAL_OK);
+    snap_in.map.pose.x = 1.0;
+    assert_int_equal(robot_snapshots_save(&gens, &snap_in, &name), COSLAM_OK);
+    assert_string_equal(name, ROBOT_SNAPSHOT_NAME_A);
+
+    /* generation 2 through the writer while the storage blocks */
+    gate_set(0, HAL_OK);
+    snap_in.map.pose.x = 2.0;
+    robot_snapshot_job_t job;
+    assert_int_equal(robot_snapshots_prepare(&gens, &snap_in, &job), COSLAM_OK);
+    assert_string_equal(job.name, ROBOT_SNAPSHOT_NAME_B);
+    assert_true(job.seq == 2);
+    assert_true(gens.newest_seq == 1); /* nothing changes before the commit */
+    assert_int_equal(robot_snapshot_writer_submit(&writer, &gated.dev, job.name, gens.buf, job.len), 0);
+    gate_wait(&gated.entered, 2); /* the thread is inside the storage write, and we are not */
+    memset(gens.buf, 0xA5, job.len); /* the caller's buffer is free: the writer copied it */
+    hal_status_t ws = HAL_E_IO;
+    uint64_t write_us = 0;
+    assert_int_equal(robot_snapshot_writer_take(&writer, 0, &ws, &write_us), 0);
+    assert_int_equal(robot_snapshot_writer_take(&writer, 50, &ws, &write_us), 0); /* still blocked after 50 ms */
+    assert_int_equal(robot_snapshot_writer_busy(&writer), 1);
+    assert_int_equal(robot_snapshot_writer_submit(&writer, &gated.dev, job.name, gens.buf, job.len), EBUSY);
+    assert_int_equal(gated.entered, 2); /* the refused one never reached the storage */
+    gate_set(1, HAL_OK);
+    assert_int_equal(robot_snapshot_writer_take(&writer, 5000, &ws, &write_us), 1);
+    assert_int_equal(ws, HAL_OK);
+    assert_true(write_us >= 50000U); /* it was held at the gate for more than the 50 ms above */
+    assert_int_equal(robot_snapshot_writer_busy(&writer), 0);
+    assert_int_equal(robot_snapshots_commit(&gens, &job, ws), COSLAM_OK);
+    assert_true(gens.newest == 1 && gens.newest_seq == 2 && gens.saves == 2);
+    /* on disk: the bytes handed over, not what the buffer holds now */
+    robot_snapshots_t check;
+    robot_snapshots_init(&check, &store.dev);
+    assert_int_equal(robot_snapshots_load(&check, &snap_out, &name, NULL), COSLAM_OK);
+    assert_string_equal(name, ROBOT_SNAPSHOT_NAME_B);
+    assert_true(snap_out.seq == 2 && snap_out.map.pose.x == 2.0);
+
+    /* a failed write: counted, the generations as they were */
+    gate_set(1, HAL_E_IO);
+    snap_in.map.pose.x = 3.0;
+    assert_int_equal(robot_snapshots_prepare(&gens, &snap_in, &job), COSLAM_OK);
+    assert_int_equal(robot_snapshot_writer_submit(&writer, &gated.dev, job.name, gens.buf, job.len), 0);
+    assert_int_equal(robot_snapshot_writer_take(&writer, 5000, &ws, &write_us), 1);
+    assert_int_equal(ws, HAL_E_IO);
+    assert_int_equal(robot_snapshots_commit(&gens, &job, ws), COSLAM_E_UNSUPPORTED);
+    assert_true(gens.newest == 1 && gens.newest_seq == 2 && gens.save_failures == 1);
+    assert_int_equal(gens.last_write, HAL_E_IO);
+    robot_snapshots_init(&check, &store.dev);
+    assert_int_equal(robot_snapshots_load(&check, &snap_out, &name, NULL), COSLAM_OK);
+    assert_true(snap_out.seq == 2 && snap_out.map.pose.x == 2.0);
+    /* a full medium is E_CAPACITY */
+    assert_int_equal(robot_snapshots_commit(&gens, &job, HAL_E_OVERFLOW), COSLAM_E_CAPACITY);
+    /* too large, bad name */
+    assert_int_equal(robot_snapshot_writer_submit(&writer, &gated.dev, job.name, gens.buf, sizeof gens.buf + 1U),
+                     E2BIG);
+    assert_int_equal(robot_snapshot_writer_submit(&writer, &gated.dev, "a-name-longer-than-thirty-one-chars", gens.buf,
+                                                  1U),
+                     EINVAL);
+    /* an idle writer stops at once, and twice */
+    assert_int_equal(robot_snapshot_writer_stop(&writer, 0), 0);
+    assert_int_equal(robot_snapshot_writer_stop(&writer, 0), 0);
+    assert_int_equal(robot_snapshot_writer_take(&writer, 0, NULL, NULL), -1);
+
+    /* a write that does not return: stop gives up after its wait, the thread is left to it */
+    assert_int_equal(robot_snapshot_writer_start(&writer2), 0);
+    gate_set(0, HAL_OK);
+    const int entered = gated.entered;
+    assert_int_equal(robot_snapshots_prepare(&gens, &snap_in, &job), COSLAM_OK);
+    assert_int_equal(robot_snapshot_writer_submit(&writer2, &gated.dev, job.name, gens.buf, job.len), 0);
+    gate_wait(&gated.entered, entered + 1);
+    assert_int_equal(robot_snapshot_writer_stop(&writer2, 100), -1);
+    const int finished = gated.finished;
+    gate_set(1, HAL_OK);
+    gate_wait(&gated.finished, finished + 1); /* the detached thread ends its write */
+    robot_snapshots_init(&check, &store.dev);
+    assert_int_equal(robot_snapshots_load(&check, &snap_out, &name, NULL), COSLAM_OK);
+    assert_true(snap_out.seq == 3 && snap_out.map.pose.x == 3.0);
+    usleep(20000); /* and leaves the writer's lock before the storage goes */
+
+    hal_storage_close(&store.dev);
+    char cmd[128];
+    snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
+    assert_int_equal(system(cmd), 0);
+}
+
 /* ---- seeding -------------------------------------------------------------- */
 
 static void assert_near(double a, double b, double tol, const char *what)
@@ -472,6 +650,7 @@ int main(int argc, char **argv)
         cmocka_unit_test(codec_round_trip_is_byte_exact),
         cmocka_unit_test(every_damage_is_caught),
         cmocka_unit_test(generations_fall_back_to_the_older),
+        cmocka_unit_test(writer_does_not_hold_the_caller),
         cmocka_unit_test(seed_ekf),
         cmocka_unit_test(seed_fastslam2),
         cmocka_unit_test(seed_fastslam1),

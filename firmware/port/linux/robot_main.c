@@ -27,7 +27,8 @@
  * catch-up steps). Between steps: device service (lost devices closed,
  * missing ones retried), GPIO roles attached when the chip is there,
  * snapshot and status when due (their map export goes in parts and yields
- * to the robot's own sends and merges), and, while at least half the
+ * to the robot's own sends and merges; the snapshot's storage write runs on
+ * the writer thread, robot_snapshot_writer.h), and, while at least half the
  * period is left, the filter's deferred work (robot_node_idle, again while
  * parts of a merge or an export remain).
  */
@@ -46,6 +47,7 @@
 #include "robot_devices.h"
 #include "robot_link.h"
 #include "robot_snapshot.h"
+#include "robot_snapshot_writer.h"
 #include "robot_status.h"
 
 static volatile sig_atomic_t stop_signal = 0;
@@ -154,6 +156,23 @@ static robot_devices_t dev;
 static robot_node_t node;
 static robot_snapshots_t snaps;
 static robot_snapshot_t snap;
+
+/* The periodic snapshots' storage write runs on the writer thread
+ * (robot_snapshot_writer.h): an fsync on a slow card never holds the
+ * control loop. One write at a time; its outcome is taken and committed on
+ * a later step (finish_snapshot_write). Without the thread (it could not be
+ * started) the loop writes them itself, as the final one always is. */
+static robot_snapshot_writer_t writer;
+typedef struct {
+    int active;                /* a write handed over, outcome not taken */
+    robot_snapshot_job_t job;
+    uint16_t landmarks;
+    uint64_t since_us;         /* handed over at (monotonic) */
+    const char *why;
+} snapshot_write_t;
+static snapshot_write_t writing;
+/* How long the final snapshot waits for a periodic one still being written. */
+#define FINAL_SNAPSHOT_WAIT_MS 5000U
 static robot_status_t status;
 
 /* The map's observers: the status count and the periodic snapshot. Their
@@ -175,9 +194,36 @@ typedef struct {
 
 static map_observer_t observer;
 
-/* Save snap.map, the export just made, as the next generation; report per
- * `verbose` (failures always). */
-static int save_snapshot_map(int verbose, const char *why, uint64_t now_us)
+/* A snapshot's write ended with `ws` after write_us: the generations
+ * updated, reported per `verbose` (failures always), a failed medium
+ * reported to the devices (closed, retried). Returns 0 if it was saved. */
+static int commit_snapshot(int verbose, const char *why, const robot_snapshot_job_t *job, uint16_t landmarks,
+                           hal_status_t ws, uint64_t write_us, uint64_t now_us)
+{
+    if (write_us > snaps.write_max_us) {
+        snaps.write_max_us = write_us;
+    }
+    const coslam_status_t cs = robot_snapshots_commit(&snaps, job, ws);
+    if (cs != COSLAM_OK) {
+        fprintf(stderr, "coslam-robot: snapshot: %s snapshot not written (%s, storage %s)\n", why,
+                coslam_status_str(cs), hal_status_str(ws));
+        if (ws == HAL_E_IO || ws == HAL_E_CLOSED) {
+            robot_devices_fail(&dev, ROBOT_DEV_STORAGE, ws, "write failed", now_us);
+        }
+        return -1;
+    }
+    if (verbose) {
+        fprintf(stderr, "coslam-robot: snapshot: saved %s seq=%llu landmarks=%u (%s) in %.1f ms\n", job->name,
+                (unsigned long long)job->seq, (unsigned)landmarks, why, (double)write_us * 1e-3);
+    }
+    return 0;
+}
+
+/* Save snap.map, the export just made, as the next generation: handed to
+ * the writer thread (`to_writer`; the outcome comes with
+ * finish_snapshot_write) or written here. Returns 0 if handed over or
+ * saved. */
+static int save_snapshot_map(int verbose, const char *why, uint64_t now_us, int to_writer)
 {
     hal_storage_t *st = robot_devices_storage(&dev);
     robot_snapshots_set_storage(&snaps, st);
@@ -192,21 +238,50 @@ static int save_snapshot_map(int verbose, const char *why, uint64_t now_us)
     snap.filter_kind = (uint8_t)cfg.node.filter.kind;
     snap.msg_seq = robot_node_msg_seq(&node);
     snap.saved_unix_s = (uint64_t)time(NULL);
-    const char *name = NULL;
-    const coslam_status_t ss = robot_snapshots_save(&snaps, &snap, &name);
-    if (ss != COSLAM_OK) {
-        fprintf(stderr, "coslam-robot: snapshot: %s snapshot not written (%s, storage %s)\n", why,
-                coslam_status_str(ss), hal_status_str(snaps.last_write));
-        if (snaps.last_write == HAL_E_IO || snaps.last_write == HAL_E_CLOSED) {
-            robot_devices_fail(&dev, ROBOT_DEV_STORAGE, snaps.last_write, "write failed", now_us);
-        }
+    robot_snapshot_job_t job;
+    const coslam_status_t ps = robot_snapshots_prepare(&snaps, &snap, &job);
+    if (ps != COSLAM_OK) {
+        fprintf(stderr, "coslam-robot: snapshot: %s snapshot not written (%s)\n", why, coslam_status_str(ps));
         return -1;
     }
-    if (verbose) {
-        fprintf(stderr, "coslam-robot: snapshot: saved %s seq=%llu landmarks=%u (%s)\n", name,
-                (unsigned long long)snap.seq, (unsigned)snap.map.n_landmarks, why);
+    const int e = to_writer ? robot_snapshot_writer_submit(&writer, st, job.name, snaps.buf, job.len) : ESRCH;
+    if (e != 0) {
+        if (to_writer) {
+            /* never while a write is in flight (the caller checked) */
+            fprintf(stderr, "coslam-robot: snapshot: writer thread refused the %s snapshot (%s): written here\n", why,
+                    strerror(e));
+        }
+        uint64_t t0 = now_us;
+        (void)hal_clock_now_us(dev.clock, &t0);
+        const hal_status_t ws = hal_storage_write(st, job.name, snaps.buf, job.len);
+        uint64_t t1 = t0;
+        (void)hal_clock_now_us(dev.clock, &t1);
+        return commit_snapshot(verbose, why, &job, snap.map.n_landmarks, ws, t1 - t0, t1);
     }
+    writing.active = 1;
+    writing.job = job;
+    writing.landmarks = snap.map.n_landmarks;
+    writing.since_us = now_us;
+    writing.why = why;
     return 0;
+}
+
+/* The periodic write in flight: its outcome, if it is there (waiting at
+ * most wait_ms), committed and reported. Returns 1 when no write is in
+ * flight any more. */
+static int finish_snapshot_write(int verbose, uint32_t wait_ms, uint64_t now_us)
+{
+    if (!writing.active) {
+        return 1;
+    }
+    hal_status_t ws = HAL_OK;
+    uint64_t write_us = 0U;
+    if (robot_snapshot_writer_take(&writer, wait_ms, &ws, &write_us) == 0) {
+        return 0;
+    }
+    writing.active = 0;
+    (void)commit_snapshot(verbose, writing.why, &writing.job, writing.landmarks, ws, write_us, now_us);
+    return 1;
 }
 
 /* Export now (whole, in this step) and save the next generation: the final
@@ -223,7 +298,7 @@ static int save_snapshot(int verbose, const char *why, uint64_t now_us)
     }
     (void)robot_node_export_poll(&node, &snap.map, NULL); /* the observer's, finished above: taken */
     observer.landmarks = snap.map.n_landmarks;
-    return save_snapshot_map(verbose, why, now_us);
+    return save_snapshot_map(verbose, why, now_us, 0);
 }
 
 /* The observers' export: begin it, or see whether it is done. Returns 1
@@ -488,6 +563,11 @@ int main(int argc, char **argv)
         return 0;
     }
 
+    const int werr = robot_snapshot_writer_start(&writer);
+    if (werr != 0) {
+        fprintf(stderr, "coslam-robot: snapshot: no writer thread (%s): snapshots are written in the control loop\n",
+                strerror(werr));
+    }
     const uint64_t period = cfg.step_period_us;
     const uint64_t status_us = (uint64_t)(cfg.status_period_s * 1e6);
     const uint64_t file_us = status_us > 0U ? status_us : 10000000U;
@@ -535,10 +615,21 @@ int main(int argc, char **argv)
         log_meeting_events(opt.verbose);
 
         (void)hal_clock_now_us(clock, &now);
+        (void)finish_snapshot_write(opt.verbose, 0U, now);
         /* the map's observers: what falls due waits for their export in parts */
         if (snap_us > 0U && now >= next_snap) {
-            observer.want_snap = 1;
             next_snap = now + snap_us;
+            if (writing.active) {
+                /* the last one's write still runs: a medium this slow is
+                 * reported, not queued behind */
+                snaps.busy_skips++;
+                fprintf(stderr,
+                        "coslam-robot: snapshot: the last snapshot's write has run for %.1f s (slow or stuck "
+                        "storage): periodic snapshot skipped (snap_busy_skips=%lu)\n",
+                        (double)(now - writing.since_us) * 1e-6, (unsigned long)snaps.busy_skips);
+            } else {
+                observer.want_snap = 1;
+            }
         }
         if (!(observer.want_line || observer.want_file)) {
             observer.status_due_us = now;
@@ -564,7 +655,7 @@ int main(int argc, char **argv)
                 } else {
                     observer.landmarks = snap.map.n_landmarks;
                     if (observer.want_snap) {
-                        (void)save_snapshot_map(opt.verbose, "periodic", now);
+                        (void)save_snapshot_map(opt.verbose, "periodic", now, werr == 0);
                     }
                 }
                 observer.want_snap = 0;
@@ -577,6 +668,7 @@ int main(int argc, char **argv)
             cpu_mark_us = now;
             loop.uptime_s = (double)(now - t_start) * 1e-6;
             loop.landmarks = observer.landmarks;
+            loop.snap_writing_ms = writing.active ? (uint32_t)((now - writing.since_us) / 1000U) : 0U;
             report_status(&opt, observer.want_line, &loop);
             observer.want_line = 0;
             observer.want_file = 0;
@@ -625,7 +717,23 @@ int main(int argc, char **argv)
         now = next;
     }
     (void)hal_clock_now_us(clock, &now);
-    const int saved = save_snapshot(1, "final", now);
+    /* a periodic write still in flight ends first (its generation is the
+     * one the final snapshot must come after) */
+    int saved = -1;
+    if (!finish_snapshot_write(1, FINAL_SNAPSHOT_WAIT_MS, now)) {
+        (void)hal_clock_now_us(clock, &now);
+        fprintf(stderr,
+                "coslam-robot: snapshot: a snapshot write has run for %.1f s and does not return (storage stuck): "
+                "no final snapshot\n",
+                (double)(now - writing.since_us) * 1e-6);
+        (void)robot_snapshot_writer_stop(&writer, 0U);
+        /* the thread still uses the storage: left open to it until exit */
+        dev.dev[ROBOT_DEV_STORAGE].state = ROBOT_DEV_DOWN;
+    } else {
+        (void)robot_snapshot_writer_stop(&writer, FINAL_SNAPSHOT_WAIT_MS);
+        (void)hal_clock_now_us(clock, &now);
+        saved = save_snapshot(1, "final", now);
+    }
     loop.uptime_s = (double)(now - t_start) * 1e-6;
     loop.landmarks = observer.landmarks;
     loop.cpu_pct = 100.0 * cpu_seconds() / (loop.uptime_s > 0.0 ? loop.uptime_s : 1.0);

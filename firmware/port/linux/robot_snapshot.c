@@ -289,32 +289,53 @@ coslam_status_t robot_snapshots_load(robot_snapshots_t *s, robot_snapshot_t *out
     return COSLAM_OK;
 }
 
-coslam_status_t robot_snapshots_save(robot_snapshots_t *s, robot_snapshot_t *snap, const char **name)
+coslam_status_t robot_snapshots_prepare(robot_snapshots_t *s, robot_snapshot_t *snap, robot_snapshot_job_t *job)
 {
-    if (s == NULL || snap == NULL) {
+    if (s == NULL || snap == NULL || job == NULL) {
         return COSLAM_E_ARG;
     }
     if (s->storage == NULL) {
         s->save_failures++;
         return COSLAM_E_UNSUPPORTED;
     }
-    const int slot = s->newest == 0 ? 1 : 0; /* over the older generation */
-    snap->seq = s->newest_seq + 1U;
-    size_t len = 0;
-    if (robot_snapshot_encode(snap, s->buf, sizeof s->buf, &len) != COSLAM_OK) {
+    job->slot = s->newest == 0 ? 1 : 0; /* over the older generation */
+    job->name = slot_names[job->slot];
+    job->seq = s->newest_seq + 1U;
+    snap->seq = job->seq;
+    job->len = 0;
+    if (robot_snapshot_encode(snap, s->buf, sizeof s->buf, &job->len) != COSLAM_OK) {
         s->save_failures++;
         return COSLAM_E_ARG;
     }
-    s->last_write = hal_storage_write(s->storage, slot_names[slot], s->buf, len);
-    if (s->last_write != HAL_OK) {
-        s->save_failures++;
-        return s->last_write == HAL_E_OVERFLOW ? COSLAM_E_CAPACITY : COSLAM_E_UNSUPPORTED;
-    }
-    s->newest = slot;
-    s->newest_seq = snap->seq;
-    s->saves++;
-    if (name != NULL) {
-        *name = slot_names[slot];
-    }
     return COSLAM_OK;
+}
+
+coslam_status_t robot_snapshots_commit(robot_snapshots_t *s, const robot_snapshot_job_t *job, hal_status_t written)
+{
+    if (s == NULL || job == NULL || job->slot < 0 || job->slot > 1) {
+        return COSLAM_E_ARG;
+    }
+    s->last_write = written;
+    if (written != HAL_OK) {
+        s->save_failures++;
+        return written == HAL_E_OVERFLOW ? COSLAM_E_CAPACITY : COSLAM_E_UNSUPPORTED;
+    }
+    s->newest = job->slot;
+    s->newest_seq = job->seq;
+    s->saves++;
+    return COSLAM_OK;
+}
+
+coslam_status_t robot_snapshots_save(robot_snapshots_t *s, robot_snapshot_t *snap, const char **name)
+{
+    robot_snapshot_job_t job;
+    const coslam_status_t ps = robot_snapshots_prepare(s, snap, &job);
+    if (ps != COSLAM_OK) {
+        return ps;
+    }
+    const coslam_status_t cs = robot_snapshots_commit(s, &job, hal_storage_write(s->storage, job.name, s->buf, job.len));
+    if (cs == COSLAM_OK && name != NULL) {
+        *name = job.name;
+    }
+    return cs;
 }

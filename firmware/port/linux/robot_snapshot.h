@@ -48,7 +48,9 @@
  * the older generation.
  *
  * No heap: robot_snapshots_t holds the encode buffer
- * (ROBOT_SNAPSHOT_MAX_BYTES). One thread.
+ * (ROBOT_SNAPSHOT_MAX_BYTES). One thread: the write itself may go to
+ * another (robot_snapshots_prepare, robot_snapshot_writer.h,
+ * robot_snapshots_commit), these functions are the control loop's.
  */
 #ifndef COSLAM_PORT_ROBOT_SNAPSHOT_H
 #define COSLAM_PORT_ROBOT_SNAPSHOT_H
@@ -114,6 +116,9 @@ typedef struct {
     uint32_t save_failures;
     uint32_t corrupt_found;   /**< corrupt or unreadable generations found by loads */
     hal_status_t last_write;  /**< status of the last storage write */
+    uint32_t busy_skips;      /**< periodic snapshots not taken: the last one's write still ran
+                                   (robot_snapshot_writer.h; set by the caller) */
+    uint64_t write_max_us;    /**< longest storage write seen (set by the caller) */
     uint8_t buf[ROBOT_SNAPSHOT_MAX_BYTES];
 } robot_snapshots_t;
 
@@ -134,8 +139,38 @@ void robot_snapshots_set_storage(robot_snapshots_t *s, hal_storage_t *storage);
  */
 coslam_status_t robot_snapshots_load(robot_snapshots_t *s, robot_snapshot_t *out, const char **name, FILE *log);
 
+/** A save in two halves, for a write that runs elsewhere (a writer
+ *  thread, robot_snapshot_writer.h): which blob, which sequence number,
+ *  how many bytes of robot_snapshots_t.buf. */
+typedef struct {
+    int slot;              /**< 0 (a) or 1 (b): the older generation */
+    const char *name;      /**< its blob name */
+    uint64_t seq;          /**< newest_seq + 1 */
+    size_t len;            /**< encoded bytes in buf */
+} robot_snapshot_job_t;
+
 /**
- * Save *snap as the next generation: snap->seq = newest_seq + 1, written
+ * First half of robot_snapshots_save: snap->seq = newest_seq + 1, encoded
+ * into s->buf, *job says where it goes. Nothing is written and the
+ * generation bookkeeping is unchanged until robot_snapshots_commit; prepare
+ * no other save before that (it would pick the same blob). Returns
+ * COSLAM_OK; COSLAM_E_ARG (NULL, too many landmarks to encode);
+ * COSLAM_E_UNSUPPORTED (no storage). Failures are counted in save_failures.
+ */
+coslam_status_t robot_snapshots_prepare(robot_snapshots_t *s, robot_snapshot_t *snap, robot_snapshot_job_t *job);
+
+/**
+ * Second half: the storage write of *job ended with `written`. HAL_OK makes
+ * it the newest generation (saves counted); anything else is counted in
+ * save_failures and leaves the generations as they were (the write is an
+ * atomic replace). last_write = written. Returns what robot_snapshots_save
+ * would: COSLAM_OK, COSLAM_E_CAPACITY (HAL_E_OVERFLOW), COSLAM_E_UNSUPPORTED;
+ * COSLAM_E_ARG (NULL, bad slot).
+ */
+coslam_status_t robot_snapshots_commit(robot_snapshots_t *s, const robot_snapshot_job_t *job, hal_status_t written);
+
+/**
+ * Save *snap as the next generation (prepare, write, commit in this call): snap->seq = newest_seq + 1, written
  * over the older blob (atomic replace by the storage backend). Returns
  * COSLAM_OK (*name, if not NULL, the blob written); COSLAM_E_ARG (NULL, or
  * too many landmarks to encode); COSLAM_E_CAPACITY (the medium is full:

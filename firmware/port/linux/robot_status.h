@@ -22,7 +22,10 @@
  *   auth_* the authentication decorator's (hal_link_auth_counters_t
  *     names: every refusal by its reason; auth_refused their sum);
  *   landmarks x y theta (SLAM pose, map frame [m, m, rad]);
- *   snap_seq snap_saves snap_failures;
+ *   snap_seq snap_saves snap_failures; snap_writing_ms (how long the
+ *     snapshot write in flight has taken so far, 0 if none),
+ *     snap_write_max_ms, snap_busy_skips (periodic snapshots not taken
+ *     because the last write still ran);
  *   cam_* the camera's counters (robot_camera_counters_t names) when a
  *     V4L2 camera is configured.
  */
@@ -67,6 +70,7 @@ typedef struct {
     double cpu_pct;                        /**< over the last report period */
     uint16_t landmarks;                    /**< exported landmarks (the observers' last export) */
     uint64_t idle_calls;                   /**< robot_node_idle calls (several a step while parts remain) */
+    uint32_t snap_writing_ms;              /**< age of the snapshot write in flight, 0 if none */
 } robot_loop_stats_t;
 
 /** Gather the report (the node's counters read as they are now). O(pairs). */

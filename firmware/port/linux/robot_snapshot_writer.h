@@ -1,0 +1,93 @@
+/*
+ * robot_snapshot_writer.h - the storage write of a map snapshot on a thread
+ * of its own, so that a slow medium never holds coslam-robot's control loop.
+ *
+ * The Linux storage backend replaces a blob atomically: temporary file,
+ * fsync, rename, fsync of the directory (hal/linux/posix). On an SD card or
+ * eMMC an fsync takes tens of milliseconds and, while the card collects
+ * garbage, seconds; written from the control loop, the drives would keep
+ * their last command for that long (docs/robot.md "Map snapshots"). The
+ * loop prepares the snapshot (export in parts, encode: robot_snapshots_
+ * prepare) and hands the bytes to this writer; it takes the outcome on a
+ * later step and commits it (robot_snapshots_commit).
+ *
+ * One write at a time: a submit while the last write's outcome has not been
+ * taken is refused (EBUSY), and the caller counts the snapshot it could not
+ * take. The bytes are copied in, so the caller's buffer is free when submit
+ * returns. The storage handle must stay open until the outcome is taken
+ * (robot_main.c closes the storage device only through a failed write's
+ * outcome, or at the end).
+ *
+ * No heap of its own: the copy lives in the struct (static in robot_main.c);
+ * the thread's stack is the C library's. Thread-safety: every function is
+ * called from one thread (the control loop); the writer thread touches only
+ * the job it was given.
+ */
+#ifndef COSLAM_PORT_ROBOT_SNAPSHOT_WRITER_H
+#define COSLAM_PORT_ROBOT_SNAPSHOT_WRITER_H
+
+#include <pthread.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "hal/hal_storage.h"
+#include "robot_snapshot.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct {
+    pthread_t thread;
+    pthread_mutex_t mu;
+    pthread_cond_t job_cv;   /**< the thread waits here for a job or quit */
+    pthread_cond_t done_cv;  /**< take / stop wait here for the end of a write */
+    int started;             /**< the thread runs (robot_snapshot_writer_start) */
+    int quit;
+    int state;               /**< 0 idle, 1 a job handed over (queued or writing), 2 written, outcome not taken */
+    hal_storage_t *storage;  /**< the job's */
+    char name[HAL_STORAGE_NAME_MAX + 1u];
+    size_t len;
+    hal_status_t result;     /**< the job's storage write status (state 2) */
+    uint64_t write_us;       /**< how long the storage call took (state 2) */
+    uint8_t buf[ROBOT_SNAPSHOT_MAX_BYTES];
+} robot_snapshot_writer_t;
+
+/** Start the thread. Returns 0, or an errno value (no thread: the caller
+ *  writes in its own thread). */
+int robot_snapshot_writer_start(robot_snapshot_writer_t *w);
+
+/**
+ * Hand a write over: `len` bytes of `data` (copied) to blob `name` of
+ * `storage`. Returns 0 (the write goes on in the thread); EBUSY (a write
+ * whose outcome has not been taken); E2BIG (len > ROBOT_SNAPSHOT_MAX_BYTES);
+ * EINVAL (NULL, a name that is too long); ESRCH (the thread is not running).
+ */
+int robot_snapshot_writer_submit(robot_snapshot_writer_t *w, hal_storage_t *storage, const char *name,
+                                 const uint8_t *data, size_t len);
+
+/**
+ * The outcome of the write handed over, waiting for it at most wait_ms
+ * (0: only look). Returns 1 (taken: *result, *write_us set, the writer is
+ * idle again); 0 (still writing); -1 (nothing handed over).
+ */
+int robot_snapshot_writer_take(robot_snapshot_writer_t *w, uint32_t wait_ms, hal_status_t *result,
+                               uint64_t *write_us);
+
+/** 1 while a write has been handed over and its outcome not taken. */
+int robot_snapshot_writer_busy(robot_snapshot_writer_t *w);
+
+/**
+ * Stop the thread; a write still running is waited for at most wait_ms.
+ * Returns 0 (joined; an outcome not taken is dropped: take it first); -1
+ * (the write still runs after wait_ms, a storage that does not return: the
+ * thread is detached and left to it; `w` and the storage handle must stay
+ * valid until the process ends). Idempotent.
+ */
+int robot_snapshot_writer_stop(robot_snapshot_writer_t *w, uint32_t wait_ms);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* COSLAM_PORT_ROBOT_SNAPSHOT_WRITER_H */

@@ -1,0 +1,26 @@
+/*
+ * fsync_gate.so - LD_PRELOAD shim for test_robot_process slow_storage: while
+ * the file named by COSLAM_TEST_FSYNC_GATE exists, fsync(2) waits (polling
+ * every millisecond, at most 30 s), as an SD card's fsync does while it
+ * collects garbage. Without the variable fsync is the C library's.
+ */
+#include <dlfcn.h>
+#include <stdlib.h>
+#include <time.h>
+#include <unistd.h>
+
+int fsync(int fd)
+{
+    static int (*real_fsync)(int);
+    if (real_fsync == NULL) {
+        real_fsync = (int (*)(int))dlsym(RTLD_NEXT, "fsync");
+    }
+    const char *gate = getenv("COSLAM_TEST_FSYNC_GATE");
+    if (gate != NULL) {
+        const struct timespec ms = {0, 1000000L};
+        for (int i = 0; i < 30000 && access(gate, F_OK) == 0; ++i) {
+            (void)nanosleep(&ms, NULL);
+        }
+    }
+    return real_fsync != NULL ? real_fsync(fd) : -1;
+}
