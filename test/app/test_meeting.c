@@ -220,6 +220,18 @@ static slam_filter_config_t setup_robot0_fastslam_in_parts(void)
     return fc;
 }
 
+/* Robot 0 (Fast-SLAM in parts, starting exactly at the origin) meets robot
+ * 1 (meet_robot1). Its filter configuration. */
+static slam_filter_config_t meet_robot1_in_parts(hal_link_t *link)
+{
+    slam_filter_config_t fc = setup_robot0_fastslam_in_parts();
+    fc.slam.noise.init_xy_var_m2 = 0.0;
+    fc.slam.noise.init_theta_var_rad2 = 0.0;
+    assert_int_equal(slam_filter_init(&g_filter, &fc, kOrigin), COSLAM_OK);
+    meet_robot1(link);
+    return fc;
+}
+
 /* ---- tests -------------------------------------------------------------------- */
 
 static void test_send_policy_and_message_fields(void **state)
@@ -456,6 +468,30 @@ static void test_history_reaches_back_at_fast_rates(void **state)
     assert_true(g_m.ctr.history_thinned > 50U);
 }
 
+/* A message whose sighting claims an age beyond the receiver's clock (a
+ * stamp near 2^64: arrival - latency - age would wrap and land the sighting
+ * at the arrival) is refused as stale at once, though an own sighting of
+ * the sender was made at the arrival. */
+static void test_absurd_age_is_stale(void **state)
+{
+    (void)state;
+    hal_link_t *link = fake_link_reset(0);
+    setup_robot0(NULL);
+    const uint64_t t = 20000000;
+    const pose2_t a = {0.0, 0.0, 0.0};
+    double r, b1, b2;
+    mutual(a, kMeetB, &r, &b1, &b2);
+    meeting_on_sighting(&g_m, &g_filter, link, t + 4000, 1, r, b1, t, kOrigin, 0.0);
+    const size_t len = make_msg_from1(1, UINT64_MAX - 999U, 0U, r, b2, kMeetLm, 1U << 1, 0);
+    inject(g_buf, len, 1, t + 3000 + g_m.cfg.link_latency_us);
+    meeting_poll_link(&g_m, link);
+    assert_false(g_m.have_pending);
+    assert_int_equal(g_m.ctr.stale, 1);
+    assert_int_equal(meeting_poll(&g_m, &g_filter, t + 6000, kOrigin, 0.0), COSLAM_OK);
+    assert_int_equal(g_m.ctr.merged, 0);
+    assert_int_equal(count_events(MEETING_EV_REFUSED, COSLAM_E_MERGE_STALE, NULL), 1);
+}
+
 static void test_waits_then_stale(void **state)
 {
     (void)state;
@@ -675,16 +711,12 @@ static void test_merge_waits_for_idle_time(void **state)
 {
     (void)state;
     hal_link_t *link = fake_link_reset(0);
-    slam_filter_config_t fc = setup_robot0_fastslam_in_parts();
-    fc.slam.noise.init_xy_var_m2 = 0.0;
-    fc.slam.noise.init_theta_var_rad2 = 0.0;
-    assert_int_equal(slam_filter_init(&g_filter, &fc, kOrigin), COSLAM_OK);
-    meet_robot1(link);
+    const slam_filter_config_t fc = meet_robot1_in_parts(link);
     const pose2_t b = kMeetB;
     const uint64_t t = kMeetT;
     /* robot 0's own send is exported in idle time too, first: the merge
      * waits for the export table */
-    assert_int_equal(g_m.send_waiting, 2);
+    assert_int_equal(g_m.send_waiting, 1);
     assert_int_equal(g_link.n_sent, 0);
     assert_int_equal(meeting_poll(&g_m, &g_filter, t + 6000, kOrigin, 0.0), COSLAM_E_EMPTY);
     assert_true(g_m.have_pending);
@@ -725,6 +757,69 @@ static void test_merge_waits_for_idle_time(void **state)
     assert_true(g_est.pose.x > 0.1); /* the robot did drive on meanwhile */
 }
 
+/* A send that falls due while a merge's check holds the export table
+ * (waiting for its own export in parts) is not begun: begun later, it would
+ * carry this sighting with the map and pose of that later moment. Its slot
+ * is kept (send_busy); the next sighting after the merge sends, with the
+ * pose of its own moment. */
+static void test_send_not_begun_while_a_check_waits(void **state)
+{
+    (void)state;
+    hal_link_t *link = fake_link_reset(0);
+    (void)meet_robot1_in_parts(link);
+    const uint64_t t = kMeetT;
+    uint64_t now = t + 7000;
+    while (g_link.n_sent == 0 && now < t + 1000000) { /* the first send, in parts */
+        slam_filter_idle(&g_filter);
+        (void)meeting_send_due(&g_m, &g_filter, link, now);
+        now += 1000;
+    }
+    assert_int_equal(g_link.n_sent, 1);
+    assert_int_equal(meeting_poll(&g_m, &g_filter, now, kOrigin, 0.0), COSLAM_E_MERGE_PENDING);
+    assert_true(g_m.merge_waiting);
+    /* a resend due 1.1 s after the meeting, while the check waits */
+    const odo_increment_t u = {0.05, 0.0, 0.02};
+    assert_int_equal(slam_filter_predict(&g_filter, u, 0.1), COSLAM_OK);
+    const uint64_t t2 = t + 1100000;
+    const uint8_t sends = g_m.peer[1].sends;
+    assert_int_equal(meeting_on_sighting(&g_m, &g_filter, link, t2 + 3000, 1, 2.0, 0.3, t2, kOrigin, 0.0), COSLAM_OK);
+    assert_int_equal(g_m.ctr.send_busy, 1);
+    assert_int_equal(g_m.send_waiting, 0); /* nothing begun */
+    assert_int_equal(g_m.peer[1].sends, sends); /* its slot kept */
+    assert_int_equal(g_link.n_sent, 1);
+    /* the robot drives on while the merge is decided and fused */
+    int idles = 0;
+    while ((g_filter.merge_due != NULL || g_m.merge_waiting) && idles < 200) {
+        assert_int_equal(slam_filter_predict(&g_filter, u, 0.1), COSLAM_OK);
+        slam_filter_idle(&g_filter);
+        (void)meeting_poll(&g_m, &g_filter, now, kOrigin, 0.0);
+        idles++;
+    }
+    assert_false(g_m.merge_waiting);
+    /* the next sighting sends, with the map and pose of its moment */
+    assert_int_equal(slam_filter_export(&g_filter, &g_est), COSLAM_OK);
+    const pose2_t at_sighting = g_est.pose;
+    assert_true(at_sighting.x > 0.2); /* the robot did drive on since the busy sighting */
+    const uint64_t t3 = t + 1400000;
+    assert_int_equal(meeting_on_sighting(&g_m, &g_filter, link, t3 + 3000, 1, 2.0, 0.3, t3, kOrigin, 0.0), COSLAM_OK);
+    assert_int_equal(g_m.peer[1].sends, sends + 1);
+    assert_int_equal(g_m.send_waiting, 1); /* begun at this sighting */
+    now = t3 + 4000;
+    while (g_link.n_sent == 1 && now < t3 + 1000000) {
+        assert_int_equal(slam_filter_predict(&g_filter, u, 0.1), COSLAM_OK);
+        slam_filter_idle(&g_filter);
+        (void)meeting_send_due(&g_m, &g_filter, link, now);
+        now += 10000;
+    }
+    assert_int_equal(g_link.n_sent, 2);
+    map_msg_t got;
+    assert_int_equal(map_msg_decode(g_link.sent[1].data, g_link.sent[1].len, &got), COSLAM_OK);
+    assert_int_equal(got.sighting.stamp_us, t3);
+    assert_true(fabs(got.map.pose.x - at_sighting.x) < 1e-9);
+    assert_true(fabs(got.map.pose.y - at_sighting.y) < 1e-9);
+    assert_true(fabs(angle_wrap(got.map.pose.theta - at_sighting.theta)) < 1e-9);
+}
+
 /* A Fast-SLAM robot whose map export does not fit one step's budget: the
  * sighting starts the export, the idle time runs it while the robot drives
  * on, meeting_send_due sends it. The message carries the map and the pose
@@ -760,7 +855,7 @@ static void test_send_exported_in_idle_time(void **state)
     const uint64_t t = 30000000;
     assert_int_equal(meeting_on_sighting(&g_m, &g_filter, link, t + 3000, 1, 2.0, 0.25, t, kOrigin, 0.0), COSLAM_OK);
     assert_int_equal(g_link.n_sent, 0);
-    assert_int_equal(g_m.send_waiting, 2);
+    assert_int_equal(g_m.send_waiting, 1);
     assert_int_equal(g_filter.sends_in_parts, 1U);
     /* due again a second later (resend period) while the first is exported */
     assert_int_equal(meeting_on_sighting(&g_m, &g_filter, link, t + 1003000, 1, 2.0, 0.25, t + 1000000, kOrigin, 0.0),
@@ -861,7 +956,7 @@ static void test_observer_export_yields(void **state)
     assert_int_equal(meeting_on_sighting(&g_m, &g_filter, link, t + 3000, 1, 2.0, 0.25, t, kOrigin, 0.0), COSLAM_OK);
     assert_int_equal(g_filter.observes_yielded, 1U);
     assert_int_equal(slam_filter_export_poll(&g_filter, &g_obs, NULL), -1);
-    assert_int_equal(g_m.send_waiting, 2);
+    assert_int_equal(g_m.send_waiting, 1);
     assert_int_equal(g_m.ctr.send_busy, 0);
     assert_int_equal(g_filter.sends_in_parts, 1U);
     /* an observer cannot begin while the send's export runs */
@@ -923,6 +1018,7 @@ int main(void)
         cmocka_unit_test(test_merge_compensates_own_motion),
         cmocka_unit_test(test_pairs_nearest_own_sighting),
         cmocka_unit_test(test_waits_then_stale),
+        cmocka_unit_test(test_absurd_age_is_stale),
         cmocka_unit_test(test_history_reaches_back_at_fast_rates),
         cmocka_unit_test(test_replay_refused),
         cmocka_unit_test(test_implausible_refused),
@@ -931,6 +1027,7 @@ int main(void)
         cmocka_unit_test(test_event_queue_overflow_counted),
         cmocka_unit_test(test_merge_waits_for_idle_time),
         cmocka_unit_test(test_send_exported_in_idle_time),
+        cmocka_unit_test(test_send_not_begun_while_a_check_waits),
         cmocka_unit_test(test_observer_export_yields),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

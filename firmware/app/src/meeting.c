@@ -39,6 +39,14 @@ void meeting_config_noise_from(meeting_config_t *c, const slam_params_t *p)
     c->robot_bearing_var_rad2 = p->noise.bearing_var_rad2;
 }
 
+/* Time from `then` to `now` [us], 0 if `then` is later (a stamp out of
+ * order, or an arrival stamped before a decision made in the same step):
+ * never a wrapped, huge interval. */
+static uint64_t since_us(uint64_t now, uint64_t then)
+{
+    return now > then ? now - then : 0U;
+}
+
 static int finite_nonneg(double v)
 {
     return isfinite(v) && v >= 0.0;
@@ -258,16 +266,23 @@ static coslam_status_t send_exported(meeting_t *m, hal_link_t *link, uint64_t no
 }
 
 /* Export the map for `peer` with the sighting just made and send it: now,
- * or, if the export must wait or goes in parts (slam_filter_export_send),
- * from meeting_send_due. */
+ * or, if the export goes in parts (slam_filter_export_send), from
+ * meeting_send_due, with the map and pose of this moment. If the export
+ * table is taken (a merge's check waits for its own export), nothing is
+ * begun and COSLAM_E_MERGE_BUSY returned: an export begun later would pair
+ * this sighting with the map and pose of that later moment, so the next
+ * sighting tries, with its own. */
 static coslam_status_t send_map(meeting_t *m, slam_filter_t *filter, hal_link_t *link, uint64_t now_us, uint8_t peer,
                                 const meeting_sighting_t *s)
 {
+    const coslam_status_t st = slam_filter_export_send(filter, &m->send_map, m->cfg.merge.step_units);
+    if (st == COSLAM_E_MERGE_BUSY) {
+        return st;
+    }
     m->send_peer = peer;
     m->send_sighting = *s;
-    const coslam_status_t st = slam_filter_export_send(filter, &m->send_map, m->cfg.merge.step_units);
-    if (st == COSLAM_E_MERGE_PENDING || st == COSLAM_E_MERGE_BUSY) {
-        m->send_waiting = st == COSLAM_E_MERGE_PENDING ? 2U : 1U;
+    if (st == COSLAM_E_MERGE_PENDING) {
+        m->send_waiting = 1U;
         m->ctr.send_waits++;
         return COSLAM_OK;
     }
@@ -280,19 +295,7 @@ coslam_status_t meeting_send_due(meeting_t *m, slam_filter_t *filter, hal_link_t
         return COSLAM_E_ARG;
     }
     coslam_status_t st = COSLAM_OK;
-    if (m->send_waiting == 1U) {
-        /* the export table was taken when the send was due: try again */
-        st = slam_filter_export_send(filter, &m->send_map, m->cfg.merge.step_units);
-        if (st == COSLAM_E_MERGE_BUSY) {
-            return COSLAM_E_MERGE_PENDING;
-        }
-        if (st == COSLAM_E_MERGE_PENDING) {
-            m->send_waiting = 2U;
-            return st;
-        }
-        return send_exported(m, link, now_us, st);
-    }
-    if (m->send_waiting == 2U) {
+    if (m->send_waiting) {
         const int ready = slam_filter_export_poll(filter, &m->send_map, &st);
         if (ready == 0) {
             return COSLAM_E_MERGE_PENDING;
@@ -324,7 +327,7 @@ coslam_status_t meeting_on_sighting(meeting_t *m, slam_filter_t *filter, hal_lin
     s->bearing_rad = bearing_rad;
     s->odo_pose = odo_pose;
     s->travel_m = travel_m;
-    if (!p->in_meeting || stamp_us - p->last_seen_us > m->cfg.meeting_gap_us) {
+    if (!p->in_meeting || since_us(stamp_us, p->last_seen_us) > m->cfg.meeting_gap_us) {
         p->in_meeting = 1U;
         p->sends = 0U;
         p->meeting_start_us = stamp_us;
@@ -341,9 +344,16 @@ coslam_status_t meeting_on_sighting(meeting_t *m, slam_filter_t *filter, hal_lin
         m->ctr.send_busy++;
         return COSLAM_OK;
     }
+    const coslam_status_t st = send_map(m, filter, link, now_us, peer, s);
+    if (st == COSLAM_E_MERGE_BUSY) {
+        /* the export table is a waiting merge check's: slot kept, the next
+         * sighting tries again */
+        m->ctr.send_busy++;
+        return COSLAM_OK;
+    }
     p->sends++; /* a failed send still uses up its slot: no retry storm */
     p->last_sent_us = now_us;
-    return send_map(m, filter, link, now_us, peer, s);
+    return st;
 }
 
 /* Screen one decoded message (in m->tx, used as decode scratch: sending
@@ -390,10 +400,10 @@ static void accept_message(meeting_t *m, const hal_link_rx_info_t *info)
     if (holds_ours) {
         p->acked = 1U;
         p->acked_at_us = info->stamp_us;
-    } else if (!(p->acked && info->stamp_us - p->acked_at_us < m->cfg.remerge_period_us)) {
+    } else if (!(p->acked && since_us(info->stamp_us, p->acked_at_us) < m->cfg.remerge_period_us)) {
         p->sends = 0U; /* the sender sees us and still needs our map */
     }
-    if ((p->merged && info->stamp_us - p->merged_at_us < m->cfg.remerge_period_us) ||
+    if ((p->merged && since_us(info->stamp_us, p->merged_at_us) < m->cfg.remerge_period_us) ||
         (m->merge_waiting && m->waiting_ev.peer == from)) {
         /* merged lately, or its merge is being decided in idle time */
         m->ctr.ignored_recent++;
@@ -401,7 +411,7 @@ static void accept_message(meeting_t *m, const hal_link_rx_info_t *info)
     }
     /* maps that disagreed do not agree a second later: retrying each message
      * of the meeting would only let one through by chance (multiple tests) */
-    if (p->disagreed && info->stamp_us - p->disagreed_at_us < m->cfg.remerge_period_us) {
+    if (p->disagreed && since_us(info->stamp_us, p->disagreed_at_us) < m->cfg.remerge_period_us) {
         m->ctr.ignored_disagreed++;
         return;
     }
@@ -415,10 +425,19 @@ static void accept_message(meeting_t *m, const hal_link_rx_info_t *info)
         m->ctr.pending_replaced++;
     }
     const uint64_t age_us = msg->stamp_us >= msg->sighting.stamp_us ? msg->stamp_us - msg->sighting.stamp_us : 0U;
-    const uint64_t back_us = age_us + m->cfg.link_latency_us;
+    const uint64_t latency_us = m->cfg.link_latency_us;
+    /* the sender's sighting on our clock: arrival - latency - age. A
+     * claimed age beyond our clock's start (a sum age + latency could wrap
+     * for ages near 2^64 and land the sighting at the arrival) is stale. */
+    if (info->stamp_us < latency_us || info->stamp_us - latency_us < age_us) {
+        m->ctr.stale++;
+        meeting_event_t *ev = push_event(m, MEETING_EV_REFUSED, info->stamp_us, from, msg->seq, COSLAM_E_MERGE_STALE);
+        ev->n_landmarks = msg->map.n_landmarks;
+        return;
+    }
     m->rx = *msg;
     m->have_pending = 1U;
-    m->pending_sender_us = info->stamp_us > back_us ? info->stamp_us - back_us : 0U;
+    m->pending_sender_us = info->stamp_us - latency_us - age_us;
 }
 
 int meeting_poll_link(meeting_t *m, hal_link_t *link)
@@ -556,7 +575,7 @@ coslam_status_t meeting_poll(meeting_t *m, slam_filter_t *filter, uint64_t now_u
         ev->sender_sighting_us = t_s;
         return COSLAM_E_MERGE_STALE;
     }
-    if (m->send_waiting == 2U) {
+    if (m->send_waiting) {
         return COSLAM_E_EMPTY; /* the filter's export table is the send's until it is out */
     }
     m->have_pending = 0U;

@@ -180,8 +180,9 @@ typedef struct {
     uint32_t ignored_disagreed; /**< from a peer whose map disagreed within remerge_period_us */
     uint32_t weak_not_sent;     /**< landmarks left out of sent maps (below export_min_obs) */
     uint32_t send_waits;        /**< sends whose export waited or went in parts (meeting_send_due) */
-    uint32_t send_busy;         /**< sends due while the last one was still being exported (its
-                                     slot kept: the next sighting tries again) */
+    uint32_t send_busy;         /**< sends due while the filter's export table was taken (the last
+                                     send's export, or a merge check's): nothing begun, the slot
+                                     kept, the next sighting tries again with its own moment */
     uint32_t events_dropped;    /**< events overwritten before they were read */
     uint32_t history_thinned;   /**< own sightings of a peer dropped from the middle of its
                                      history, which sightings faster than a third of
@@ -202,9 +203,10 @@ typedef struct {
      *  outcome filled in when meeting_poll takes it from `work`. */
     uint8_t merge_waiting;
     meeting_event_t waiting_ev;
-    /** A send whose export waits (1: for the filter's export table) or runs
-     *  in idle time (2) (slam_filter_export_send); meeting_send_due sends
-     *  it when the export is done. */
+    /** 1: a send whose export runs in idle time (slam_filter_export_send),
+     *  begun at its sighting; meeting_send_due sends it when the export is
+     *  done. A send due while the export table is taken is not begun
+     *  (send_busy). */
     uint8_t send_waiting;
     uint8_t send_peer;
     meeting_sighting_t send_sighting;  /**< the sighting the message carries */
@@ -255,8 +257,8 @@ coslam_status_t meeting_on_sighting(meeting_t *m, slam_filter_t *filter, hal_lin
                                     pose2_t odo_pose, double travel_m);
 
 /**
- * A send whose export waited for the filter's export table or went in
- * parts (Fast-SLAM, merge.step_units: slam_filter_export_send): send it
+ * A send whose export went in parts (Fast-SLAM, merge.step_units:
+ * slam_filter_export_send): send it
  * once the export is done. Call it after every step while send_waiting is
  * set (meeting_on_sighting also does). The message is stamped with the
  * time it goes out (stamp_us = now_us, so the receiver's estimate of the
