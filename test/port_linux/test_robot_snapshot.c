@@ -135,6 +135,7 @@ static void codec_round_trip_is_byte_exact(void **state)
     snap_in.robot_id = 1;
     snap_in.filter_kind = SLAM_FILTER_EKF;
     snap_in.msg_seq = 77;
+    snap_in.clean_stop = 1;
     snap_in.saved_unix_s = 1700000000ULL;
     size_t len = 0;
     assert_int_equal(robot_snapshot_encode(&snap_in, buf, sizeof buf, &len), COSLAM_OK);
@@ -145,6 +146,8 @@ static void codec_round_trip_is_byte_exact(void **state)
     assert_int_equal(snap_out.robot_id, 1);
     assert_int_equal(snap_out.filter_kind, SLAM_FILTER_EKF);
     assert_int_equal(snap_out.msg_seq, 77);
+    assert_int_equal(snap_out.clean_stop, 1);
+    assert_int_equal(buf[22], 1); /* the flags byte, bit 0 */
     assert_true(snap_out.saved_unix_s == snap_in.saved_unix_s);
     size_t len2 = 0;
     assert_int_equal(robot_snapshot_encode(&snap_out, buf2, sizeof buf2, &len2), COSLAM_OK);

@@ -175,6 +175,33 @@ static snapshot_write_t writing;
 #define FINAL_SNAPSHOT_WAIT_MS 5000U
 static robot_status_t status;
 
+/* Map-message sequence numbers across restarts. A snapshot carries the
+ * last one sent and whether maps may have been sent after it (any periodic
+ * snapshot: the robot may crash later). A start from such a snapshot
+ * numbers on ROBOT_SNAPSHOT_SEQ_MARGIN beyond it, so that the peers, who
+ * remember the later numbers, do not refuse its maps as replays. Until the
+ * robot sends, its snapshots keep the number it was restored from and the
+ * doubt, so that restarts without sends (a crash loop) do not add margin
+ * to margin towards the jump a peer refuses (MERGE_SEQ_MAX_JUMP). */
+static struct {
+    uint32_t base;     /* msg_seq of the snapshot restored */
+    uint32_t resumed;  /* the number the node went on from */
+    int unknown;       /* maps may have been sent beyond base before this start */
+} seq_book;
+
+/* msg_seq, and clean_stop kept only if the doubt is gone, into s (whose
+ * clean_stop says whether this is the final snapshot). */
+static void snap_seq_to_save(robot_snapshot_t *s)
+{
+    const uint32_t now_seq = robot_node_msg_seq(&node);
+    if (seq_book.unknown && now_seq == seq_book.resumed) {
+        s->msg_seq = seq_book.base; /* nothing sent since: the doubt stays */
+        s->clean_stop = 0U;
+        return;
+    }
+    s->msg_seq = now_seq;
+}
+
 /* The map's observers: the status count and the periodic snapshot. Their
  * export goes in parts into snap.map (robot_node_export_observe: the
  * merge's step_units per call, the rest in idle time) and yields to the
@@ -236,7 +263,7 @@ static int save_snapshot_map(int verbose, const char *why, uint64_t now_us, int 
     }
     snap.robot_id = cfg.robot_id;
     snap.filter_kind = (uint8_t)cfg.node.filter.kind;
-    snap.msg_seq = robot_node_msg_seq(&node);
+    snap_seq_to_save(&snap);
     snap.saved_unix_s = (uint64_t)time(NULL);
     robot_snapshot_job_t job;
     const coslam_status_t ps = robot_snapshots_prepare(&snaps, &snap, &job);
@@ -289,6 +316,7 @@ static int finish_snapshot_write(int verbose, uint32_t wait_ms, uint64_t now_us)
 static int save_snapshot(int verbose, const char *why, uint64_t now_us)
 {
     memset(&snap, 0, sizeof snap);
+    snap.clean_stop = 1U; /* the final snapshot: nothing is sent after it (snap_seq_to_save) */
     observer.running = 0; /* an observer's export into snap.map is finished by this one */
     const coslam_status_t es = robot_node_export(&node, &snap.map);
     if (es != COSLAM_OK && es != COSLAM_E_CAPACITY) {
@@ -359,16 +387,28 @@ static void load_snapshot(int restore)
                 name, (unsigned long long)loaded.seq, (unsigned)loaded.robot_id, (unsigned)cfg.robot_id);
         return;
     }
-    const coslam_status_t rs = robot_node_restore(&node, &loaded.map, loaded.msg_seq);
+    /* after a crash, maps sent since this snapshot have later sequence
+     * numbers that the peers remember: go on beyond them */
+    const uint32_t msg_seq = loaded.msg_seq + (loaded.clean_stop ? 0U : ROBOT_SNAPSHOT_SEQ_MARGIN);
+    const coslam_status_t rs = robot_node_restore(&node, &loaded.map, msg_seq);
+    char msg_seq_text[32];
+    (void)snprintf(msg_seq_text, sizeof msg_seq_text, "%lu)", (unsigned long)msg_seq);
+    if (rs == COSLAM_OK || rs == COSLAM_E_CAPACITY) {
+        seq_book.base = loaded.msg_seq;
+        seq_book.resumed = msg_seq;
+        seq_book.unknown = !loaded.clean_stop;
+    }
     if (rs != COSLAM_OK && rs != COSLAM_E_CAPACITY) {
         fprintf(stderr, "coslam-robot: snapshot: %s seq=%llu refused by the filter (%s): starting a new map\n", name,
                 (unsigned long long)loaded.seq, coslam_status_str(rs));
         return;
     }
     fprintf(stderr,
-            "coslam-robot: snapshot: loaded %s seq=%llu landmarks=%u pose=(%.3f, %.3f, %.4f)%s\n", name,
+            "coslam-robot: snapshot: loaded %s seq=%llu landmarks=%u pose=(%.3f, %.3f, %.4f)%s%s%s\n", name,
             (unsigned long long)loaded.seq, (unsigned)loaded.map.n_landmarks, loaded.map.pose.x, loaded.map.pose.y,
-            loaded.map.pose.theta, rs == COSLAM_E_CAPACITY ? " (cut to this build's capacity)" : "");
+            loaded.map.pose.theta, rs == COSLAM_E_CAPACITY ? " (cut to this build's capacity)" : "",
+            loaded.clean_stop ? "" : " (not from a clean stop: map messages numbered on from ",
+            loaded.clean_stop ? "" : msg_seq_text);
 }
 
 /* The meeting's events: merges and refusals always (they change or keep
@@ -454,8 +494,15 @@ static void report_status(const options_t *o, int to_stderr, const robot_loop_st
     log_limits();
     robot_status_collect(&status, &node, &dev, &snaps, loop);
     if (to_stderr) {
-        static char line[4096];
-        (void)robot_status_line(&status, line, sizeof line);
+        static char line[8192];
+        if (robot_status_line(&status, line, sizeof line) + 1U >= sizeof line) {
+            static int said;
+            if (!said) {
+                said = 1;
+                fprintf(stderr, "coslam-robot: LIMIT status: the status line is cut at %zu characters "
+                                "(robot_main.c report_status)\n", sizeof line - 1U);
+            }
+        }
         /* a link that is off or unauthenticated is said on every line */
         const char *warn = robot_link_warning(&dev.link);
         fprintf(stderr, "coslam-robot: status %s%s%s\n", line, warn != NULL ? " WARNING: " : "",

@@ -91,6 +91,7 @@ coslam_status_t robot_snapshot_encode(const robot_snapshot_t *s, uint8_t *buf, s
     put_u64(buf + 12, s->seq);
     buf[20] = s->robot_id;
     buf[21] = s->filter_kind;
+    buf[22] = s->clean_stop ? 1U : 0U;
     put_u32(buf + 24, s->msg_seq);
     put_u64(buf + 28, s->saved_unix_s);
     put_u32(buf + 36, crc32_update(0U, buf, 36U));
@@ -173,6 +174,7 @@ coslam_status_t robot_snapshot_decode(const uint8_t *buf, size_t len, robot_snap
     tmp.robot_id = buf[20];
     tmp.filter_kind = buf[21];
     tmp.msg_seq = get_u32(buf + 24);
+    tmp.clean_stop = (uint8_t)(buf[22] & 1U);
     tmp.saved_unix_s = get_u64(buf + 28);
     tmp.map.pose.x = get_f64(p + 0);
     tmp.map.pose.y = get_f64(p + 8);

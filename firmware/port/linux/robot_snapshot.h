@@ -15,7 +15,10 @@
  *    20     1  u8  robot id that saved it
  *    21     1  u8  filter kind (slam_filter_kind_t; informative: a map
  *                  estimate is the filters' common format)
- *    22     2  u16 reserved, 0
+ *    22     1  u8  flags: bit 0 = written at a clean stop (the final
+ *                  snapshot: every map message sent is in msg_seq); the
+ *                  other bits 0 (readers ignore them)
+ *    23     1  u8  reserved, 0
  *    24     4  u32 last map-message sequence number sent (meeting)
  *    28     8  u64 save time, seconds since 1970 (for people; never used)
  *    36     4  u32 CRC-32 (coslam/crc32.h) of bytes [0, 36)
@@ -78,6 +81,15 @@ extern "C" {
 /** Largest snapshot of this build [bytes]. */
 #define ROBOT_SNAPSHOT_MAX_BYTES ROBOT_SNAPSHOT_BYTES(COSLAM_MAX_MSG_LANDMARKS)
 
+/** A robot restored from a snapshot not written at a clean stop (a crash,
+ *  a power cut: maps may have been sent after it, with sequence numbers
+ *  beyond msg_seq that the peers remember) continues its map-message
+ *  sequence numbers this far ahead, so that its first messages are not
+ *  refused as replays. Covers 2,048 sends since the last periodic snapshot
+ *  (68 a second at the default 30 s), and stays far below the jump a peer
+ *  accepts (MERGE_SEQ_MAX_JUMP, 65,536). */
+#define ROBOT_SNAPSHOT_SEQ_MARGIN 2048u
+
 /** The two generations. */
 #define ROBOT_SNAPSHOT_NAME_A "snapshot.a"
 #define ROBOT_SNAPSHOT_NAME_B "snapshot.b"
@@ -87,6 +99,7 @@ typedef struct {
     uint8_t robot_id;
     uint8_t filter_kind;
     uint32_t msg_seq;        /**< last map-message sequence number sent */
+    uint8_t clean_stop;      /**< written at a clean stop (flags bit 0): nothing was sent after it */
     uint64_t saved_unix_s;   /**< save time (informative) */
     map_estimate_t map;      /**< exported map with the pose */
 } robot_snapshot_t;

@@ -7,7 +7,7 @@
 
 static robot_status_kv_t *slot(robot_status_t *s, const char *key, int is_text)
 {
-    if (s->n >= ROBOT_STATUS_MAX_KV) {
+    if (s->n >= ROBOT_STATUS_MAX_KV - 1) { /* the last slot: status_dropped */
         s->dropped++;
         return NULL;
     }
@@ -196,6 +196,13 @@ void robot_status_collect(robot_status_t *s, robot_node_t *node, const robot_dev
         u64(s, "cam_stalls", cc.stalls);
     }
 #endif
+    if (s->dropped > 0U) {
+        /* a limit is said where it bites: the report itself ends with it */
+        robot_status_kv_t *kv = &s->kv[s->n++];
+        kv->key = "status_dropped";
+        kv->is_text = 0;
+        (void)snprintf(kv->value, sizeof kv->value, "%lu", (unsigned long)s->dropped);
+    }
 }
 
 size_t robot_status_line(const robot_status_t *s, char *buf, size_t cap)

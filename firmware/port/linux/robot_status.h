@@ -44,8 +44,9 @@
 extern "C" {
 #endif
 
-/** Longest list of pairs. */
-#define ROBOT_STATUS_MAX_KV 128
+/** Longest list of pairs (about 125 with every device and the camera; the
+ *  last slot is kept for "status_dropped", below). */
+#define ROBOT_STATUS_MAX_KV 192
 /** Longest value text [characters, without NUL]. */
 #define ROBOT_STATUS_VALUE_MAX 31u
 
@@ -58,7 +59,8 @@ typedef struct {
 typedef struct {
     robot_status_kv_t kv[ROBOT_STATUS_MAX_KV];
     int n;
-    uint32_t dropped;                      /**< pairs beyond ROBOT_STATUS_MAX_KV (never expected) */
+    uint32_t dropped;                      /**< pairs beyond ROBOT_STATUS_MAX_KV - 1 (never expected; then
+                                                the report ends with status_dropped=N) */
 } robot_status_t;
 
 /** What the main loop knows beside the node. */
