@@ -246,6 +246,49 @@ static void test_fault_on_one_wheel_stops_all(void **state)
     step_until(t, is_enabled, 50);
 }
 
+/* A drive that leaves OPERATION_ENABLED on its own (its quick-stop or STO
+ * input: quick stop active, no fault) stops the base as a fault does, and
+ * is not walked back to enabled by the master; a fault reset restarts it. */
+static void test_drive_leaving_enabled_stops_the_base(void **state)
+{
+    (void)state;
+    uint64_t t = bring_up_and_enable();
+    assert_int_equal(cia402_omni_set_body_velocity(&g_o, 0.2, 0.0, 0.0), COSLAM_OK);
+    t = step_until(t, NULL, 5);
+    g_r.tpdo_on = 0;
+    uint8_t tp[6];
+    canopen_put_u16(&tp[0], 0x0207); /* node 3: quick stop active */
+    canopen_put_u32(&tp[2], 0u);
+    fake_can_push(&g_fc, 0x183, tp, 6, t);
+    const size_t n = g_fc.n_sent;
+    assert_int_equal(cia402_omni_poll(&g_o, t), COSLAM_E_DRIVE_FAULT);
+    cia402_omni_fault_t rep;
+    assert_int_equal(cia402_omni_get_fault(&g_o, &rep), COSLAM_OK);
+    assert_int_equal(rep.wheel, 2);
+    assert_int_equal(rep.info.reason, CIA402_FAULT_LEFT_ENABLED);
+    /* in this same poll the other two get quick stop and velocity 0 */
+    int stopped[4] = {0, 0, 0, 0};
+    for (size_t i = n; i < g_fc.n_sent; ++i) {
+        const hal_can_frame_t *f = &g_fc.sent[i];
+        if (f->id >= 0x201 && f->id <= 0x203 && canopen_get_u16(&f->data[0]) == 0x02 && rpdo_velocity(f) == 0) {
+            stopped[f->id - 0x200] = 1;
+        }
+    }
+    assert_true(stopped[1] && stopped[2]);
+    /* node 3 is never told to go back up while the fault stands */
+    for (int i = 0; i < 20; ++i) {
+        t += 1000;
+        fake_can_push(&g_fc, 0x183, tp, 6, t);
+        (void)cia402_omni_poll(&g_o, t);
+        const uint16_t cw = canopen_get_u16(&last_rpdo(3)->data[0]);
+        assert_true(cw != 0x06 && cw != 0x07 && cw != 0x0F);
+        assert_int_equal(rpdo_velocity(last_rpdo(1)), 0);
+    }
+    assert_false(cia402_omni_is_enabled(&g_o));
+    /* the wheel reaching enabled during the bring-up is not a fault */
+    assert_int_equal(g_o.drive[0].fault.reason, CIA402_FAULT_NONE);
+}
+
 static void test_bus_errors(void **state)
 {
     (void)state;
@@ -328,6 +371,57 @@ static void test_odometry_from_tpdos(void **state)
     (void)t;
 }
 
+/* One cycle's TPDOs of the wheels in `mask` (bit k: wheel k) at body
+ * velocity (vx, vy, w), with heartbeats, then a poll. */
+static void cycle(uint8_t mask, double vx, double vy, double w, uint64_t stamp)
+{
+    double rpm[3];
+    omni_kinematics_inverse(&g_o.cfg.kinematics, vx, vy, w, rpm);
+    for (uint8_t k = 0; k < 3; ++k) {
+        if (mask & (1u << k)) push_tpdo((uint8_t)(k + 1), (int32_t)lround(rpm[k] / 0.1), stamp);
+        const uint8_t hb = 0x05;
+        fake_can_push(&g_fc, 0x700u + k + 1u, &hb, 1, stamp);
+    }
+    (void)cia402_omni_poll(&g_o, stamp);
+}
+
+/* A wheel that falls silent, and a bus that does: its last speed never
+ * stands for the motion, nothing is integrated across the gap, and the
+ * odometry starts again once all three wheels report. */
+static void test_odometry_gaps(void **state)
+{
+    (void)state;
+    g_r.tpdo_on = 0;
+    assert_int_equal(cia402_omni_start(&g_o, 0), COSLAM_OK);
+    const uint64_t t0 = step_until(1000, is_running, 100);
+    const double vx = 0.2, w = 0.4;
+    odo_increment_t u;
+    uint64_t t = t0;
+    for (int i = 0; i <= 50; ++i, t += 10000u) cycle(7, vx, 0.0, w, t);
+    assert_int_equal(cia402_omni_take_odometry(&g_o, &u, NULL), COSLAM_OK);
+    ASSERT_NEAR(u.dtheta, w * 0.5, 2e-4);
+    /* wheel 3 silent while it was turning; wheels 1 and 2 report 0 for 2 s */
+    for (int i = 0; i < 200; ++i, t += 10000u) cycle(3, 0.0, 0.0, 0.0, t);
+    assert_int_equal(cia402_omni_take_odometry(&g_o, &u, NULL), COSLAM_OK);
+    /* at most what one PDO timeout (100 ms) at the old speeds could bridge;
+     * its last speed held for the 2 s gave 0.8 rad */
+    assert_true(fabs(u.dtheta) < 0.1 * w * 1.5);
+    assert_true(hypot(u.dx, u.dy) < 0.1 * vx * 1.5);
+    assert_true(g_o.odo_gaps >= 1u);
+    /* it reports again: the odometry goes on from there */
+    for (int i = 0; i <= 50; ++i, t += 10000u) cycle(7, vx, 0.0, w, t);
+    assert_int_equal(cia402_omni_take_odometry(&g_o, &u, NULL), COSLAM_OK);
+    ASSERT_NEAR(u.dtheta, w * 0.5, 2e-4);
+    /* the bus silent for 5 s, then every wheel reports standing still:
+     * nothing is bridged (the old blend gave 1 m at this speed) */
+    const uint32_t gaps = g_o.odo_gaps;
+    t += 5000000u;
+    for (int i = 0; i < 5; ++i, t += 10000u) cycle(7, 0.0, 0.0, 0.0, t);
+    assert_int_equal(cia402_omni_take_odometry(&g_o, &u, NULL), COSLAM_OK);
+    assert_true(hypot(u.dx, u.dy) < 1e-9 && fabs(u.dtheta) < 1e-9);
+    assert_int_equal(g_o.odo_gaps, gaps + 1u);
+}
+
 /* Random frames on the drives' COB-IDs (and around them) at every stage:
  * nothing crashes (the _san build checks memory), everything the driver
  * sends is a well-formed frame of the kinds it may send. */
@@ -380,7 +474,9 @@ int main(void)
         cmocka_unit_test_setup(test_body_velocity_to_rpdo, setup),
         cmocka_unit_test_setup(test_fault_on_one_wheel_stops_all, setup),
         cmocka_unit_test_setup(test_bus_errors, setup),
+        cmocka_unit_test_setup(test_drive_leaving_enabled_stops_the_base, setup),
         cmocka_unit_test_setup(test_odometry_from_tpdos, setup),
+        cmocka_unit_test_setup(test_odometry_gaps, setup),
         cmocka_unit_test_setup(test_random_frames, setup),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -134,7 +134,7 @@ static void check_invariants(const cia402_drive_t *d, const cia402_drive_t *prev
     require(d->phase <= CIA402_DRIVE_HALTED);
     require(d->state <= CIA402_STATE_UNKNOWN);
     const cia402_fault_info_t *fi = cia402_drive_fault(d);
-    require(fi != NULL && fi->reason <= CIA402_FAULT_BUS);
+    require(fi != NULL && fi->reason <= CIA402_FAULT_LEFT_ENABLED);
     if (cia402_drive_is_enabled(d)) {
         require(d->phase == CIA402_DRIVE_RUN && fi->reason == CIA402_FAULT_NONE);
     }

@@ -56,6 +56,7 @@ const char *cia402_fault_str(cia402_fault_t reason)
     case CIA402_FAULT_EMCY: return "EMCY";
     case CIA402_FAULT_DEVICE: return "DEVICE";
     case CIA402_FAULT_BUS: return "BUS";
+    case CIA402_FAULT_LEFT_ENABLED: return "LEFT_ENABLED";
     }
     return "UNKNOWN";
 }
@@ -245,6 +246,12 @@ static cia402_rx_t on_tpdo(cia402_drive_t *d, const hal_can_frame_t *f)
     d->fault.statusword = sw;
     if (d->state == CIA402_STATE_FAULT || d->state == CIA402_STATE_FAULT_REACTION_ACTIVE) {
         latch(d, CIA402_FAULT_DEVICE, f->stamp_us);
+    } else if (d->goal == CIA402_GOAL_ENABLED && d->state == CIA402_STATE_OPERATION_ENABLED) {
+        d->was_enabled = 1;
+    } else if (d->goal == CIA402_GOAL_ENABLED && d->was_enabled) {
+        /* out of OPERATION_ENABLED by the drive's own hand (its quick-stop
+         * or STO input): stopped, not re-enabled by the master */
+        latch(d, CIA402_FAULT_LEFT_ENABLED, f->stamp_us);
     }
     return CIA402_RX_TPDO;
 }
@@ -308,6 +315,7 @@ coslam_status_t cia402_drive_start(cia402_drive_t *d, uint64_t now_us)
     d->statusword = 0;
     d->velocity_actual = 0;
     d->goal = CIA402_GOAL_DISABLED;
+    d->was_enabled = 0;
     d->target_velocity = 0;
     d->rpdo_sent = 0;
     (void)cia402_drive_poll(d, now_us);
@@ -491,6 +499,7 @@ coslam_status_t cia402_drive_set_goal(cia402_drive_t *d, cia402_goal_t goal)
     if (goal != CIA402_GOAL_DISABLED && goal != CIA402_GOAL_ENABLED && goal != CIA402_GOAL_QUICK_STOP) {
         return COSLAM_E_ARG;
     }
+    if (goal != CIA402_GOAL_ENABLED) d->was_enabled = 0;
     d->goal = goal;
     return COSLAM_OK;
 }
@@ -506,6 +515,7 @@ coslam_status_t cia402_drive_fault_reset(cia402_drive_t *d, uint64_t now_us)
 {
     if (d == NULL) return COSLAM_E_ARG;
     d->goal = CIA402_GOAL_DISABLED;
+    d->was_enabled = 0;
     d->target_velocity = 0;
     const cia402_fault_t r = d->fault.reason;
     if (r == CIA402_FAULT_NONE) return COSLAM_OK;

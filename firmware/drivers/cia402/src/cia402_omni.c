@@ -124,15 +124,38 @@ static void odo_flush(cia402_omni_t *o)
     o->odo_last_us = o->odo_pending_us;
 }
 
+/* Samples further apart than this are not bridged [us]: the drives' PDO
+ * timeout (a TPDO later than that is a fault anyway), else 100 ms. */
+static uint64_t odo_max_gap_us(const cia402_omni_t *o)
+{
+    return o->cfg.drive.pdo_timeout_us > 0u ? (uint64_t)o->cfg.drive.pdo_timeout_us : 100000u;
+}
+
 /* A new velocity of wheel k, sampled at stamp_us. Speeds sampled at the
  * same stamp (the three drives answer the same cycle) form one sample. */
 static void on_wheel_speed(cia402_omni_t *o, int k, uint64_t stamp_us)
 {
     if (o->odo_running && stamp_us > o->odo_pending_us) {
-        odo_flush(o);
-        o->odo_pending_us = stamp_us;
+        /* the bus (or one wheel) silent for longer than a late TPDO: the
+         * motion in between is not known, and a silent wheel's last speed
+         * must not stand for it. Nothing is integrated across; integration
+         * starts again once all three wheels have reported. */
+        const uint64_t gap = odo_max_gap_us(o);
+        int stale = stamp_us - o->odo_pending_us > gap;
+        for (int j = 0; j < OMNI_WHEELS; ++j) {
+            if (j != k && stamp_us - o->meas_us[j] > gap) stale = 1;
+        }
+        if (stale) {
+            o->odo_running = 0;
+            o->meas_mask = 0;
+            o->odo_gaps++;
+        } else {
+            odo_flush(o);
+            o->odo_pending_us = stamp_us;
+        }
     }
     o->meas_rpm[k] = (double)o->drive[k].velocity_actual * o->cfg.velocity_unit_rpm;
+    o->meas_us[k] = stamp_us;
     /* a late member of a sample already integrated up to (a take came
      * between the three TPDOs of one cycle) still starts the next interval */
     if (o->odo_running && stamp_us == o->odo_last_us) o->odo_prev_rpm[k] = o->meas_rpm[k];
@@ -300,8 +323,8 @@ coslam_status_t cia402_omni_take_odometry(cia402_omni_t *o, odo_increment_t *u, 
     if (o == NULL || u == NULL) return COSLAM_E_ARG;
     memset(u, 0, sizeof *u);
     if (until_us != NULL) *until_us = 0;
-    if (!o->odo_running) return COSLAM_E_EMPTY;
-    odo_flush(o);
+    if (!o->odo_running && o->odo_last_us == 0u) return COSLAM_E_EMPTY; /* never started */
+    odo_flush(o); /* nothing while stopped at a gap: what came before it is handed out */
     *u = o->odo_acc;
     if (until_us != NULL) *until_us = o->odo_last_us;
     memset(&o->odo_acc, 0, sizeof o->odo_acc);

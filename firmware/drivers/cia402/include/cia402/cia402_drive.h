@@ -84,6 +84,10 @@ typedef enum {
     CIA402_FAULT_EMCY,         /**< emergency message with a non-zero code (emcy_code) */
     CIA402_FAULT_DEVICE,       /**< statusword shows FAULT or FAULT_REACTION_ACTIVE */
     CIA402_FAULT_BUS,          /**< the CAN HAL failed (hal_status) */
+    CIA402_FAULT_LEFT_ENABLED, /**< the drive left OPERATION_ENABLED on its own while the goal
+                                    was ENABLED, with no fault of its own (its quick-stop or
+                                    STO input): not walked back to enabled behind the
+                                    operator's back; a fault reset restarts it */
 } cia402_fault_t;
 
 typedef struct {
@@ -155,6 +159,7 @@ typedef struct {
     uint8_t rpdo_sent;
     uint64_t last_rpdo_us;
     uint8_t reset_requested; /**< fault reset: 0 none, 1 requested, 2 bit 7 edge sent */
+    uint8_t was_enabled;     /**< reached OPERATION_ENABLED since the goal became ENABLED */
 
     uint32_t vendor_id;
     uint32_t product_code;

@@ -29,7 +29,11 @@
  * sample would lag by half a TPDO period), turned into a body velocity and
  * integrated exactly along the arc (omni_kinematics_odometry); the pieces
  * are concatenated (omni_kinematics_compose). Integration starts once all
- * three wheels have reported. cia402_omni_take_odometry() hands out the
+ * three wheels have reported. A wheel (or the bus) silent for longer than
+ * the PDO timeout (100 ms if not checked) is not bridged: nothing is
+ * integrated across the gap, a silent wheel's last speed never stands for
+ * its motion, and integration starts again once all three have reported
+ * (odo_gaps). cia402_omni_take_odometry() hands out the
  * increment accumulated up to the newest sample stamp, and that stamp.
  *
  * Memory: sizeof(cia402_omni_t) = 1040 bytes on Cortex-M7, 1088 on x86-64 (the
@@ -81,7 +85,8 @@ typedef struct {
     int enabled_goal;                     /**< 1 if enable was requested */
     double cmd_rpm[OMNI_WHEELS];          /**< commanded motor speeds after saturation */
     double meas_rpm[OMNI_WHEELS];         /**< last measured motor speeds (at odo_pending_us) */
-    uint8_t meas_mask;                    /**< bit k: wheel k reported since start */
+    uint64_t meas_us[OMNI_WHEELS];        /**< stamp of each wheel's last speed */
+    uint8_t meas_mask;                    /**< bit k: wheel k reported since start (or the last gap) */
     int odo_running;
     double odo_prev_rpm[OMNI_WHEELS];     /**< motor speeds at odo_last_us */
     uint64_t odo_last_us;                 /**< integrated up to here */
@@ -95,6 +100,8 @@ typedef struct {
     uint32_t rx_errors;                   /**< other HAL receive errors */
     uint32_t saturations;                 /**< commands scaled down to max_motor_rpm */
     uint32_t odo_errors;                  /**< integration steps refused (non-finite) */
+    uint32_t odo_gaps;                    /**< samples not bridged: a wheel or the bus silent for
+                                               longer than the PDO timeout (odometry restarted) */
 } cia402_omni_t;
 
 /** Defaults: nodes 1, 2, 3; cia402_drive_config_default timing; Robotino kinematics. */
@@ -152,8 +159,9 @@ coslam_status_t cia402_omni_measured_velocity(const cia402_omni_t *o, double *vx
 /**
  * The odometry increment accumulated since the previous take (robot frame
  * at the previous take's end stamp), and the stamp it reaches [us]; resets
- * the accumulator. Returns COSLAM_OK; COSLAM_E_EMPTY before integration
- * started (*u zero, *until_us 0). until_us may be NULL.
+ * the accumulator. Returns COSLAM_OK (also while integration waits after a
+ * gap: the motion before it, then zero); COSLAM_E_EMPTY before integration
+ * first started (*u zero, *until_us 0). until_us may be NULL.
  */
 coslam_status_t cia402_omni_take_odometry(cia402_omni_t *o, odo_increment_t *u, uint64_t *until_us);
 
