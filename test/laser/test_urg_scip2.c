@@ -631,6 +631,70 @@ static void test_qt_skips_scans_in_flight(void **state)
     assert_int_equal(urg_scip2_get_scan(&f->urg, 44, 725, 1, &f->scan), COSLAM_E_URG_TIMEOUT); /* no reply scripted */
 }
 
+/* A driver restarted without QT while the sensor still streams an
+ * unlimited MD with the same command: a scan (echo = the command, status
+ * 99) may come before the acknowledgement. It is skipped, not read as the
+ * reply. */
+static void test_md_restart_skips_running_scans(void **state)
+{
+    fixture_t *f = *state;
+    const size_t n = build_scan(msg, "MD0044072501000", "99", 7, vals04, N04, CORRUPT_NONE, 0);
+    fake_add(&f->fake, 1, msg, n);
+    fake_add(&f->fake, 1, msg, n);
+    fake_add_str(&f->fake, 1, "MD0044072501000\n00P\n\n");
+    const size_t n2 = build_scan(msg2, "MD0044072501000", "99", 8, vals04, N04, CORRUPT_NONE, 0);
+    fake_add(&f->fake, 1, msg2, n2);
+    assert_int_equal(urg_scip2_start_md(&f->urg, 44, 725, 1, 0, 0), COSLAM_OK);
+    assert_true(urg_scip2_is_streaming(&f->urg));
+    assert_int_equal(urg_scip2_stats(&f->urg)->messages_skipped, 2);
+    assert_int_equal(urg_scip2_stats(&f->urg)->err_line, 0);
+    assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_OK);
+    expect_scan04(&f->scan, 8);
+}
+
+/* A finite MD whose last scan is corrupt has still ended: the sensor has
+ * stopped, so the driver is not left "streaming" with nothing to come. */
+static void test_md_finite_last_scan_corrupt(void **state)
+{
+    fixture_t *f = *state;
+    fake_add_str(&f->fake, 1, "MD0044005303002\n00P\n\n");
+    assert_int_equal(urg_scip2_start_md(&f->urg, 44, 53, 3, 0, 2), COSLAM_OK);
+    const uint32_t v[4] = {100, 200, 300, 400};
+    size_t n = build_scan(msg, "MD0044005303001", "99", 10, v, 4, CORRUPT_NONE, 0);
+    fake_add(&f->fake, 1, msg, n);
+    n = build_scan(msg2, "MD0044005303000", "99", 110, v, 4, CORRUPT_SUM, 0);
+    fake_add(&f->fake, 1, msg2, n);
+    assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_OK);
+    assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_E_URG_CHECKSUM);
+    assert_false(urg_scip2_is_streaming(&f->urg));
+    assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_E_EMPTY);
+    /* a GD is allowed again */
+    fake_add_str(&f->fake, 2, "GD0044005303\n10Q\n\n");
+    assert_int_equal(urg_scip2_get_scan(&f->urg, 44, 53, 3, &f->scan), COSLAM_E_URG_STATUS);
+}
+
+/* A reply whose status line was lost (echo, then the empty line) ends
+ * there: reported, and the next reply is read whole, not thrown away by a
+ * resynchronisation that has nothing left to skip. The same for a scan that
+ * lost everything after its status. */
+static void test_lost_status_line_keeps_next_message(void **state)
+{
+    fixture_t *f = *state;
+    fake_add_str(&f->fake, 1, "BM\n\n");
+    fake_add_str(&f->fake, 2, "BM\n00P\n\n");
+    assert_int_equal(urg_scip2_laser_on(&f->urg), COSLAM_E_URG_LINE);
+    assert_int_equal(urg_scip2_laser_on(&f->urg), COSLAM_OK);
+    fake_add_str(&f->fake, 3, "MD0044072501000\n00P\n\n");
+    assert_int_equal(urg_scip2_start_md(&f->urg, 44, 725, 1, 0, 0), COSLAM_OK);
+    fake_add_str(&f->fake, 3, "MD0044072501000\n99b\n\n");
+    const size_t n = build_scan(msg, "MD0044072501000", "99", 300, vals04, N04, CORRUPT_NONE, 0);
+    fake_add(&f->fake, 3, msg, n);
+    assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_E_URG_LINE);
+    assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_OK);
+    expect_scan04(&f->scan, 300);
+    assert_int_equal(urg_scip2_stats(&f->urg)->resyncs, 0);
+}
+
 static void test_md_refused_and_bad_args(void **state)
 {
     fixture_t *f = *state;
@@ -781,6 +845,9 @@ int main(void)
         T(test_qt_skips_scans_in_flight),
         T(test_md_refused_and_bad_args),
         T(test_stream_status_error),
+        T(test_md_restart_skips_running_scans),
+        T(test_md_finite_last_scan_corrupt),
+        T(test_lost_status_line_keeps_next_message),
         T(test_fuzz_mutated_messages),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -327,7 +327,9 @@ static coslam_status_t check_status_line(urg_scip2_t *u, char status[3])
 {
     if (u->line_len != 3U) {
         u->stats.err_line++;
-        return fail_resync(u, COSLAM_E_URG_LINE);
+        /* an empty line ended the message already (the status line was
+         * lost): nothing to resync, the next message is whole */
+        return u->line_len == 0U ? COSLAM_E_URG_LINE : fail_resync(u, COSLAM_E_URG_LINE);
     }
     if (urg_scip2_checksum(u->line, 2) != u->line[2]) {
         u->stats.err_checksum++;
@@ -421,18 +423,10 @@ static coslam_status_t await_echo(urg_scip2_t *u, const char *echo, size_t echo_
     }
 }
 
-/* Send `cmd` (without LF) and read its echo and status line. */
-static coslam_status_t command(urg_scip2_t *u, const char *cmd, size_t n, char status[3])
+/* Read the echo `cmd` (n chars) and the status line of its reply. */
+static coslam_status_t reply_status(urg_scip2_t *u, const char *cmd, size_t n, char status[3])
 {
-    char buf[24];
-    COSLAM_ASSERT(n + 1U <= sizeof buf);
-    memcpy(buf, cmd, n);
-    buf[n] = '\n';
-    coslam_status_t st = send_cmd(u, buf, n + 1U);
-    if (st != COSLAM_OK) {
-        return st;
-    }
-    st = await_echo(u, cmd, n);
+    coslam_status_t st = await_echo(u, cmd, n);
     if (st != COSLAM_OK) {
         return st;
     }
@@ -441,6 +435,20 @@ static coslam_status_t command(urg_scip2_t *u, const char *cmd, size_t n, char s
         return st;
     }
     return check_status_line(u, status);
+}
+
+/* Send `cmd` (without LF) and read its echo and status line. */
+static coslam_status_t command(urg_scip2_t *u, const char *cmd, size_t n, char status[3])
+{
+    char buf[24];
+    COSLAM_ASSERT(n + 1U <= sizeof buf);
+    memcpy(buf, cmd, n);
+    buf[n] = '\n';
+    const coslam_status_t st = send_cmd(u, buf, n + 1U);
+    if (st != COSLAM_OK) {
+        return st;
+    }
+    return reply_status(u, cmd, n, status);
 }
 
 /* Commands whose whole reply is echo, status, empty line. ok1/ok2 are the
@@ -742,7 +750,8 @@ static coslam_status_t read_scan_data(urg_scip2_t *u, urg_scip2_scan_t *scan, ui
     }
     if (u->line_len != 5U) {
         u->stats.err_line++;
-        return fail_resync(u, COSLAM_E_URG_LINE);
+        /* an empty line: the time stamp was lost and the message ended */
+        return u->line_len == 0U ? COSLAM_E_URG_LINE : fail_resync(u, COSLAM_E_URG_LINE);
     }
     if (urg_scip2_checksum(u->line, 4U) != u->line[4]) {
         u->stats.err_checksum++;
@@ -846,6 +855,20 @@ coslam_status_t urg_scip2_start_md(urg_scip2_t *u, uint16_t first, uint16_t last
     char status[3];
     u->streaming = 0;
     st = command(u, cmd, n, status);
+    for (unsigned skipped = 0; st == COSLAM_OK && strcmp(status, "99") == 0; ++skipped) {
+        /* a scan of an MD with this very command still running (a driver
+         * restarted without QT): an unlimited MD's scans repeat the command
+         * as their echo, so only the status tells them from the
+         * acknowledgement. Skipped; the acknowledgement follows. */
+        if (skipped >= u->cfg.max_skipped_messages) {
+            u->stats.err_echo++;
+            return fail_resync(u, COSLAM_E_URG_ECHO);
+        }
+        st = discard_to_empty_line(u, u->cfg.byte_timeout_us, 1);
+        if (st == COSLAM_OK) {
+            st = reply_status(u, cmd, n, status);
+        }
+    }
     if (st != COSLAM_OK) {
         return st;
     }
@@ -912,16 +935,19 @@ coslam_status_t urg_scip2_read_scan(urg_scip2_t *u, urg_scip2_scan_t *scan, uint
             continue;
         }
         if (strcmp(status, "99") != 0) {
+            if (remaining == 0 && u->md_n_scans != 0U) {
+                u->streaming = 0; /* its last message: the sensor has stopped */
+            }
             return status_error(u, status);
         }
         scan->remaining = (uint16_t)remaining;
         st = read_scan_data(u, scan, scan_points(u->md_first, u->md_last, u->md_cluster));
+        if (remaining == 0 && u->md_n_scans != 0U) {
+            u->streaming = 0; /* a finite MD's last scan, whole or not: the sensor has stopped */
+        }
         if (st != COSLAM_OK) {
             scan->n_points = 0U;
             return st;
-        }
-        if (remaining == 0 && u->md_n_scans != 0U) {
-            u->streaming = 0; /* a finite MD delivered its last scan */
         }
         return COSLAM_OK;
     }
