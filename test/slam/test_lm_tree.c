@@ -196,6 +196,16 @@ static void test_fastslam_pool_exhaustion(void **state)
     assert_int_equal(fastslam_particle_set(&g_fs, 2, 1, &moved), COSLAM_E_CAPACITY);
     assert_int_equal(g_fs.ctr.tree_capacity_drops, 2);
     ASSERT_NEAR(fastslam_particle_lm(&g_fs, 2, 1)->mean.x, 1.0, 0.0); /* unchanged */
+    /* a prediction whose landmark process noise (w5) needs private copies
+     * of the shared leaves: made, the drops counted and reported */
+    g_fs.cfg.slam.noise.lm_process_var_m2_per_m = 0.01;
+    const uint32_t drops = g_fs.ctr.tree_capacity_drops;
+    const odo_increment_t u = {0.1, 0.0, 0.0};
+    assert_int_equal(fastslam_predict(&g_fs, u), COSLAM_E_CAPACITY);
+    assert_true(g_fs.ctr.tree_capacity_drops > drops);
+    assert_int_equal(g_fs.ctr.predictions, 1);
+    g_fs.cfg.slam.noise.lm_process_var_m2_per_m = 0.0;
+    assert_int_equal(fastslam_predict(&g_fs, u), COSLAM_OK); /* nothing to write: nothing dropped */
     /* an update that would start a landmark reports the capacity */
     const sighting_t z = {2.0, 0.5, 3};
     assert_int_equal(fastslam_update(&g_fs, &z, 1), COSLAM_E_CAPACITY);

@@ -233,7 +233,8 @@ static void flush_prediction(robot_node_t *n)
 {
     const odo_increment_t u = n->odo_pending;
     if (u.dx != 0.0 || u.dy != 0.0 || u.dtheta != 0.0) {
-        if (slam_filter_predict(&n->filter, u, 1e-6 * (double)(n->now_us - n->last_predict_us)) != COSLAM_OK) {
+        const coslam_status_t st = slam_filter_predict(&n->filter, u, 1e-6 * (double)(n->now_us - n->last_predict_us));
+        if (st != COSLAM_OK && st != COSLAM_E_CAPACITY) { /* a full pool is counted by the filter */
             n->ctr.filter_errors++;
         }
     }

@@ -146,6 +146,7 @@ coslam_status_t fastslam_predict(fastslam_t *fs, odo_increment_t u)
         }
     }
     const double w5 = sp->noise.lm_process_var_m2_per_m;
+    const uint32_t tree_drops = fs->ctr.tree_capacity_drops;
     if (w5 > 0.0) {
         const double add = w5 * motion_travel_m(u, sp->base_radius_m);
         for (uint16_t k = 0; k < n; ++k) {
@@ -162,7 +163,9 @@ coslam_status_t fastslam_predict(fastslam_t *fs, odo_increment_t u)
             }
         }
     }
-    return COSLAM_OK;
+    /* the tree pool ran out: the prediction stands, some landmark lacks its
+     * process noise (counted) */
+    return fs->ctr.tree_capacity_drops != tree_drops ? COSLAM_E_CAPACITY : COSLAM_OK;
 }
 
 /* Sample the Fast-SLAM 2.0 pose from pending_cov, if not done yet. */
@@ -557,6 +560,7 @@ static coslam_status_t update_particle(fastslam_t *fs, uint16_t k, const sightin
     const int fs2 = fs->cfg.proposal == FASTSLAM_PROPOSAL_OPTIMAL;
     const cov3_t *pose_cov = fs2 ? &p->pending_cov : 0;
     coslam_status_t result = COSLAM_OK;
+    const uint32_t tree_drops = fs->ctr.tree_capacity_drops; /* any dropped write: COSLAM_E_CAPACITY */
 
     /* 1. expected sightings of the landmarks near the sensor; the tree hands
      *    out, in slot order, every landmark that can pass the reach test
@@ -786,6 +790,9 @@ static coslam_status_t update_particle(fastslam_t *fs, uint16_t k, const sightin
         if (fastslam_particle_add(fs, k, &lm) != COSLAM_OK) {
             result = COSLAM_E_CAPACITY;
         }
+    }
+    if (fs->ctr.tree_capacity_drops != tree_drops) {
+        result = COSLAM_E_CAPACITY; /* e.g. a revisit closure could not move some landmark */
     }
     return result;
 }

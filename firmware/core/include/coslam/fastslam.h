@@ -226,7 +226,9 @@ coslam_status_t fastslam_init(fastslam_t *fs, const fastslam_config_t *cfg, pose
  * Prediction with one odometry increment (motion.h). Fast-SLAM 1.0 samples
  * every particle's pose; 2.0 moves the proposal mean and accumulates its
  * covariance. Non-finite input returns COSLAM_E_NUMERIC, counted, and
- * changes nothing.
+ * changes nothing. COSLAM_E_CAPACITY: the prediction is made, but the
+ * landmark tree pool ran out while adding the landmarks' process noise
+ * (w5) to some of them (tree_capacity_drops).
  */
 coslam_status_t fastslam_predict(fastslam_t *fs, odo_increment_t u);
 
