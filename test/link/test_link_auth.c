@@ -345,6 +345,55 @@ static void test_one_recv_skips_refused_to_genuine(void **state)
     assert_int_equal(cb()->rx_stale, 1);
 }
 
+/* An inner link that always has a forgery ready (the right key id, a MAC
+ * under another key): one receive call checks a bounded number and returns
+ * (timeout 0, as the robot polls, or a short one), so a flood cannot hold
+ * the robot's control step. */
+static uint32_t g_flood_calls;
+static size_t g_flood_len;
+static hal_status_t flood_self_id(hal_link_t *dev, uint16_t *id)
+{
+    (void)dev;
+    *id = ROBOT_B;
+    return HAL_OK;
+}
+static hal_status_t flood_recv(hal_link_t *dev, uint8_t *buf, size_t cap, hal_link_rx_info_t *info, uint32_t timeout_us)
+{
+    (void)dev;
+    (void)timeout_us;
+    g_flood_calls++;
+    assert_true(g_flood_len <= cap);
+    memcpy(buf, g_dg, g_flood_len);
+    info->len = g_flood_len;
+    info->src_id = ROBOT_A;
+    info->stamp_us = 0;
+    return HAL_OK;
+}
+static const hal_link_ops_t flood_ops = {flood_self_id, NULL, flood_recv, NULL};
+
+static void test_flood_of_forgeries_is_bounded(void **state)
+{
+    (void)state;
+    uint8_t other[HAL_LINK_AUTH_KEY_BYTES];
+    memset(other, 0x5a, sizeof other);
+    const size_t len = msg_a(LT_MAX_LANDMARKS, 5);
+    g_flood_len = sign(g_dg, g_msg, len, other, KEY_ID, ROBOT_A, 1u, g_wall_b.now_us);
+    hal_link_t inner = {&flood_ops, NULL};
+    static hal_link_auth_t auth;
+    hal_link_auth_config_t c = config_for(&g_wall_b);
+    hal_link_t *l = hal_link_auth_open(&inner, &c, &auth);
+    assert_non_null(l);
+    hal_link_rx_info_t info;
+    const uint32_t waits[2] = {0u, 1000u};
+    for (int i = 0; i < 2; ++i) {
+        g_flood_calls = 0;
+        assert_int_equal(hal_link_recv(l, g_rx, sizeof g_rx, &info, waits[i]), HAL_E_TIMEOUT);
+        assert_true(g_flood_calls >= 1u && g_flood_calls <= HAL_LINK_AUTH_REFUSED_PER_CALL);
+    }
+    assert_true(hal_link_auth_counters(&auth)->rx_bad_mac >= 2u);
+    hal_link_close(l);
+}
+
 static void test_overflow_and_oversize(void **state)
 {
     (void)state;
@@ -505,6 +554,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_time_window, setup, teardown),
         cmocka_unit_test_setup_teardown(test_one_recv_skips_refused_to_genuine, setup, teardown),
         cmocka_unit_test_setup_teardown(test_overflow_and_oversize, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_flood_of_forgeries_is_bounded, setup, teardown),
         cmocka_unit_test_setup_teardown(test_send_refusals, setup, teardown),
         cmocka_unit_test_setup_teardown(test_counter_monotonic_and_survives_restart, setup, teardown),
         cmocka_unit_test_setup_teardown(test_broadcast_and_self_id, setup, teardown),

@@ -356,6 +356,28 @@ static void binary_refuses_a_bad_fleet_key(void **state)
     assert_null(strstr(err, "00112233"));
     assert_int_equal(chmod(key, 0640), 0);
     assert_int_equal(run_robot(text, "--dry-run", err, sizeof err), 0);
+    /* owned by someone else, or readable by a group the robot is not in
+     * (only where this test may chown: as root) */
+    if (chown(key, 65534, (gid_t)-1) == 0) {
+        assert_int_equal(run_robot(text, "--dry-run", err, sizeof err), 2);
+        assert_non_null(strstr(err, "fleet.key: owned by uid 65534, neither root nor this robot's user"));
+        assert_int_equal(chown(key, geteuid(), 65534), 0);
+        assert_int_equal(run_robot(text, "--dry-run", err, sizeof err), 2);
+        assert_non_null(strstr(err, "fleet.key: readable by group 65534, which this robot's user is not in"));
+        assert_int_equal(chmod(key, 0600), 0); /* the group cannot read it: fine */
+        assert_int_equal(run_robot(text, "--dry-run", err, sizeof err), 0);
+        assert_int_equal(chown(key, geteuid(), getegid()), 0);
+    }
+    /* a NUL byte after the key, and something after that */
+    f = fopen(key, "w");
+    assert_non_null(f);
+    fprintf(f, "%s", hex);
+    fputc(0, f);
+    fputs("junk\n", f);
+    fclose(f);
+    assert_int_equal(chmod(key, 0600), 0);
+    assert_int_equal(run_robot(text, "--dry-run", err, sizeof err), 2);
+    assert_non_null(strstr(err, "fleet.key: not a fleet key (a NUL byte in the file"));
     /* not a key */
     f = fopen(key, "w");
     assert_non_null(f);

@@ -25,11 +25,29 @@ __attribute__((format(printf, 3, 4))) static void put_text(char *dst, size_t cap
 }
 
 #if COSLAM_HAVE_DDS && COSLAM_HAVE_LINK_AUTH
+/* 1 if gid is this process's group or one of its supplementary groups. */
+static int in_own_groups(gid_t gid)
+{
+    if (gid == getegid()) {
+        return 1;
+    }
+    gid_t groups[256];
+    const int n = getgroups((int)(sizeof groups / sizeof groups[0]), groups);
+    for (int i = 0; i < n; ++i) {
+        if (groups[i] == gid) {
+            return 1;
+        }
+    }
+    return 0;
+}
+
 /* The fleet key file: a regular file of 64 hex digits (white space around
  * them allowed), readable by this process, not writable by its group and
  * not accessible to others at all. Group read is allowed on purpose: the
  * Debian package installs the key root:coslam 0640 for the coslam service
- * user (firmware/port/linux/dist/debian/postinst). Returns 0, or -1 with
+ * user (firmware/port/linux/dist/debian/postinst), so only by a group this
+ * process is in; and the owner is root or this process's user (anyone else
+ * could rewrite the key it trusts). No NUL byte. Returns 0, or -1 with
  * `why`; never echoes the content. Every buffer that held key text is
  * wiped. */
 static int read_key_file(const char *path, uint8_t key[HAL_LINK_AUTH_KEY_BYTES], char *why, size_t cap)
@@ -63,6 +81,16 @@ static int read_key_file(const char *path, uint8_t key[HAL_LINK_AUTH_KEY_BYTES],
         bad = 1;
     } else if ((mode & (unsigned)S_IWGRP) != 0U) {
         put_text(why, cap, "writable by its group (mode %04o): chmod 600 or 640", mode);
+        bad = 1;
+    } else if (sb.st_uid != 0 && sb.st_uid != geteuid()) {
+        /* its owner could rewrite the key this robot trusts */
+        put_text(why, cap, "owned by uid %lu, neither root nor this robot's user: chown root", (unsigned long)sb.st_uid);
+        bad = 1;
+    } else if ((mode & (unsigned)S_IRGRP) != 0U && !in_own_groups(sb.st_gid)) {
+        put_text(why, cap,
+                 "readable by group %lu, which this robot's user is not in (mode %04o): chmod 600, or chgrp to "
+                 "the robot's group",
+                 (unsigned long)sb.st_gid, mode);
         bad = 1;
     }
     if (bad) {
@@ -99,7 +127,11 @@ static int read_key_file(const char *path, uint8_t key[HAL_LINK_AUTH_KEY_BYTES],
     }
     (void)close(fd);
     text[n] = '\0';
-    if (rc == 0 && hal_link_auth_key_from_hex(text, key) != HAL_OK) {
+    if (rc == 0 && memchr(text, '\0', n) != NULL) {
+        /* the hex parser would stop there and take what follows for nothing */
+        put_text(why, cap, "not a fleet key (a NUL byte in the file; expected 64 hexadecimal digits)");
+        rc = -1;
+    } else if (rc == 0 && hal_link_auth_key_from_hex(text, key) != HAL_OK) {
         put_text(why, cap, "not a fleet key (expected 64 hexadecimal digits, white space around them allowed)");
         rc = -1;
     }

@@ -172,7 +172,17 @@ static hal_status_t auth_recv(hal_link_t *dev, uint8_t *buf, size_t cap, hal_lin
     hal_link_auth_t *st = state_of(dev);
     if (st == NULL) return HAL_E_CLOSED;
     const uint64_t deadline_us = clock_us(CLOCK_MONOTONIC) + timeout_us;
+    unsigned refused_n = 0;
     for (;;) {
+        if (refused_n > 0u && timeout_us != HAL_TIMEOUT_FOREVER &&
+            (refused_n >= HAL_LINK_AUTH_REFUSED_PER_CALL ||
+             (timeout_us > 0u && clock_us(CLOCK_MONOTONIC) >= deadline_us))) {
+            /* a stream of refused datagrams (a flood of forgeries costs an
+             * HMAC each) must not hold the caller past its timeout, nor
+             * for more than a bounded number of checks: the rest waits
+             * for the next call */
+            return HAL_E_TIMEOUT;
+        }
         uint32_t wait_us = timeout_us;
         if (timeout_us != HAL_TIMEOUT_FOREVER) {
             const uint64_t now = clock_us(CLOCK_MONOTONIC);
@@ -183,6 +193,7 @@ static hal_status_t auth_recv(hal_link_t *dev, uint8_t *buf, size_t cap, hal_lin
         const hal_status_t hs = hal_link_recv(st->inner, st->buf, sizeof st->buf, &in, wait_us);
         if (hs == HAL_E_OVERFLOW) {
             st->ctr.rx_oversize++; /* longer than any datagram this decorator makes */
+            refused_n++;
             continue;
         }
         if (hs != HAL_OK) return hs; /* HAL_E_TIMEOUT, HAL_E_CLOSED, HAL_E_IO, ... */
@@ -190,6 +201,7 @@ static hal_status_t auth_recv(hal_link_t *dev, uint8_t *buf, size_t cap, hal_lin
         uint32_t *refused = verify(st, st->buf, in.len, in.src_id, &counter);
         if (refused != NULL) {
             (*refused)++;
+            refused_n++;
             continue;
         }
         st->last_counter[in.src_id] = counter;

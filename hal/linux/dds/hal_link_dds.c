@@ -351,7 +351,12 @@ static hal_status_t dds_recv(hal_link_t *dev, uint8_t *buf, size_t cap, hal_link
     hal_link_dds_t *st = state_of(dev);
     if (st == NULL) return HAL_E_CLOSED;
     const uint64_t deadline_us = mono_us() + timeout_us;
+    unsigned skipped = 0;
     for (;;) {
+        if (skipped > 0u && timeout_us != HAL_TIMEOUT_FOREVER &&
+            (skipped >= HAL_LINK_DDS_SKIPPED_PER_CALL || (timeout_us > 0u && mono_us() >= deadline_us))) {
+            return HAL_E_TIMEOUT; /* samples not for us do not hold the caller past its timeout */
+        }
         void *samples[1] = {&st->sample};
         dds_sample_info_t si;
         const dds_return_t n = dds_take(st->reader, samples, &si, 1, 1);
@@ -363,20 +368,24 @@ static hal_status_t dds_recv(hal_link_t *dev, uint8_t *buf, size_t cap, hal_link
             const uint64_t now = mono_us();
             if (!si.valid_data) {
                 st->ctr.rx_not_data++;
+                skipped++;
                 continue;
             }
             const sample_t *s = &st->sample;
             if (s->link_dest != st->self_id && s->link_dest != HAL_LINK_BROADCAST) {
                 st->ctr.rx_other_dest++;
+                skipped++;
                 continue;
             }
             if (s->link_src == st->self_id) {
                 st->ctr.rx_own_id++;
+                skipped++;
                 continue;
             }
             const size_t len = from_sample(st);
             if (len == 0u) {
                 st->ctr.rx_invalid++;
+                skipped++;
                 continue;
             }
             info->len = len;

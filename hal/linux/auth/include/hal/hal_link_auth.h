@@ -25,7 +25,10 @@
  *
  * Receive: each datagram from the inner link is checked in this order, and
  * the first failing check refuses it, counts it in that reason's counter
- * and goes on with the next datagram (until the timeout: HAL_E_TIMEOUT):
+ * and goes on with the next datagram (until the timeout, or, unless the
+ * timeout is HAL_TIMEOUT_FOREVER, after HAL_LINK_AUTH_REFUSED_PER_CALL
+ * refusals in one call, so that a flood of forgeries cannot hold the
+ * caller: HAL_E_TIMEOUT, the rest is taken by the next call):
  *   1. a codec message header: len >= 12, magic "CSLM"      rx_malformed
  *   2. a trailer at all: len == L                           rx_unauthenticated
  *   3. the whole trailer: len < L + 52 (incl. len < L)      rx_truncated
@@ -73,6 +76,9 @@
 #include <stdint.h>
 
 #include "hal/hal_link.h"
+
+/** Refused datagrams one receive call checks at most (each costs an HMAC). */
+#define HAL_LINK_AUTH_REFUSED_PER_CALL 16u
 
 #ifdef __cplusplus
 extern "C" {
