@@ -35,6 +35,10 @@ using coslam::cli::int_in;
 
 namespace {
 
+// Fewer windows than this cannot tell the odometry's delay and scales apart
+// (fit-odometry).
+constexpr int kMinOdoFitWindows = 10;
+
 // A progress bar on stderr: redrawn in place on a terminal, one line per
 // 10 % otherwise (logs stay readable).
 class ProgressBar {
@@ -301,6 +305,13 @@ int main(int argc, char **argv)
                     continue;
                 }
                 const OdoFit f = fit_odometry(r, window, cfg.slam.base_radius_m);
+                if (f.windows < kMinOdoFitWindows) {
+                    /* nothing to fit: every delay scores alike, and the first
+                     * one tried would be printed as if it were a fit */
+                    std::cout << r.id << ": " << f.windows << " windows of truth and odometry together (at least "
+                              << kMinOdoFitWindows << " needed): no fit, left out of the mean\n";
+                    continue;
+                }
                 std::cout << std::fixed << std::setw(5) << r.id << std::setw(9) << f.windows << std::setprecision(3)
                           << std::setw(13) << f.raw_scale_v << std::setw(13) << f.raw_scale_w << std::setprecision(2)
                           << std::setw(9) << f.model.delay_s << std::setprecision(3) << std::setw(9)

@@ -253,6 +253,7 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
                        {"sightings_range_dropped", r.sightings_range_dropped},
                        {"sightings_known_id_dropped", r.sightings_known_id_dropped},
                        {"sightings_before_start", r.sightings_before_start},
+                       {"robot_sightings_before_start", r.robot_sightings_before_start},
                        {"robot_sightings", r.robot_sightings},
                        {"capacity_errors", r.capacity_errors}};
         rj["counters"] = r.counters;
@@ -380,6 +381,14 @@ bool report_limits(std::ostream &err, const Dataset &ds, const ReplayResult &res
         if (r.sightings_range_dropped > 0) {
             err << "note: robot " << r.id << ": " << r.sightings_range_dropped
                 << " sightings outside the [input] range limits dropped (sightings_range_dropped)\n";
+        }
+        if (r.sightings_before_start > 0 || r.robot_sightings_before_start > 0) {
+            /* the filter starts at the first odometry record: a robot that
+             * stood still at the start may have seen things before it */
+            err << "note: robot " << r.id << ": " << r.sightings_before_start << " landmark and "
+                << r.robot_sightings_before_start
+                << " robot sightings before its first odometry record not used (sightings_before_start, "
+                   "robot_sightings_before_start)\n";
         }
     }
     if (ds.report.unknown_robot_sightings > 0) {

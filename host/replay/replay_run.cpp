@@ -720,6 +720,7 @@ ReplayResult Replay::run()
             const double t = r->frames[k].t_s;
             if (t < r->res.t_start_s) {
                 r->res.sightings_before_start += static_cast<long>(r->frames[k].zi.size());
+                r->res.robot_sightings_before_start += static_cast<long>(r->frames[k].ri.size());
                 continue;
             }
             if (t > out_.t_end_s) {

@@ -160,7 +160,8 @@ struct RobotResult {
     long sightings_used = 0;
     long sightings_range_dropped = 0;
     long sightings_known_id_dropped = 0;
-    long sightings_before_start = 0;
+    long sightings_before_start = 0;       ///< landmark sightings before the robot's first odometry record
+    long robot_sightings_before_start = 0; ///< and sightings of robots (meetings lost with them)
     long robot_sightings = 0;
     long capacity_errors = 0;
     std::map<std::string, long> counters;

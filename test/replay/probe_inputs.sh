@@ -139,6 +139,8 @@ probe "bearing 1e308" 2 "bearing 1e\+308 rad outside" $R "$d" -o "$WORK/r"
 variant range 1 's/^Z 10.0 -1 [0-9.]* /Z 10.0 -1 1e308 /'
 probe "range 1e308 (beyond the [input] range limit, counted)" 0 "sightings_range_dropped" $R "$d" -o "$WORK/rr"
 no_nan_map "range 1e308" "$WORK/rr"
+variant early 1 '/^V 0.0 /d'
+probe "sightings before the first odometry record (counted, said)" 0 "before its first odometry record not used" $R "$d" -o "$WORK/re"
 variant subnormal 1 's/^Z 10.0 -1 [0-9.]* /Z 10.0 -1 1e-310 /'
 probe "subnormal range 1e-310 (refused by the core, counted)" 0 "rejected_sightings" $R "$d" -o "$WORK/rs"
 variant vhuge 1 's/^V 10.0 .*/V 10.0 1e308 1e308/'
