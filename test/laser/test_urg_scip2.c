@@ -587,18 +587,25 @@ static void test_timestamp_wrap(void **state)
     assert_int_equal(urg_scip2_stats(&f->urg)->stamp_backwards, 1);
 }
 
-static void test_md_finite_and_cluster(void **state)
+/* A finite MD of 2 scans of steps 44..53 in clusters of 3 (points 44-46,
+ * 47-49, 50-52, 53) with ranges v, started; its last scan damaged by
+ * `last`. */
+static void finite_md_two_scans(fixture_t *f, const uint32_t v[4], corrupt_t last)
 {
-    fixture_t *f = *state;
-    /* 2 scans of steps 44..53 in clusters of 3: points 44-46, 47-49, 50-52, 53 */
     fake_add_str(&f->fake, 1, "MD0044005303002\n00P\n\n");
     assert_int_equal(urg_scip2_start_md(&f->urg, 44, 53, 3, 0, 2), COSLAM_OK);
     assert_written(&f->fake, "MD0044005303002\n");
-    const uint32_t v[4] = {100, 200, 300, 400};
     size_t n = build_scan(msg, "MD0044005303001", "99", 10, v, 4, CORRUPT_NONE, 0);
     fake_add(&f->fake, 1, msg, n);
-    n = build_scan(msg2, "MD0044005303000", "99", 110, v, 4, CORRUPT_NONE, 0);
+    n = build_scan(msg2, "MD0044005303000", "99", 110, v, 4, last, 0);
     fake_add(&f->fake, 1, msg2, n);
+}
+
+static void test_md_finite_and_cluster(void **state)
+{
+    fixture_t *f = *state;
+    const uint32_t v[4] = {100, 200, 300, 400};
+    finite_md_two_scans(f, v, CORRUPT_NONE);
     assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_OK);
     assert_int_equal(f->scan.n_points, 4);
     assert_int_equal(f->scan.remaining, 1);
@@ -657,13 +664,8 @@ static void test_md_restart_skips_running_scans(void **state)
 static void test_md_finite_last_scan_corrupt(void **state)
 {
     fixture_t *f = *state;
-    fake_add_str(&f->fake, 1, "MD0044005303002\n00P\n\n");
-    assert_int_equal(urg_scip2_start_md(&f->urg, 44, 53, 3, 0, 2), COSLAM_OK);
     const uint32_t v[4] = {100, 200, 300, 400};
-    size_t n = build_scan(msg, "MD0044005303001", "99", 10, v, 4, CORRUPT_NONE, 0);
-    fake_add(&f->fake, 1, msg, n);
-    n = build_scan(msg2, "MD0044005303000", "99", 110, v, 4, CORRUPT_SUM, 0);
-    fake_add(&f->fake, 1, msg2, n);
+    finite_md_two_scans(f, v, CORRUPT_SUM);
     assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_OK);
     assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_E_URG_CHECKSUM);
     assert_false(urg_scip2_is_streaming(&f->urg));

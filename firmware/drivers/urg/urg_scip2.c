@@ -245,6 +245,16 @@ static coslam_status_t fail_resync(urg_scip2_t *u, coslam_status_t st)
     return st;
 }
 
+/* A line of the wrong length (u->line), counted. If it is the empty line
+ * that ends a message (a line was lost and the message ended early), the
+ * message is over and nothing is resynchronised, so the next one is read
+ * whole; otherwise the rest of this one is discarded. */
+static coslam_status_t bad_line(urg_scip2_t *u)
+{
+    u->stats.err_line++;
+    return u->line_len == 0U ? COSLAM_E_URG_LINE : fail_resync(u, COSLAM_E_URG_LINE);
+}
+
 /*
  * Read one line (without its LF) into u->line / u->line_len. The first byte
  * waits at most first_timeout_us, later bytes cfg.byte_timeout_us. *began is
@@ -326,10 +336,7 @@ static coslam_status_t first_line(urg_scip2_t *u, uint32_t timeout_us, int *bega
 static coslam_status_t check_status_line(urg_scip2_t *u, char status[3])
 {
     if (u->line_len != 3U) {
-        u->stats.err_line++;
-        /* an empty line ended the message already (the status line was
-         * lost): nothing to resync, the next message is whole */
-        return u->line_len == 0U ? COSLAM_E_URG_LINE : fail_resync(u, COSLAM_E_URG_LINE);
+        return bad_line(u); /* the empty line: the status line was lost */
     }
     if (urg_scip2_checksum(u->line, 2) != u->line[2]) {
         u->stats.err_checksum++;
@@ -349,8 +356,7 @@ static coslam_status_t end_of_message(urg_scip2_t *u)
         return st;
     }
     if (u->line_len != 0U) {
-        u->stats.err_line++;
-        return fail_resync(u, COSLAM_E_URG_LINE);
+        return bad_line(u);
     }
     return COSLAM_OK;
 }
@@ -550,8 +556,7 @@ static coslam_status_t read_info_body(urg_scip2_t *u, info_field_t *fields, size
         /* shortest line: "KEY:" "" ";" sum -> 6 chars; the ';' sits right
          * before the sum (the sum itself may be a ';') and is not summed */
         if (len < 7U || u->line[len - 2U] != ';' || u->line[4] != ':') {
-            u->stats.err_line++;
-            return fail_resync(u, COSLAM_E_URG_LINE);
+            return bad_line(u);
         }
         if (urg_scip2_checksum(u->line, len - 2U) != u->line[len - 1U]) {
             u->stats.err_checksum++;
@@ -749,9 +754,7 @@ static coslam_status_t read_scan_data(urg_scip2_t *u, urg_scip2_scan_t *scan, ui
         return st;
     }
     if (u->line_len != 5U) {
-        u->stats.err_line++;
-        /* an empty line: the time stamp was lost and the message ended */
-        return u->line_len == 0U ? COSLAM_E_URG_LINE : fail_resync(u, COSLAM_E_URG_LINE);
+        return bad_line(u); /* the empty line: the time stamp was lost */
     }
     if (urg_scip2_checksum(u->line, 4U) != u->line[4]) {
         u->stats.err_checksum++;
@@ -778,14 +781,12 @@ static coslam_status_t read_scan_data(urg_scip2_t *u, urg_scip2_scan_t *scan, ui
             if (got == expected) {
                 break;
             }
-            u->stats.err_line++; /* message ended early; nothing to resync */
-            return COSLAM_E_URG_LINE;
+            return bad_line(u); /* the message ended early */
         }
         const uint32_t left = expected - got;
         const uint32_t want = left < URG_SCIP2_DATA_LINE_CHARS ? left : URG_SCIP2_DATA_LINE_CHARS;
         if (want == 0U || len - 1U != want) {
-            u->stats.err_line++;
-            return fail_resync(u, COSLAM_E_URG_LINE);
+            return bad_line(u);
         }
         if (urg_scip2_checksum(u->line, want) != u->line[want]) {
             u->stats.err_checksum++;
