@@ -292,6 +292,18 @@ static void replay_rig(const char *dir, replay_rig_t *rig)
     write_log(logp);
 }
 
+/* A fresh directory with the replay camera and a store, a Fast-SLAM 2.0
+ * robot without laser (status and snapshot periods, `extra` lines), and
+ * the path its stderr goes to (dir/err). */
+static void replay_robot_dir(char dir[64], const char *status_s, const char *snap_s, const char *extra, char err[300])
+{
+    make_dir(dir, 64);
+    replay_rig_t rig;
+    replay_rig(dir, &rig);
+    config_with(dir, "no-laser", status_s, snap_s, rig.camera, rig.store, "fastslam2", extra);
+    snprintf(err, 300, "%s/err", dir);
+}
+
 /* The URG emulator on a pty at dir/urg (urg_pty_bridge). */
 static pid_t spawn_bridge(const char *dir)
 {
@@ -419,12 +431,8 @@ static void sigterm(void **state)
 {
     (void)state;
     char dir[64];
-    make_dir(dir, sizeof dir);
-    replay_rig_t rig;
-    replay_rig(dir, &rig);
-    config(dir, "no-laser", "0.5", "30", rig.camera, rig.store, "fastslam2");
     char err[300];
-    snprintf(err, sizeof err, "%s/err", dir);
+    replay_robot_dir(dir, "0.5", "30", "", err);
     char status_path[300];
     snprintf(status_path, sizeof status_path, "%s/status.json", dir);
     const pid_t pid2 = spawn_robot(dir, err, "--status-file", status_path);
@@ -470,12 +478,8 @@ static void observers_in_parts(void **state)
 {
     (void)state;
     char dir[64];
-    make_dir(dir, sizeof dir);
-    replay_rig_t rig;
-    replay_rig(dir, &rig);
-    config_with(dir, "no-laser", "0.3", "0.5", rig.camera, rig.store, "fastslam2", "[merge]\nstep_units = 1\n");
     char err[300];
-    snprintf(err, sizeof err, "%s/err", dir);
+    replay_robot_dir(dir, "0.3", "0.5", "[merge]\nstep_units = 1\n", err);
     const pid_t pid = spawn_robot(dir, err, NULL, NULL);
     sleep_ms(2500);
     const char *log = stop_robot(pid, err);
@@ -668,12 +672,8 @@ static void slow_storage(void **state)
 {
     (void)state;
     char dir[64];
-    make_dir(dir, sizeof dir);
-    replay_rig_t rig;
-    replay_rig(dir, &rig);
-    config(dir, "no-laser", "0.2", "0.3", rig.camera, rig.store, "fastslam2");
     char err[300];
-    snprintf(err, sizeof err, "%s/err", dir);
+    replay_robot_dir(dir, "0.2", "0.3", "", err);
     char gate[300];
     snprintf(gate, sizeof gate, "%s/gate", dir);
 

@@ -391,24 +391,23 @@ static void load_snapshot(int restore)
      * numbers that the peers remember: go on beyond them */
     const uint32_t msg_seq = loaded.msg_seq + (loaded.clean_stop ? 0U : ROBOT_SNAPSHOT_SEQ_MARGIN);
     const coslam_status_t rs = robot_node_restore(&node, &loaded.map, msg_seq);
-    char msg_seq_text[32];
-    (void)snprintf(msg_seq_text, sizeof msg_seq_text, "%lu)", (unsigned long)msg_seq);
-    if (rs == COSLAM_OK || rs == COSLAM_E_CAPACITY) {
-        seq_book.base = loaded.msg_seq;
-        seq_book.resumed = msg_seq;
-        seq_book.unknown = !loaded.clean_stop;
-    }
     if (rs != COSLAM_OK && rs != COSLAM_E_CAPACITY) {
         fprintf(stderr, "coslam-robot: snapshot: %s seq=%llu refused by the filter (%s): starting a new map\n", name,
                 (unsigned long long)loaded.seq, coslam_status_str(rs));
         return;
     }
+    seq_book.base = loaded.msg_seq;
+    seq_book.resumed = msg_seq;
+    seq_book.unknown = !loaded.clean_stop;
+    char restart[96] = "";
+    if (!loaded.clean_stop) {
+        (void)snprintf(restart, sizeof restart, " (not from a clean stop: map messages numbered on from %lu)",
+                       (unsigned long)msg_seq);
+    }
     fprintf(stderr,
-            "coslam-robot: snapshot: loaded %s seq=%llu landmarks=%u pose=(%.3f, %.3f, %.4f)%s%s%s\n", name,
+            "coslam-robot: snapshot: loaded %s seq=%llu landmarks=%u pose=(%.3f, %.3f, %.4f)%s%s\n", name,
             (unsigned long long)loaded.seq, (unsigned)loaded.map.n_landmarks, loaded.map.pose.x, loaded.map.pose.y,
-            loaded.map.pose.theta, rs == COSLAM_E_CAPACITY ? " (cut to this build's capacity)" : "",
-            loaded.clean_stop ? "" : " (not from a clean stop: map messages numbered on from ",
-            loaded.clean_stop ? "" : msg_seq_text);
+            loaded.map.pose.theta, rs == COSLAM_E_CAPACITY ? " (cut to this build's capacity)" : "", restart);
 }
 
 /* The meeting's events: merges and refusals always (they change or keep

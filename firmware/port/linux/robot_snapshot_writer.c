@@ -69,6 +69,20 @@ static void *writer_main(void *arg)
     return NULL;
 }
 
+/* Destroy the first `made` of: the mutex, job_cv, done_cv. */
+static void destroy_sync(robot_snapshot_writer_t *w, int made)
+{
+    if (made >= 3) {
+        (void)pthread_cond_destroy(&w->done_cv);
+    }
+    if (made >= 2) {
+        (void)pthread_cond_destroy(&w->job_cv);
+    }
+    if (made >= 1) {
+        (void)pthread_mutex_destroy(&w->mu);
+    }
+}
+
 int robot_snapshot_writer_start(robot_snapshot_writer_t *w)
 {
     if (w == NULL) {
@@ -81,37 +95,33 @@ int robot_snapshot_writer_start(robot_snapshot_writer_t *w)
     w->state = W_IDLE;
     pthread_condattr_t ca;
     int e = pthread_condattr_init(&ca);
-    if (e == 0) {
-        e = pthread_condattr_setclock(&ca, CLOCK_MONOTONIC);
+    if (e != 0) {
+        return e;
     }
+    int made = 0; /* the mutex, job_cv, done_cv made so far */
+    e = pthread_condattr_setclock(&ca, CLOCK_MONOTONIC);
+    if (e == 0 && (e = pthread_mutex_init(&w->mu, NULL)) == 0) {
+        made = 1;
+    }
+    if (e == 0 && (e = pthread_cond_init(&w->job_cv, &ca)) == 0) {
+        made = 2;
+    }
+    if (e == 0 && (e = pthread_cond_init(&w->done_cv, &ca)) == 0) {
+        made = 3;
+    }
+    (void)pthread_condattr_destroy(&ca);
     if (e == 0) {
-        e = pthread_mutex_init(&w->mu, NULL);
-        if (e == 0) {
-            e = pthread_cond_init(&w->job_cv, &ca);
-            if (e == 0) {
-                e = pthread_cond_init(&w->done_cv, &ca);
-                if (e == 0) {
-                    /* signals go to the control loop, never to the
-                     * writer (the mask is inherited by the thread) */
-                    sigset_t all;
-                    sigset_t old;
-                    (void)sigfillset(&all);
-                    (void)pthread_sigmask(SIG_SETMASK, &all, &old);
-                    e = pthread_create(&w->thread, NULL, writer_main, w);
-                    (void)pthread_sigmask(SIG_SETMASK, &old, NULL);
-                    if (e != 0) {
-                        (void)pthread_cond_destroy(&w->done_cv);
-                    }
-                }
-                if (e != 0) {
-                    (void)pthread_cond_destroy(&w->job_cv);
-                }
-            }
-            if (e != 0) {
-                (void)pthread_mutex_destroy(&w->mu);
-            }
-        }
-        (void)pthread_condattr_destroy(&ca);
+        /* signals go to the control loop, never to the writer (the mask is
+         * inherited by the thread) */
+        sigset_t all;
+        sigset_t old;
+        (void)sigfillset(&all);
+        (void)pthread_sigmask(SIG_SETMASK, &all, &old);
+        e = pthread_create(&w->thread, NULL, writer_main, w);
+        (void)pthread_sigmask(SIG_SETMASK, &old, NULL);
+    }
+    if (e != 0) {
+        destroy_sync(w, made);
     }
     w->started = e == 0;
     return e;
@@ -202,9 +212,7 @@ int robot_snapshot_writer_stop(robot_snapshot_writer_t *w, uint32_t wait_ms)
         return -1;
     }
     (void)pthread_join(w->thread, NULL);
-    (void)pthread_cond_destroy(&w->done_cv);
-    (void)pthread_cond_destroy(&w->job_cv);
-    (void)pthread_mutex_destroy(&w->mu);
+    destroy_sync(w, 3);
     w->state = W_IDLE;
     return 0;
 }
