@@ -498,6 +498,39 @@ Dataset load_mrclam(const std::string &dir)
                               "the " + fmt_value(kMaxSpanS) + " s limit (docs/replay.md, Limits)");
         }
     }
+    // A subject is a landmark if Landmark_Groundtruth.dat lists it, a robot
+    // if the folder has its RobotN_Odometry.dat; one that is neither (a
+    // landmark left out of the truth file, a robot not recorded) cannot be
+    // told apart, so its sightings are skipped and named, never guessed.
+    const std::set<int> robot_subjects(ids.begin(), ids.end());
+    for (const int id : ids) {
+        if (landmark_subjects.count(id) != 0) {
+            throw ReplayError((d / "Landmark_Groundtruth.dat").string(), 0,
+                              "subject " + std::to_string(id) + " is listed as a landmark, but the folder has "
+                              "Robot" + std::to_string(id) + "_Odometry.dat");
+        }
+    }
+    std::map<int, long> neither;
+    for (auto &rr : raw) {
+        const auto n0 = rr.meas.size();
+        rr.meas.erase(std::remove_if(rr.meas.begin(), rr.meas.end(),
+                                     [&](const std::array<double, 4> &m) {
+                                         const int subject = static_cast<int>(m[1]);
+                                         if (landmark_subjects.count(subject) != 0 ||
+                                             robot_subjects.count(subject) != 0) {
+                                             return false;
+                                         }
+                                         neither[subject]++;
+                                         return true;
+                                     }),
+                      rr.meas.end());
+        ds.report.unknown_subject_rows += static_cast<long>(n0 - rr.meas.size());
+    }
+    for (const auto &[subject, n] : neither) {
+        ds.report.notes.push_back("subject " + std::to_string(subject) + " is neither in Landmark_Groundtruth.dat nor "
+                                  "a robot of this folder (no Robot" + std::to_string(subject) +
+                                  "_Odometry.dat): its " + std::to_string(n) + " sightings skipped");
+    }
     for (const auto &rr : raw) {
         RobotLog rl;
         rl.id = rr.id;

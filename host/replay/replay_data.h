@@ -125,6 +125,7 @@ struct ParseReport {
     long self_sightings = 0;                ///< a robot "sighting" itself (skipped)
     long lines_read = 0;
     long unknown_robot_sightings = 0;       ///< R records naming a robot the dataset does not have
+    long unknown_subject_rows = 0;          ///< MRCLAM sightings of a subject neither robot nor true landmark
     std::vector<std::string> notes;         ///< human-readable remarks (missing truth, ...)
 };
 

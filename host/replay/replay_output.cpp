@@ -197,6 +197,7 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
     rep["unknown_barcodes"] = ub;
     rep["self_sightings"] = ds.report.self_sightings;
     rep["unknown_robot_sightings"] = ds.report.unknown_robot_sightings;
+    rep["unknown_subject_rows"] = ds.report.unknown_subject_rows;
     rep["notes"] = ds.report.notes;
     j["dataset"] = {{"source", ds.source},
                     {"format", ds.format},
@@ -231,6 +232,9 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
         rj["particles"] = r.filter == FilterKind::Ekf ? 0 : cfg.filter.particles;
         rj["t_start_s"] = r.t_start_s;
         rj["map_frame_in_world"] = pose_json(r.frame.origin);
+        // when the frame was placed: the start, or the first truth sample of
+        // a robot whose truth begins later (null: no truth, never placed)
+        rj["map_frame_placed_at_s"] = or_null(r.t_frame_s >= 0.0, r.t_frame_s);
         const bool pk = r.pose_samples > 0; // robot ground truth
         rj["pose"] = {{"samples", r.pose_samples},
                       {"rmse_m", or_null(pk, r.pose_rmse_m)},
@@ -394,6 +398,10 @@ bool report_limits(std::ostream &err, const Dataset &ds, const ReplayResult &res
     if (ds.report.unknown_robot_sightings > 0) {
         err << "warning: " << ds.report.unknown_robot_sightings
             << " sightings of robots not in the dataset skipped (unknown_robot_sightings)\n";
+    }
+    if (ds.report.unknown_subject_rows > 0) {
+        err << "warning: " << ds.report.unknown_subject_rows
+            << " sightings of subjects neither robot nor true landmark skipped (unknown_subject_rows)\n";
     }
     return capacity;
 }

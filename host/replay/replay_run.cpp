@@ -72,6 +72,9 @@ struct Robot {
     long fit_skipped = 0; // map evaluations above [eval] pose_fit_max_landmarks
     double nees_sum = 0.0;
     long nees_n = 0;
+    // no ground truth at the start, but later: the frame is placed at the
+    // first moment truth exists (Replay::place_frame_late)
+    bool frame_pending = false;
     RobotResult res;
 };
 
@@ -178,6 +181,8 @@ private:
     void setup();
     void advance(Robot &r, double t);
     void sample(Robot &r);
+    void place_frame(Robot &r, pose2_t origin, double t);
+    void place_frame_late(Robot &r);
     void process_frame(Robot &r, const Frame &f);
     void on_robot_sighting(Robot &r, const RobotSighting &s);
     void poll_meeting(Robot &r);
@@ -306,14 +311,18 @@ void Replay::setup()
         } else if (p_start) {
             res.frame.origin = *p_start;
             res.has_truth = true;
+        } else if (!r.log->truth.empty() && r.log->truth.back().t_s > res.t_start_s) {
+            // truth begins after the robot's first odometry record (or has
+            // a gap there): the frame is placed when truth begins
+            r.frame_pending = true;
+            out_.notes.push_back("robot " + std::to_string(res.id) + ": ground truth begins after its start (t = " +
+                                 fmt_value(res.t_start_s) + " s); its map frame is placed where its estimate is at the "
+                                 "first truth sample, and it is scored from then on");
         } else {
             out_.notes.push_back("robot " + std::to_string(res.id) + ": no ground truth at its start, not evaluated");
         }
         if (res.has_truth) {
-            for (const auto &l : ds_.landmarks) {
-                res.truth_landmarks.push_back(res.frame.point_in_map(l.pos));
-                res.truth_ids.push_back(l.id);
-            }
+            place_frame(r, res.frame.origin, res.t_start_s);
         }
         res.n_seen.assign(ds_.landmarks.size(), 0);
         r.filter = std::make_unique<RobotFilter>(res.filter, cfg_, r.core_id, pose0,
@@ -411,9 +420,44 @@ void Replay::score_pose_in_fit(Robot &r, const map_whole_t &est)
     r.res.pose_fit_samples++;
 }
 
+void Replay::place_frame(Robot &r, pose2_t origin, double t)
+{
+    RobotResult &res = r.res;
+    res.frame.origin = origin;
+    res.has_truth = true;
+    res.t_frame_s = t;
+    res.truth_landmarks.clear();
+    res.truth_ids.clear();
+    for (const auto &l : ds_.landmarks) {
+        res.truth_landmarks.push_back(res.frame.point_in_map(l.pos));
+        res.truth_ids.push_back(l.id);
+    }
+}
+
+// A robot whose ground truth begins after its start: at the first moment
+// truth exists, the map frame is placed so that the filter's estimate of
+// that moment is the truth (origin = truth (+) estimate^-1). The frame then
+// carries the estimate's error of that moment, as the start frame carries
+// none; the pose errors are of the motion since.
+void Replay::place_frame_late(Robot &r)
+{
+    const auto tw = r.truth->at(r.t_filter);
+    if (!tw) {
+        return;
+    }
+    pose2_t est;
+    cov3_t cov;
+    r.filter->pose(&est, &cov);
+    r.frame_pending = false;
+    place_frame(r, pose2_compose(*tw, pose2_inverse(est)), r.t_filter);
+}
+
 void Replay::sample(Robot &r)
 {
     const double eps = 1e-9;
+    if (r.frame_pending) {
+        place_frame_late(r);
+    }
     while (r.t_filter >= r.next_pose_t - eps) {
         pose2_t est;
         cov3_t cov;

@@ -123,6 +123,11 @@ struct RobotResult {
     MapFrame frame;                 ///< map frame in the world (truth)
     bool has_truth = false;
     double t_start_s = 0.0;
+    /// when `frame` was placed: t_start_s (the true pose at the start), or,
+    /// for a robot whose ground truth begins later, the first truth sample,
+    /// where the frame is placed so that the estimate of that moment is
+    /// the truth (pose errors before it are not scored); -1 if never placed
+    double t_frame_s = -1.0;
     std::vector<PoseSample> path;   ///< at pose_period_s
     std::vector<MapSample> map_series;
     std::shared_ptr<map_whole_t> final_map; ///< the whole map, not the message-sized export

@@ -223,6 +223,42 @@ TEST(Mrclam, ReadsAFolderAndCountsUnknownBarcodes)
     EXPECT_EQ(ds.robot(3), nullptr);
 }
 
+// A subject is a robot only if the folder has its odometry, a landmark only
+// if the truth file lists it: one that is neither is skipped and named (not
+// taken for a robot, as before), one that is both is refused.
+TEST(Mrclam, SubjectNeitherRobotNorLandmarkIsSkippedAndNamed)
+{
+    {
+        TempDir d;
+        write_mrclam(d);
+        // subject 8 (barcode 27): in Barcodes.dat, not in the truth, no robot files
+        d.file("Barcodes.dat", "  1 \t 5 \r\n  2 \t 14 \r\n  6 \t 63 \r\n  7 \t 81 \r\n  8 \t 27 \r\n");
+        d.file("Robot1_Measurement.dat", "1000.20 63 2.0 0.1\r\n1000.20 27 3.0 -0.2\r\n1000.40 27 3.0 -0.2\r\n");
+        const Dataset ds = load_mrclam(d.str());
+        EXPECT_EQ(ds.report.unknown_subject_rows, 2);
+        EXPECT_EQ(ds.report.unknown_robot_sightings, 0);
+        const RobotLog &r1 = ds.robots[0];
+        EXPECT_EQ(r1.z.size(), 1u);
+        EXPECT_TRUE(r1.rz.empty());
+        bool named = false;
+        for (const auto &n : ds.report.notes) {
+            named = named || has(n, "subject 8 is neither in Landmark_Groundtruth.dat nor a robot");
+        }
+        EXPECT_TRUE(named);
+    }
+    {
+        TempDir d;
+        write_mrclam(d);
+        d.file("Landmark_Groundtruth.dat", " 2 1.0 2.0\r\n 6 1.0 2.0\r\n 7 3.0 -1.0\r\n");
+        try {
+            (void)load_mrclam(d.str());
+            FAIL();
+        } catch (const ReplayError &e) {
+            EXPECT_TRUE(has(e.what(), "subject 2 is listed as a landmark")) << e.what();
+        }
+    }
+}
+
 TEST(Mrclam, MissingFilesAreNamed)
 {
     {

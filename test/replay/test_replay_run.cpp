@@ -202,6 +202,67 @@ TEST(ReplaySynthetic, PoseInTheFittedMapIgnoresTheMapFrame)
     fs::remove_all(dir);
 }
 
+// A robot whose ground truth begins after its first odometry record is
+// scored from the first truth sample on, in a frame placed there so that
+// its estimate of that moment is the truth. The filters run as before (the
+// truth is only an observer): the other robot's figures are bit for bit
+// those of the full truth, and robot 1's are those of the motion since.
+TEST(ReplaySynthetic, TruthBeginningLateIsScoredFromItsFirstSample)
+{
+    const fs::path dir = temp_dir("synth_late_truth");
+    write_synth2(dir / "full", 11);
+    fs::create_directories(dir / "late");
+    for (const char *f : {"robot1.log", "robot2.log", "robot2_truth.txt", "landmarks_truth.txt"}) {
+        fs::copy_file(dir / "full" / f, dir / "late" / f);
+    }
+    {
+        // robot 1's truth from t = 5 s on
+        std::ifstream in(dir / "full" / "robot1_truth.txt");
+        std::ofstream out(dir / "late" / "robot1_truth.txt");
+        out << std::setprecision(17);
+        double t, x, y, th;
+        while (in >> t >> x >> y >> th) {
+            if (t >= 5.0 - 1e-9) {
+                out << t << ' ' << x << ' ' << y << ' ' << th << '\n';
+            }
+        }
+    }
+    ReplayConfig cfg = synth_config();
+    cfg.filter.type = FilterKind::Ekf;
+    const ReplayResult full = run_replay(load_dataset((dir / "full").string()), cfg, ReplayOptions{});
+    const ReplayResult late = run_replay(load_dataset((dir / "late").string()), cfg, ReplayOptions{});
+    ASSERT_EQ(late.robots.size(), 2u);
+    const RobotResult &f1 = full.robots[0];
+    const RobotResult &l1 = late.robots[0];
+    EXPECT_EQ(f1.t_frame_s, f1.t_start_s);
+    EXPECT_TRUE(l1.has_truth);
+    // the first prediction step at or after the first truth sample
+    EXPECT_GE(l1.t_frame_s, 5.0 - 1e-6);
+    EXPECT_LE(l1.t_frame_s, 5.0 + cfg.filter.predict_period_s + 1e-6);
+    // scored from then on: fewer samples, but most of them
+    EXPECT_GT(l1.pose_samples, f1.pose_samples / 2);
+    EXPECT_LT(l1.pose_samples, f1.pose_samples);
+    EXPECT_LT(l1.pose_rmse_m, 0.3);
+    EXPECT_TRUE(l1.final_score.valid);
+    EXPECT_LT(l1.final_score.rmse_m, 0.6);
+    EXPECT_EQ(l1.final_score.n_estimated, f1.final_score.n_estimated);
+    // the frame differs from the start frame by the estimate's error at 5 s
+    // in the true frame: centimetres, not metres
+    const pose2_t d = pose2_between(f1.frame.origin, l1.frame.origin);
+    EXPECT_LT(std::hypot(d.x, d.y), 0.3);
+    EXPECT_LT(std::fabs(d.theta), 0.1);
+    // robot 2 is untouched
+    EXPECT_EQ(late.robots[1].pose_rmse_m, full.robots[1].pose_rmse_m);
+    EXPECT_EQ(late.robots[1].final_score.rmse_m, full.robots[1].final_score.rmse_m);
+    EXPECT_EQ(late.merges.size(), full.merges.size());
+    bool noted = false;
+    for (const auto &n : late.notes) {
+        noted = noted || n.find("ground truth begins after its start") != std::string::npos;
+    }
+    EXPECT_TRUE(noted);
+    fs::remove_all(dir);
+}
+
 TEST(ReplaySynthetic, OutputsAreCompleteAndReadable)
 {
     const fs::path dir = temp_dir("synth_out");
