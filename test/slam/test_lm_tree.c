@@ -216,7 +216,43 @@ static void test_fastslam_pool_exhaustion(void **state)
     assert_int_equal(lm_tree_set(&g_pool, &root, 0, &lm), COSLAM_E_CAPACITY);
     assert_int_equal(g_pool.capacity_drops, 1);
     assert_null(lm_tree_get(&g_pool, root, 0));
+    /* all or nothing: no empty node was left in the map */
+    assert_int_equal(root, LM_TREE_NIL);
+    assert_int_equal(g_pool.nodes_live, 0);
     lm_tree_release(&g_pool, &root);
+    assert_int_equal(g_pool.nodes_live, 0);
+    assert_int_equal(g_pool.leaves_live, 0);
+    /* a shared map: a private copy of the path needs LM_TREE_DEPTH nodes and
+     * a leaf; with one node short nothing is copied, both maps stay shared */
+    lm_tree_pool_init(&g_pool, 2U * (uint32_t)LM_TREE_DEPTH - 1U, 0U);
+    lm_tree_idx_t a = LM_TREE_NIL;
+    assert_int_equal(lm_tree_set(&g_pool, &a, 0, &lm), COSLAM_OK);
+    lm_tree_idx_t b = a;
+    lm_tree_retain(&g_pool, b);
+    const uint32_t live = g_pool.nodes_live;
+    landmark_t other = lm;
+    other.mean.x = -4.0;
+    assert_int_equal(lm_tree_set(&g_pool, &b, 1, &other), COSLAM_E_CAPACITY);
+    assert_int_equal(g_pool.capacity_drops, 1);
+    assert_int_equal(b, a);
+    assert_int_equal(g_pool.node[a].ref, 2);
+    assert_int_equal(g_pool.nodes_live, live);
+    assert_null(lm_tree_get(&g_pool, b, 1));
+    /* one node more, and the same set is made */
+    lm_tree_release(&g_pool, &b);
+    lm_tree_release(&g_pool, &a);
+    assert_int_equal(g_pool.nodes_live, 0);
+    lm_tree_pool_init(&g_pool, 2U * (uint32_t)LM_TREE_DEPTH, 0U);
+    a = LM_TREE_NIL;
+    assert_int_equal(lm_tree_set(&g_pool, &a, 0, &lm), COSLAM_OK);
+    b = a;
+    lm_tree_retain(&g_pool, b);
+    assert_int_equal(lm_tree_set(&g_pool, &b, 1, &other), COSLAM_OK);
+    assert_true(b != a);
+    ASSERT_NEAR(lm_tree_get(&g_pool, b, 1)->mean.x, -4.0, 0.0);
+    assert_null(lm_tree_get(&g_pool, a, 1));
+    lm_tree_release(&g_pool, &b);
+    lm_tree_release(&g_pool, &a);
     assert_int_equal(g_pool.nodes_live, 0);
     assert_int_equal(g_pool.leaves_live, 0);
 }

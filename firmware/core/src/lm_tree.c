@@ -299,22 +299,53 @@ void lm_tree_clean(lm_tree_pool_t *p, lm_tree_idx_t root)
     }
 }
 
+/*
+ * What setting `slot` in *root takes from the pools, without touching them:
+ * from the first level whose node is missing or shared, a new node at every
+ * level below (a copied node shares its children, so they are copied too),
+ * and then a new leaf; a wholly private path needs a leaf only if the slot
+ * is empty or its leaf shared.
+ */
+static void set_needs(const lm_tree_pool_t *p, lm_tree_idx_t root, uint32_t slot, uint32_t *nodes, uint32_t *leaves)
+{
+    lm_tree_idx_t n = root;
+    for (int l = 0; l < D_; ++l) {
+        if (n == LM_TREE_NIL || p->node[n].ref > 1U) {
+            *nodes = (uint32_t)(D_ - l);
+            *leaves = 1U;
+            return;
+        }
+        n = p->node[n].child[digit(slot, l)];
+    }
+    *nodes = 0U;
+    *leaves = (n == LM_TREE_NIL || p->leaf_ref[n] > 1U) ? 1U : 0U;
+}
+
 coslam_status_t lm_tree_set(lm_tree_pool_t *p, lm_tree_idx_t *root, uint32_t slot, const landmark_t *lm)
 {
     lm_tree_idx_t path[LM_TREE_DEPTH];
     if (slot >= (uint32_t)COSLAM_MAX_LANDMARKS) {
         return COSLAM_E_ARG;
     }
+    /* all or nothing: a set the pools cannot finish changes no node (it
+     * would otherwise leave the empty nodes it had made in the map) */
+    uint32_t need_nodes;
+    uint32_t need_leaves;
+    set_needs(p, *root, slot, &need_nodes, &need_leaves);
+    if (need_nodes > p->node_limit - p->nodes_live || need_leaves > p->leaf_limit - p->leaves_live) {
+        p->capacity_drops++;
+        return COSLAM_E_CAPACITY;
+    }
     lm_tree_idx_t *link = private_path(p, root, slot, 1, path);
     if (link == 0) {
-        return COSLAM_E_CAPACITY; /* empty nodes it may have created hold nothing */
+        return COSLAM_E_CAPACITY; /* not reached: the pools hold what set_needs counted */
     }
     if (*link != LM_TREE_NIL && p->leaf_ref[*link] == 1U) {
         p->leaf[*link].lm = *lm;
     } else {
         const lm_tree_idx_t c = leaf_alloc(p);
         if (c == LM_TREE_NIL) {
-            return COSLAM_E_CAPACITY;
+            return COSLAM_E_CAPACITY; /* not reached, as above */
         }
         p->leaf[c].lm = *lm;
         if (*link != LM_TREE_NIL) {

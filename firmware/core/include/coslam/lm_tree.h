@@ -183,8 +183,9 @@ void lm_tree_clean(lm_tree_pool_t *p, lm_tree_idx_t root);
 
 /**
  * Store *lm in slot `slot` (existing or empty; the path is created as
- * needed; boxes marked stale). COSLAM_E_CAPACITY (counted) if the pool ran
- * out; the map is then unchanged in content. O(F D).
+ * needed; boxes marked stale). COSLAM_E_CAPACITY (counted once) if the
+ * pools cannot hold what it needs: checked first, so nothing changes then,
+ * no node made or copied. O(F D).
  */
 coslam_status_t lm_tree_set(lm_tree_pool_t *p, lm_tree_idx_t *root, uint32_t slot, const landmark_t *lm);
 
