@@ -182,7 +182,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     }
     stream_t s = {data + 1, size - 1U, 0U, data[0] & 0x3FU};
     if (s.chunk == 0U) {
-        s.chunk = URG_SCIP2_RX_CHUNK;
+        s.chunk = 128U; /* a USB packet's worth */
     }
     hal_serial_t dev = {&s_ops, &s};
     static urg_scip2_t u;

@@ -522,25 +522,83 @@ static void test_echo_mismatch_in_stream(void **state)
     assert_int_equal(urg_scip2_stats(&f->urg)->err_echo, 1);
 }
 
-static void test_timeout_mid_message(void **state)
+/* A scan arriving over several control steps (a 115,200 baud line carries
+ * one in about 190 ms): each call takes what has come and returns at once,
+ * an idle timeout (not counted), until the whole message is in; then it is
+ * decoded, nothing lost. The driver never waits inside a message. */
+static void test_scan_arriving_over_calls(void **state)
 {
     fixture_t *f = *state;
     start_md04(f, 0);
     const size_t n = build_scan(msg, "MD0044072501000", "99", 100, vals04, N04, CORRUPT_NONE, 0);
-    fake_add(&f->fake, 1, msg, 1000);         /* the first 1000 bytes now */
-    fake_add(&f->fake, 2, msg + 1000, n - 1000); /* the rest only later */
-    const size_t n2 = build_scan(msg2, "MD0044072501000", "99", 200, vals04, N04, CORRUPT_NONE, 0);
-    fake_add(&f->fake, 2, msg2, n2);
+    const size_t piece = 200U;
+    const unsigned n_pieces = (unsigned)((n + piece - 1U) / piece);
+    for (unsigned k = 0; k < n_pieces; ++k) {
+        /* piece k comes with the k-th call (the MD write was the first) */
+        const size_t at = (size_t)k * piece;
+        fake_add(&f->fake, 2U + k, msg + at, n - at < piece ? n - at : piece);
+    }
+    for (unsigned k = 0; k < n_pieces; ++k) {
+        f->fake.released = k + 1U;
+        const unsigned reads = f->fake.n_reads;
+        const coslam_status_t st = urg_scip2_read_scan(&f->urg, &f->scan, 0);
+        /* one read that took the new bytes, one that found nothing more */
+        assert_true(f->fake.n_reads - reads <= 2U);
+        if (k + 1U < n_pieces) {
+            ASSERT_TRUE_MSG(st == COSLAM_E_URG_TIMEOUT, "piece %u: %s\n", k, coslam_status_str(st));
+        } else {
+            assert_int_equal(st, COSLAM_OK);
+        }
+    }
+    expect_scan04(&f->scan, 100);
+    const urg_scip2_stats_t *s = urg_scip2_stats(&f->urg);
+    assert_int_equal(s->err_timeout + s->err_line + s->err_checksum + s->err_garbage + s->err_echo, 0);
+    assert_int_equal(s->resyncs, 0);
+    assert_int_equal(f->fake.pos, f->fake.stream_len);
+}
+
+/* A scan that breaks off and never ends runs into the next one: the two are
+ * refused as one reply, counted once, and the scan after them is read. */
+static void test_scan_broken_off(void **state)
+{
+    fixture_t *f = *state;
+    start_md04(f, 0);
+    size_t n = build_scan(msg, "MD0044072501000", "99", 100, vals04, N04, CORRUPT_NONE, 0);
+    fake_add(&f->fake, 1, msg, 1000); /* the first 1000 bytes, and never the rest */
     assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_E_URG_TIMEOUT);
-    assert_int_equal(urg_scip2_stats(&f->urg)->err_timeout, 1);
-    /* nothing new yet: the pending resync cannot finish; idle, not counted */
-    assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_E_URG_TIMEOUT);
-    assert_int_equal(urg_scip2_stats(&f->urg)->err_timeout, 1);
-    f->fake.released = 1;
+    n = build_scan(msg2, "MD0044072501000", "99", 200, vals04, N04, CORRUPT_NONE, 0);
+    fake_add(&f->fake, 1, msg2, n);
+    n = build_scan(msg, "MD0044072501000", "99", 300, vals04, N04, CORRUPT_NONE, 0);
+    fake_add(&f->fake, 1, msg, n);
+    const urg_scip2_stats_t *s = urg_scip2_stats(&f->urg);
+    const coslam_status_t st = urg_scip2_read_scan(&f->urg, &f->scan, 0);
+    assert_true(st == COSLAM_E_URG_LINE || st == COSLAM_E_URG_CHECKSUM);
+    assert_int_equal(f->scan.n_points, 0);
+    assert_int_equal(s->err_timeout + s->err_line + s->err_checksum + s->err_garbage + s->err_echo, 1);
     assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_OK);
-    expect_scan04(&f->scan, 200);
-    assert_int_equal(urg_scip2_stats(&f->urg)->resyncs, 1);
-    assert_int_equal(urg_scip2_stats(&f->urg)->bytes_discarded, n - 1000 - 1); /* all but its final LF */
+    expect_scan04(&f->scan, 300);
+    assert_int_equal(s->resyncs, 1);
+    assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_E_URG_TIMEOUT);
+}
+
+/* Bytes that never make a message end (not SCIP) fill the buffer: refused,
+ * counted once, discarded; a scan after them is read. */
+static void test_no_message_end_fills_the_buffer(void **state)
+{
+    fixture_t *f = *state;
+    start_md04(f, 0);
+    static char junk[URG_SCIP2_RX_CAP + 10];
+    memset(junk, 'A', sizeof junk);
+    fake_add(&f->fake, 1, junk, sizeof junk);
+    const char end[] = "\n\n";
+    fake_add(&f->fake, 1, end, 2U);
+    const size_t n = build_scan(msg, "MD0044072501000", "99", 400, vals04, N04, CORRUPT_NONE, 0);
+    fake_add(&f->fake, 1, msg, n);
+    assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_E_URG_GARBAGE);
+    assert_int_equal(urg_scip2_stats(&f->urg)->err_garbage, 1);
+    assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_OK);
+    expect_scan04(&f->scan, 400);
+    assert_int_equal(urg_scip2_stats(&f->urg)->bytes_discarded, sizeof junk + 1U);
 }
 
 static void test_dmin_error_codes(void **state)
@@ -840,7 +898,9 @@ int main(void)
         T(test_stamp_line_length),
         T(test_garbage_between_messages),
         T(test_echo_mismatch_in_stream),
-        T(test_timeout_mid_message),
+        T(test_scan_arriving_over_calls),
+        T(test_scan_broken_off),
+        T(test_no_message_end_fills_the_buffer),
         T(test_dmin_error_codes),
         T(test_timestamp_wrap),
         T(test_md_finite_and_cluster),

@@ -245,6 +245,77 @@ static coslam_status_t fail_resync(urg_scip2_t *u, coslam_status_t st)
     return st;
 }
 
+/* The receive buffer holds the end of a message: an empty line (an LF at the
+ * start of a line) at or after rx_pos. */
+static int message_end_buffered(const urg_scip2_t *u)
+{
+    int at_line_start = u->last_byte_lf;
+    for (size_t i = u->rx_pos; i < u->rx_len; ++i) {
+        if (u->rx[i] == LF) {
+            if (at_line_start) {
+                return 1;
+            }
+            at_line_start = 1;
+        } else {
+            at_line_start = 0;
+        }
+    }
+    return 0;
+}
+
+/*
+ * For urg_scip2_read_scan: finish a pending resynchronisation and make sure
+ * a whole message is in the receive buffer, reading what the port holds
+ * (each read waits at most timeout_us) but never waiting inside a message.
+ * COSLAM_OK: the parse that follows reads only buffered bytes, since no
+ * parse reads past a message's empty line. COSLAM_E_URG_TIMEOUT: no whole
+ * message yet, what came is kept (not counted). COSLAM_E_URG_GARBAGE: the
+ * buffer filled without a message end (counted; discarded, resync pending).
+ */
+static coslam_status_t gather_message(urg_scip2_t *u, uint32_t timeout_us)
+{
+    for (;;) {
+        while (u->resync_pending && u->rx_pos < u->rx_len) {
+            const int at_line_start = u->last_byte_lf;
+            const uint8_t b = u->rx[u->rx_pos++];
+            u->last_byte_lf = (b == LF);
+            if (b == LF && at_line_start) {
+                u->resync_pending = 0;
+                u->stats.resyncs++;
+            } else {
+                u->stats.bytes_discarded++;
+            }
+        }
+        if (!u->resync_pending && message_end_buffered(u)) {
+            return COSLAM_OK;
+        }
+        if (u->rx_pos > 0U) {
+            memmove(u->rx, u->rx + u->rx_pos, u->rx_len - u->rx_pos);
+            u->rx_len -= u->rx_pos;
+            u->rx_pos = 0U;
+        }
+        if (u->rx_len == sizeof u->rx) {
+            /* longer than any message: not SCIP, or two run together */
+            u->stats.err_garbage++;
+            u->stats.bytes_discarded += (uint32_t)u->rx_len;
+            u->last_byte_lf = (u->rx[u->rx_len - 1U] == LF);
+            u->rx_len = 0U;
+            return fail_resync(u, COSLAM_E_URG_GARBAGE);
+        }
+        size_t n = 0;
+        const size_t room = sizeof u->rx - u->rx_len;
+        const hal_status_t h = hal_serial_read(u->serial, u->rx + u->rx_len, room, &n, timeout_us);
+        if (h == HAL_E_TIMEOUT || (h == HAL_OK && n == 0U)) {
+            return COSLAM_E_URG_TIMEOUT;
+        }
+        if (h != HAL_OK || n > room) {
+            u->stats.err_io++;
+            return COSLAM_E_URG_IO;
+        }
+        u->rx_len += n;
+    }
+}
+
 /* A line of the wrong length (u->line), counted. If it is the empty line
  * that ends a message (a line was lost and the message ended early), the
  * message is over and nothing is resynchronised, so the next one is read
@@ -900,8 +971,12 @@ coslam_status_t urg_scip2_read_scan(urg_scip2_t *u, urg_scip2_scan_t *scan, uint
     }
     scan_header(scan, u->md_first, u->md_last, u->md_cluster);
     for (;;) {
+        coslam_status_t st = gather_message(u, timeout_us);
+        if (st != COSLAM_OK) {
+            return st;
+        }
         int began = 0;
-        coslam_status_t st = first_line(u, timeout_us, &began);
+        st = first_line(u, 0U, &began);
         if (st != COSLAM_OK) {
             return st; /* idle timeout (not counted) or counted error */
         }

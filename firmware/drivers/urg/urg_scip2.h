@@ -31,13 +31,23 @@
  * broken message), so the following message parses normally.
  *
  * Timeouts: the driver has no clock. Every wait is one hal_serial_read call
- * with a timeout: the first byte of a reply waits at most the timeout given
- * (config.reply_timeout_us for commands, the timeout_us argument of
- * urg_scip2_read_scan); once a message has begun, each further wait is
- * bounded by config.byte_timeout_us. A call therefore blocks at most about
- * timeout + (number of chunks) * byte_timeout.
+ * with a timeout. Commands (set-up, GD, QT): the first byte of a reply waits
+ * at most config.reply_timeout_us, and once a message has begun each further
+ * wait is bounded by config.byte_timeout_us, so a command blocks at most
+ * about reply_timeout + (number of chunks) * byte_timeout.
+ * Scans of a running MD (urg_scip2_read_scan, called from a control loop)
+ * never wait inside a message: the call takes what the port holds, each
+ * read waiting at most its timeout_us argument (0: not at all), and decodes
+ * a scan only once its whole message is in the receive buffer. A message
+ * still arriving (a 115,200 baud line carries a URG-04LX scan in about
+ * 190 ms) stays buffered for the next call, which returns
+ * COSLAM_E_URG_TIMEOUT meanwhile, not counted. A message that breaks off
+ * and never ends runs into the next one: the two fail as one reply (counted
+ * once, by what the parse meets) and the driver resynchronises after them;
+ * a sensor gone silent is for the caller's clock to notice.
  *
- * Memory: sizeof(urg_scip2_t) is about 0.5 KB; sizeof(urg_scip2_scan_t) is
+ * Memory: sizeof(urg_scip2_t) is about URG_SCIP2_RX_CAP + 0.4 KB (3.8 KB
+ * with COSLAM_MAX_SCAN_POINTS 1081); sizeof(urg_scip2_scan_t) is
  * 4 * COSLAM_MAX_SCAN_POINTS + 32 bytes. No call allocates.
  */
 #ifndef URG_SCIP2_H
@@ -57,10 +67,18 @@ extern "C" {
 /** Longest reply line accepted, payload + sum, without the LF [bytes].
  *  The longest URG-04LX line (II "SCSP:...;s") is about 50 bytes. */
 #define URG_SCIP2_LINE_MAX 128
-/** Bytes fetched from the serial HAL per read. */
-#define URG_SCIP2_RX_CHUNK 128
 /** Data characters per scan-data line (SCIP 2.0: 64). */
 #define URG_SCIP2_DATA_LINE_CHARS 64
+/** The longest MD message [bytes]: echo (15 + LF), status (3 + LF), time
+ *  stamp (5 + LF), COSLAM_MAX_SCAN_POINTS readings of 3 characters in lines
+ *  of 64 plus sum and LF, and the empty line. */
+#define URG_SCIP2_MD_MSG_MAX                                                                                  \
+    (16 + 4 + 6 + 3 * COSLAM_MAX_SCAN_POINTS +                                                             \
+     2 * ((3 * COSLAM_MAX_SCAN_POINTS + URG_SCIP2_DATA_LINE_CHARS - 1) / URG_SCIP2_DATA_LINE_CHARS) + 1)
+/** Receive buffer [bytes]: one whole MD message and the start of the next,
+ *  so that urg_scip2_read_scan can wait for a whole message without
+ *  blocking. */
+#define URG_SCIP2_RX_CAP (URG_SCIP2_MD_MSG_MAX + 128)
 /** Characters kept of one VV/PP/II text field (longer text is truncated and
  *  counted in stats.fields_truncated). */
 #define URG_SCIP2_TEXT_MAX 64
@@ -151,7 +169,7 @@ typedef struct {
     urg_scip2_params_t params;
     int have_params;
     /* receive buffer */
-    uint8_t rx[URG_SCIP2_RX_CHUNK];
+    uint8_t rx[URG_SCIP2_RX_CAP];
     size_t rx_pos;
     size_t rx_len;
     int last_byte_lf;   /* the last consumed byte was LF */
