@@ -1201,12 +1201,17 @@ static long sym_at(const sym_map_t *m, int k)
  * column of the row-major matrix, so a tile keeps them within a few rows
  * at a time). nt <= EKF_SYM_MAX_T. */
 static void batch_sym_update(double *mat, long stride, const sym_map_t *map, int n, const double *wr,
-                             const double *mr, long vstride, int nt, double sign)
+                             const double *mr, long vstride, int nt, double sign, int r_begin, int r_end)
 {
     double w[2][EKF_SYM_MAX_T];
     double acc[2][EKF_TILE];
     long at_c[EKF_TILE]; /* the tile's columns in mat */
-    for (int r0 = 0; r0 < n; r0 += EKF_TILE) {
+    /* the tiles of rows [r_begin, r_end) (r_begin a multiple of EKF_TILE):
+     * each tile writes its rows from their diagonal on and the mirrors of
+     * those entries, which no other tile reads, so the tiles may be done
+     * in separate calls with the same result bit for bit */
+    const int r_stop = r_end < n ? r_end : n;
+    for (int r0 = r_begin; r0 < r_stop; r0 += EKF_TILE) {
         const int r1 = r0 + EKF_TILE < n ? r0 + EKF_TILE : n;
         for (int c0 = r0; c0 < n; c0 += EKF_TILE) {
             const int c1 = c0 + EKF_TILE < n ? c0 + EKF_TILE : n;
@@ -1257,8 +1262,8 @@ static void batch_flush(ekfslam_t *ekf)
     const int n0 = ck->na0;
     const sym_map_t active = {ck->idx, 0, 0};
     const sym_map_t plain = {0, n0, 0};
-    batch_sym_update(ekf->p, D_, &active, na, ck->bk[0], ck->bp[0], ADIM_, nt, -1.0);
-    batch_sym_update(ck->psi, ADIM_, &plain, n0, ck->bh[0], ck->bs[0], ADIM_, nt, 1.0);
+    batch_sym_update(ekf->p, D_, &active, na, ck->bk[0], ck->bp[0], ADIM_, nt, -1.0, 0, na);
+    batch_sym_update(ck->psi, ADIM_, &plain, n0, ck->bh[0], ck->bs[0], ADIM_, nt, 1.0, 0, n0);
     double w[2][2 * EKFSLAM_BATCH];
     double acc[2][ADIM_];
     for (int r = 0; r < na; r += 2) {
@@ -1405,6 +1410,7 @@ coslam_status_t ekfslam_init(ekfslam_t *ekf, const ekfslam_config_t *cfg, pose2_
     ekf->merging = 0U;
     ekf->merge_bn = 0;
     ekf->merge_len = 0;
+    ekf->merge_flush_r0 = 0;
     ekf->nis_avg = 0.0;
     ekf->cekf.local = 0U;
     ekf->cekf.bn = 0;
@@ -1476,6 +1482,9 @@ double ekfslam_p(const ekfslam_t *ekf, int r, int c)
 
 coslam_status_t ekfslam_predict(ekfslam_t *ekf, odo_increment_t u)
 {
+    if (ekf->merging) {
+        return COSLAM_E_MERGE_BUSY; /* a merge in parts runs on the state as it was */
+    }
     if (!motion_is_plausible(&ekf->cfg.slam, u, MOTION_MAX_INCREMENT_S)) {
         ekf->ctr.rejected_controls++;
         return COSLAM_E_NUMERIC;
@@ -2417,6 +2426,9 @@ static void jcbb_associate(ekfslam_t *ekf, const sighting_t *z, int ns, int n_pa
 coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
 {
     COSLAM_ASSERT(ekf != 0 && (z_in != 0 || n_in == 0));
+    if (ekf->merging) {
+        return COSLAM_E_MERGE_BUSY; /* a merge in parts runs on the state as it was */
+    }
     const slam_params_t *sp = &ekf->cfg.slam;
     ekfslam_scratch_t *sc = &ekf->scratch;
     coslam_status_t result = COSLAM_OK;
@@ -2757,6 +2769,9 @@ static double merge_corr(const ekfslam_t *ekf, int r, int c)
 {
     const int pr = merge_pos(ekf, r);
     const int pc = merge_pos(ekf, c);
+    if ((pr < pc ? pr : pc) < ekf->merge_flush_r0) {
+        return 0.0; /* a flush in parts has applied the columns there already */
+    }
     const long len = ekf->merge_len;
     const double *w = ekf->cekf.phi;
     double acc = 0.0;
@@ -2766,16 +2781,58 @@ static double merge_corr(const ekfslam_t *ekf, int r, int c)
     return acc;
 }
 
-/* P -= sum_t w_t w_t^T over the active positions (tau after the state). */
-static void merge_flush(ekfslam_t *ekf)
+/* P -= sum_t w_t w_t^T over the active positions (tau after the state),
+ * in tiles of EKF_TILE rows from merge_flush_r0 on until about `budget`
+ * multiply-adds are spent (the tile that crosses it is finished; 0: all).
+ * Returns the multiply-adds spent (a tile's: its rows times the columns
+ * from its first row on times the columns pending). Until the last tile
+ * the columns stay pending and merge_flush_r0 says how far they are
+ * applied (merge_corr). */
+static double merge_flush_part(ekfslam_t *ekf, double budget)
 {
     if (ekf->merge_bn == 0) {
-        return;
+        return 0.0;
     }
     const sym_map_t map = {0, dim(ekf), TAU_};
-    batch_sym_update(ekf->p, D_, &map, ekf->merge_len, ekf->cekf.phi, ekf->cekf.phi, ekf->merge_len, ekf->merge_bn,
-                     -1.0);
-    ekf->merge_bn = 0;
+    const int n = ekf->merge_len;
+    double spent = 0.0;
+    int r0 = ekf->merge_flush_r0;
+    while (r0 < n && (budget <= 0.0 || spent < budget)) {
+        batch_sym_update(ekf->p, D_, &map, n, ekf->cekf.phi, ekf->cekf.phi, n, ekf->merge_bn, -1.0, r0,
+                         r0 + EKF_TILE);
+        spent += (double)EKF_TILE * (double)(n - r0) * (double)ekf->merge_bn;
+        r0 += EKF_TILE;
+    }
+    if (r0 >= n) {
+        ekf->merge_bn = 0;
+        ekf->merge_flush_r0 = 0;
+    } else {
+        ekf->merge_flush_r0 = r0;
+    }
+    return spent;
+}
+
+static void merge_flush(ekfslam_t *ekf)
+{
+    (void)merge_flush_part(ekf, 0.0);
+}
+
+int ekfslam_merge_room(const ekfslam_t *ekf)
+{
+    const int cap = merge_cap(ekf);
+    if (cap < 2) {
+        return INT32_MAX; /* each update applied at once: nothing pends */
+    }
+    return ekf->merge_flush_r0 > 0 ? 0 : cap - ekf->merge_bn;
+}
+
+int ekfslam_merge_flush_run(ekfslam_t *ekf, double budget, double *spent)
+{
+    const double s = merge_flush_part(ekf, budget);
+    if (spent != 0) {
+        *spent += s;
+    }
+    return ekf->merge_bn == 0;
 }
 
 /* The merge's scalar update z = h^T x[idx] + v (innovation nu, noise
@@ -2788,8 +2845,8 @@ static coslam_status_t merge_scalar_update(ekfslam_t *ekf, const int *idx, const
     if (cap < 2) {
         return scalar_update(ekf, idx, h, nh, nu, r);
     }
-    if (ekf->merge_bn > 0 && ekf->merge_len != n) {
-        merge_flush(ekf);
+    if (ekf->merge_flush_r0 > 0 || (ekf->merge_bn > 0 && ekf->merge_len != n)) {
+        merge_flush(ekf); /* the rest of a flush in parts, or a resized state */
     }
     ekf->merge_len = n;
     const long len = n;

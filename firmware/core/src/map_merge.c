@@ -741,16 +741,99 @@ coslam_status_t merge_into_fastslam(fastslam_t *fs, const merge_body_map_t *bm, 
 
 /* ---- EKF-SLAM ----------------------------------------------------------- */
 
-coslam_status_t merge_into_ekfslam(ekfslam_t *ekf, const merge_body_map_t *bm, const merge_config_t *cfg,
-                                   merge_scratch_t *sc, merge_stats_t *stats)
+/* Duplicate i (paired with own landmark sc->match_of_in[i]) fused into the
+ * EKF: its information in the receiver's body frame, scaled by dup_w, or
+ * by covariance intersection where the provenances overlap. */
+static void ekf_fuse_one(ekfslam_t *ekf, const merge_body_map_t *bm, const merge_scratch_t *sc, uint16_t i,
+                         double dup_w, merge_stats_t *stats)
+{
+    const int32_t j = sc->match_of_in[i];
+    ekfslam_meta_t *meta = &ekf->meta[j];
+    /* the information the incoming landmark brings (receiver's body frame) */
+    const double ct = cos(bm->t.theta);
+    const double stt = sin(bm->t.theta);
+    double rt[2][2] = {{ct, -stt}, {stt, ct}};
+    cov2_t info;
+    if (cov2_inverse(cov2_congruence(rt, bm->rel_cov[i]), &info) != COSLAM_OK) {
+        stats->skipped++;
+        return;
+    }
+    if ((meta->src_mask & bm->src_mask[i]) != 0U) {
+        /* covariance intersection on the relative marginals, applied as
+         * the information it adds over the own estimate,
+         * (1 - w) (S_b^-1 - S_a^-1), clipped to its positive directions:
+         * re-merging information already held adds (almost) nothing */
+        point2_t rel;
+        cov2_t sa;
+        point2_t xm;
+        cov2_t xc;
+        cov2_t ia;
+        cov2_t ib;
+        double w;
+        ekfslam_landmark_relative(ekf, (uint16_t)j, &rel, &sa);
+        if (merge_fuse_ci(rel, sa, bm->mean[i], bm->cov[i], &xm, &xc, &w) != COSLAM_OK ||
+            cov2_inverse(sa, &ia) != COSLAM_OK || cov2_inverse(bm->cov[i], &ib) != COSLAM_OK) {
+            stats->skipped++;
+            return;
+        }
+        stats->fused_ci++;
+        info = cov2_scale(cov2_add(ib, cov2_scale(ia, -1.0)), 1.0 - w);
+        double lo;
+        double hi;
+        cov2_eigenvalues(info, &lo, &hi);
+        if (!(hi > 1e-12 * (ia.xx + ia.yy))) {
+            meta->src_mask |= bm->src_mask[i];
+            stats->fused++;
+            return; /* nothing new */
+        }
+        if (lo < 0.0) {
+            info = cov2_clamp_eigen(info, 0.0);
+        }
+    }
+    if (ekfslam_merge_observe(ekf, (uint16_t)j, bm->t, bm->rel[i], cov2_scale(info, dup_w)) != COSLAM_OK) {
+        stats->skipped++;
+        return;
+    }
+    absorb_meta(&meta->src_mask, &meta->n_obs, &meta->exist, bm, i, &ekf->cfg.slam);
+    stats->fused++;
+}
+
+/* Incoming landmark i, unpaired, appended to the EKF. */
+static coslam_status_t ekf_add_one(ekfslam_t *ekf, const merge_body_map_t *bm, uint16_t i, merge_stats_t *stats)
+{
+    const slam_params_t *sp = &ekf->cfg.slam;
+    ekfslam_meta_t meta;
+    memset(&meta, 0, sizeof meta); /* padding too: a state copied or compared bytewise stays defined */
+    meta.id = ekf->next_id;
+    meta.exist = sp->exist_max; /* the sender confirmed it and the check let it in */
+    meta.n_obs = bm->n_obs[i];
+    meta.src_mask = bm->src_mask[i];
+    meta.signature = bm->signature[i];
+    const coslam_status_t st = ekfslam_merge_add(ekf, bm->t, bm->rel[i], bm->rel_cov[i], &meta);
+    if (st == COSLAM_OK) {
+        (void)ekfslam_new_id(ekf);
+        stats->added++;
+        return COSLAM_OK;
+    }
+    if (st == COSLAM_E_CAPACITY) {
+        stats->capacity_drops++;
+        return COSLAM_E_CAPACITY;
+    }
+    stats->skipped++;
+    return COSLAM_OK;
+}
+
+coslam_status_t merge_ekfslam_begin(ekfslam_t *ekf, const merge_body_map_t *bm, const merge_config_t *cfg,
+                                    merge_scratch_t *sc, merge_stats_t *stats)
 {
     if (!config_ok(cfg)) {
         return COSLAM_E_ARG;
     }
+    if (ekf->merging) {
+        return COSLAM_E_MERGE_BUSY;
+    }
     merge_stats_t local;
     stats = begin_merge(sc, bm, cfg, stats, &local);
-    const slam_params_t *sp = &ekf->cfg.slam;
-    coslam_status_t result = COSLAM_OK;
     ekfslam_sync(ekf); /* compressed EKF: the whole state, once, before reading it all */
     const uint16_t n_own = ekf->n_lm;
     for (uint16_t j = 0; j < n_own; ++j) {
@@ -758,88 +841,84 @@ coslam_status_t merge_into_ekfslam(ekfslam_t *ekf, const merge_body_map_t *bm, c
         sc->own_sig[j] = ekf->meta[j].signature;
     }
     pair_and_select(sc, bm, cfg, n_own, stats);
-    const double dup_w = duplicate_weight(sc, bm, cfg);
+    sc->ekf_dup_w = duplicate_weight(sc, bm, cfg);
     if (ekfslam_merge_begin(ekf, &bm->t_cov) != COSLAM_OK) {
         return COSLAM_E_ARG;
     }
-    /* duplicates first (they only update), then additions (they grow the state) */
-    for (uint16_t i = 0; i < bm->n; ++i) {
-        const int32_t j = sc->match_of_in[i];
-        if (j < 0) {
-            continue;
-        }
-        ekfslam_meta_t *meta = &ekf->meta[j];
-        /* the information the incoming landmark brings (receiver's body frame) */
-        const double ct = cos(bm->t.theta);
-        const double stt = sin(bm->t.theta);
-        double rt[2][2] = {{ct, -stt}, {stt, ct}};
-        cov2_t info;
-        if (cov2_inverse(cov2_congruence(rt, bm->rel_cov[i]), &info) != COSLAM_OK) {
-            stats->skipped++;
-            continue;
-        }
-        if ((meta->src_mask & bm->src_mask[i]) != 0U) {
-            /* covariance intersection on the relative marginals, applied as
-             * the information it adds over the own estimate,
-             * (1 - w) (S_b^-1 - S_a^-1), clipped to its positive directions:
-             * re-merging information already held adds (almost) nothing */
-            point2_t rel;
-            cov2_t sa;
-            point2_t xm;
-            cov2_t xc;
-            cov2_t ia;
-            cov2_t ib;
-            double w;
-            ekfslam_landmark_relative(ekf, (uint16_t)j, &rel, &sa);
-            if (merge_fuse_ci(rel, sa, bm->mean[i], bm->cov[i], &xm, &xc, &w) != COSLAM_OK ||
-                cov2_inverse(sa, &ia) != COSLAM_OK || cov2_inverse(bm->cov[i], &ib) != COSLAM_OK) {
-                stats->skipped++;
-                continue;
-            }
-            stats->fused_ci++;
-            info = cov2_scale(cov2_add(ib, cov2_scale(ia, -1.0)), 1.0 - w);
-            double lo;
-            double hi;
-            cov2_eigenvalues(info, &lo, &hi);
-            if (!(hi > 1e-12 * (ia.xx + ia.yy))) {
-                meta->src_mask |= bm->src_mask[i];
-                stats->fused++;
-                continue; /* nothing new */
-            }
-            if (lo < 0.0) {
-                info = cov2_clamp_eigen(info, 0.0);
-            }
-        }
-        if (ekfslam_merge_observe(ekf, (uint16_t)j, bm->t, bm->rel[i], cov2_scale(info, dup_w)) != COSLAM_OK) {
-            stats->skipped++;
-            continue;
-        }
-        absorb_meta(&meta->src_mask, &meta->n_obs, &meta->exist, bm, i, sp);
-        stats->fused++;
+    sc->ekf_next = 0U;
+    sc->ekf_result = COSLAM_OK;
+    return COSLAM_OK;
+}
+
+coslam_status_t merge_ekfslam_run(ekfslam_t *ekf, const merge_body_map_t *bm, merge_scratch_t *sc,
+                                  merge_stats_t *stats, uint32_t budget, int *done)
+{
+    merge_stats_t local;
+    if (stats == 0) {
+        memset(&local, 0, sizeof local);
+        stats = &local;
     }
-    for (uint16_t i = 0; i < bm->n; ++i) {
-        if (sc->match_of_in[i] >= 0) {
+    if (!ekf->merging) {
+        *done = 1;
+        return COSLAM_E_ARG; /* nothing begun */
+    }
+    const double limit = (double)budget * MERGE_EKF_MADDS_PER_UNIT;
+    double spent = 0.0;
+    const uint32_t n = bm->n;
+    /* duplicates first (they only update), then additions (they grow the
+     * state); the pending columns are applied before an update that could
+     * fill them and before the first addition, whatever the budget, so the
+     * parts are the whole merge bit for bit */
+    while (sc->ekf_next < 2U * n) {
+        if (budget > 0U && spent >= limit) {
+            *done = 0;
+            return COSLAM_OK;
+        }
+        const uint32_t k = sc->ekf_next;
+        const int adding = k >= n;
+        const uint16_t i = (uint16_t)(adding ? k - n : k);
+        const int paired = sc->match_of_in[i] >= 0;
+        if (adding == paired) {
+            sc->ekf_next++; /* not this pass's */
             continue;
         }
-        ekfslam_meta_t meta;
-        meta.id = ekf->next_id;
-        meta.exist = sp->exist_max; /* the sender confirmed it and the check let it in */
-        meta.n_obs = bm->n_obs[i];
-        meta.src_mask = bm->src_mask[i];
-        meta.signature = bm->signature[i];
-        const coslam_status_t st = ekfslam_merge_add(ekf, bm->t, bm->rel[i], bm->rel_cov[i], &meta);
-        if (st == COSLAM_OK) {
-            (void)ekfslam_new_id(ekf);
-            stats->added++;
-        } else if (st == COSLAM_E_CAPACITY) {
-            result = COSLAM_E_CAPACITY;
-            stats->capacity_drops++;
-        } else {
-            stats->skipped++;
+        /* an update adds up to two columns and must not fill them (that
+         * would apply them inside it, whatever the budget) */
+        if (adding ? ekf->merge_bn > 0 : ekfslam_merge_room(ekf) <= 2) {
+            (void)ekfslam_merge_flush_run(ekf, budget > 0U ? limit - spent : 0.0, &spent);
+            continue;
         }
+        const double d = 6.0 + 2.0 * (double)ekf->n_lm; /* the state with tau */
+        if (adding) {
+            if (ekf_add_one(ekf, bm, i, stats) == COSLAM_E_CAPACITY) {
+                sc->ekf_result = COSLAM_E_CAPACITY;
+            }
+            spent += 8.0 * d; /* the new rows from the pose's and tau's */
+        } else {
+            ekf_fuse_one(ekf, bm, sc, i, sc->ekf_dup_w, stats);
+            spent += 2.0 * d * (8.0 + (double)ekf->merge_bn); /* two directions: P h, less the pending share */
+        }
+        sc->ekf_next++;
     }
     ekfslam_merge_end(ekf);
-    return result;
+    *done = 1;
+    return sc->ekf_result;
+}
+
+coslam_status_t merge_into_ekfslam(ekfslam_t *ekf, const merge_body_map_t *bm, const merge_config_t *cfg,
+                                   merge_scratch_t *sc, merge_stats_t *stats)
+{
+    merge_stats_t local;
+    if (stats == 0) {
+        memset(&local, 0, sizeof local);
+        stats = &local;
+    }
+    const coslam_status_t st = merge_ekfslam_begin(ekf, bm, cfg, sc, stats);
+    if (st != COSLAM_OK) {
+        return st;
+    }
+    int done = 0;
+    return merge_ekfslam_run(ekf, bm, sc, stats, 0U, &done);
 }
 
 /* ---- one set-up for every caller ---------------------------------------- */

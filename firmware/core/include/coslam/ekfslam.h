@@ -393,6 +393,9 @@ typedef struct {
      *  local phase then). */
     int32_t merge_bn;
     int32_t merge_len;
+    /** A flush of those columns in parts (ekfslam_merge_flush_run): the
+     *  active positions below it have them applied; 0: none begun. */
+    int32_t merge_flush_r0;
 } ekfslam_t;
 
 /** Defaults: slam_params_default(), robot 0, JCBB with a 20000-node budget, FEJ on. */
@@ -414,10 +417,13 @@ coslam_status_t ekfslam_init(ekfslam_t *ekf, const ekfslam_config_t *cfg, pose2_
  */
 void ekfslam_idle(ekfslam_t *ekf, uint32_t shares);
 
-/** Prediction with an odometry increment. Non-finite: E_NUMERIC, counted, no change. O(L). */
+/** Prediction with an odometry increment. Non-finite: E_NUMERIC, counted, no change. O(L).
+ *  Between ekfslam_merge_begin and _end (a merge in parts): E_MERGE_BUSY,
+ *  no change (the caller holds its inputs until the merge is done). */
 coslam_status_t ekfslam_predict(ekfslam_t *ekf, odo_increment_t u);
 
-/** Update with one camera frame's sightings; return codes as fastslam_update(). */
+/** Update with one camera frame's sightings; return codes as fastslam_update().
+ *  E_MERGE_BUSY, no change, while a merge runs (as ekfslam_predict). */
 coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z, int n);
 
 /** Robot pose and its covariance. O(1). */
@@ -504,6 +510,24 @@ coslam_status_t ekfslam_merge_observe(ekfslam_t *ekf, uint16_t j, pose2_t t_hat,
 coslam_status_t ekfslam_merge_add(ekfslam_t *ekf, pose2_t t_hat, point2_t rel_other, cov2_t noise_other,
                                   const ekfslam_meta_t *meta);
 void ekfslam_merge_end(ekfslam_t *ekf);
+
+/*
+ * A merge's updates in parts (map_merge.c merge_ekfslam_run). Each
+ * duplicate direction's update changes x at once and keeps P's change as a
+ * pending column; the columns are applied together, a symmetric rank-k
+ * update of all of P, O(k D^2) (ekfslam.c "A merge's updates together").
+ * ekfslam_merge_room: columns that may still pend before the pending ones
+ * must be applied (0 or less: apply first; INT32_MAX where every update is
+ * applied at once, profiles without the compressed EKF).
+ * ekfslam_merge_flush_run: apply them in tiles of rows until about
+ * `budget` multiply-adds are spent (0: all), adding what it spent to
+ * *spent (may be NULL); returns 1 when none pend. A flush begun is
+ * finished by the next update of the merge, ekfslam_merge_add, _end, or
+ * ekfslam_sync; readers in between (ekfslam_pose, ekfslam_p) account for
+ * the rows not yet done. Tile by tile it is the whole flush bit for bit.
+ */
+int ekfslam_merge_room(const ekfslam_t *ekf);
+int ekfslam_merge_flush_run(ekfslam_t *ekf, double budget, double *spent);
 
 /** Remove landmark j, deleting its rows and columns. O(L), after ekfslam_sync
  *  (compressed EKF with active_spread_madds > 0: after the spread global

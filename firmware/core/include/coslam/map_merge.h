@@ -246,6 +246,12 @@ typedef struct {
  *  coslam-bench-merge, about 146 against 8.5 ns (docs/scale.md). */
 #define MERGE_UNITS_PER_INCOMING 16U
 
+/** The EKF-SLAM merge's work in multiply-adds per work unit
+ *  (merge_ekfslam_run): a unit is about 8.5 ns (MERGE_UNITS_PER_INCOMING),
+ *  and the merge's symmetric rank-k update runs at about 3 G
+ *  multiply-adds per second on the bench's machine (docs/scale.md). */
+#define MERGE_EKF_MADDS_PER_UNIT 24.0
+
 /** Candidate pairs kept per map (beyond: counted as skipped). */
 #define MERGE_MAX_PAIRS (4 * COSLAM_MAX_MSG_LANDMARKS)
 
@@ -280,6 +286,11 @@ typedef struct {
     merge_pair_t pairs[MERGE_MAX_PAIRS];
     uint32_t new_id[COSLAM_MAX_MSG_LANDMARKS];  /**< identities of added landmarks (shared by particles) */
     double cell_m;                              /**< grid cell edge in use */
+    /* EKF-SLAM merge in parts (merge_ekfslam_run): the next incoming
+     * landmark, 0..n-1 the duplicates' pass, n..2n-1 the additions' */
+    uint32_t ekf_next;
+    double ekf_dup_w;
+    coslam_status_t ekf_result;
 } merge_scratch_t;
 
 typedef struct {
@@ -410,6 +421,30 @@ coslam_status_t merge_fastslam_run(fastslam_t *fs, const merge_body_map_t *bm, c
  */
 coslam_status_t merge_into_ekfslam(ekfslam_t *ekf, const merge_body_map_t *bm, const merge_config_t *cfg,
                                    merge_scratch_t *scratch, merge_stats_t *stats);
+
+/**
+ * The same in parts, so that no one call of a large merge (a message of
+ * 221 landmarks into 1,024: 130-190 ms at once) takes a control step's
+ * time. merge_ekfslam_begin completes the compressed EKF (ekfslam_sync),
+ * pairs the maps and appends the transform's error to the state
+ * (ekfslam_merge_begin); merge_ekfslam_run fuses the duplicates, then
+ * appends the new landmarks, until about `budget` work units are spent
+ * (MERGE_EKF_MADDS_PER_UNIT multiply-adds each; the item or tile of rows
+ * that crosses it is finished; 0: no budget), and sets *done when the
+ * merge has ended (ekfslam_merge_end; its status is returned then).
+ * The pending updates' columns are applied in tiles of rows
+ * (ekfslam_merge_flush_run) before an update that could fill them and
+ * before the first addition, whatever the budget: the parts are the whole
+ * merge (merge_into_ekfslam) bit for bit.
+ * Unlike Fast-SLAM's, the filter cannot run in between: its predictions
+ * and updates are refused (COSLAM_E_MERGE_BUSY) until *done; the robot's
+ * merge path (slam_filter) holds them and applies them after, in order.
+ * bm and sc must stay as they are until *done.
+ */
+coslam_status_t merge_ekfslam_begin(ekfslam_t *ekf, const merge_body_map_t *bm, const merge_config_t *cfg,
+                                    merge_scratch_t *sc, merge_stats_t *stats);
+coslam_status_t merge_ekfslam_run(ekfslam_t *ekf, const merge_body_map_t *bm, merge_scratch_t *sc,
+                                  merge_stats_t *stats, uint32_t budget, int *done);
 
 /* ---- one merge set-up for every caller (robot, replay, simulator) ----- */
 

@@ -43,7 +43,8 @@ typedef enum {
     COSLAM_E_MERGE_IMPLAUSIBLE = -45, /**< the message holds values no robot can produce: merge refused */
     COSLAM_E_MERGE_BUSY = -46,     /**< a merge in parts is still due (map_merge.h): finish it first */
     COSLAM_E_MERGE_PENDING = -47,  /**< the merge's check waits for the own export in parts: its
-                                        outcome comes later (app/slam_filter.h) */
+                                        outcome comes later; or an input an EKF-SLAM merge in parts
+                                        holds, applied when it is done (app/slam_filter.h) */
     /* laser range finder driver (urg_scip2.h) */
     COSLAM_E_URG_TIMEOUT = -60,   /**< no reply / reply stopped arriving within the timeout */
     COSLAM_E_URG_IO = -61,        /**< the serial HAL reported an error (closed, I/O) */
