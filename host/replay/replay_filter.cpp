@@ -119,6 +119,10 @@ std::map<std::string, long> RobotFilter::counters() const
         m["iekf_iterations"] = c.iekf_iterations;
         m["nis_inflations"] = c.nis_inflations;
         m["landmarks_in_state"] = ekf->n_lm;
+        m["merges_in_parts"] = f_->merges_in_parts;
+        m["merges_forced"] = f_->merges_forced;
+        m["inputs_held"] = f_->inputs_held;
+        m["held_failures"] = f_->held_failures;
     } else {
         const fastslam_counters_t &c = fastslam()->ctr;
         m["predictions"] = c.predictions;

@@ -587,6 +587,127 @@ static void test_fastslam_merge_in_parts(void **state)
     assert_true(same_map(&g_after, &g_whole));
 }
 
+/* The inputs a robot gives its filter meanwhile: predictions, and with
+ * `updates` every third an update with two sightings (one may start a
+ * landmark). With `idle`, an idle call after each, as the robot's loop
+ * makes. */
+static void give_inputs(slam_filter_t *f, int n, int updates, int idle)
+{
+    for (int k = 0; k < n; ++k) {
+        if (updates && k % 3 == 2) {
+            const sighting_t z[2] = {{2.0 + 0.1 * k, 0.3 - 0.05 * k, 0}, {3.0, -0.4 + 0.02 * k, 1}};
+            const coslam_status_t st = slam_filter_update(f, z, 2);
+            assert_true(st == COSLAM_OK || st == COSLAM_E_MERGE_PENDING);
+        } else {
+            const odo_increment_t u = {0.02, 0.005, 0.01};
+            const coslam_status_t st = slam_filter_predict(f, u, 0.1);
+            assert_true(st == (f->merge_due != NULL ? COSLAM_E_MERGE_PENDING : COSLAM_OK));
+        }
+        if (idle) {
+            (void)slam_filter_idle(f);
+        }
+    }
+}
+
+static int same_ekf(const ekfslam_t *a, const ekfslam_t *b)
+{
+    if (a->n_lm != b->n_lm || a->next_id != b->next_id) {
+        return 0;
+    }
+    const int d = 3 + 2 * a->n_lm;
+    if (memcmp(a->x, b->x, (size_t)d * sizeof(double)) != 0) {
+        return 0;
+    }
+    for (int j = 0; j < a->n_lm; ++j) {
+        const ekfslam_meta_t *ma = &a->meta[j];
+        const ekfslam_meta_t *mb = &b->meta[j];
+        if (ma->id != mb->id || ma->exist != mb->exist || ma->n_obs != mb->n_obs || ma->src_mask != mb->src_mask ||
+            ma->signature != mb->signature || ma->last_seen != mb->last_seen) {
+            return 0;
+        }
+    }
+    for (int r = 0; r < d; ++r) {
+        if (memcmp(&a->p[(long)r * EKFSLAM_DIM], &b->p[(long)r * EKFSLAM_DIM], (size_t)d * sizeof(double)) != 0) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
+/* EKF-SLAM's merge in parts through the robot's merge path: the check and
+ * the fusion's first part in the call, the rest in idle calls, the
+ * filter's inputs meanwhile held and applied after, in order. So the
+ * filter ends where the whole merge followed by the same inputs puts it,
+ * bit for bit; the held inputs' limits, or an export, finish it at once
+ * (merges_forced), with the same result. */
+static void test_ekfslam_merge_in_parts(void **state)
+{
+    (void)state;
+    /* 9 inputs with idle calls; more predictions than may be held; more
+     * frames than may be held (the fifth update is the 15th input) */
+    const int n_inputs[3] = {9, (int)SLAM_FILTER_HELD_INPUTS + 2, 3 * (int)SLAM_FILTER_HELD_FRAMES + 3};
+    const int updates[3] = {1, 0, 1};
+    for (int c = 0; c < 3; ++c) {
+        /* the whole merge, then the inputs */
+        setup_pair(SLAM_FILTER_EKF, SLAM_FILTER_EKF);
+        assert_int_equal(slam_filter_export(&g_b, &g_msg), COSLAM_OK);
+        assert_int_equal(merge_b_into(&g_a, 0U), COSLAM_OK);
+        assert_null(g_a.merge_due);
+        give_inputs(&g_a, n_inputs[c], updates[c], 0);
+        memcpy(&g_c, &g_a, sizeof g_a);
+
+        /* in parts: one duplicate or addition a call */
+        setup_pair(SLAM_FILTER_EKF, SLAM_FILTER_EKF);
+        assert_int_equal(merge_b_into(&g_a, 1U), COSLAM_OK); /* checked at once */
+        assert_non_null(g_a.merge_due);
+        assert_int_equal(g_a.merges_in_parts, 1U);
+        assert_int_equal(slam_filter_export_busy(&g_a), 1);
+        /* a send is not begun meanwhile (the meeting keeps its slot), nor
+         * an observer's export; neither finishes the merge */
+        assert_int_equal(slam_filter_export_send(&g_a, &g_before, 1000U), COSLAM_E_MERGE_BUSY);
+        assert_int_equal(slam_filter_export_observe(&g_a, &g_before, 1000U), COSLAM_E_MERGE_BUSY);
+        assert_non_null(g_a.merge_due);
+        give_inputs(&g_a, n_inputs[c], updates[c], c == 0);
+        int idles = 0;
+        while ((g_a.merge_due != NULL || g_a.held_next < g_a.n_held) && idles < 1000) {
+            (void)slam_filter_idle(&g_a); /* the merge's parts, then its held inputs */
+            idles++;
+        }
+        assert_null(g_a.merge_due);
+        assert_int_equal(g_a.n_held, 0);
+        assert_int_equal(slam_filter_idle(&g_a), 0);
+        assert_int_equal(g_a.held_failures, 0U);
+        assert_true(g_a.merge_late.fused + g_a.merge_late.added > 0U);
+        if (c == 0) {
+            /* idle time sufficed: everything held, nothing forced */
+            assert_int_equal(g_a.inputs_held, (uint32_t)n_inputs[c]);
+            assert_int_equal(g_a.merges_forced, 0U);
+            assert_true(idles > 0);
+        } else {
+            /* no idle time: the limit of inputs (c = 1) or of frames
+             * (c = 2) finished the merge, the held inputs first */
+            assert_int_equal(g_a.merges_forced, 1U);
+            assert_int_equal(g_a.inputs_held,
+                             c == 1 ? SLAM_FILTER_HELD_INPUTS : 3U * SLAM_FILTER_HELD_FRAMES + 2U);
+            assert_int_equal(idles, 0);
+        }
+        assert_true(same_ekf(&g_a.u.ekf, &g_c.u.ekf));
+    }
+    /* an export finishes it, held inputs applied */
+    setup_pair(SLAM_FILTER_EKF, SLAM_FILTER_EKF);
+    assert_int_equal(merge_b_into(&g_a, 0U), COSLAM_OK);
+    give_inputs(&g_a, 4, 1, 0);
+    assert_int_equal(slam_filter_export(&g_a, &g_whole), COSLAM_OK);
+    setup_pair(SLAM_FILTER_EKF, SLAM_FILTER_EKF);
+    assert_int_equal(merge_b_into(&g_a, 1U), COSLAM_OK);
+    give_inputs(&g_a, 4, 1, 0);
+    assert_non_null(g_a.merge_due);
+    assert_int_equal(slam_filter_export(&g_a, &g_after), COSLAM_OK);
+    assert_null(g_a.merge_due);
+    assert_int_equal(g_a.merges_forced, 1U);
+    assert_true(same_map(&g_after, &g_whole));
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -599,6 +720,7 @@ int main(void)
         cmocka_unit_test(test_merge_line_format),
         cmocka_unit_test(test_chain_adds_nothing_twice),
         cmocka_unit_test(test_fastslam_merge_in_parts),
+        cmocka_unit_test(test_ekfslam_merge_in_parts),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -234,7 +234,9 @@ static void flush_prediction(robot_node_t *n)
     const odo_increment_t u = n->odo_pending;
     if (u.dx != 0.0 || u.dy != 0.0 || u.dtheta != 0.0) {
         const coslam_status_t st = slam_filter_predict(&n->filter, u, 1e-6 * (double)(n->now_us - n->last_predict_us));
-        if (st != COSLAM_OK && st != COSLAM_E_CAPACITY) { /* a full pool is counted by the filter */
+        /* a full pool is counted by the filter; a prediction held while an
+         * EKF-SLAM merge runs in parts is applied after it (held_failures) */
+        if (st != COSLAM_OK && st != COSLAM_E_CAPACITY && st != COSLAM_E_MERGE_PENDING) {
             n->ctr.filter_errors++;
         }
     }
@@ -326,11 +328,15 @@ static void read_sightings(robot_node_t *n)
     const int nz = n->frame.n_landmarks <= COSLAM_MAX_SIGHTINGS ? (int)n->frame.n_landmarks : COSLAM_MAX_SIGHTINGS;
     health_before_update(&n->health, &n->filter);
     const coslam_status_t st = slam_filter_update(&n->filter, n->frame.landmarks, nz);
-    if (st != COSLAM_OK && st != COSLAM_E_CAPACITY) {
-        n->ctr.filter_errors++;
+    /* held while an EKF-SLAM merge runs in parts (slam_filter inputs_held):
+     * no update to judge yet */
+    if (st != COSLAM_E_MERGE_PENDING) {
+        if (st != COSLAM_OK && st != COSLAM_E_CAPACITY) {
+            n->ctr.filter_errors++;
+        }
+        health_after_update(&n->health, &n->filter, n->frame.landmarks, nz);
+        n->ctr.diverged = n->health.episodes;
     }
-    health_after_update(&n->health, &n->filter, n->frame.landmarks, nz);
-    n->ctr.diverged = n->health.episodes;
     const unsigned nr = n->frame.n_robots <= COSLAM_MAX_ROBOTS ? n->frame.n_robots : COSLAM_MAX_ROBOTS;
     for (unsigned i = 0; i < nr; ++i) {
         const robot_seen_t *r = &n->frame.robots[i];

@@ -54,6 +54,12 @@ coslam_status_t slam_filter_init(slam_filter_t *f, const slam_filter_config_t *c
     f->send_yields = 0U;
     f->observes_in_parts = 0U;
     f->observes_yielded = 0U;
+    f->n_held = 0U;
+    f->held_next = 0U;
+    f->n_held_z = 0U;
+    f->n_held_frames = 0U;
+    f->inputs_held = 0U;
+    f->held_failures = 0U;
     switch (cfg->kind) {
     case SLAM_FILTER_FASTSLAM1:
     case SLAM_FILTER_FASTSLAM2: {
@@ -202,6 +208,97 @@ coslam_status_t slam_filter_seed(slam_filter_t *f, const slam_filter_config_t *c
     return st;
 }
 
+static void merge_due_run(slam_merge_work_t *w, uint32_t budget);
+
+/* ---- EKF-SLAM: the inputs held while a merge runs in parts ---------------
+ *
+ * An EKF-SLAM merge in parts (merge_ekfslam_run) runs on the state as it
+ * was when the message arrived; the filter cannot predict or update in
+ * between (ekfslam_predict refuses). So its inputs are held, in order,
+ * and applied once the merge is done: the state is then the whole merge
+ * at the arrival followed by those inputs, bit for bit. */
+
+/* An EKF-SLAM merge runs in parts, or inputs it held are still to apply
+ * (a few an idle call after it, ekf_apply_held_part): new inputs wait
+ * behind them. */
+static int ekf_holding(const slam_filter_t *f)
+{
+    return f->kind == SLAM_FILTER_EKF && (f->merge_due != NULL || f->held_next < f->n_held);
+}
+
+static coslam_status_t ekf_update_now(slam_filter_t *f, const sighting_t *z, int n)
+{
+    const coslam_status_t st = ekfslam_update(&f->u.ekf, z, n);
+    pose2_t pose;
+    cov3_t cov;
+    slam_filter_pose(f, &pose, &cov);
+    merge_coverage_note(&f->coverage, pose);
+    return st;
+}
+
+/* Apply held inputs in order (the merge is done): all of them, or with
+ * `one_update` those up to and including the next update (an idle call's
+ * share: an update at a thousand landmarks is a few ms). */
+static void ekf_apply_held_part(slam_filter_t *f, int one_update)
+{
+    while (f->held_next < f->n_held) {
+        const slam_filter_held_t *h = &f->held[f->held_next++];
+        const coslam_status_t st = h->is_update ? ekf_update_now(f, &f->held_z[h->z0], (int)h->nz)
+                                                : ekfslam_predict(&f->u.ekf, h->u);
+        if (st != COSLAM_OK && st != COSLAM_E_CAPACITY) {
+            f->held_failures++;
+        }
+        if (one_update && h->is_update) {
+            break;
+        }
+    }
+    if (f->held_next == f->n_held) {
+        f->n_held = 0U;
+        f->held_next = 0U;
+        f->n_held_z = 0U;
+        f->n_held_frames = 0U;
+    }
+}
+
+/* Hold one input while the merge runs; 0 if it does not fit (the caller
+ * finishes the merge first). */
+static int ekf_hold(slam_filter_t *f, int is_update, odo_increment_t u, double dt_s, const sighting_t *z, int n)
+{
+    if (f->n_held >= SLAM_FILTER_HELD_INPUTS) {
+        return 0;
+    }
+    slam_filter_held_t *h = &f->held[f->n_held];
+    h->is_update = (uint8_t)is_update;
+    h->u = u;
+    h->dt_s = dt_s;
+    h->z0 = f->n_held_z;
+    h->nz = 0U;
+    if (is_update) {
+        if (f->n_held_frames >= SLAM_FILTER_HELD_FRAMES || n < 0 ||
+            (size_t)f->n_held_z + (size_t)n > sizeof f->held_z / sizeof f->held_z[0]) {
+            return 0;
+        }
+        for (int i = 0; i < n; ++i) {
+            f->held_z[f->n_held_z + i] = z[i];
+        }
+        h->nz = (uint16_t)n;
+        f->n_held_z = (uint16_t)(f->n_held_z + n);
+        f->n_held_frames++;
+    }
+    f->n_held++;
+    f->inputs_held++;
+    return 1;
+}
+
+/* The merge under way finished now, and every held input applied. */
+static void ekf_finish_now(slam_filter_t *f)
+{
+    if (f->merge_due != NULL) {
+        slam_merge_work_finish(f->merge_due);
+    }
+    ekf_apply_held_part(f, 0);
+}
+
 coslam_status_t slam_filter_predict(slam_filter_t *f, odo_increment_t u, double dt_s)
 {
     if (motion_is_finite(u) && !motion_is_plausible(slam_filter_params(f), u, dt_s)) {
@@ -214,10 +311,15 @@ coslam_status_t slam_filter_predict(slam_filter_t *f, odo_increment_t u, double 
         }
         return COSLAM_E_ARG;
     }
+    if (ekf_holding(f)) {
+        if (ekf_hold(f, 0, u, dt_s, NULL, 0)) {
+            return COSLAM_E_MERGE_PENDING; /* applied once the merge is done (held_failures) */
+        }
+        f->merges_forced++;
+        ekf_finish_now(f);
+    }
     return f->kind == SLAM_FILTER_EKF ? ekfslam_predict(&f->u.ekf, u) : fastslam_predict(&f->u.fs, u);
 }
-
-static void merge_due_run(slam_merge_work_t *w, uint32_t budget);
 
 /* The next part of the send export under way (budget 0: all of it). */
 static void send_run(slam_filter_t *f, uint32_t budget)
@@ -263,6 +365,16 @@ static void export_table_for_robot(slam_filter_t *f)
 
 coslam_status_t slam_filter_update(slam_filter_t *f, const sighting_t *z, int n)
 {
+    if (ekf_holding(f)) {
+        if (ekf_hold(f, 1, (odo_increment_t){0.0, 0.0, 0.0}, 0.0, z, n)) {
+            return COSLAM_E_MERGE_PENDING; /* applied once the merge is done (held_failures) */
+        }
+        f->merges_forced++;
+        ekf_finish_now(f);
+    }
+    if (f->kind == SLAM_FILTER_EKF) {
+        return ekf_update_now(f, z, n);
+    }
     if (f->merge_due != NULL && ++f->merge_due_updates > SLAM_FILTER_MERGE_MAX_UPDATES) {
         f->merges_forced++;
         merge_due_run(f->merge_due, 0U);
@@ -300,16 +412,27 @@ static void merge_work_release(slam_merge_work_t *w)
 static coslam_status_t merge_fuse(slam_filter_t *f, slam_merge_work_t *w, const merge_config_t *cfg,
                                   const pose2_t *at, uint32_t budget, merge_stats_t *stats)
 {
-    if (f->kind == SLAM_FILTER_EKF || cfg->step_units == 0U) {
+    if (cfg->step_units == 0U || (f->kind == SLAM_FILTER_EKF && budget == 0U)) {
         return slam_filter_merge(f, &w->body, cfg, &w->scratch, stats);
     }
-    coslam_status_t st = merge_fastslam_begin(&f->u.fs, &w->body, cfg, &w->scratch, at);
-    if (st != COSLAM_OK) {
-        return st;
+    int done = 0;
+    coslam_status_t st;
+    if (f->kind == SLAM_FILTER_EKF) {
+        st = merge_ekfslam_begin(&f->u.ekf, &w->body, cfg, &w->scratch, stats);
+        if (st != COSLAM_OK) {
+            return st;
+        }
+        st = merge_ekfslam_run(&f->u.ekf, &w->body, &w->scratch, stats, budget, &done);
+    } else {
+        st = merge_fastslam_begin(&f->u.fs, &w->body, cfg, &w->scratch, at);
+        if (st != COSLAM_OK) {
+            return st;
+        }
+        uint16_t left = 0U;
+        st = merge_fastslam_run(&f->u.fs, &w->body, cfg, &w->scratch, stats, budget, &left);
+        done = left == 0U;
     }
-    uint16_t left = 0U;
-    st = merge_fastslam_run(&f->u.fs, &w->body, cfg, &w->scratch, stats, budget, &left);
-    if (left > 0U) {
+    if (!done) {
         w->due = f;
         w->due_cfg = *cfg;
         w->checking = 0U;
@@ -358,6 +481,14 @@ static coslam_status_t merge_check_fuse(slam_filter_t *f, slam_merge_work_t *w, 
 static void merge_due_run(slam_merge_work_t *w, uint32_t budget)
 {
     slam_filter_t *f = w->due;
+    if (f->kind == SLAM_FILTER_EKF) {
+        int done = 0;
+        (void)merge_ekfslam_run(&f->u.ekf, &w->body, &w->scratch, &f->merge_late, budget, &done);
+        if (done) {
+            merge_work_release(w); /* its held inputs follow, from the next idle call */
+        }
+        return;
+    }
     fastslam_t *fs = &f->u.fs;
     if (w->checking) {
         int done = 0;
@@ -416,6 +547,14 @@ int slam_merge_work_outcome(slam_merge_work_t *w, coslam_status_t *st, merge_sta
 int slam_filter_idle(slam_filter_t *f)
 {
     if (f->kind == SLAM_FILTER_EKF) {
+        if (f->merge_due != NULL) {
+            merge_due_run(f->merge_due, f->merge_due->due_cfg.step_units);
+            return 1;
+        }
+        if (ekf_holding(f)) {
+            ekf_apply_held_part(f, 1);
+            return ekf_holding(f);
+        }
         ekfslam_idle(&f->u.ekf, SLAM_FILTER_IDLE_SHARES);
         return 0;
     }
@@ -436,8 +575,8 @@ static coslam_status_t export_in_parts(slam_filter_t *f, map_estimate_t *out, ui
     if (!yields && f->send_yields) {
         export_table_for_robot(f); /* a send goes before an observer */
     }
-    if (f->send_state != 0U || (f->merge_due != NULL && f->merge_due->checking)) {
-        return COSLAM_E_MERGE_BUSY; /* the export table is taken */
+    if (f->send_state != 0U || (f->merge_due != NULL && f->merge_due->checking) || ekf_holding(f)) {
+        return COSLAM_E_MERGE_BUSY; /* the export table is taken, or the EKF-SLAM state by a merge */
     }
     if (f->kind == SLAM_FILTER_EKF || step_units == 0U) {
         return slam_filter_export(f, out);
@@ -478,7 +617,8 @@ coslam_status_t slam_filter_export_observe(slam_filter_t *f, map_estimate_t *out
 
 int slam_filter_export_busy(const slam_filter_t *f)
 {
-    return f != NULL && ((f->merge_due != NULL && f->merge_due->checking) || f->send_state == 1U);
+    return f != NULL &&
+           ((f->merge_due != NULL && f->merge_due->checking) || f->send_state == 1U || ekf_holding(f));
 }
 
 int slam_filter_export_poll(slam_filter_t *f, const map_estimate_t *out, coslam_status_t *st)
@@ -502,6 +642,10 @@ int slam_filter_export_poll(slam_filter_t *f, const map_estimate_t *out, coslam_
  * export table, so it is finished first (its outcome stays in its w). */
 static void export_needs_table(slam_filter_t *f)
 {
+    if (ekf_holding(f)) {
+        f->merges_forced++; /* an export reads the whole state: the merge done first */
+        ekf_finish_now(f);
+    }
     if (f->merge_due != NULL && f->merge_due->checking) {
         f->merges_forced++;
         merge_due_run(f->merge_due, 0U);
@@ -566,6 +710,9 @@ coslam_status_t slam_filter_merge_map(slam_filter_t *f, const map_estimate_t *in
         slam_merge_work_finish(f->merge_due);
     }
     slam_merge_work_finish(w);
+    if (ekf_holding(f)) {
+        ekf_finish_now(f); /* the inputs the last merge held go first */
+    }
     export_table_for_robot(f); /* its export table, and the particles, are the merge's now */
     if (w->outcome_ready) {
         return COSLAM_E_MERGE_BUSY; /* an outcome nobody has taken */
@@ -593,7 +740,11 @@ coslam_status_t slam_filter_merge_map(slam_filter_t *f, const map_estimate_t *in
         if (st != COSLAM_OK && st != COSLAM_E_CAPACITY) {
             return st;
         }
-        st = merge_check_fuse(f, w, cfg, grid, NULL, 0U, stats);
+        /* EKF-SLAM: the fusion in parts of step_units (0: at once) */
+        st = merge_check_fuse(f, w, cfg, grid, NULL, f->kind == SLAM_FILTER_EKF ? cfg->step_units : 0U, stats);
+        if (f->merge_due != NULL) {
+            f->merges_in_parts++;
+        }
     } else {
         /* Fast-SLAM: the own export in parts of step_units, then the check
          * and the fusion, in this call as far as the budget goes */

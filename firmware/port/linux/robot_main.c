@@ -474,8 +474,9 @@ static void log_limits(void)
     if (node.filter.merges_forced > seen_forced) {
         seen_forced = node.filter.merges_forced;
         fprintf(stderr,
-                "coslam-robot: robot %u: %lu merges in parts finished at once by an update or an export: the idle "
-                "time did not suffice (merges_forced; lower [merge] step_units, now %lu)\n",
+                "coslam-robot: robot %u: %lu merges in parts finished at once by an update, an export or (EKF-SLAM) "
+                "more inputs than it may hold: the idle time did not suffice (merges_forced; lower [merge] "
+                "step_units, now %lu)\n",
                 (unsigned)cfg.robot_id, (unsigned long)seen_forced, (unsigned long)node.meeting.cfg.merge.step_units);
     }
     if (node.filter.sends_forced > seen_sends_forced) {

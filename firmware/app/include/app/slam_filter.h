@@ -63,14 +63,33 @@ struct slam_merge_work_s;
  *  Hz: an overloaded robot), the next update finishes it first. */
 #define SLAM_FILTER_MERGE_MAX_UPDATES 10U
 
+/** An EKF-SLAM merge in parts runs on the state as it was when it began,
+ *  so the filter's inputs in the meantime are held (slam_filter_predict,
+ *  slam_filter_update) and applied in order once it is done: at most this
+ *  many inputs (predictions and updates) ... */
+#define SLAM_FILTER_HELD_INPUTS 64U
+/** ... and this many camera frames' sightings. Beyond either, the merge is
+ *  finished at once first (merges_forced). */
+#define SLAM_FILTER_HELD_FRAMES 8U
+
+/** One input held while an EKF-SLAM merge runs in parts. */
+typedef struct {
+    uint8_t is_update;       /**< 0: a prediction (u, dt_s); 1: an update (sightings z0..z0+nz-1) */
+    odo_increment_t u;
+    double dt_s;
+    uint16_t z0;
+    uint16_t nz;
+} slam_filter_held_t;
+
 typedef struct slam_filter_s {
     slam_filter_kind_t kind;
     uint8_t robot_id;            /**< own provenance bit */
     /** Keyframes from which this robot looked (noted after every update);
      *  the merge's negative information (merge_check). */
     merge_coverage_t coverage;
-    /** A Fast-SLAM merge in parts not yet done (merge_config_t.step_units),
-     *  its check waiting for the own export or its fusion: the working
+    /** A merge in parts not yet done (merge_config_t.step_units): for
+     *  Fast-SLAM, its check waiting for the own export or its fusion; for
+     *  EKF-SLAM, its fusion (the inputs meanwhile held). The working
      *  memory that holds it, NULL if none. */
     struct slam_merge_work_s *merge_due;
     /** What the parts of merges done after the call that began them
@@ -98,6 +117,16 @@ typedef struct slam_filter_s {
                                       did not fit the call that began them */
     uint32_t observes_yielded;   /**< of which aborted or dropped for a send or a merge (the
                                       observer begins again) */
+    /** EKF-SLAM: the inputs held while a merge runs in parts, in order. */
+    slam_filter_held_t held[SLAM_FILTER_HELD_INPUTS];
+    sighting_t held_z[SLAM_FILTER_HELD_FRAMES * COSLAM_MAX_SIGHTINGS];
+    uint16_t n_held;
+    uint16_t held_next;          /**< the first not applied yet (they go a few an idle call) */
+    uint16_t n_held_z;
+    uint16_t n_held_frames;
+    uint32_t inputs_held;        /**< inputs held so far (EKF-SLAM merges in parts) */
+    uint32_t held_failures;      /**< held inputs the filter refused once applied (predictions
+                                      out of bounds, numeric faults; capacity not counted) */
     union {
         fastslam_t fs;
         ekfslam_t ekf;
@@ -251,6 +280,17 @@ void slam_merge_work_init(slam_merge_work_t *w);
  *    (slam_merge_work_outcome), as this call would have returned it.
  * Until the export is done, Fast-SLAM holds resampling back, and
  * slam_filter_export / slam_filter_export_whole finish the check first.
+ * EKF-SLAM with cfg->step_units > 0: the own export and the check in this
+ * call, then the fusion (merge_ekfslam_run) within step_units and the
+ * rest by slam_filter_idle, as for Fast-SLAM's fusion. Meanwhile the
+ * filter's predictions and updates are held (at most
+ * SLAM_FILTER_HELD_INPUTS inputs and SLAM_FILTER_HELD_FRAMES frames;
+ * beyond, the merge is finished first, merges_forced) and applied in
+ * order after it, up to one update an idle call (new inputs wait behind
+ * them): the outcome is the whole merge at the message's arrival followed
+ * by those inputs, bit for bit. slam_filter_pose reads
+ * the state of the merge under way; exports finish it first, and
+ * slam_filter_export_busy says so to observers that may wait.
  * Any merge still due in f or in w is finished first (its outcome, if its
  * check waited, stays in w to be taken), so merges never overlap and w may
  * serve several filters; an outcome not yet taken is refused with
