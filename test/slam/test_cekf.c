@@ -742,6 +742,53 @@ static void test_merge_batched(void **state)
     assert_true(reads > 10);
 }
 
+/* ekfslam_sync_run (a merge in parts begins with it): a local phase ended
+ * the deferred way and its rows completed in parts of a small budget is
+ * the state ekfslam_sync gives at once, up to rounding, and leaves no
+ * phase and no pending row. */
+static void test_sync_in_parts(void **state)
+{
+    (void)state;
+    const synth_config_t sc = world(203U);
+    ekfslam_config_t cfg = spread_config(&sc);
+    cfg.active_radius_m = 1.0; /* as run_pair's cases */
+    cfg.active_min_landmarks = 16U;
+    assert_int_equal(ekfslam_init(&g_cekf, &cfg, synth_start_pose(&sc)), COSLAM_OK);
+    synth_init(&g_world, &sc);
+    synth_step_t st;
+    int steps = 0;
+    while (synth_next(&g_world, &st) && steps < 3000) {
+        ++steps;
+        assert_int_equal(ekfslam_predict(&g_cekf, st.u), COSLAM_OK);
+        if (st.is_frame) {
+            (void)ekfslam_update(&g_cekf, st.z, st.n_z);
+        }
+        if (steps > 600 && g_cekf.cekf.local && gens_busy(&g_cekf) > 0) {
+            break; /* in a local phase, an earlier one's rows still pending */
+        }
+    }
+    assert_true(g_cekf.cekf.local);
+    assert_true(gens_busy(&g_cekf) > 0);
+    memcpy(&g_full, &g_cekf, sizeof g_cekf);
+    ekfslam_sync(&g_full);
+    int calls = 1;
+    double spent = 0.0;
+    while (!ekfslam_sync_run(&g_cekf, 20000.0, &spent)) {
+        calls++;
+        assert_true(calls < 100000);
+    }
+    assert_false(g_cekf.cekf.local);
+    assert_int_equal(gens_busy(&g_cekf), 0);
+    tally_t t;
+    memset(&t, 0, sizeof t);
+    compare_all(&g_full, &g_cekf, &t);
+    print_message("sync in parts: %u landmarks, %d calls, %.3g multiply-adds, worst rel diff %.2g\n",
+                  (unsigned)g_cekf.n_lm, calls, spent, t.worst);
+    assert_true(calls > 3);
+    /* synced: a second run is done at once and changes nothing */
+    assert_int_equal(ekfslam_sync_run(&g_cekf, 20000.0, NULL), 1);
+}
+
 static void test_config(void **state)
 {
     (void)state;
@@ -768,6 +815,7 @@ int main(void)
         cmocka_unit_test(test_exact_loop_world),
         cmocka_unit_test(test_local_phase_is_small),
         cmocka_unit_test(test_merge_batched),
+        cmocka_unit_test(test_sync_in_parts),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -893,6 +893,36 @@ static void cekf_end_phase(ekfslam_t *ekf)
     }
 }
 
+int ekfslam_sync_run(ekfslam_t *ekf, double budget, double *spent)
+{
+    ekfslam_cekf_t *ck = &ekf->cekf;
+    double s = 0.0;
+    if (COSLAM_EKF_MAX_ACTIVE > 0 && ekf->cfg.active_spread_madds > 0U) {
+        if (in_local(ekf)) {
+            /* the phase ends as the filter ends it itself: P_BB's share
+             * deferred to a generation of pending rows, O(N_B N_A0) now */
+            sync_spread(ekf);
+            s += 2.0 * (double)ekf->n_lm * (double)ck->na0;
+        }
+        if (pend_oldest(ck) >= 0) {
+            s += spread_rows(ekf, budget > 0.0 ? (budget > s ? budget - s : 1.0) : HUGE_VAL);
+        }
+        if (pend_oldest(ck) >= 0) {
+            ck->spread_owed = 0.0; /* what the steps owe is paid here */
+            if (spent != 0) {
+                *spent += s;
+            }
+            return 0;
+        }
+        ck->spread_owed = 0.0;
+    }
+    ekfslam_sync(ekf); /* nothing left but a merge's columns, if any */
+    if (spent != 0) {
+        *spent += s;
+    }
+    return 1;
+}
+
 /* Reach of the association's near test (ekfslam_update) for landmark state
  * a with landmark variance trace var_m (plus the pose's, var_r). */
 static double near_reach(double max_range_m, double var_m, double var_r)

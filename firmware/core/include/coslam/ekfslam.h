@@ -453,6 +453,20 @@ double ekfslam_p(const ekfslam_t *ekf, int r, int c);
 void ekfslam_sync(ekfslam_t *ekf);
 
 /**
+ * ekfslam_sync in parts, for a caller that may not take its time in one
+ * step (a merge in parts, map_merge.h): a local phase is ended the way
+ * the filter ends one with active_spread_madds > 0 (the global update's
+ * P_BB share deferred as pending rows), and the pending rows of every
+ * generation are completed until about `budget` multiply-adds are spent
+ * (0: all; *spent, may be NULL, adds them). Returns 1 once x and p hold
+ * the whole state (as after ekfslam_sync), 0 while rows pend; the caller
+ * must not predict or update in between, or a new phase may begin. The
+ * same state as ekfslam_sync up to rounding (the deferred form sums in
+ * another order). Without active_spread_madds, ekfslam_sync at once.
+ */
+int ekfslam_sync_run(ekfslam_t *ekf, double budget, double *spent);
+
+/**
  * Export the map estimate: the pose with P_rr and every confirmed landmark
  * with its marginal covariance, ordered by identity. E_CAPACITY (counted
  * in export_capacity_drops) if more confirmed landmarks than
