@@ -11,8 +11,10 @@
 
 #include <string.h>
 
+#include "app/slam_filter.h"
 #include "coslam/map_merge.h"
 #include "coslam/rng.h"
+#include "synth.h"
 
 #define N_OWN 160
 #define N_DUP 50
@@ -153,10 +155,212 @@ static void test_parts_are_the_whole_merge(void **state)
     assert_int_equal(ekfslam_predict(&g_parts, u), COSLAM_OK);
 }
 
+/* ---- through the robot's merge path, in a local phase ------------------- */
+
+static slam_filter_t g_fa;
+static slam_filter_t g_fb;
+static slam_merge_work_t g_work;
+static map_estimate_t g_msg;
+static synth_world_t g_world;
+
+/* An EKF-SLAM robot filter that has mapped 600+ steps of a ring world with
+ * the compressed EKF (1 m regions, as test_cekf's cases) and stands in a
+ * local phase. */
+static void local_phase_filter(slam_filter_t *f)
+{
+    synth_config_t sc = synth_config_default(203U, 240);
+    sc.n_signatures = 0;
+    sc.loop_radius_m = 8.0;
+    sc.ring_half_width_m = 2.5;
+    slam_filter_config_t fc = slam_filter_config_default();
+    fc.kind = SLAM_FILTER_EKF;
+    fc.slam = sc.truth;
+    fc.active_spread_madds = 60000U;
+    assert_int_equal(slam_filter_init(f, &fc, synth_start_pose(&sc)), COSLAM_OK);
+    f->u.ekf.cfg.active_radius_m = 1.0;
+    f->u.ekf.cfg.active_min_landmarks = 16U;
+    synth_init(&g_world, &sc);
+    synth_step_t st;
+    int steps = 0;
+    while (synth_next(&g_world, &st) && steps < 3000) {
+        ++steps;
+        assert_int_equal(slam_filter_predict(f, st.u, sc.dt_s), COSLAM_OK);
+        if (st.is_frame) {
+            (void)slam_filter_update(f, st.z, st.n_z);
+        }
+        if (steps > 600 && f->u.ekf.cekf.local) {
+            break;
+        }
+    }
+    assert_true(f->u.ekf.cekf.local);
+}
+
+/* Both filters synced, compared entry by entry to 1e-9 (relative). */
+static void assert_close_filters(slam_filter_t *fa, slam_filter_t *fb)
+{
+    ekfslam_sync(&fa->u.ekf);
+    ekfslam_sync(&fb->u.ekf);
+    const ekfslam_t *a = &fa->u.ekf;
+    const ekfslam_t *b = &fb->u.ekf;
+    assert_int_equal(a->n_lm, b->n_lm);
+    const int d = 3 + 2 * a->n_lm;
+    const double ps = ekfslam_p(a, 0, 0) + ekfslam_p(a, 3, 3);
+    for (int r = 0; r < d; ++r) {
+        ASSERT_NEAR(b->x[r], a->x[r], 1e-9 * fmax(1.0, fabs(a->x[r])));
+        for (int c = 0; c < d; ++c) {
+            ASSERT_NEAR(b->p[(long)r * EKFSLAM_DIM + c], a->p[(long)r * EKFSLAM_DIM + c], 1e-9 * ps);
+        }
+    }
+}
+
+/* The robot's inputs after the message: predictions, every third an update. */
+static void robot_inputs(slam_filter_t *f, int n, int idle)
+{
+    for (int k = 0; k < n; ++k) {
+        if (k % 3 == 2) {
+            const sighting_t z[2] = {{2.0 + 0.1 * k, 0.3 - 0.05 * k, 0}, {3.0, -0.4 + 0.02 * k, 1}};
+            (void)slam_filter_update(f, z, 2);
+        } else {
+            const odo_increment_t u = {0.02, 0.005, 0.01};
+            (void)slam_filter_predict(f, u, 0.1);
+        }
+        if (idle) {
+            (void)slam_filter_idle(f);
+        }
+    }
+}
+
+/* A robot whose compressed EKF is in a local phase, rows of an earlier one
+ * pending, merges a partner's map (its own, seen from a partner 1.5 m
+ * ahead facing it, the provenance the partner's) through
+ * slam_filter_merge_map in parts: the phase is ended and completed in
+ * parts first (the check waits: COSLAM_E_MERGE_PENDING, the outcome taken
+ * later), then the fusion in parts; its inputs meanwhile are held and
+ * applied after. The state is the one of the merge at once followed by
+ * the same inputs, up to rounding (the phase ends the deferred way, as the
+ * filter ends its phases; at once it is ended whole). */
+static void test_merge_path_in_a_local_phase(void **state)
+{
+    (void)state;
+    local_phase_filter(&g_fa);
+    memcpy(&g_fb, &g_fa, sizeof g_fa);
+    /* the message: A's own map (exported from a copy: an export syncs) */
+    memcpy(&g_whole, &g_fa.u.ekf, sizeof g_whole);
+    assert_int_equal(ekfslam_export(&g_whole, &g_msg), COSLAM_OK);
+    pose2_t pa;
+    cov3_t ca;
+    slam_filter_pose(&g_fa, &pa, &ca);
+    const pose2_t rel = {1.5, 0.0, COSLAM_PI};
+    const pose2_t po = pose2_compose(pa, rel);
+    g_msg.pose = po;
+    for (uint16_t i = 0; i < g_msg.n_landmarks; ++i) {
+        g_msg.lm[i].src_mask = 0x2U;
+        g_msg.lm[i].mean.x += 0.02; /* a little off: the fusion moves the map */
+    }
+    merge_geometry_t g;
+    memset(&g, 0, sizeof g);
+    const point2_t o_in_s = pose2_apply_inverse(pa, (point2_t){po.x, po.y});
+    const point2_t s_in_o = pose2_apply_inverse(po, (point2_t){pa.x, pa.y});
+    const double deg = COSLAM_PI / 180.0;
+    g.self_sees_other = (robot_sighting_t){hypot(o_in_s.x, o_in_s.y), atan2(o_in_s.y, o_in_s.x), 0.05 * 0.05,
+                                           (2.0 * deg) * (2.0 * deg)};
+    g.other_sees_self = (robot_sighting_t){hypot(s_in_o.x, s_in_o.y), atan2(s_in_o.y, s_in_o.x), 0.05 * 0.05,
+                                           (2.0 * deg) * (2.0 * deg)};
+    merge_config_t mc = merge_config_default();
+    merge_stats_t sa;
+    memset(&sa, 0, sizeof sa);
+    mc.step_units = 0U;
+    slam_merge_work_init(&g_work);
+    assert_int_equal(slam_filter_merge_map(&g_fa, &g_msg, &g, &mc, NULL, &g_work, &sa, NULL, NULL), COSLAM_OK);
+    assert_true(sa.fused > 10U);
+    robot_inputs(&g_fa, 12, 0);
+
+    merge_stats_t sb;
+    memset(&sb, 0, sizeof sb);
+    mc.step_units = 1000U;
+    slam_merge_work_init(&g_work);
+    assert_int_equal(slam_filter_merge_map(&g_fb, &g_msg, &g, &mc, NULL, &g_work, &sb, NULL, NULL),
+                     COSLAM_E_MERGE_PENDING);
+    assert_int_equal(g_fb.checks_waited, 1U);
+    robot_inputs(&g_fb, 12, 1);
+    int idles = 0;
+    while ((g_fb.merge_due != NULL || g_fb.held_next < g_fb.n_held) && idles < 100000) {
+        (void)slam_filter_idle(&g_fb);
+        idles++;
+    }
+    coslam_status_t outcome = COSLAM_E_ARG;
+    merge_stats_t so;
+    assert_int_equal(slam_merge_work_outcome(&g_work, &outcome, &so, NULL, NULL), 1);
+    assert_int_equal(outcome, COSLAM_OK);
+    assert_int_equal(so.fused + g_fb.merge_late.fused, sa.fused);
+    assert_int_equal(so.added + g_fb.merge_late.added, sa.added);
+    assert_int_equal(g_fb.inputs_held, 12U);
+    assert_int_equal(g_fb.merges_forced, 0U);
+    assert_int_equal(g_fb.held_failures, 0U);
+    print_message("merge path in a local phase: %u landmarks, %u fused, %d idle calls after the inputs\n",
+                  (unsigned)g_fa.u.ekf.n_lm, sa.fused, idles);
+    assert_close_filters(&g_fa, &g_fb);
+}
+
+static map_estimate_t g_out_a;
+static map_estimate_t g_out_b;
+
+/* An observer's export (the status count, a snapshot) and a send's, in a
+ * local phase: the phase completed in parts of the budget, the filter's
+ * inputs held meanwhile and applied after; the map exported is the one of
+ * the call that began it, as an export at once gives it (up to rounding),
+ * and the filter ends where the export at once and the same inputs put it.
+ * A send goes before an observer's export under way (that one is dropped
+ * and begins again). */
+static void test_exports_in_a_local_phase(void **state)
+{
+    (void)state;
+    for (int yields = 1; yields >= 0; --yields) {
+        local_phase_filter(&g_fa);
+        memcpy(&g_fb, &g_fa, sizeof g_fa);
+        assert_int_equal(slam_filter_export(&g_fa, &g_out_a), COSLAM_OK); /* at once */
+        robot_inputs(&g_fa, 12, 0);
+        const coslam_status_t st = yields ? slam_filter_export_observe(&g_fb, &g_out_b, 1000U)
+                                          : slam_filter_export_send(&g_fb, &g_out_b, 1000U);
+        assert_int_equal(st, COSLAM_E_MERGE_PENDING);
+        assert_int_equal(slam_filter_export_busy(&g_fb), 1);
+        robot_inputs(&g_fb, 12, 1);
+        coslam_status_t est = COSLAM_E_ARG;
+        int polls = 0;
+        while (slam_filter_export_poll(&g_fb, &g_out_b, &est) == 0 && polls < 100000) {
+            (void)slam_filter_idle(&g_fb);
+            polls++;
+        }
+        assert_int_equal(est, COSLAM_OK);
+        assert_true(polls > 3);
+        while (g_fb.held_next < g_fb.n_held) {
+            (void)slam_filter_idle(&g_fb);
+        }
+        assert_int_equal(g_fb.inputs_held, 12U);
+        assert_int_equal(g_fb.held_failures, 0U);
+        assert_int_equal(g_out_b.n_landmarks, g_out_a.n_landmarks);
+        for (uint16_t i = 0; i < g_out_a.n_landmarks; ++i) {
+            assert_int_equal(g_out_b.lm[i].id, g_out_a.lm[i].id);
+            ASSERT_NEAR(g_out_b.lm[i].mean.x, g_out_a.lm[i].mean.x, 1e-9);
+            ASSERT_NEAR(g_out_b.lm[i].cov.xx, g_out_a.lm[i].cov.xx, 1e-12);
+        }
+        assert_close_filters(&g_fa, &g_fb);
+    }
+    /* a send goes before an observer's export under way */
+    local_phase_filter(&g_fb);
+    assert_int_equal(slam_filter_export_observe(&g_fb, &g_out_b, 1000U), COSLAM_E_MERGE_PENDING);
+    robot_inputs(&g_fb, 3, 0);
+    const coslam_status_t st = slam_filter_export_send(&g_fb, &g_out_a, 1000U);
+    assert_true(st == COSLAM_E_MERGE_PENDING || st == COSLAM_E_MERGE_BUSY);
+    assert_int_equal(g_fb.observes_yielded, 1U);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_parts_are_the_whole_merge),
+        cmocka_unit_test(test_merge_path_in_a_local_phase),
+        cmocka_unit_test(test_exports_in_a_local_phase),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

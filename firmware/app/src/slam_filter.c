@@ -218,12 +218,13 @@ static void merge_due_run(slam_merge_work_t *w, uint32_t budget);
  * and applied once the merge is done: the state is then the whole merge
  * at the arrival followed by those inputs, bit for bit. */
 
-/* An EKF-SLAM merge runs in parts, or inputs it held are still to apply
- * (a few an idle call after it, ekf_apply_held_part): new inputs wait
- * behind them. */
+/* An EKF-SLAM merge runs in parts, or an export in parts completes the
+ * compressed EKF's phase (send_state 1), or inputs they held are still to
+ * apply (a few an idle call after them, ekf_apply_held_part): new inputs
+ * wait behind them. */
 static int ekf_holding(const slam_filter_t *f)
 {
-    return f->kind == SLAM_FILTER_EKF && (f->merge_due != NULL || f->held_next < f->n_held);
+    return f->kind == SLAM_FILTER_EKF && (f->merge_due != NULL || f->send_state == 1U || f->held_next < f->n_held);
 }
 
 static coslam_status_t ekf_update_now(slam_filter_t *f, const sighting_t *z, int n)
@@ -290,12 +291,16 @@ static int ekf_hold(slam_filter_t *f, int is_update, odo_increment_t u, double d
     return 1;
 }
 
-/* The merge under way finished now, and every held input applied. */
+static void send_finish_now(slam_filter_t *f);
+
+/* The merge or export under way finished now, and every held input applied. */
 static void ekf_finish_now(slam_filter_t *f)
 {
     if (f->merge_due != NULL) {
+        f->merges_forced++;
         slam_merge_work_finish(f->merge_due);
     }
+    send_finish_now(f);
     ekf_apply_held_part(f, 0);
 }
 
@@ -315,7 +320,6 @@ coslam_status_t slam_filter_predict(slam_filter_t *f, odo_increment_t u, double 
         if (ekf_hold(f, 0, u, dt_s, NULL, 0)) {
             return COSLAM_E_MERGE_PENDING; /* applied once the merge is done (held_failures) */
         }
-        f->merges_forced++;
         ekf_finish_now(f);
     }
     return f->kind == SLAM_FILTER_EKF ? ekfslam_predict(&f->u.ekf, u) : fastslam_predict(&f->u.fs, u);
@@ -324,6 +328,15 @@ coslam_status_t slam_filter_predict(slam_filter_t *f, odo_increment_t u, double 
 /* The next part of the send export under way (budget 0: all of it). */
 static void send_run(slam_filter_t *f, uint32_t budget)
 {
+    if (f->kind == SLAM_FILTER_EKF) {
+        /* the local phase completed in parts, then the export at once (the
+         * core's: the inputs since are held) */
+        if (ekfslam_sync_run(&f->u.ekf, (double)budget * MERGE_EKF_MADDS_PER_UNIT, NULL)) {
+            f->send_status = ekfslam_export(&f->u.ekf, f->send_out);
+            f->send_state = 2U;
+        }
+        return;
+    }
     int done = 0;
     uint32_t spent = 0U;
     const coslam_status_t st = fastslam_export_run_msg(&f->u.fs, f->send_out, budget, &done, &spent);
@@ -351,8 +364,8 @@ static void send_finish_now(slam_filter_t *f)
 static void export_table_for_robot(slam_filter_t *f)
 {
     if (f->send_state != 0U && f->send_yields) {
-        if (f->send_state == 1U) {
-            fastslam_export_abort(&f->u.fs);
+        if (f->send_state == 1U && f->kind != SLAM_FILTER_EKF) {
+            fastslam_export_abort(&f->u.fs); /* EKF-SLAM: the phase completed so far stays done */
         }
         f->send_state = 0U;
         f->send_out = NULL;
@@ -369,7 +382,6 @@ coslam_status_t slam_filter_update(slam_filter_t *f, const sighting_t *z, int n)
         if (ekf_hold(f, 1, (odo_increment_t){0.0, 0.0, 0.0}, 0.0, z, n)) {
             return COSLAM_E_MERGE_PENDING; /* applied once the merge is done (held_failures) */
         }
-        f->merges_forced++;
         ekf_finish_now(f);
     }
     if (f->kind == SLAM_FILTER_EKF) {
@@ -482,6 +494,26 @@ static void merge_due_run(slam_merge_work_t *w, uint32_t budget)
 {
     slam_filter_t *f = w->due;
     if (f->kind == SLAM_FILTER_EKF) {
+        if (w->checking) {
+            /* the compressed EKF completed first; then the check and the
+             * fusion's first part, on the state of the message's arrival
+             * (the inputs since are held: the export is the core's, not
+             * slam_filter_export_whole's, which would apply them first) */
+            double spent = 0.0;
+            if (!ekfslam_sync_run(&f->u.ekf, (double)budget * MERGE_EKF_MADDS_PER_UNIT, &spent)) {
+                return;
+            }
+            merge_work_release(w);
+            coslam_status_t st = ekfslam_export_whole(&f->u.ekf, &w->own);
+            if (st == COSLAM_OK || st == COSLAM_E_CAPACITY) {
+                st = merge_check_fuse(f, w, &w->due_cfg, w->due_grid, NULL,
+                                      budget_left(budget, (uint32_t)(spent / MERGE_EKF_MADDS_PER_UNIT)),
+                                      &w->outcome_stats);
+            }
+            w->outcome = st;
+            w->outcome_ready = 1U;
+            return;
+        }
         int done = 0;
         (void)merge_ekfslam_run(&f->u.ekf, &w->body, &w->scratch, &f->merge_late, budget, &done);
         if (done) {
@@ -551,6 +583,10 @@ int slam_filter_idle(slam_filter_t *f)
             merge_due_run(f->merge_due, f->merge_due->due_cfg.step_units);
             return 1;
         }
+        if (f->send_state == 1U) {
+            send_run(f, f->send_units);
+            return 1;
+        }
         if (ekf_holding(f)) {
             ekf_apply_held_part(f, 1);
             return ekf_holding(f);
@@ -578,19 +614,27 @@ static coslam_status_t export_in_parts(slam_filter_t *f, map_estimate_t *out, ui
     if (f->send_state != 0U || (f->merge_due != NULL && f->merge_due->checking) || ekf_holding(f)) {
         return COSLAM_E_MERGE_BUSY; /* the export table is taken, or the EKF-SLAM state by a merge */
     }
-    if (f->kind == SLAM_FILTER_EKF || step_units == 0U) {
+    if (step_units == 0U) {
         return slam_filter_export(f, out);
     }
-    fastslam_t *fs = &f->u.fs;
-    coslam_status_t st = fastslam_export_begin(fs);
-    if (st != COSLAM_OK) {
-        return st;
-    }
-    int done = 0;
-    uint32_t spent = 0U;
-    st = fastslam_export_run_msg(fs, out, step_units, &done, &spent);
-    if (done) {
-        return st;
+    if (f->kind == SLAM_FILTER_EKF) {
+        /* a local phase of the compressed EKF is completed in parts first
+         * (the filter's inputs held meanwhile), the export then at once */
+        if (ekfslam_sync_run(&f->u.ekf, (double)step_units * MERGE_EKF_MADDS_PER_UNIT, NULL)) {
+            return slam_filter_export(f, out);
+        }
+    } else {
+        fastslam_t *fs = &f->u.fs;
+        coslam_status_t st = fastslam_export_begin(fs);
+        if (st != COSLAM_OK) {
+            return st;
+        }
+        int done = 0;
+        uint32_t spent = 0U;
+        st = fastslam_export_run_msg(fs, out, step_units, &done, &spent);
+        if (done) {
+            return st;
+        }
     }
     f->send_out = out;
     f->send_state = 1U;
@@ -643,8 +687,7 @@ int slam_filter_export_poll(slam_filter_t *f, const map_estimate_t *out, coslam_
 static void export_needs_table(slam_filter_t *f)
 {
     if (ekf_holding(f)) {
-        f->merges_forced++; /* an export reads the whole state: the merge done first */
-        ekf_finish_now(f);
+        ekf_finish_now(f); /* an export reads the whole state: what holds it done first */
     }
     if (f->merge_due != NULL && f->merge_due->checking) {
         f->merges_forced++;
@@ -736,12 +779,34 @@ coslam_status_t slam_filter_merge_map(slam_filter_t *f, const map_estimate_t *in
         return st;
     }
     if (f->kind == SLAM_FILTER_EKF || cfg->step_units == 0U) {
+        uint32_t budget = f->kind == SLAM_FILTER_EKF ? cfg->step_units : 0U;
+        if (budget > 0U) {
+            /* EKF-SLAM in parts: a local phase of the compressed EKF is
+             * ended and completed in parts first (a global update: 60 ms
+             * at 500 landmarks), the filter's inputs held meanwhile; the
+             * check and the fusion follow in idle time, the outcome is
+             * taken from w */
+            double spent = 0.0;
+            if (!ekfslam_sync_run(&f->u.ekf, (double)budget * MERGE_EKF_MADDS_PER_UNIT, &spent)) {
+                w->outcome_stats = *stats; /* merge_prepare's; the check and the fusion add theirs */
+                w->due = f;
+                w->checking = 1U;
+                w->due_cfg = *cfg;
+                w->due_grid = grid;
+                f->merge_due = w;
+                f->merge_due_updates = 0U;
+                f->merges_in_parts++;
+                f->checks_waited++;
+                return COSLAM_E_MERGE_PENDING;
+            }
+            budget = budget_left(budget, (uint32_t)(spent / MERGE_EKF_MADDS_PER_UNIT));
+        }
         st = slam_filter_export_whole(f, &w->own);
         if (st != COSLAM_OK && st != COSLAM_E_CAPACITY) {
             return st;
         }
         /* EKF-SLAM: the fusion in parts of step_units (0: at once) */
-        st = merge_check_fuse(f, w, cfg, grid, NULL, f->kind == SLAM_FILTER_EKF ? cfg->step_units : 0U, stats);
+        st = merge_check_fuse(f, w, cfg, grid, NULL, budget, stats);
         if (f->merge_due != NULL) {
             f->merges_in_parts++;
         }

@@ -67,10 +67,10 @@ struct slam_merge_work_s;
  *  so the filter's inputs in the meantime are held (slam_filter_predict,
  *  slam_filter_update) and applied in order once it is done: at most this
  *  many inputs (predictions and updates) ... */
-#define SLAM_FILTER_HELD_INPUTS 64U
+#define SLAM_FILTER_HELD_INPUTS 128U
 /** ... and this many camera frames' sightings. Beyond either, the merge is
  *  finished at once first (merges_forced). */
-#define SLAM_FILTER_HELD_FRAMES 8U
+#define SLAM_FILTER_HELD_FRAMES 16U
 
 /** One input held while an EKF-SLAM merge runs in parts. */
 typedef struct {
@@ -280,15 +280,19 @@ void slam_merge_work_init(slam_merge_work_t *w);
  *    (slam_merge_work_outcome), as this call would have returned it.
  * Until the export is done, Fast-SLAM holds resampling back, and
  * slam_filter_export / slam_filter_export_whole finish the check first.
- * EKF-SLAM with cfg->step_units > 0: the own export and the check in this
- * call, then the fusion (merge_ekfslam_run) within step_units and the
- * rest by slam_filter_idle, as for Fast-SLAM's fusion. Meanwhile the
+ * EKF-SLAM with cfg->step_units > 0: the compressed EKF's local phase is
+ * ended and completed in parts first (ekfslam_sync_run; if that does not
+ * fit this call, COSLAM_E_MERGE_PENDING as for Fast-SLAM's export, the
+ * outcome taken later from w), then the own export and the check, then
+ * the fusion (merge_ekfslam_run) within step_units and the rest by
+ * slam_filter_idle, as for Fast-SLAM's fusion. Meanwhile the
  * filter's predictions and updates are held (at most
  * SLAM_FILTER_HELD_INPUTS inputs and SLAM_FILTER_HELD_FRAMES frames;
  * beyond, the merge is finished first, merges_forced) and applied in
  * order after it, up to one update an idle call (new inputs wait behind
  * them): the outcome is the whole merge at the message's arrival followed
- * by those inputs, bit for bit. slam_filter_pose reads
+ * by those inputs, bit for bit (up to rounding where a local phase was
+ * ended in parts). slam_filter_pose reads
  * the state of the merge under way; exports finish it first, and
  * slam_filter_export_busy says so to observers that may wait.
  * Any merge still due in f or in w is finished first (its outcome, if its
