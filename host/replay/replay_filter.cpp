@@ -123,6 +123,7 @@ std::map<std::string, long> RobotFilter::counters() const
         m["merges_forced"] = f_->merges_forced;
         m["inputs_held"] = f_->inputs_held;
         m["held_failures"] = f_->held_failures;
+        m["holds_forced"] = f_->holds_forced;
     } else {
         const fastslam_counters_t &c = fastslam()->ctr;
         m["predictions"] = c.predictions;

@@ -30,12 +30,12 @@ static merge_body_map_t g_bm;
 
 /* 160 own landmarks over 40 m x 40 m, four classes; the message holds 50
  * of them (every third, a few cm off) and 30 beyond the map's east edge. */
-static void build_case(void)
+static void build_case_with(uint16_t merge_batch, int n_new)
 {
     rng_t r;
     rng_seed(&r, 2027U);
     ekfslam_config_t c = ekfslam_config_default();
-    c.merge_batch = 24U; /* several flushes in one merge */
+    c.merge_batch = merge_batch;
     c.slam.noise.init_xy_var_m2 = 0.01; /* every landmark correlated with the pose */
     c.slam.noise.init_theta_var_rad2 = 0.001;
     const pose2_t p0 = {0.0, 0.0, 0.0};
@@ -48,7 +48,7 @@ static void build_case(void)
         assert_int_equal(ekfslam_add_landmark_body(&g_whole, own[j], cv, &meta), COSLAM_OK);
     }
     memset(&g_bm, 0, sizeof g_bm);
-    g_bm.n = N_DUP + N_NEW;
+    g_bm.n = (uint16_t)(N_DUP + n_new);
     for (int i = 0; i < g_bm.n; ++i) {
         const int dup = i < N_DUP;
         const int j = 3 * i;
@@ -65,6 +65,11 @@ static void build_case(void)
     g_bm.t = (pose2_t){0.0, 0.0, 0.0};
     g_bm.t_cov = cov3_diag(0.004, 0.004, 0.0004);
     memcpy(&g_parts, &g_whole, sizeof g_whole);
+}
+
+static void build_case(void)
+{
+    build_case_with(24U, N_NEW); /* several flushes in one merge */
 }
 
 static void assert_same_state(const ekfslam_t *a, const ekfslam_t *b)
@@ -155,6 +160,46 @@ static void test_parts_are_the_whole_merge(void **state)
     assert_int_equal(ekfslam_predict(&g_parts, u), COSLAM_OK);
 }
 
+/* Two cases the review found: merge_batch 2 (the columns' room is 2 with
+ * none pending: the merge must not wait for a flush that has nothing to
+ * do, at once or in parts) and a message of duplicates only (the columns
+ * left at the end are applied in parts too, not in the last call whole).
+ * Each in parts is the whole merge bit for bit. */
+static void test_small_batch_and_duplicates_only(void **state)
+{
+    (void)state;
+    const uint16_t batches[2] = {2U, 24U};
+    const int news[2] = {N_NEW, 0};
+    for (int c = 0; c < 2; ++c) {
+        build_case_with(batches[c], news[c]);
+        const merge_config_t mc = merge_config_default();
+        merge_stats_t whole;
+        memset(&whole, 0, sizeof whole);
+        assert_int_equal(merge_into_ekfslam(&g_whole, &g_bm, &mc, &g_sc, &whole), COSLAM_OK);
+        assert_int_equal(whole.fused, N_DUP);
+        assert_int_equal(whole.added, (uint32_t)news[c]);
+        merge_stats_t parts;
+        memset(&parts, 0, sizeof parts);
+        assert_int_equal(merge_ekfslam_begin(&g_parts, &g_bm, &mc, &g_sc, &parts), COSLAM_OK);
+        int done = 0;
+        int calls = 0;
+        int tail_in_parts = 0;
+        while (!done) {
+            assert_int_equal(merge_ekfslam_run(&g_parts, &g_bm, &g_sc, &parts, 2000U, &done), COSLAM_OK);
+            assert_true(++calls < 100000);
+            /* every item done, the last columns' flush under way */
+            tail_in_parts += !done && g_sc.ekf_next >= 2U * g_bm.n && g_parts.merge_bn > 0;
+        }
+        print_message("merge_batch %u, %d new: %d calls, %d with the last flush under way\n", (unsigned)batches[c],
+                      news[c], calls, tail_in_parts);
+        if (news[c] == 0) {
+            assert_true(tail_in_parts > 0);
+        }
+        assert_int_equal(parts.fused, whole.fused);
+        assert_same_state(&g_whole, &g_parts);
+    }
+}
+
 /* ---- through the robot's merge path, in a local phase ------------------- */
 
 static slam_filter_t g_fa;
@@ -239,9 +284,11 @@ static void robot_inputs(slam_filter_t *f, int n, int idle)
  * applied after. The state is the one of the merge at once followed by
  * the same inputs, up to rounding (the phase ends the deferred way, as the
  * filter ends its phases; at once it is ended whole). */
-static void test_merge_path_in_a_local_phase(void **state)
+static map_estimate_t g_out_a;
+static map_estimate_t g_out_b;
+
+static void merge_path_case(int variant)
 {
-    (void)state;
     local_phase_filter(&g_fa);
     memcpy(&g_fb, &g_fa, sizeof g_fa);
     /* the message: A's own map (exported from a copy: an export syncs) */
@@ -267,6 +314,7 @@ static void test_merge_path_in_a_local_phase(void **state)
     g.other_sees_self = (robot_sighting_t){hypot(s_in_o.x, s_in_o.y), atan2(s_in_o.y, s_in_o.x), 0.05 * 0.05,
                                            (2.0 * deg) * (2.0 * deg)};
     merge_config_t mc = merge_config_default();
+    mc.check = variant == 2 ? 0U : mc.check;
     merge_stats_t sa;
     memset(&sa, 0, sizeof sa);
     mc.step_units = 0U;
@@ -279,9 +327,15 @@ static void test_merge_path_in_a_local_phase(void **state)
     memset(&sb, 0, sizeof sb);
     mc.step_units = 1000U;
     slam_merge_work_init(&g_work);
+    if (variant == 1) {
+        /* an observer's export under way: dropped for the merge, whose
+         * local phase still goes in parts */
+        assert_int_equal(slam_filter_export_observe(&g_fb, &g_out_b, 1000U), COSLAM_E_MERGE_PENDING);
+    }
     assert_int_equal(slam_filter_merge_map(&g_fb, &g_msg, &g, &mc, NULL, &g_work, &sb, NULL, NULL),
                      COSLAM_E_MERGE_PENDING);
     assert_int_equal(g_fb.checks_waited, 1U);
+    assert_int_equal(g_fb.observes_yielded, variant == 1 ? 1U : 0U);
     robot_inputs(&g_fb, 12, 1);
     int idles = 0;
     while ((g_fb.merge_due != NULL || g_fb.held_next < g_fb.n_held) && idles < 100000) {
@@ -297,13 +351,21 @@ static void test_merge_path_in_a_local_phase(void **state)
     assert_int_equal(g_fb.inputs_held, 12U);
     assert_int_equal(g_fb.merges_forced, 0U);
     assert_int_equal(g_fb.held_failures, 0U);
-    print_message("merge path in a local phase: %u landmarks, %u fused, %d idle calls after the inputs\n",
-                  (unsigned)g_fa.u.ekf.n_lm, sa.fused, idles);
+    print_message("merge path in a local phase (case %d): %u landmarks, %u fused, %d idle calls after the inputs\n",
+                  variant, (unsigned)g_fa.u.ekf.n_lm, sa.fused, idles);
     assert_close_filters(&g_fa, &g_fb);
 }
 
-static map_estimate_t g_out_a;
-static map_estimate_t g_out_b;
+/* The robot's merge path in a local phase: plain, with an observer's
+ * export under way when the message comes, and without the check. */
+static void test_merge_path_in_a_local_phase(void **state)
+{
+    (void)state;
+    for (int v = 0; v < 3; ++v) {
+        merge_path_case(v);
+    }
+}
+
 
 /* An observer's export (the status count, a snapshot) and a send's, in a
  * local phase: the phase completed in parts of the budget, the filter's
@@ -359,6 +421,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_parts_are_the_whole_merge),
+        cmocka_unit_test(test_small_batch_and_duplicates_only),
         cmocka_unit_test(test_merge_path_in_a_local_phase),
         cmocka_unit_test(test_exports_in_a_local_phase),
     };

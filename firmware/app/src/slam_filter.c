@@ -60,6 +60,7 @@ coslam_status_t slam_filter_init(slam_filter_t *f, const slam_filter_config_t *c
     f->n_held_frames = 0U;
     f->inputs_held = 0U;
     f->held_failures = 0U;
+    f->holds_forced = 0U;
     switch (cfg->kind) {
     case SLAM_FILTER_FASTSLAM1:
     case SLAM_FILTER_FASTSLAM2: {
@@ -210,6 +211,9 @@ coslam_status_t slam_filter_seed(slam_filter_t *f, const slam_filter_config_t *c
 
 static void merge_due_run(slam_merge_work_t *w, uint32_t budget);
 
+_Static_assert(SLAM_FILTER_HELD_FRAMES * COSLAM_MAX_SIGHTINGS <= UINT16_MAX && SLAM_FILTER_HELD_INPUTS <= UINT16_MAX,
+               "held sightings and inputs are indexed by uint16_t");
+
 /* ---- EKF-SLAM: the inputs held while a merge runs in parts ---------------
  *
  * An EKF-SLAM merge in parts (merge_ekfslam_run) runs on the state as it
@@ -232,7 +236,7 @@ static coslam_status_t ekf_update_now(slam_filter_t *f, const sighting_t *z, int
     const coslam_status_t st = ekfslam_update(&f->u.ekf, z, n);
     pose2_t pose;
     cov3_t cov;
-    slam_filter_pose(f, &pose, &cov);
+    ekfslam_pose(&f->u.ekf, &pose, &cov); /* the filter's own: held predictions are not yet in it */
     merge_coverage_note(&f->coverage, pose);
     return st;
 }
@@ -263,8 +267,35 @@ static void ekf_apply_held_part(slam_filter_t *f, int one_update)
 
 /* Hold one input while the merge runs; 0 if it does not fit (the caller
  * finishes the merge first). */
+/* Drop the held inputs already applied from the front of the queue (they
+ * go one update an idle call, and new ones arrive meanwhile). */
+static void ekf_held_compact(slam_filter_t *f)
+{
+    if (f->held_next == 0U) {
+        return;
+    }
+    const uint16_t n = (uint16_t)(f->n_held - f->held_next);
+    const uint16_t z0 = n > 0U ? f->held[f->held_next].z0 : f->n_held_z;
+    uint16_t frames = 0U;
+    for (uint16_t k = 0; k < n; ++k) {
+        f->held[k] = f->held[f->held_next + k];
+        f->held[k].z0 = (uint16_t)(f->held[k].z0 - z0);
+        frames = (uint16_t)(frames + f->held[k].is_update);
+    }
+    memmove(f->held_z, &f->held_z[z0], (size_t)(f->n_held_z - z0) * sizeof f->held_z[0]);
+    f->n_held = n;
+    f->held_next = 0U;
+    f->n_held_z = (uint16_t)(f->n_held_z - z0);
+    f->n_held_frames = frames;
+}
+
 static int ekf_hold(slam_filter_t *f, int is_update, odo_increment_t u, double dt_s, const sighting_t *z, int n)
 {
+    if (f->n_held >= SLAM_FILTER_HELD_INPUTS ||
+        (is_update && (f->n_held_frames >= SLAM_FILTER_HELD_FRAMES ||
+                       (size_t)f->n_held_z + (size_t)(n > 0 ? n : 0) > sizeof f->held_z / sizeof f->held_z[0]))) {
+        ekf_held_compact(f);
+    }
     if (f->n_held >= SLAM_FILTER_HELD_INPUTS) {
         return 0;
     }
@@ -301,7 +332,10 @@ static void ekf_finish_now(slam_filter_t *f)
         slam_merge_work_finish(f->merge_due);
     }
     send_finish_now(f);
-    ekf_apply_held_part(f, 0);
+    if (f->held_next < f->n_held) {
+        f->holds_forced++; /* the held inputs' rest in this one call */
+        ekf_apply_held_part(f, 0);
+    }
 }
 
 coslam_status_t slam_filter_predict(slam_filter_t *f, odo_increment_t u, double dt_s)
@@ -504,11 +538,15 @@ static void merge_due_run(slam_merge_work_t *w, uint32_t budget)
                 return;
             }
             merge_work_release(w);
-            coslam_status_t st = ekfslam_export_whole(&f->u.ekf, &w->own);
-            if (st == COSLAM_OK || st == COSLAM_E_CAPACITY) {
-                st = merge_check_fuse(f, w, &w->due_cfg, w->due_grid, NULL,
-                                      budget_left(budget, (uint32_t)(spent / MERGE_EKF_MADDS_PER_UNIT)),
-                                      &w->outcome_stats);
+            const uint32_t left = budget_left(budget, (uint32_t)(spent / MERGE_EKF_MADDS_PER_UNIT));
+            coslam_status_t st;
+            if (!w->due_cfg.check) {
+                st = merge_fuse(f, w, &w->due_cfg, NULL, left, &w->outcome_stats);
+            } else {
+                st = ekfslam_export_whole(&f->u.ekf, &w->own);
+                if (st == COSLAM_OK || st == COSLAM_E_CAPACITY) {
+                    st = merge_check_fuse(f, w, &w->due_cfg, w->due_grid, NULL, left, &w->outcome_stats);
+                }
             }
             w->outcome = st;
             w->outcome_ready = 1U;
@@ -700,6 +738,15 @@ void slam_filter_pose(const slam_filter_t *f, pose2_t *pose, cov3_t *cov)
 {
     if (f->kind == SLAM_FILTER_EKF) {
         ekfslam_pose(&f->u.ekf, pose, cov);
+        /* inputs held (an EKF-SLAM merge or export in parts): the robot
+         * has moved on since, by the odometry of the held predictions; its
+         * readers (the occupancy grid, the behaviour) get the pose moved
+         * by it (the covariance is the filter's, without its growth) */
+        for (uint16_t k = f->held_next; k < f->n_held; ++k) {
+            if (!f->held[k].is_update) {
+                *pose = motion_apply(*pose, f->held[k].u);
+            }
+        }
     } else {
         fastslam_pose_estimate(&f->u.fs, pose, cov);
     }
@@ -753,10 +800,10 @@ coslam_status_t slam_filter_merge_map(slam_filter_t *f, const map_estimate_t *in
         slam_merge_work_finish(f->merge_due);
     }
     slam_merge_work_finish(w);
-    if (ekf_holding(f)) {
-        ekf_finish_now(f); /* the inputs the last merge held go first */
-    }
     export_table_for_robot(f); /* its export table, and the particles, are the merge's now */
+    if (ekf_holding(f)) {
+        ekf_finish_now(f); /* inputs held before the message go first */
+    }
     if (w->outcome_ready) {
         return COSLAM_E_MERGE_BUSY; /* an outcome nobody has taken */
     }
@@ -771,36 +818,35 @@ coslam_status_t slam_filter_merge_map(slam_filter_t *f, const map_estimate_t *in
     if (t_cov_out != NULL) {
         *t_cov_out = w->body.t_cov;
     }
+    uint32_t budget = f->kind == SLAM_FILTER_EKF || !cfg->check ? cfg->step_units : 0U;
+    if (f->kind == SLAM_FILTER_EKF && budget > 0U) {
+        /* EKF-SLAM in parts: a local phase of the compressed EKF is ended
+         * and completed in parts first (a global update: 60 ms at 500
+         * landmarks), the filter's inputs held meanwhile; the check and
+         * the fusion follow in idle time, the outcome is taken from w */
+        double spent = 0.0;
+        if (!ekfslam_sync_run(&f->u.ekf, (double)budget * MERGE_EKF_MADDS_PER_UNIT, &spent)) {
+            w->outcome_stats = *stats; /* merge_prepare's; the check and the fusion add theirs */
+            w->due = f;
+            w->checking = 1U;
+            w->due_cfg = *cfg;
+            w->due_grid = grid;
+            f->merge_due = w;
+            f->merge_due_updates = 0U;
+            f->merges_in_parts++;
+            f->checks_waited++;
+            return COSLAM_E_MERGE_PENDING;
+        }
+        budget = budget_left(budget, (uint32_t)(spent / MERGE_EKF_MADDS_PER_UNIT));
+    }
     if (!cfg->check) {
-        st = merge_fuse(f, w, cfg, NULL, cfg->step_units, stats);
+        st = merge_fuse(f, w, cfg, NULL, budget, stats);
         if (f->merge_due != NULL) {
             f->merges_in_parts++;
         }
         return st;
     }
     if (f->kind == SLAM_FILTER_EKF || cfg->step_units == 0U) {
-        uint32_t budget = f->kind == SLAM_FILTER_EKF ? cfg->step_units : 0U;
-        if (budget > 0U) {
-            /* EKF-SLAM in parts: a local phase of the compressed EKF is
-             * ended and completed in parts first (a global update: 60 ms
-             * at 500 landmarks), the filter's inputs held meanwhile; the
-             * check and the fusion follow in idle time, the outcome is
-             * taken from w */
-            double spent = 0.0;
-            if (!ekfslam_sync_run(&f->u.ekf, (double)budget * MERGE_EKF_MADDS_PER_UNIT, &spent)) {
-                w->outcome_stats = *stats; /* merge_prepare's; the check and the fusion add theirs */
-                w->due = f;
-                w->checking = 1U;
-                w->due_cfg = *cfg;
-                w->due_grid = grid;
-                f->merge_due = w;
-                f->merge_due_updates = 0U;
-                f->merges_in_parts++;
-                f->checks_waited++;
-                return COSLAM_E_MERGE_PENDING;
-            }
-            budget = budget_left(budget, (uint32_t)(spent / MERGE_EKF_MADDS_PER_UNIT));
-        }
         st = slam_filter_export_whole(f, &w->own);
         if (st != COSLAM_OK && st != COSLAM_E_CAPACITY) {
             return st;

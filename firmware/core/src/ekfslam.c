@@ -893,11 +893,33 @@ static void cekf_end_phase(ekfslam_t *ekf)
     }
 }
 
+/* No generation is free for the next global update's pending rows. */
+static int gens_all_busy(const ekfslam_cekf_t *ck)
+{
+    for (int gi = 0; gi < EKFSLAM_PEND_GENS; ++gi) {
+        if (ck->gen[gi].n == 0) {
+            return 0;
+        }
+    }
+    return 1;
+}
+
 int ekfslam_sync_run(ekfslam_t *ekf, double budget, double *spent)
 {
     ekfslam_cekf_t *ck = &ekf->cekf;
     double s = 0.0;
     if (COSLAM_EKF_MAX_ACTIVE > 0 && ekf->cfg.active_spread_madds > 0U) {
+        /* every generation busy (a backlog): sync_spread would complete
+         * the oldest at once, so its rows go first, a budget a call */
+        while (in_local(ekf) && gens_all_busy(ck)) {
+            if (budget > 0.0 && s >= budget) {
+                if (spent != 0) {
+                    *spent += s;
+                }
+                return 0;
+            }
+            s += spread_rows(ekf, budget > 0.0 ? budget - s : HUGE_VAL);
+        }
         if (in_local(ekf)) {
             /* the phase ends as the filter ends it itself: P_BB's share
              * deferred to a generation of pending rows, O(N_B N_A0) now */

@@ -884,7 +884,7 @@ coslam_status_t merge_ekfslam_run(ekfslam_t *ekf, const merge_body_map_t *bm, me
         }
         /* an update adds up to two columns and must not fill them (that
          * would apply them inside it, whatever the budget) */
-        if (adding ? ekf->merge_bn > 0 : ekfslam_merge_room(ekf) <= 2) {
+        if (ekf->merge_bn > 0 && (adding || ekfslam_merge_room(ekf) <= 2)) {
             (void)ekfslam_merge_flush_run(ekf, budget > 0U ? limit - spent : 0.0, &spent);
             continue;
         }
@@ -899,6 +899,14 @@ coslam_status_t merge_ekfslam_run(ekfslam_t *ekf, const merge_body_map_t *bm, me
             spent += 2.0 * d * (8.0 + (double)ekf->merge_bn); /* two directions: P h, less the pending share */
         }
         sc->ekf_next++;
+    }
+    /* the columns still pending (a message of duplicates only), in parts */
+    while (ekf->merge_bn > 0) {
+        if (budget > 0U && spent >= limit) {
+            *done = 0;
+            return COSLAM_OK;
+        }
+        (void)ekfslam_merge_flush_run(ekf, budget > 0U ? limit - spent : 0.0, &spent);
     }
     ekfslam_merge_end(ekf);
     *done = 1;

@@ -114,6 +114,7 @@ void robot_status_collect(robot_status_t *s, robot_node_t *node, const robot_dev
     u64(s, "merges_forced", fl->merges_forced);
     u64(s, "inputs_held", fl->inputs_held);
     u64(s, "held_failures", fl->held_failures);
+    u64(s, "holds_forced", fl->holds_forced);
     u64(s, "sends_in_parts", fl->sends_in_parts);
     u64(s, "sends_forced", fl->sends_forced);
     u64(s, "observes_in_parts", fl->observes_in_parts);

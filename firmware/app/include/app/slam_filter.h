@@ -127,6 +127,8 @@ typedef struct slam_filter_s {
     uint32_t inputs_held;        /**< inputs held so far (EKF-SLAM merges in parts) */
     uint32_t held_failures;      /**< held inputs the filter refused once applied (predictions
                                       out of bounds, numeric faults; capacity not counted) */
+    uint32_t holds_forced;       /**< times the held inputs' rest was applied in one call (a
+                                      limit reached, an export or a merge needing the state) */
     union {
         fastslam_t fs;
         ekfslam_t ekf;
