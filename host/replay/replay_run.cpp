@@ -61,6 +61,13 @@ struct Robot {
         double merge_us = 0.0;
     };
     std::optional<Waiting> waiting;
+    // a merge whose map after it is not scored yet (an EKF-SLAM merge in
+    // parts still running): its event and the map before it
+    struct AfterPending {
+        size_t event = 0;
+        std::shared_ptr<map_whole_t> before_map;
+    };
+    std::optional<AfterPending> after_pending;
     pose2_t odo_pose{0.0, 0.0, 0.0};     // dead reckoning, as the robot keeps it
     double travel_m = 0.0;               // odometer (wheel travel)
     // pose error sums
@@ -75,6 +82,7 @@ struct Robot {
     // no ground truth at the start, but later: the frame is placed at the
     // first moment truth exists (Replay::place_frame_late)
     bool frame_pending = false;
+    bool skip_pose_at_placement = false;
     RobotResult res;
 };
 
@@ -186,6 +194,7 @@ private:
     void process_frame(Robot &r, const Frame &f);
     void on_robot_sighting(Robot &r, const RobotSighting &s);
     void poll_meeting(Robot &r);
+    void score_after(Robot &recv);
     void record_event(Robot &recv, const meeting_event_t &e, const MapScore *before,
                       const std::shared_ptr<map_whole_t> &before_map, double merge_us);
     uint64_t stamp_us(double t_s) const;
@@ -316,8 +325,8 @@ void Replay::setup()
             // a gap there): the frame is placed when truth begins
             r.frame_pending = true;
             out_.notes.push_back("robot " + std::to_string(res.id) + ": ground truth begins after its start (t = " +
-                                 fmt_value(res.t_start_s) + " s); its map frame is placed where its estimate is at the "
-                                 "first truth sample, and it is scored from then on");
+                                 fmt_value(res.t_start_s) + " s); its map frame is placed where its estimate is at "
+                                 "the first truth sample, and it is scored from then on");
         } else {
             out_.notes.push_back("robot " + std::to_string(res.id) + ": no ground truth at its start, not evaluated");
         }
@@ -449,6 +458,7 @@ void Replay::place_frame_late(Robot &r)
     cov3_t cov;
     r.filter->pose(&est, &cov);
     r.frame_pending = false;
+    r.skip_pose_at_placement = true; /* its error is zero by construction */
     place_frame(r, pose2_compose(*tw, pose2_inverse(est)), r.t_filter);
 }
 
@@ -462,7 +472,10 @@ void Replay::sample(Robot &r)
         pose2_t est;
         cov3_t cov;
         r.filter->pose(&est, &cov);
-        const auto tr = truth_in_map(r, r.t_filter);
+        auto tr = truth_in_map(r, r.t_filter);
+        if (r.skip_pose_at_placement) {
+            tr.reset(); /* the moment the frame was placed at: not a measurement */
+        }
         if (tr) {
             r.res.final_pos_err_m = std::sqrt(add_pose_error(est, *tr, r.se_xy, r.se_th));
             r.res.pose_samples++;
@@ -490,6 +503,7 @@ void Replay::sample(Robot &r)
         }
         r.next_pose_t += cfg_.eval.pose_period_s;
     }
+    r.skip_pose_at_placement = false;
     // the map evaluation is an observer: it waits while an export in parts
     // holds the filter's export table (evaluating now would finish that
     // export at once, which the robot, with no evaluations, never does)
@@ -503,6 +517,9 @@ void Replay::sample(Robot &r)
             score_pose_in_fit(r, *m);
         }
         r.next_map_t += cfg_.eval.map_period_s;
+    }
+    if (r.after_pending && !slam_filter_export_busy(r.filter->app())) {
+        score_after(r);
     }
 }
 
@@ -678,6 +695,7 @@ void Replay::record_event(Robot &recv, const meeting_event_t &e, const MapScore 
         return;
     }
     Robot &send = *robots_[e.peer];
+    score_after(recv); // the last merge's map, if it was still running (this one finished it)
     MergeEvent ev;
     ev.t_s = time_s(e.stamp_us);
     ev.receiver = recv.log->id;
@@ -735,19 +753,37 @@ void Replay::record_event(Robot &recv, const meeting_event_t &e, const MapScore 
     for (size_t j = 0; j < recv.res.n_seen.size(); ++j) {
         recv.res.n_seen[j] += send.res.n_seen[j];
     }
-    std::shared_ptr<map_whole_t> after;
-    ev.after = score_now(recv, &after);
     if (recv.res.t_first_merge_s < 0.0) {
         recv.res.t_first_merge_s = ev.t_s;
     }
-    const int gain = after->n_landmarks - (before_map ? before_map->n_landmarks : 0);
+    out_.merges.push_back(ev);
+    recv.after_pending = Robot::AfterPending{out_.merges.size() - 1, before_map};
+    if (!slam_filter_export_busy(recv.filter->app())) {
+        score_after(recv);
+    }
+    // else an EKF-SLAM merge in parts (or the inputs it held) is still
+    // running: the map after it is scored once it is done, as the robot
+    // runs (scoring now would finish it at once)
+}
+
+// The map after the merge of recv.after_pending, scored now.
+void Replay::score_after(Robot &recv)
+{
+    if (!recv.after_pending) {
+        return;
+    }
+    const Robot::AfterPending p = std::move(*recv.after_pending);
+    recv.after_pending.reset();
+    MergeEvent &ev = out_.merges[p.event];
+    std::shared_ptr<map_whole_t> after;
+    ev.after = score_now(recv, &after);
+    const int gain = after->n_landmarks - (p.before_map ? p.before_map->n_landmarks : 0);
     if (gain > recv.res.shown_merge_gain) {
-        recv.res.map_before_merge = before_map;
+        recv.res.map_before_merge = p.before_map;
         recv.res.map_after_merge = after;
         recv.res.t_shown_merge_s = ev.t_s;
         recv.res.shown_merge_gain = gain;
     }
-    out_.merges.push_back(ev);
 }
 
 ReplayResult Replay::run()
@@ -793,7 +829,12 @@ ReplayResult Replay::run()
             slam_merge_work_finish(&r.meeting->work);
             poll_meeting(r);
         }
+        score_after(r); // a merge still running at the end (its map now, the merge finished)
         RobotResult &res = r.res;
+        if (r.frame_pending) {
+            out_.notes.push_back("robot " + std::to_string(res.id) +
+                                 ": its ground truth never overlapped the replayed span, not evaluated");
+        }
         res.final_score = score_now(r, &res.final_map);
         res.final_score.fit = score_map_fit(*res.final_map, truth_world_, res.n_seen, cfg_.eval);
         if (opt_.record_history && (res.map_series.empty() || res.map_series.back().t_s < r.t_filter)) {

@@ -260,6 +260,52 @@ TEST(ReplaySynthetic, TruthBeginningLateIsScoredFromItsFirstSample)
         noted = noted || n.find("ground truth begins after its start") != std::string::npos;
     }
     EXPECT_TRUE(noted);
+    // a replay that ends before the truth begins leaves the robot unscored, and says so
+    ReplayOptions short_run;
+    short_run.duration_s = 4.0;
+    const ReplayResult cut = run_replay(load_dataset((dir / "late").string()), cfg, short_run);
+    EXPECT_FALSE(cut.robots[0].has_truth);
+    EXPECT_EQ(cut.robots[0].pose_samples, 0);
+    bool never = false;
+    for (const auto &n : cut.notes) {
+        never = never || n.find("never overlapped") != std::string::npos;
+    }
+    EXPECT_TRUE(never);
+    fs::remove_all(dir);
+}
+
+// The replay runs EKF-SLAM's merges in parts as the robot does: with a
+// budget of one unit each merge takes many idle calls, the filters' inputs
+// are held meanwhile, and the map after each merge is scored once it is
+// done, not by finishing it at once (merges_forced stays 0). The maps end
+// as with the merges at once (the same merges, the same inputs after them).
+TEST(ReplaySynthetic, EkfMergesInPartsAreNotForcedByTheEvaluation)
+{
+    const fs::path dir = temp_dir("synth_ekf_parts");
+    write_synth2(dir, 11);
+    const Dataset ds = load_dataset(dir.string());
+    ReplayConfig cfg = synth_config();
+    cfg.filter.type = FilterKind::Ekf;
+    cfg.merge.core.step_units = 0U;
+    const ReplayResult once = run_replay(ds, cfg, ReplayOptions{});
+    cfg.merge.core.step_units = 1U;
+    const ReplayResult parts = run_replay(ds, cfg, ReplayOptions{});
+    ASSERT_EQ(parts.merges.size(), once.merges.size());
+    ASSERT_EQ(parts.robots.size(), 2u);
+    for (size_t k = 0; k < parts.merges.size(); ++k) {
+        EXPECT_EQ(parts.merges[k].status, once.merges[k].status);
+        EXPECT_TRUE(parts.merges[k].after.valid);
+        EXPECT_EQ(parts.merges[k].after.n_estimated, once.merges[k].after.n_estimated);
+    }
+    for (size_t k = 0; k < 2; ++k) {
+        const auto &c = parts.robots[k].counters;
+        EXPECT_GT(c.at("merges_in_parts"), 0) << "robot " << k;
+        EXPECT_GT(c.at("inputs_held"), 0) << "robot " << k;
+        EXPECT_EQ(c.at("merges_forced"), 0) << "robot " << k;
+        EXPECT_EQ(c.at("holds_forced"), 0) << "robot " << k;
+        EXPECT_EQ(parts.robots[k].final_score.n_estimated, once.robots[k].final_score.n_estimated);
+        EXPECT_NEAR(parts.robots[k].final_score.rmse_m, once.robots[k].final_score.rmse_m, 1e-9);
+    }
     fs::remove_all(dir);
 }
 
