@@ -35,15 +35,17 @@
  * at most config.reply_timeout_us, and once a message has begun each further
  * wait is bounded by config.byte_timeout_us, so a command blocks at most
  * about reply_timeout + (number of chunks) * byte_timeout.
- * Scans of a running MD (urg_scip2_read_scan, called from a control loop)
- * never wait inside a message: the call takes what the port holds, each
- * read waiting at most its timeout_us argument (0: not at all), and decodes
- * a scan only once its whole message is in the receive buffer. A message
+ * Scans of a running MD (urg_scip2_read_scan, called from a control loop
+ * with timeout_us 0) never wait inside a message: the call takes what the
+ * port holds and decodes a scan only once its whole message is in the
+ * receive buffer. (With timeout_us > 0 each read may wait that long, and
+ * a message arriving in pieces keeps the call reading until it is in.) A message
  * still arriving (a 115,200 baud line carries a URG-04LX scan in about
  * 190 ms) stays buffered for the next call, which returns
  * COSLAM_E_URG_TIMEOUT meanwhile, not counted. A message that breaks off
  * and never ends runs into the next one: the two fail as one reply (counted
- * once, by what the parse meets) and the driver resynchronises after them;
+ * once, by what the parse meets, or as garbage when the two overflow the
+ * buffer) and the driver resynchronises after them;
  * a sensor gone silent is for the caller's clock to notice.
  *
  * Memory: sizeof(urg_scip2_t) is about URG_SCIP2_RX_CAP + 0.4 KB (3.8 KB
