@@ -786,6 +786,24 @@ const slam_params_t *slam_filter_params(const slam_filter_t *f)
     return f->kind == SLAM_FILTER_EKF ? &f->u.ekf.cfg.slam : &f->u.fs.cfg.slam;
 }
 
+/* The check cannot be made in this call (Fast-SLAM: the own export in
+ * parts; EKF-SLAM: the local phase completed in parts): w holds the merge
+ * until the idle calls have made it, and its outcome is taken from w. */
+static coslam_status_t merge_wait_for_check(slam_filter_t *f, slam_merge_work_t *w, const merge_config_t *cfg,
+                                            const occ_grid_t *grid, const merge_stats_t *stats)
+{
+    w->outcome_stats = *stats; /* merge_prepare's; the check and the fusion add theirs */
+    w->due = f;
+    w->checking = 1U;
+    w->due_cfg = *cfg;
+    w->due_grid = grid;
+    f->merge_due = w;
+    f->merge_due_updates = 0U;
+    f->merges_in_parts++;
+    f->checks_waited++;
+    return COSLAM_E_MERGE_PENDING;
+}
+
 coslam_status_t slam_filter_merge_map(slam_filter_t *f, const map_estimate_t *in, const merge_geometry_t *g,
                                       const merge_config_t *cfg, const occ_grid_t *grid, slam_merge_work_t *w,
                                       merge_stats_t *stats, pose2_t *t_out, cov3_t *t_cov_out)
@@ -826,16 +844,7 @@ coslam_status_t slam_filter_merge_map(slam_filter_t *f, const map_estimate_t *in
          * the fusion follow in idle time, the outcome is taken from w */
         double spent = 0.0;
         if (!ekfslam_sync_run(&f->u.ekf, (double)budget * MERGE_EKF_MADDS_PER_UNIT, &spent)) {
-            w->outcome_stats = *stats; /* merge_prepare's; the check and the fusion add theirs */
-            w->due = f;
-            w->checking = 1U;
-            w->due_cfg = *cfg;
-            w->due_grid = grid;
-            f->merge_due = w;
-            f->merge_due_updates = 0U;
-            f->merges_in_parts++;
-            f->checks_waited++;
-            return COSLAM_E_MERGE_PENDING;
+            return merge_wait_for_check(f, w, cfg, grid, stats);
         }
         budget = budget_left(budget, (uint32_t)(spent / MERGE_EKF_MADDS_PER_UNIT));
     }
@@ -868,16 +877,7 @@ coslam_status_t slam_filter_merge_map(slam_filter_t *f, const map_estimate_t *in
         uint32_t spent = 0U;
         st = fastslam_export_run(fs, &w->own, cfg->step_units, &done, &spent);
         if (!done) {
-            w->outcome_stats = *stats; /* merge_prepare's; the check and the fusion add theirs */
-            w->due = f;
-            w->checking = 1U;
-            w->due_cfg = *cfg;
-            w->due_grid = grid;
-            f->merge_due = w;
-            f->merge_due_updates = 0U;
-            f->merges_in_parts++;
-            f->checks_waited++;
-            return COSLAM_E_MERGE_PENDING;
+            return merge_wait_for_check(f, w, cfg, grid, stats);
         }
         if (st != COSLAM_OK && st != COSLAM_E_CAPACITY) {
             return st;
