@@ -265,8 +265,6 @@ static void ekf_apply_held_part(slam_filter_t *f, int one_update)
     }
 }
 
-/* Hold one input while the merge runs; 0 if it does not fit (the caller
- * finishes the merge first). */
 /* Drop the held inputs already applied from the front of the queue (they
  * go one update an idle call, and new ones arrive meanwhile). */
 static void ekf_held_compact(slam_filter_t *f)
@@ -289,27 +287,32 @@ static void ekf_held_compact(slam_filter_t *f)
     f->n_held_frames = frames;
 }
 
-static int ekf_hold(slam_filter_t *f, int is_update, odo_increment_t u, double dt_s, const sighting_t *z, int n)
+/* The queue has room for one more input (an update with n sightings). */
+static int ekf_hold_fits(const slam_filter_t *f, int is_update, int n)
 {
-    if (f->n_held >= SLAM_FILTER_HELD_INPUTS ||
-        (is_update && (f->n_held_frames >= SLAM_FILTER_HELD_FRAMES ||
-                       (size_t)f->n_held_z + (size_t)(n > 0 ? n : 0) > sizeof f->held_z / sizeof f->held_z[0]))) {
-        ekf_held_compact(f);
-    }
     if (f->n_held >= SLAM_FILTER_HELD_INPUTS) {
         return 0;
+    }
+    return !is_update || (f->n_held_frames < SLAM_FILTER_HELD_FRAMES && n >= 0 &&
+                          (size_t)f->n_held_z + (size_t)n <= sizeof f->held_z / sizeof f->held_z[0]);
+}
+
+/* Hold one input while the merge runs; 0 if it does not fit (the caller
+ * finishes the merge first). */
+static int ekf_hold(slam_filter_t *f, int is_update, odo_increment_t u, const sighting_t *z, int n)
+{
+    if (!ekf_hold_fits(f, is_update, n)) {
+        ekf_held_compact(f);
+        if (!ekf_hold_fits(f, is_update, n)) {
+            return 0;
+        }
     }
     slam_filter_held_t *h = &f->held[f->n_held];
     h->is_update = (uint8_t)is_update;
     h->u = u;
-    h->dt_s = dt_s;
     h->z0 = f->n_held_z;
     h->nz = 0U;
     if (is_update) {
-        if (f->n_held_frames >= SLAM_FILTER_HELD_FRAMES || n < 0 ||
-            (size_t)f->n_held_z + (size_t)n > sizeof f->held_z / sizeof f->held_z[0]) {
-            return 0;
-        }
         for (int i = 0; i < n; ++i) {
             f->held_z[f->n_held_z + i] = z[i];
         }
@@ -351,7 +354,7 @@ coslam_status_t slam_filter_predict(slam_filter_t *f, odo_increment_t u, double 
         return COSLAM_E_ARG;
     }
     if (ekf_holding(f)) {
-        if (ekf_hold(f, 0, u, dt_s, NULL, 0)) {
+        if (ekf_hold(f, 0, u, NULL, 0)) {
             return COSLAM_E_MERGE_PENDING; /* applied once the merge is done (held_failures) */
         }
         ekf_finish_now(f);
@@ -413,7 +416,7 @@ static void export_table_for_robot(slam_filter_t *f)
 coslam_status_t slam_filter_update(slam_filter_t *f, const sighting_t *z, int n)
 {
     if (ekf_holding(f)) {
-        if (ekf_hold(f, 1, (odo_increment_t){0.0, 0.0, 0.0}, 0.0, z, n)) {
+        if (ekf_hold(f, 1, (odo_increment_t){0.0, 0.0, 0.0}, z, n)) {
             return COSLAM_E_MERGE_PENDING; /* applied once the merge is done (held_failures) */
         }
         ekf_finish_now(f);

@@ -908,41 +908,32 @@ int ekfslam_sync_run(ekfslam_t *ekf, double budget, double *spent)
 {
     ekfslam_cekf_t *ck = &ekf->cekf;
     double s = 0.0;
+    int done = 1;
     if (COSLAM_EKF_MAX_ACTIVE > 0 && ekf->cfg.active_spread_madds > 0U) {
         /* every generation busy (a backlog): sync_spread would complete
          * the oldest at once, so its rows go first, a budget a call */
-        while (in_local(ekf) && gens_all_busy(ck)) {
-            if (budget > 0.0 && s >= budget) {
-                if (spent != 0) {
-                    *spent += s;
-                }
-                return 0;
-            }
+        while (in_local(ekf) && gens_all_busy(ck) && !(budget > 0.0 && s >= budget)) {
             s += spread_rows(ekf, budget > 0.0 ? budget - s : HUGE_VAL);
         }
-        if (in_local(ekf)) {
+        if (in_local(ekf) && !gens_all_busy(ck)) {
             /* the phase ends as the filter ends it itself: P_BB's share
              * deferred to a generation of pending rows, O(N_B N_A0) now */
             sync_spread(ekf);
             s += 2.0 * (double)ekf->n_lm * (double)ck->na0;
         }
-        if (pend_oldest(ck) >= 0) {
+        if (!in_local(ekf) && pend_oldest(ck) >= 0) {
             s += spread_rows(ekf, budget > 0.0 ? (budget > s ? budget - s : 1.0) : HUGE_VAL);
         }
-        if (pend_oldest(ck) >= 0) {
-            ck->spread_owed = 0.0; /* what the steps owe is paid here */
-            if (spent != 0) {
-                *spent += s;
-            }
-            return 0;
-        }
-        ck->spread_owed = 0.0;
+        ck->spread_owed = 0.0; /* what the steps owe is paid here */
+        done = !in_local(ekf) && pend_oldest(ck) < 0;
     }
-    ekfslam_sync(ekf); /* nothing left but a merge's columns, if any */
+    if (done) {
+        ekfslam_sync(ekf); /* nothing left but a merge's columns, if any */
+    }
     if (spent != 0) {
         *spent += s;
     }
-    return 1;
+    return done;
 }
 
 /* Reach of the association's near test (ekfslam_update) for landmark state

@@ -867,18 +867,17 @@ coslam_status_t merge_ekfslam_run(ekfslam_t *ekf, const merge_body_map_t *bm, me
     const uint32_t n = bm->n;
     /* duplicates first (they only update), then additions (they grow the
      * state); the pending columns are applied before an update that could
-     * fill them and before the first addition, whatever the budget, so the
-     * parts are the whole merge bit for bit */
-    while (sc->ekf_next < 2U * n) {
+     * fill them, before the first addition and at the end, in parts and
+     * whatever the budget, so the parts are the whole merge bit for bit */
+    while (sc->ekf_next < 2U * n || ekf->merge_bn > 0) {
         if (budget > 0U && spent >= limit) {
             *done = 0;
             return COSLAM_OK;
         }
         const uint32_t k = sc->ekf_next;
-        const int adding = k >= n;
+        const int adding = k >= n; /* or every item done (k = 2n) */
         const uint16_t i = (uint16_t)(adding ? k - n : k);
-        const int paired = sc->match_of_in[i] >= 0;
-        if (adding == paired) {
+        if (k < 2U * n && adding == (sc->match_of_in[i] >= 0)) {
             sc->ekf_next++; /* not this pass's */
             continue;
         }
@@ -900,14 +899,6 @@ coslam_status_t merge_ekfslam_run(ekfslam_t *ekf, const merge_body_map_t *bm, me
         }
         sc->ekf_next++;
     }
-    /* the columns still pending (a message of duplicates only), in parts */
-    while (ekf->merge_bn > 0) {
-        if (budget > 0U && spent >= limit) {
-            *done = 0;
-            return COSLAM_OK;
-        }
-        (void)ekfslam_merge_flush_run(ekf, budget > 0U ? limit - spent : 0.0, &spent);
-    }
     ekfslam_merge_end(ekf);
     *done = 1;
     return sc->ekf_result;
@@ -916,11 +907,6 @@ coslam_status_t merge_ekfslam_run(ekfslam_t *ekf, const merge_body_map_t *bm, me
 coslam_status_t merge_into_ekfslam(ekfslam_t *ekf, const merge_body_map_t *bm, const merge_config_t *cfg,
                                    merge_scratch_t *sc, merge_stats_t *stats)
 {
-    merge_stats_t local;
-    if (stats == 0) {
-        memset(&local, 0, sizeof local);
-        stats = &local;
-    }
     const coslam_status_t st = merge_ekfslam_begin(ekf, bm, cfg, sc, stats);
     if (st != COSLAM_OK) {
         return st;

@@ -74,9 +74,8 @@ struct slam_merge_work_s;
 
 /** One input held while an EKF-SLAM merge runs in parts. */
 typedef struct {
-    uint8_t is_update;       /**< 0: a prediction (u, dt_s); 1: an update (sightings z0..z0+nz-1) */
+    uint8_t is_update;       /**< 0: a prediction (u); 1: an update (sightings z0..z0+nz-1) */
     odo_increment_t u;
-    double dt_s;
     uint16_t z0;
     uint16_t nz;
 } slam_filter_held_t;
