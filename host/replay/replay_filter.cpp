@@ -115,6 +115,7 @@ std::map<std::string, long> RobotFilter::counters() const
         m["jcbb_ambiguous"] = c.jcbb_ambiguous;
         m["jcbb_closures_held"] = c.jcbb_closures_held;
         m["jcbb_closures_nonlinear"] = c.jcbb_closures_nonlinear;
+        m["pairs_nonlinear"] = c.pairs_nonlinear;
         m["iekf_updates"] = c.iekf_updates;
         m["iekf_iterations"] = c.iekf_iterations;
         m["nis_inflations"] = c.nis_inflations;

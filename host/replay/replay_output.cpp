@@ -241,6 +241,8 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
                       {"heading_rmse_rad", or_null(pk, r.heading_rmse_rad)},
                       {"heading_rmse_deg", or_null(pk, r.heading_rmse_rad * 180.0 / M_PI)},
                       {"nees_mean", or_null(pk, r.pose_nees_mean)},
+                      {"nees_xy_mean", or_null(pk, r.pose_nees_xy_mean)},
+                      {"nees_heading_mean", or_null(pk, r.pose_nees_heading_mean)},
                       {"final_err_m", or_null(pk, r.final_pos_err_m)},
                       {"fit_samples", r.pose_fit_samples},
                       {"fit_rmse_m", or_null(r.pose_fit_samples > 0, r.pose_fit_rmse_m)},

@@ -79,6 +79,10 @@ struct Robot {
     long fit_skipped = 0; // map evaluations above [eval] pose_fit_max_landmarks
     double nees_sum = 0.0;
     long nees_n = 0;
+    double nees_xy_sum = 0.0; // the position and heading parts (docs/replay.md "Consistency")
+    long nees_xy_n = 0;
+    double nees_th_sum = 0.0;
+    long nees_th_n = 0;
     // no ground truth at the start, but later: the frame is placed at the
     // first moment truth exists (Replay::place_frame_late)
     bool frame_pending = false;
@@ -484,6 +488,16 @@ void Replay::sample(Robot &r)
                 r.nees_sum += n;
                 r.nees_n++;
             }
+            double n_xy, n_th;
+            nees_pose_parts(est, cov, *tr, &n_xy, &n_th);
+            if (std::isfinite(n_xy)) {
+                r.nees_xy_sum += n_xy;
+                r.nees_xy_n++;
+            }
+            if (std::isfinite(n_th)) {
+                r.nees_th_sum += n_th;
+                r.nees_th_n++;
+            }
         }
         // the recorded path (not the statistics above) is thinned to every
         // other point, its stride doubled, when it reaches kMaxPathPoints:
@@ -855,6 +869,8 @@ ReplayResult Replay::run()
             res.heading_fit_rmse_rad = std::sqrt(r.se_fit_th / res.pose_fit_samples);
         }
         res.pose_nees_mean = r.nees_n > 0 ? r.nees_sum / static_cast<double>(r.nees_n) : 0.0;
+        res.pose_nees_xy_mean = r.nees_xy_n > 0 ? r.nees_xy_sum / static_cast<double>(r.nees_xy_n) : 0.0;
+        res.pose_nees_heading_mean = r.nees_th_n > 0 ? r.nees_th_sum / static_cast<double>(r.nees_th_n) : 0.0;
         res.step_us_mean = res.frames > 0 ? r.step_us_sum / static_cast<double>(res.frames) : 0.0;
         res.counters = r.filter->counters();
         {

@@ -152,6 +152,8 @@ struct RobotResult {
     double pose_fit_rmse_m = 0.0;
     double heading_fit_rmse_rad = 0.0;
     double pose_nees_mean = 0.0;
+    double pose_nees_xy_mean = 0.0;      ///< position part (2 dof)
+    double pose_nees_heading_mean = 0.0; ///< heading part (1 dof)
     double final_pos_err_m = 0.0;
     MapScore final_score;           ///< map frame (needs truth); .fit: rigid fit (every robot)
     // work

@@ -58,6 +58,16 @@ double nees_pose(pose2_t est, cov3_t cov, pose2_t truth)
     return d2;
 }
 
+void nees_pose_parts(pose2_t est, cov3_t cov, pose2_t truth, double *xy, double *theta)
+{
+    const cov2_t p = {cov.m[0][0], 0.5 * (cov.m[0][1] + cov.m[1][0]), cov.m[1][1]};
+    const point2_t e = {est.x, est.y};
+    const point2_t t = {truth.x, truth.y};
+    const double dth = angle_wrap(est.theta - truth.theta);
+    *xy = nees_point(e, p, t);
+    *theta = cov.m[2][2] > 0.0 ? dth * dth / cov.m[2][2] : NAN;
+}
+
 double nees_point(point2_t est, cov2_t cov, point2_t truth)
 {
     double d2;

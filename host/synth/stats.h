@@ -25,6 +25,11 @@ void nees_band95(int k, int d, double *lo, double *hi);
 /** (e^T P^-1 e) for a pose error (heading wrapped). NaN if P is not PD. */
 double nees_pose(pose2_t est, cov3_t cov, pose2_t truth);
 
+/** The two parts of a pose's NEES: position (2 dof, on the 2x2 position
+ *  block) and heading (1 dof, on the heading variance). NaN where the block
+ *  is not PD. They do not add up to nees_pose (its cross terms). */
+void nees_pose_parts(pose2_t est, cov3_t cov, pose2_t truth, double *xy, double *theta);
+
 /** NEES of a landmark estimate. NaN if the covariance is not PD. */
 double nees_point(point2_t est, cov2_t cov, point2_t truth);
 

@@ -25,6 +25,7 @@
 #include "replay_noise.h"
 #include "replay_output.h"
 #include "replay_run.h"
+#include "stats.h"
 #include "synth2.h"
 
 using namespace coslam::replay;
@@ -309,6 +310,32 @@ TEST(ReplaySynthetic, EkfMergesInPartsAreNotForcedByTheEvaluation)
     fs::remove_all(dir);
 }
 
+// The parts of a pose NEES: the position's on its 2x2 block, the heading's
+// on its variance (wrapped), neither with the cross terms, so with a
+// position-heading correlation they do not add up to the whole.
+TEST(PoseNees, PartsOfACorrelatedCovariance)
+{
+    cov3_t c{};
+    c.m[0][0] = 0.04;
+    c.m[1][1] = 0.09;
+    c.m[0][1] = c.m[1][0] = 0.018; // correlation 0.3
+    c.m[2][2] = 0.01;
+    c.m[0][2] = c.m[2][0] = 0.01; // position x - heading, correlation 0.5
+    const pose2_t truth = {1.0, 2.0, 3.1};
+    const pose2_t est = {1.2, 1.7, -3.1}; // heading error 2 pi - 6.2 across the wrap
+    double xy = 0.0, th = 0.0;
+    nees_pose_parts(est, c, truth, &xy, &th);
+    const double ex = 0.2, ey = -0.3, det = 0.04 * 0.09 - 0.018 * 0.018;
+    EXPECT_NEAR(xy, (0.09 * ex * ex - 2.0 * 0.018 * ex * ey + 0.04 * ey * ey) / det, 1e-12);
+    const double eth = 2.0 * M_PI - 6.2;
+    EXPECT_NEAR(th, eth * eth / 0.01, 1e-9);
+    EXPECT_GT(std::fabs(xy + th - nees_pose(est, c, truth)), 0.1);
+    c.m[2][2] = 0.0; // not positive: no heading part
+    nees_pose_parts(est, c, truth, &xy, &th);
+    EXPECT_TRUE(std::isnan(th));
+    EXPECT_TRUE(std::isfinite(xy));
+}
+
 TEST(ReplaySynthetic, OutputsAreCompleteAndReadable)
 {
     const fs::path dir = temp_dir("synth_out");
@@ -329,6 +356,12 @@ TEST(ReplaySynthetic, OutputsAreCompleteAndReadable)
     EXPECT_EQ(j["robots"].size(), 2u);
     EXPECT_EQ(j["merges"]["merged"].get<int>(), 2);
     EXPECT_NEAR(j["robots"][0]["pose"]["rmse_m"].get<double>(), res.robots[0].pose_rmse_m, 1e-12);
+    // the pose NEES's position (2 dof) and heading (1 dof) parts
+    EXPECT_NEAR(j["robots"][0]["pose"]["nees_xy_mean"].get<double>(), res.robots[0].pose_nees_xy_mean, 1e-12);
+    EXPECT_NEAR(j["robots"][0]["pose"]["nees_heading_mean"].get<double>(), res.robots[0].pose_nees_heading_mean,
+                1e-12);
+    EXPECT_GT(res.robots[0].pose_nees_xy_mean, 0.0);
+    EXPECT_GT(res.robots[0].pose_nees_heading_mean, 0.0);
     EXPECT_TRUE(j["merges"]["events"][0].contains("t_err_m"));
     // TUM rows: t x y z qx qy qz qw with a unit quaternion
     std::ifstream tum(dir / "out" / "robot1_path.tum");

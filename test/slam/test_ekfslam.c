@@ -468,7 +468,7 @@ static void test_single_closure_margin(void **state)
 /* A revisit whose robot-landmark offset is uncertain against its range
  * (sd 0.8 m at 1 m) is held back: no update, no new landmark, counted.
  * The same uncertainty at 4 m is a usable closure. */
-static int closure_case_budget(double range_m, uint32_t max_nodes)
+static int pairing_case(double range_m, uint32_t max_nodes, uint32_t updates_since_seen)
 {
     ekfslam_config_t c = config();
     c.jcbb_max_nodes = max_nodes;
@@ -488,12 +488,20 @@ static int closure_case_budget(double range_m, uint32_t max_nodes)
     PE(&g_ekf, 2, 2) = 0.01;
     PE(&g_ekf, 3, 3) = 1e-4;
     PE(&g_ekf, 4, 4) = 1e-4;
-    g_ekf.ctr.updates = 100U; /* last sighted at update 0: a revisit */
+    g_ekf.ctr.updates = updates_since_seen; /* last sighted at update 0 */
     const pose2_t truth = {0.3, 0.2, 0.05};
     const sighting_t z = observe_predict(truth, lm);
     assert_int_equal(ekfslam_update(&g_ekf, &z, 1), COSLAM_OK);
     assert_int_equal(g_ekf.n_lm, 1);
-    return g_ekf.ctr.jcbb_closures_nonlinear == 1U;
+    return g_ekf.ctr.jcbb_closures_nonlinear + g_ekf.ctr.pairs_nonlinear == 1U;
+}
+
+static int closure_case_budget(double range_m, uint32_t max_nodes)
+{
+    /* 100 updates since it was last sighted: a revisit */
+    const int held = pairing_case(range_m, max_nodes, 100U);
+    assert_int_equal(g_ekf.ctr.pairs_nonlinear, 0U);
+    return held;
 }
 
 static int closure_case(double range_m)
@@ -580,6 +588,26 @@ static void test_nonlinear_closure_held(void **state)
     assert_true(g_ekf.x[0] != 0.0 || g_ekf.x[1] != 0.0);
 }
 
+
+/* The same geometry with a landmark sighted in the last update (not a
+ * revisit; a pose block inflated by the innovation monitor or a gate opened
+ * for known identities gets there): the linearisation fails all the same,
+ * so the pairing is held back and counted apart (D6 robot 2 with known
+ * identities once ran off to 2e5 m through such updates). */
+static void test_nonlinear_pairing_held(void **state)
+{
+    (void)state;
+    assert_true(pairing_case(1.0, ekfslam_config_default().jcbb_max_nodes, 1U));
+    assert_int_equal(g_ekf.ctr.pairs_nonlinear, 1U);
+    assert_int_equal(g_ekf.ctr.jcbb_closures_nonlinear, 0U);
+    assert_int_equal(g_ekf.scratch.assign[0], -1);
+    assert_true(g_ekf.scratch.held[0]);
+    assert_true(g_ekf.x[0] == 0.0 && g_ekf.x[1] == 0.0 && g_ekf.x[2] == 0.0); /* untouched */
+    assert_true(PE(&g_ekf, 0, 0) == 0.64);
+    assert_false(pairing_case(4.0, ekfslam_config_default().jcbb_max_nodes, 1U));
+    assert_int_equal(g_ekf.scratch.assign[0], 0);
+    assert_true(PE(&g_ekf, 0, 0) < 0.6); /* updated */
+}
 
 /* J(x) = (x - x0)^T P0^-1 (x - x0) + nu(x)^T R^-1 nu(x) over (pose, landmark)
  * for one sighting z: the cost whose minimum the iterated update finds. */
@@ -887,6 +915,7 @@ int main(void)
         cmocka_unit_test(test_weak_alternative_does_not_hold_closure),
         cmocka_unit_test(test_nonlinear_closure_held),
         cmocka_unit_test(test_cut_search_holds_closure),
+        cmocka_unit_test(test_nonlinear_pairing_held),
         cmocka_unit_test(test_single_closure_margin),
         cmocka_unit_test(test_iterated_closure_is_map),
         cmocka_unit_test(test_second_pass_only_for_closures),

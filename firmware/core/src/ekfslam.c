@@ -2438,14 +2438,15 @@ static void jcbb_associate(ekfslam_t *ekf, const sighting_t *z, int ns, int n_pa
             sc->assign[i] = -1;
             sc->held[i] = 1U;
             ambiguous = 1;
-        } else if (sc->best[i] >= 0 && sc->closure[sc->best[i]] &&
-                   pair_spread(ekf, sc->best[i]) > ekf->cfg.jcbb_closure_max_spread) {
-            /* a revisit whose linearisation fails: one EKF step would turn
+        } else if (sc->best[i] >= 0 && pair_spread(ekf, sc->best[i]) > ekf->cfg.jcbb_closure_max_spread) {
+            /* a pairing whose linearisation fails: one EKF step would turn
              * the robot by far more than the sighting supports; wait until
-             * the robot is farther from the landmark or knows more */
+             * the robot is farther from the landmark or knows more. Mostly
+             * a revisit; any pairing once the pose has lost its landmarks
+             * (an inflated pose block, opened gates) */
             sc->assign[i] = -1;
             sc->held[i] = 1U;
-            nonlinear = 1;
+            nonlinear |= sc->closure[sc->best[i]] ? 1 : 2;
         }
         if (sc->assign[i] < 0 && !sc->held[i]) {
             /* unpaired but it had a loop-closing candidate: not new either,
@@ -2461,8 +2462,11 @@ static void jcbb_associate(ekfslam_t *ekf, const sighting_t *z, int ns, int n_pa
     if (ambiguous) {
         ekf->ctr.jcbb_ambiguous++;
     }
-    if (nonlinear) {
+    if (nonlinear & 1) {
         ekf->ctr.jcbb_closures_nonlinear++;
+    }
+    if (nonlinear & 2) {
+        ekf->ctr.pairs_nonlinear++;
     }
 }
 

@@ -110,13 +110,16 @@ typedef struct {
     uint32_t jcbb_closure_gap;  /**< a pairing is loop-closing if its landmark was
                                     last sighted more than this many updates ago
                                     and det S > 4 det Q. Default 25 (5 s at 5 Hz) */
-    double jcbb_closure_max_spread; /**< a loop-closing pairing whose robot-landmark
-                                    offset standard deviation (largest axis) exceeds
+    double jcbb_closure_max_spread; /**< a pairing whose robot-landmark offset
+                                    standard deviation (largest axis) exceeds
                                     this fraction of the range is held back: its
                                     linearisation fails (the bearing's Jacobian
                                     changes by about that fraction over the
-                                    uncertainty). Default 0.7, chosen on MRCLAM
-                                    Dataset 6 (docs/consistency.md); > 0 */
+                                    uncertainty). Mostly a loop closure
+                                    (jcbb_closures_nonlinear); any pairing
+                                    once the pose block has lost its landmarks
+                                    (pairs_nonlinear). Default 0.7, chosen on
+                                    MRCLAM Dataset 6 (docs/consistency.md); > 0 */
     /** First-estimates Jacobians (Huang, Mourikis, Roumeliotis 2008): the
      *  propagation Jacobian uses the previous *predicted* pose and the
      *  measurement Jacobians the predicted pose and each landmark's first
@@ -206,6 +209,8 @@ typedef struct {
     uint32_t jcbb_ambiguous;          /**< frames whose best hypothesis was ambiguous */
     uint32_t jcbb_closures_held;      /**< frames with a loop closure of too few pairings */
     uint32_t jcbb_closures_nonlinear; /**< frames with a loop closure held back as too nonlinear */
+    uint32_t pairs_nonlinear;         /**< frames with another pairing held back as too nonlinear
+                                           (jcbb_closure_max_spread) */
     uint32_t iekf_updates;            /**< loop-closing pairings applied by the iterated EKF */
     uint32_t iekf_iterations;         /**< their relinearisations, in all */
     uint32_t nis_inflations;          /**< frames whose pose block was inflated (nis_inflate) */
