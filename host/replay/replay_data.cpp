@@ -11,6 +11,7 @@
 #include <fstream>
 #include <iomanip>
 #include <limits>
+#include <optional>
 #include <regex>
 #include <set>
 #include <sstream>
@@ -211,12 +212,11 @@ int robot_id_from_name(const fs::path &dir, const std::string &digits, const std
 // What every reader ends with: a robot without odometry is an error (it
 // cannot be replayed; an empty file is usually a failed recording), R
 // records naming a robot the dataset does not have are counted and dropped.
-void finish_dataset(Dataset &ds)
+void finish_dataset(Dataset &ds, const std::vector<int> &folder_ids)
 {
-    std::set<int> have;
-    for (const auto &r : ds.robots) {
-        have.insert(r.id);
-    }
+    // robots of the folder, read or not: a sighting of an unread one is a
+    // sighting of a robot that is not replayed, not of one that is unknown
+    const std::set<int> have(folder_ids.begin(), folder_ids.end());
     for (auto &r : ds.robots) {
         if (r.odo.empty()) {
             throw ReplayError(r.source, 0, "no odometry records (empty or truncated log?)");
@@ -247,6 +247,58 @@ std::ifstream open_or_throw(const fs::path &p)
         throw ReplayError(p.string(), 0, "missing file (or not readable)");
     }
     return f;
+}
+
+// The robots of a folder to read: all, or those of `only`, each of which
+// must be in the folder.
+std::set<int> robots_to_read(const std::string &dir, const std::vector<int> &ids, const std::vector<int> &only)
+{
+    if (only.empty()) {
+        return std::set<int>(ids.begin(), ids.end());
+    }
+    for (const int id : only) {
+        if (std::find(ids.begin(), ids.end(), id) == ids.end()) {
+            std::string have;
+            for (const int i : ids) {
+                have += (have.empty() ? "" : ", ") + std::to_string(i);
+            }
+            throw ReplayError(dir, 0, "no robot " + std::to_string(id) + " in the folder (robots: " + have + ")");
+        }
+    }
+    return std::set<int>(only.begin(), only.end());
+}
+
+// "robots 1, 3 not selected: their files not read" (nothing if all are read)
+void note_unread(ParseReport &report, const std::vector<int> &ids, const std::set<int> &selected)
+{
+    std::string list;
+    for (const int id : ids) {
+        if (selected.count(id) == 0) {
+            list += (list.empty() ? "" : ", ") + std::to_string(id);
+        }
+    }
+    if (!list.empty()) {
+        report.notes.push_back("robot(s) " + list + " not selected: their files not read");
+    }
+}
+
+// The stamp of the first record of a file that is not read further (a robot
+// not selected), for t0; nullopt, with a note, if it has none.
+std::optional<double> first_stamp(const fs::path &p, ParseReport &report)
+{
+    std::ifstream f(p);
+    if (!f) {
+        return std::nullopt; // missing: what a full read would say is its own business
+    }
+    LineReader r{f, p.string()};
+    try {
+        if (r.next()) {
+            return r.num(0, "t");
+        }
+    } catch (const ReplayError &e) {
+        report.notes.push_back(std::string(e.what()) + " (robot not selected: file not read further, not in t0)");
+    }
+    return std::nullopt;
 }
 
 // Raw MRCLAM row tables with absolute times, shifted after t0 is known.
@@ -354,7 +406,7 @@ std::vector<LandmarkTruth> parse_truth_landmarks(std::istream &in, const std::st
     return out;
 }
 
-Dataset load_mrclam(const std::string &dir)
+Dataset load_mrclam(const std::string &dir, const std::vector<int> &only)
 {
     const fs::path d(dir);
     if (!fs::is_directory(d)) {
@@ -404,12 +456,23 @@ Dataset load_mrclam(const std::string &dir)
         throw ReplayError(dir, 0, "no RobotN_Odometry.dat in the folder: not an MRCLAM dataset");
     }
 
+    const std::set<int> selected = robots_to_read(dir, ids, only);
+    note_unread(ds.report, ids, selected);
+
     std::vector<RawRobot> raw;
     double t0 = std::numeric_limits<double>::infinity();
     for (const int id : ids) {
         RawRobot rr;
         rr.id = id;
         const std::string base = "Robot" + std::to_string(id) + "_";
+        if (selected.count(id) == 0) {
+            for (const char *file : {"Odometry.dat", "Measurement.dat", "Groundtruth.dat"}) {
+                if (const auto t = first_stamp(d / (base + file), ds.report)) {
+                    t0 = std::min(t0, *t);
+                }
+            }
+            continue;
+        }
         {
             const fs::path p = d / (base + "Odometry.dat");
             auto f = open_or_throw(p);
@@ -557,11 +620,11 @@ Dataset load_mrclam(const std::string &dir)
         }
         ds.robots.push_back(std::move(rl));
     }
-    finish_dataset(ds);
+    finish_dataset(ds, ids);
     return ds;
 }
 
-Dataset load_landmark_log(const std::string &dir)
+Dataset load_landmark_log(const std::string &dir, const std::vector<int> &only)
 {
     const fs::path d(dir);
     if (!fs::is_directory(d)) {
@@ -583,7 +646,12 @@ Dataset load_landmark_log(const std::string &dir)
     if (ids.empty()) {
         throw ReplayError(dir, 0, "no robot<k>.log in the folder: not a landmark-log dataset");
     }
+    const std::set<int> selected = robots_to_read(dir, ids, only);
+    note_unread(ds.report, ids, selected);
     for (const int id : ids) {
+        if (selected.count(id) == 0) {
+            continue;
+        }
         RobotLog rl;
         rl.id = id;
         const fs::path p = d / ("robot" + std::to_string(id) + ".log");
@@ -616,11 +684,11 @@ Dataset load_landmark_log(const std::string &dir)
             ds.t0_s = r.num(0, "t0");
         }
     }
-    finish_dataset(ds);
+    finish_dataset(ds, ids);
     return ds;
 }
 
-Dataset load_dataset(const std::string &dir, DataFormat format)
+Dataset load_dataset(const std::string &dir, DataFormat format, const std::vector<int> &only)
 {
     if (format == DataFormat::Auto) {
         const fs::path d(dir);
@@ -642,7 +710,7 @@ Dataset load_dataset(const std::string &dir, DataFormat format)
             throw ReplayError(dir, 0, "neither an MRCLAM folder (Barcodes.dat) nor a landmark log (robot<k>.log)");
         }
     }
-    return format == DataFormat::Mrclam ? load_mrclam(dir) : load_landmark_log(dir);
+    return format == DataFormat::Mrclam ? load_mrclam(dir, only) : load_landmark_log(dir, only);
 }
 
 void write_landmark_log(const Dataset &ds, const std::string &dir)

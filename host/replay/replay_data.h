@@ -146,13 +146,23 @@ enum class DataFormat { Auto, Mrclam, Log };
 /// Read an MRCLAM folder. Robots are every N with RobotN_Odometry.dat present
 /// (its Measurement file must exist too; a missing Groundtruth file is noted
 /// and the robot is replayed without evaluation).
-Dataset load_mrclam(const std::string &dir);
+///
+/// `only` (empty: every robot) names the robots to read; each must be in the
+/// folder (else ReplayError listing the folder's robots). The files of the
+/// others are not parsed, so a bad line there stops nothing; their robots
+/// stay subjects (sightings of them are robot sightings, as in a full read)
+/// and the first stamp of each of their files still enters t0, so a
+/// selected robot's times are those of a full read, bit for bit. A first
+/// line without a stamp is noted and left out of t0.
+Dataset load_mrclam(const std::string &dir, const std::vector<int> &only = {});
 
-/// Read a generic landmark-log folder (robot<k>.log, optional truth files).
-Dataset load_landmark_log(const std::string &dir);
+/// Read a generic landmark-log folder (robot<k>.log, optional truth files);
+/// `only` as for load_mrclam (t0 is the folder's t0.txt either way).
+Dataset load_landmark_log(const std::string &dir, const std::vector<int> &only = {});
 
 /// Detect the format (Barcodes.dat -> MRCLAM, robot*.log -> log) and read.
-Dataset load_dataset(const std::string &dir, DataFormat format = DataFormat::Auto);
+Dataset load_dataset(const std::string &dir, DataFormat format = DataFormat::Auto,
+                     const std::vector<int> &only = {});
 
 /// Write `ds` as a generic landmark-log folder (created if missing).
 /// Velocity odometry becomes V records, increments O records.

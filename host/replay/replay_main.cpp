@@ -257,7 +257,9 @@ int main(int argc, char **argv)
             std::cerr << coslam::profile_line("coslam-replay") << "\n";
         }
         const auto t_load = std::chrono::steady_clock::now();
-        const Dataset ds = load_dataset(dataset, parse_format(format));
+        // a run with -r reads only those robots' files (a bad line in another
+        // robot's file does not stop it; their stamps still set t0)
+        const Dataset ds = load_dataset(dataset, parse_format(format), *run ? robots : std::vector<int>{});
         const double load_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_load).count();
         if (ds.report.unknown_barcode_rows > 0) {
             std::cerr << "warning: " << ds.report.unknown_barcode_rows

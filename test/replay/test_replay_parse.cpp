@@ -334,6 +334,58 @@ TEST(Mrclam, MalformedLinesAndBackwardTime)
     }
 }
 
+// A run of some robots (-r) reads only their files: a bad line in another
+// robot's file stops nothing, the selected robot's records and t0 are those
+// of a full read, the unread robot stays a robot (sightings of it are
+// robot sightings), and a robot not in the folder is named.
+TEST(Mrclam, OnlySelectedRobotsAreRead)
+{
+    TempDir d;
+    write_mrclam(d);
+    const Dataset full = load_mrclam(d.str());
+    d.file("Robot1_Measurement.dat", "# a\n# b\n# c\n# d\n1000.2 63 2.0 0.1\n1000.3 63 2.0\n");
+    EXPECT_THROW(load_mrclam(d.str()), ReplayError);
+    const Dataset two = load_mrclam(d.str(), {2});
+    EXPECT_DOUBLE_EQ(two.t0_s, full.t0_s); // robot 1's truth, first line only
+    ASSERT_EQ(two.robots.size(), 1u);
+    EXPECT_EQ(two.robots[0].id, 2);
+    EXPECT_EQ(two.robots[0].odo.size(), full.robots[1].odo.size());
+    EXPECT_DOUBLE_EQ(two.robots[0].odo[0].t_s, full.robots[1].odo[0].t_s);
+    ASSERT_EQ(two.robots[0].rz.size(), 1u); // robot 1 is still a robot
+    EXPECT_EQ(two.robots[0].rz[0].other_robot, 1);
+    EXPECT_EQ(two.report.unknown_robot_sightings, 0);
+    bool noted = false;
+    for (const auto &n : two.report.notes) {
+        noted = noted || has(n, "robot(s) 1 not selected");
+    }
+    EXPECT_TRUE(noted);
+    // a first line without a stamp is noted and left out of t0
+    d.file("Robot1_Groundtruth.dat", "# a\nnot-a-stamp 0 0 0\n");
+    const Dataset late = load_mrclam(d.str(), {2});
+    EXPECT_DOUBLE_EQ(late.t0_s, 1000.0); // robot 1's odometry
+    bool named = false;
+    for (const auto &n : late.report.notes) {
+        named = named || has(n, "Robot1_Groundtruth.dat:2");
+    }
+    EXPECT_TRUE(named);
+    try {
+        load_mrclam(d.str(), {3});
+        ADD_FAILURE() << "robot 3 is not in the folder";
+    } catch (const ReplayError &e) {
+        EXPECT_TRUE(has(e.what(), "no robot 3 in the folder (robots: 1, 2)")) << e.what();
+    }
+    // the landmark-log reader the same way
+    const std::string out = (d.path() / "log").string();
+    write_landmark_log(full, out);
+    std::ofstream(d.path() / "log" / "robot1.log", std::ios::app) << "garbage line\n";
+    EXPECT_THROW(load_landmark_log(out), ReplayError);
+    const Dataset lg = load_landmark_log(out, {2});
+    ASSERT_EQ(lg.robots.size(), 1u);
+    EXPECT_EQ(lg.robots[0].rz.size(), 1u);
+    EXPECT_EQ(lg.report.unknown_robot_sightings, 0);
+    EXPECT_THROW(load_landmark_log(out, {4}), ReplayError);
+}
+
 TEST(Mrclam, ConvertsToLandmarkLogExactly)
 {
     TempDir d;
