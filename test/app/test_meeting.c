@@ -339,6 +339,141 @@ static void test_budget_renewed_then_implicit_ack(void **state)
     assert_int_equal(g_link.n_sent, 4);
 }
 
+/* Two robots that refuse each other's maps keep renewing each other's send
+ * budget (each message lacks the other's bit); the resend period still
+ * holds: 30 camera frames 100 ms apart, a message from robot 1 after each,
+ * give one send a second (3), not one a frame (30, as before). */
+static void test_renewed_budget_keeps_the_resend_period(void **state)
+{
+    (void)state;
+    hal_link_t *link = fake_link_reset(0);
+    setup_robot0(NULL);
+    uint64_t t = 1000000;
+    for (uint32_t k = 0; k < 30; ++k, t += 100000) {
+        meeting_on_sighting(&g_m, &g_filter, link, t, 1, 2.0, 0.0, t, kOrigin, 0.0);
+        const size_t len = make_msg_from1(k + 1U, t + 40000, t + 40000, 2.0, 0.0, (point2_t){1.0, 0.0}, 1U << 1, 0);
+        inject(g_buf, len, 1, t + 50000);
+        (void)meeting_poll_link(&g_m, link);
+        g_m.have_pending = 0U; /* (its merge is not the point here) */
+        meeting_event_t ev;
+        while (meeting_take_event(&g_m, &ev) == COSLAM_OK) {
+        }
+    }
+    assert_int_equal(g_link.n_sent, 3);
+}
+
+/* A replayed old message changes nothing but the replay counter: robot 1's
+ * seq 5 (holding our bit) replayed in a later meeting does not acknowledge
+ * our map, so our sends go on; a message refused as stale does not count
+ * as replacing the pending one. */
+static void test_replay_neither_acks_nor_replaces(void **state)
+{
+    (void)state;
+    static uint8_t old[MAP_MSG_MAX_BYTES];
+    hal_link_t *link = fake_link_reset(0);
+    setup_robot0(NULL);
+    uint64_t t = 1000000;
+    size_t len = make_msg_from1(5, t, t, 2.0, 0.0, (point2_t){1.0, 0.0}, (1U << 1) | 1U, 0);
+    memcpy(old, g_buf, len);
+    const size_t old_len = len;
+    inject(g_buf, len, 1, t + 2000);
+    (void)meeting_poll_link(&g_m, link);
+    len = make_msg_from1(6, t + 1000, t + 1000, 2.0, 0.0, (point2_t){1.0, 0.0}, 1U << 1, 0);
+    inject(g_buf, len, 1, t + 3000);
+    (void)meeting_poll_link(&g_m, link);
+    g_m.have_pending = 0U;
+    t += 100000000; /* a later meeting, past meeting_gap_us and remerge_period_us */
+    meeting_on_sighting(&g_m, &g_filter, link, t, 1, 2.0, 0.0, t, kOrigin, 0.0);
+    assert_int_equal(g_link.n_sent, 1);
+    g_m.peer[1].sent_n_landmarks = 0; /* (the fixture's map is empty: any bit would acknowledge) */
+    const uint32_t replays0 = g_m.ctr.replays;
+    inject(old, old_len, 1, t + 10000);
+    (void)meeting_poll_link(&g_m, link);
+    assert_int_equal(g_m.ctr.replays, replays0 + 1U);
+    assert_true(g_m.peer[1].acked_at_us < g_m.peer[1].meeting_start_us); /* not acknowledged */
+    for (uint64_t i = 1; i <= 4; ++i) {
+        const uint64_t ti = t + i * 1100000U;
+        meeting_on_sighting(&g_m, &g_filter, link, ti, 1, 2.0, 0.0, ti, kOrigin, 0.0);
+    }
+    assert_int_equal(g_link.n_sent, 3); /* the meeting's budget, as without the replay */
+
+    /* pending seq 7; seq 8 claims a sighting 1000 s old: stale, not a replacement */
+    t += 100000000;
+    len = make_msg_from1(7, t, t, 2.0, 0.0, (point2_t){1.0, 0.0}, 1U << 1, 0);
+    inject(g_buf, len, 1, t + 2000);
+    (void)meeting_poll_link(&g_m, link);
+    assert_true(g_m.have_pending);
+    const uint32_t replaced0 = g_m.ctr.pending_replaced; /* 1: seq 6 replaced seq 5 */
+    assert_int_equal(replaced0, 1U);
+    len = make_msg_from1(8, t + 1000000000ULL, t, 2.0, 0.0, (point2_t){1.0, 0.0}, 1U << 1, 0);
+    inject(g_buf, len, 1, t + 5000);
+    (void)meeting_poll_link(&g_m, link);
+    assert_int_equal(g_m.ctr.stale, 1U);
+    assert_int_equal(g_m.rx.seq, 7U);
+    assert_int_equal(g_m.ctr.pending_replaced, replaced0);
+}
+
+/* Robot 0 sent its map, then merged robot 1's (in the same step), then
+ * learned that robot 1 holds its map: robot 1 cannot know yet that robot 0
+ * holds its map, so robot 0 owes it one more message (the acknowledgement)
+ * and sends it at the next sighting after the resend period; then nothing
+ * more. Before, robot 0 stopped at once and robot 1 waited out its linger. */
+static void test_acknowledgement_owed_after_a_merge(void **state)
+{
+    (void)state;
+    hal_link_t *link = fake_link_reset(0);
+    setup_robot0(NULL);
+    meet_robot1(link); /* robot 0 sends (t + 4 ms), robot 1's map pending */
+    assert_int_equal(g_link.n_sent, 1);
+    const uint64_t t = kMeetT;
+    assert_int_equal(meeting_poll(&g_m, &g_filter, t + 4000, kOrigin, 0.0), COSLAM_OK);
+    assert_true(meeting_merged_all(&g_m));
+    assert_true(meeting_owes_ack(&g_m));
+    /* robot 1's next message holds our bit: it has our map */
+    double r, b1, b2;
+    mutual((pose2_t){0.0, 0.0, 0.0}, kMeetB, &r, &b1, &b2);
+    const size_t len = make_msg_from1(2, t + 500000, t + 500000, r, b2, kMeetLm, (1U << 1) | 1U, 0);
+    inject(g_buf, len, 1, t + 502000);
+    meeting_poll_link(&g_m, link);
+    g_m.peer[1].sent_n_landmarks = 0; /* (the fixture's own map was empty when sent) */
+    assert_true(meeting_acked_all(&g_m));
+    meeting_on_sighting(&g_m, &g_filter, link, t + 600000, 1, r, b1, t + 600000, kOrigin, 0.0);
+    assert_int_equal(g_link.n_sent, 1); /* the resend period first */
+    meeting_on_sighting(&g_m, &g_filter, link, t + 1100000, 1, r, b1, t + 1100000, kOrigin, 0.0);
+    assert_int_equal(g_link.n_sent, 2); /* the acknowledgement */
+    assert_false(meeting_owes_ack(&g_m));
+    for (uint64_t k = 2; k < 6; ++k) {
+        meeting_on_sighting(&g_m, &g_filter, link, t + k * 1100000U, 1, r, b1, t + k * 1100000U, kOrigin, 0.0);
+    }
+    assert_int_equal(g_link.n_sent, 2); /* acknowledged both ways: done */
+}
+
+/* Robot 1 restarted without its snapshot and numbers from 1 again, below
+ * the 500 robot 0 remembers: its first two messages are replays, the third
+ * in a row is taken as a restart (merge_session_t.rebased) and pending. */
+static void test_restarted_peer_is_heard_again(void **state)
+{
+    (void)state;
+    hal_link_t *link = fake_link_reset(0);
+    setup_robot0(NULL);
+    uint64_t t = 1000000;
+    size_t len = make_msg_from1(500, t, t, 2.0, 0.0, (point2_t){1.0, 0.0}, 1U << 1, 0);
+    inject(g_buf, len, 1, t + 2000);
+    (void)meeting_poll_link(&g_m, link);
+    assert_true(g_m.have_pending);
+    g_m.have_pending = 0U;
+    t += 100000000;
+    for (uint32_t seq = 1; seq <= 3; ++seq, t += 1000000) {
+        len = make_msg_from1(seq, t, t, 2.0, 0.0, (point2_t){1.0, 0.0}, 1U << 1, 0);
+        inject(g_buf, len, 1, t + 2000);
+        (void)meeting_poll_link(&g_m, link);
+        assert_int_equal(g_m.have_pending, seq == 3U);
+    }
+    assert_int_equal(g_m.ctr.replays, 2U);
+    assert_int_equal(g_m.session.rebased, 1U);
+    assert_int_equal(g_m.rx.seq, 3U);
+}
+
 /* Robot 0 at the world origin, robot 1 at (2, 0.5, 160 deg); exact sightings.
  * The relative pose must come out exact, and robot 1's landmark must land in
  * robot 0's map where it is in the world. */
@@ -1014,6 +1149,10 @@ int main(void)
         cmocka_unit_test(test_send_policy_and_message_fields),
         cmocka_unit_test(test_sighting_checks_and_range_limit),
         cmocka_unit_test(test_budget_renewed_then_implicit_ack),
+        cmocka_unit_test(test_renewed_budget_keeps_the_resend_period),
+        cmocka_unit_test(test_replay_neither_acks_nor_replaces),
+        cmocka_unit_test(test_restarted_peer_is_heard_again),
+        cmocka_unit_test(test_acknowledgement_owed_after_a_merge),
         cmocka_unit_test(test_merge_geometry_exact),
         cmocka_unit_test(test_merge_compensates_own_motion),
         cmocka_unit_test(test_pairs_nearest_own_sighting),

@@ -623,6 +623,12 @@ static void node_restore(void **state)
     assert_int_equal(robot_node_init(&node, &cfg, &io), COSLAM_OK);
     assert_false(robot_node_gpio_attached(&node));
     assert_int_equal(robot_node_counters(&node)->gpio_attach_failures, 1);
+    /* a map the filter refuses: a new map, but the numbers go on (else
+     * every peer takes the robot's messages for replays) */
+    map_c = map_a;
+    map_c.lm[0].cov_rel.xx = -1.0;
+    assert_int_equal(robot_node_restore(&node, &map_c, 5000), COSLAM_E_ARG);
+    assert_int_equal(robot_node_msg_seq(&node), 5000);
     assert_int_equal(robot_node_restore(&node, &map_a, 41), COSLAM_OK);
     assert_int_equal(robot_node_msg_seq(&node), 41);
     assert_int_equal(robot_node_export(&node, &map_b), COSLAM_OK);

@@ -310,6 +310,50 @@ static void test_session_replay(void **state)
     assert_int_equal(merge_session_accept(&s, 1, 99U + MERGE_SEQ_MAX_JUMP), COSLAM_OK);
 }
 
+/* A sender restarted without its snapshot numbers from 1 again: its third
+ * message in a row below the remembered number, each newer than the one
+ * before, is taken (the window starts there; counted) - not the first two,
+ * not an old number replayed twice, not a run broken by an accepted newer
+ * message. merge_session_check says the same and changes nothing. */
+static void test_session_restarted_sender(void **state)
+{
+    (void)state;
+    merge_session_t s;
+    merge_session_init(&s);
+    assert_int_equal(merge_session_accept(&s, 1, 500U), COSLAM_OK);
+    assert_int_equal(merge_session_check(&s, 1, 1U), COSLAM_E_MERGE_REPLAY);
+    assert_int_equal(merge_session_accept(&s, 1, 1U), COSLAM_E_MERGE_REPLAY);
+    assert_int_equal(merge_session_accept(&s, 1, 2U), COSLAM_E_MERGE_REPLAY);
+    const merge_session_t before = s;
+    assert_int_equal(merge_session_check(&s, 1, 3U), COSLAM_OK);
+    assert_memory_equal(&before, &s, sizeof s); /* the check changed nothing */
+    assert_int_equal(merge_session_accept(&s, 1, 3U), COSLAM_OK);
+    assert_int_equal(s.rebased, 1U);
+    assert_int_equal(merge_session_accept(&s, 1, 4U), COSLAM_OK); /* numbered on from there */
+    assert_int_equal(merge_session_accept(&s, 1, 499U), COSLAM_OK);
+    /* the same old message replayed: never a run */
+    assert_int_equal(merge_session_accept(&s, 2, 100U), COSLAM_OK);
+    for (int k = 0; k < 10; ++k) {
+        assert_int_equal(merge_session_accept(&s, 2, 90U), COSLAM_E_MERGE_REPLAY);
+    }
+    /* late messages overtaken by newer ones that are accepted: the run restarts */
+    assert_int_equal(merge_session_accept(&s, 2, 91U), COSLAM_E_MERGE_REPLAY);
+    assert_int_equal(merge_session_accept(&s, 2, 101U), COSLAM_OK);
+    assert_int_equal(merge_session_accept(&s, 2, 92U), COSLAM_E_MERGE_REPLAY);
+    assert_int_equal(merge_session_accept(&s, 2, 102U), COSLAM_OK);
+    assert_int_equal(merge_session_accept(&s, 2, 93U), COSLAM_E_MERGE_REPLAY);
+    assert_int_equal(s.rebased, 1U);
+    assert_int_equal(s.last_seq[2], 102U);
+    /* a run whose steps jump too far is not a restart */
+    assert_int_equal(merge_session_accept(&s, 3, 200000U), COSLAM_OK);
+    assert_int_equal(merge_session_accept(&s, 3, 1U), COSLAM_E_MERGE_REPLAY);
+    assert_int_equal(merge_session_accept(&s, 3, 2U + MERGE_SEQ_MAX_JUMP), COSLAM_E_MERGE_REPLAY);
+    assert_int_equal(merge_session_accept(&s, 3, 3U + MERGE_SEQ_MAX_JUMP), COSLAM_E_MERGE_REPLAY);
+    assert_int_equal(merge_session_accept(&s, 3, 4U + MERGE_SEQ_MAX_JUMP), COSLAM_OK); /* 1 step: a run of 3 */
+    assert_int_equal(s.rebased, 2U);
+    assert_int_equal(merge_session_check(&s, COSLAM_MAX_ROBOTS, 1U), COSLAM_E_ARG);
+}
+
 /* An incoming map with one landmark that the receiver knows and one it does
  * not, built in the receiver's body frame with an exact transform. */
 static void incoming_two(pose2_t robot, point2_t known_world, point2_t new_world, uint16_t src)
@@ -812,6 +856,7 @@ int main(void)
         cmocka_unit_test(test_transformed_landmark_monte_carlo),
         cmocka_unit_test(test_fusion_rules),
         cmocka_unit_test(test_session_replay),
+        cmocka_unit_test(test_session_restarted_sender),
         cmocka_unit_test(test_merge_into_fastslam),
         cmocka_unit_test(test_fastslam_pairing_brute_force),
         cmocka_unit_test(test_fastslam_merge_in_parts),

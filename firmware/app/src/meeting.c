@@ -185,6 +185,26 @@ int meeting_merged_all(const meeting_t *m)
     return 1;
 }
 
+/* We merged j's map in this meeting after our last message to j (or in
+ * the same step: the step sends before it merges): j cannot know yet (its
+ * acknowledgement is our next message, holding its landmarks), so one more
+ * message is due even if j already holds ours. */
+static int owes_ack(const meeting_peer_t *p)
+{
+    return p->merged && p->merged_at_us >= p->meeting_start_us &&
+           (!p->sent_any || p->last_sent_us <= p->merged_at_us);
+}
+
+int meeting_owes_ack(const meeting_t *m)
+{
+    for (uint8_t k = 0; k < m->n_robots; ++k) {
+        if (k != m->self_id && owes_ack(&m->peer[k])) {
+            return 1;
+        }
+    }
+    return 0;
+}
+
 int meeting_acked_all(const meeting_t *m)
 {
     for (uint8_t k = 0; k < m->n_robots; ++k) {
@@ -333,8 +353,12 @@ coslam_status_t meeting_on_sighting(meeting_t *m, slam_filter_t *filter, hal_lin
         p->meeting_start_us = stamp_us;
     }
     p->last_seen_us = stamp_us;
-    if (p->sends >= m->cfg.max_sends || (p->sends > 0U && now_us - p->last_sent_us < m->cfg.resend_period_us) ||
-        (p->acked && p->acked_at_us >= p->meeting_start_us && now_us - p->acked_at_us < m->cfg.remerge_period_us)) {
+    /* the period holds from the last send whatever the budget: a renewed
+     * budget (accept_message) must not let every frame send */
+    const int owe_ack = owes_ack(p);
+    if (p->sends >= m->cfg.max_sends || (p->sent_any && now_us - p->last_sent_us < m->cfg.resend_period_us) ||
+        (p->acked && p->acked_at_us >= p->meeting_start_us && now_us - p->acked_at_us < m->cfg.remerge_period_us &&
+         !owe_ack)) {
         /* an acknowledgement counts within its meeting only: holding some of
          * our landmarks from an earlier meeting is not holding our map now */
         return COSLAM_OK;
@@ -352,6 +376,7 @@ coslam_status_t meeting_on_sighting(meeting_t *m, slam_filter_t *filter, hal_lin
         return COSLAM_OK;
     }
     p->sends++; /* a failed send still uses up its slot: no retry storm */
+    p->sent_any = 1U;
     p->last_sent_us = now_us;
     return st;
 }
@@ -384,6 +409,15 @@ static void accept_message(meeting_t *m, const hal_link_rx_info_t *info)
         return;
     }
     meeting_peer_t *p = &m->peer[from];
+    if (merge_session_check(&m->session, from, msg->seq) != COSLAM_OK) {
+        /* a replay (or a number too far ahead) changes nothing here: not
+         * the acknowledgement, not the send budget. The session counts it
+         * and tracks a restarted sender's numbers (MERGE_SEQ_REBASE_RUN). */
+        const coslam_status_t st = merge_session_accept(&m->session, from, msg->seq);
+        m->ctr.replays++;
+        push_event(m, MEETING_EV_REFUSED, info->stamp_us, from, msg->seq, st);
+        return;
+    }
     /* implicit acknowledgement: does the sender hold the map we last sent
      * it? It does if at least half as many of its landmarks carry our
      * provenance bit as that message had landmarks (ours fuse into its own
@@ -416,13 +450,10 @@ static void accept_message(meeting_t *m, const hal_link_rx_info_t *info)
         return;
     }
     const coslam_status_t st = merge_session_accept(&m->session, from, msg->seq);
-    if (st != COSLAM_OK) {
+    if (st != COSLAM_OK) { /* merge_session_check said it would pass */
         m->ctr.replays++;
         push_event(m, MEETING_EV_REFUSED, info->stamp_us, from, msg->seq, st);
         return;
-    }
-    if (m->have_pending) {
-        m->ctr.pending_replaced++;
     }
     const uint64_t age_us = msg->stamp_us >= msg->sighting.stamp_us ? msg->stamp_us - msg->sighting.stamp_us : 0U;
     const uint64_t latency_us = m->cfg.link_latency_us;
@@ -434,6 +465,9 @@ static void accept_message(meeting_t *m, const hal_link_rx_info_t *info)
         meeting_event_t *ev = push_event(m, MEETING_EV_REFUSED, info->stamp_us, from, msg->seq, COSLAM_E_MERGE_STALE);
         ev->n_landmarks = msg->map.n_landmarks;
         return;
+    }
+    if (m->have_pending) {
+        m->ctr.pending_replaced++; /* only once the newcomer is taken */
     }
     m->rx = *msg;
     m->have_pending = 1U;

@@ -160,6 +160,9 @@ coslam_status_t robot_node_restore(robot_node_t *n, const map_estimate_t *map, u
     if (n == NULL || map == NULL) {
         return COSLAM_E_ARG;
     }
+    /* the number belongs to the link, not to the map: kept even when the
+     * map is refused, or the peers would take every message for a replay */
+    n->meeting.tx_seq = msg_seq;
     const coslam_status_t st = slam_filter_seed(&n->filter, &n->cfg.filter, map);
     if (st != COSLAM_OK && st != COSLAM_E_CAPACITY) {
         if (!pose2_is_finite(map->pose)) {
@@ -168,7 +171,6 @@ coslam_status_t robot_node_restore(robot_node_t *n, const map_estimate_t *map, u
         }
         return COSLAM_E_ARG;
     }
-    n->meeting.tx_seq = msg_seq;
     return st;
 }
 
@@ -541,7 +543,9 @@ coslam_status_t robot_node_step(robot_node_t *n)
         in.bumped = bumped;
         in.peer_in_view = peer_in_view(n, &in.peer_bearing_rad);
         in.merged_all = meeting_merged_all(&n->meeting);
-        in.acked_all = meeting_acked_all(&n->meeting);
+        /* done with the peers only once they hold our map and have been
+         * told we hold theirs (meeting_owes_ack) */
+        in.acked_all = meeting_acked_all(&n->meeting) && !meeting_owes_ack(&n->meeting);
         (void)behaviour_step(&n->behaviour, &in, &n->cmd);
         if (n->cfg.laser_optional && !in.scan_ok) {
             /* no obstacle behaviour without a scan: turn on the spot only */

@@ -37,25 +37,69 @@ void merge_session_init(merge_session_t *s)
     memset(s, 0, sizeof *s);
 }
 
-coslam_status_t merge_session_accept(merge_session_t *s, uint8_t sender, uint32_t seq)
+/* The outcome for (sender, seq): 0 accept, 1 replay (older or equal), 2
+ * jump; *rebase: an older number that completes a restarted sender's run
+ * (then accepted). */
+static int session_decide(const merge_session_t *s, uint8_t sender, uint32_t seq, int *rebase)
 {
-    if (sender >= COSLAM_MAX_ROBOTS) {
+    *rebase = 0;
+    if (!s->seen[sender]) {
+        return 0;
+    }
+    /* serial-number comparison: newer iff 0 < seq - last < 2^31 */
+    const uint32_t diff = seq - s->last_seq[sender];
+    if (diff != 0U && diff < 0x80000000U) {
+        return diff > MERGE_SEQ_MAX_JUMP ? 2 : 0;
+    }
+    const uint32_t step = seq - s->run_seq[sender];
+    if (diff != 0U && s->run_n[sender] > 0U && step != 0U && step <= MERGE_SEQ_MAX_JUMP &&
+        s->run_n[sender] + 1U >= MERGE_SEQ_REBASE_RUN) {
+        *rebase = 1;
+        return 0;
+    }
+    return 1;
+}
+
+coslam_status_t merge_session_check(const merge_session_t *s, uint8_t sender, uint32_t seq)
+{
+    if (s == NULL || sender >= COSLAM_MAX_ROBOTS) {
         return COSLAM_E_ARG;
     }
-    if (s->seen[sender]) {
-        /* serial-number comparison: newer iff 0 < seq - last < 2^31 */
-        const uint32_t diff = seq - s->last_seq[sender];
-        if (diff == 0U || diff >= 0x80000000U) {
-            s->rejected_replays++;
-            return COSLAM_E_MERGE_REPLAY;
+    int rebase;
+    return session_decide(s, sender, seq, &rebase) == 0 ? COSLAM_OK : COSLAM_E_MERGE_REPLAY;
+}
+
+coslam_status_t merge_session_accept(merge_session_t *s, uint8_t sender, uint32_t seq)
+{
+    if (s == NULL || sender >= COSLAM_MAX_ROBOTS) {
+        return COSLAM_E_ARG;
+    }
+    int rebase;
+    const int d = session_decide(s, sender, seq, &rebase);
+    if (d == 2) {
+        s->rejected_jumps++;
+        return COSLAM_E_MERGE_REPLAY;
+    }
+    if (d == 1) {
+        s->rejected_replays++;
+        /* an older number: does it continue a run of older numbers? */
+        const uint32_t step = seq - s->run_seq[sender];
+        if (seq != s->last_seq[sender]) {
+            if (s->run_n[sender] > 0U && step != 0U && step <= MERGE_SEQ_MAX_JUMP) {
+                s->run_n[sender]++;
+            } else {
+                s->run_n[sender] = 1U;
+            }
+            s->run_seq[sender] = seq;
         }
-        if (diff > MERGE_SEQ_MAX_JUMP) {
-            s->rejected_jumps++;
-            return COSLAM_E_MERGE_REPLAY;
-        }
+        return COSLAM_E_MERGE_REPLAY;
+    }
+    if (rebase) {
+        s->rebased++;
     }
     s->seen[sender] = 1U;
     s->last_seq[sender] = seq;
+    s->run_n[sender] = 0U;
     s->merges++;
     return COSLAM_OK;
 }

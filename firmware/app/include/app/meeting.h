@@ -126,6 +126,7 @@ typedef struct {
     uint8_t in_meeting;
     uint8_t sends;          /**< messages sent in the current meeting */
     uint64_t last_seen_us;
+    uint8_t sent_any;       /**< a message was ever sent to it (last_sent_us is valid) */
     uint64_t last_sent_us;
     uint8_t merged;         /**< this peer's map was merged at least once */
     uint64_t merged_at_us;
@@ -305,6 +306,13 @@ int meeting_merged_all(const meeting_t *m);
 /** 1 if every other robot has shown (implicit acknowledgement, see above)
  *  that it holds this robot's map. O(n). */
 int meeting_acked_all(const meeting_t *m);
+
+/** 1 if this robot merged some peer's map in the current meeting after its
+ *  last message to that peer: the peer sees that only in a next message
+ *  (its implicit acknowledgement), which meeting_on_sighting then sends
+ *  even though the peer holds this robot's map already (budget and resend
+ *  period permitting). The behaviour stays for it (robot_node). O(n). */
+int meeting_owes_ack(const meeting_t *m);
 
 /** Counters of this instance. */
 const meeting_counters_t *meeting_counters(const meeting_t *m);

@@ -246,7 +246,8 @@ int robot_node_idle(robot_node_t *n);
  * restarts at the identity (it is a control frame only).
  * Returns COSLAM_OK, COSLAM_E_CAPACITY (map cut, see slam_filter_seed),
  * COSLAM_E_ARG (NULL, or a map the filter refuses: the filter then starts
- * empty at the map's pose if that is finite, else as after init).
+ * empty at the map's pose if that is finite, else as after init; the
+ * sequence numbers still go on after msg_seq).
  * O(slam_filter_seed).
  */
 coslam_status_t robot_node_restore(robot_node_t *n, const map_estimate_t *map, uint32_t msg_seq);

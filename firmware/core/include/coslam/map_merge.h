@@ -316,9 +316,14 @@ typedef struct {
 typedef struct {
     uint32_t last_seq[COSLAM_MAX_ROBOTS];
     uint8_t seen[COSLAM_MAX_ROBOTS];
+    /* a run of refused older numbers, each newer than the one before: a
+     * sender that restarted without its last number (merge_session_accept) */
+    uint32_t run_seq[COSLAM_MAX_ROBOTS]; /**< the run's last number */
+    uint8_t run_n[COSLAM_MAX_ROBOTS];    /**< its length (0: none) */
     uint32_t merges;
     uint32_t rejected_replays;  /**< not newer than the last merged number */
     uint32_t rejected_jumps;    /**< newer by more than MERGE_SEQ_MAX_JUMP */
+    uint32_t rebased;           /**< senders taken as restarted (MERGE_SEQ_REBASE_RUN) */
 } merge_session_t;
 
 /** Largest forward step of a sender's sequence number between two merges.
@@ -327,17 +332,38 @@ typedef struct {
  *  last + 2^31 would otherwise make every later genuine message a replay. */
 #define MERGE_SEQ_MAX_JUMP 65536U
 
+/** A sender that restarted without its snapshot numbers from 1 again, below
+ *  what the receiver remembers; every message would be a replay until it
+ *  passed its old number (for the rest of a mission, at a few a meeting).
+ *  This many refused older numbers in a row, each newer than the one before
+ *  by at most MERGE_SEQ_MAX_JUMP, with no accepted one between, take the
+ *  sender as restarted: the last of them is accepted and the window starts
+ *  there (counted in rebased). A genuine message replayed once, or a late
+ *  one overtaken by newer ones, never makes such a run; three old genuine
+ *  messages replayed in order would, which the link's authentication
+ *  refuses (docs/security.md) and which, without it, is no more than a
+ *  forged message with a new number can do. */
+#define MERGE_SEQ_REBASE_RUN 3U
+
 void merge_session_init(merge_session_t *s);
 
 /**
  * Accept a message from `sender` with sequence `seq` only if newer than the
  * last merged one (serial-number arithmetic, so the counter may wrap) by at
- * most MERGE_SEQ_MAX_JUMP. Returns COSLAM_OK (and records it),
+ * most MERGE_SEQ_MAX_JUMP, or if it completes a restarted sender's run
+ * (MERGE_SEQ_REBASE_RUN). Returns COSLAM_OK (and records it),
  * COSLAM_E_MERGE_REPLAY (counted in rejected_replays, or in rejected_jumps
  * for a jump: the window does not move) or COSLAM_E_ARG. Call after the merge succeeded - or before, and accept that
  * a failed merge consumes the number.
  */
 coslam_status_t merge_session_accept(merge_session_t *s, uint8_t sender, uint32_t seq);
+
+/**
+ * What merge_session_accept would return now, changing nothing and counting
+ * nothing: a caller decides with it before letting a message change other
+ * state (the meeting's acknowledgement and send budget).
+ */
+coslam_status_t merge_session_check(const merge_session_t *s, uint8_t sender, uint32_t seq);
 
 /**
  * Step 1. The other robot's pose in self's body frame from the two mutual
