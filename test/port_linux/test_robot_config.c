@@ -241,12 +241,19 @@ static void bad_files_name_file_and_line(void **state)
     refused("[fleet]\nkey_id = 256\n", "bad.ini:2: [fleet] key_id: 256 is outside its domain [0, 255]");
     refused("[fleet]\nwindow_s = 0\n", "bad.ini:2: [fleet] window_s: 0 is outside its domain (0, 86400]");
     refused("[fleet]\nkey = 00112233\n", "bad.ini:2: unknown key 'key' in [fleet]");
+    /* a positive duration that would read back as 0 ("never", "off") */
+    refused("[laser]\nlost_timeout_s = 0.0000001\n",
+            "bad.ini:2: [laser] lost_timeout_s: 0.0000001 is below the microsecond these durations are kept in");
+    refused("[merge]\nwindow_s = 1e-7\n", "bad.ini:2: [merge] window_s: 1e-7 is below the microsecond");
     /* the first error wins */
     refused("[robot]\nid = x\n[laser]\nfoo = 1\n", "bad.ini:2:");
     char msg[600];
     robot_config_default(&cfg);
     assert_int_equal(robot_config_load(&cfg, "/nonexistent/robot.ini", msg, sizeof msg), COSLAM_E_ARG);
     assert_non_null(strstr(msg, "/nonexistent/robot.ini: cannot open"));
+    /* a directory opens and reads as an empty file: refused, not defaults */
+    assert_int_equal(robot_config_load(&cfg, "/tmp", msg, sizeof msg), COSLAM_E_ARG);
+    assert_non_null(strstr(msg, "/tmp: not a regular file"));
 }
 
 /* Run the binary on a file; returns the exit status, stderr into err. */

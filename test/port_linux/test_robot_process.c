@@ -468,6 +468,69 @@ static void sigterm(void **state)
     remove_dir(dir);
 }
 
+/* ---- SIGHUP, SIGPIPE: the same clean stop ------------------------------------ */
+
+/* A dropped SSH session (SIGHUP) stops the robot as SIGTERM does: drives
+ * stopped, a final snapshot, exit 0. A dead pipe reader (SIGPIPE) does not
+ * stop it at all. Before, both killed the process with the drives running
+ * and no snapshot. */
+static void sighup_sigpipe(void **state)
+{
+    (void)state;
+    char dir[64];
+    char err[300];
+    replay_robot_dir(dir, "0.5", "30", "", err);
+    const pid_t pid = spawn_robot(dir, err, NULL, NULL);
+    sleep_ms(1500);
+    kill(pid, SIGPIPE);
+    sleep_ms(300);
+    int st = 0;
+    assert_int_equal(waitpid(pid, &st, WNOHANG), 0); /* still running */
+    kill(pid, SIGHUP);
+    st = wait_exit(pid, 5000);
+    const char *log = slurp(err);
+    if (!(WIFEXITED(st) && WEXITSTATUS(st) == 0)) {
+        fprintf(stderr, "%s\n", log);
+    }
+    assert_true(WIFEXITED(st));
+    assert_int_equal(WEXITSTATUS(st), 0);
+    assert_non_null(strstr(log, "SIGHUP: stopping"));
+    assert_non_null(strstr(log, "(final)"));
+    const disk_t d = scan_disk(dir);
+    assert_int_equal(d.invalid, 0);
+    assert_true(d.newest >= 1);
+    remove_dir(dir);
+}
+
+/* ---- limits said while the robot runs, status line off ---------------------- */
+
+/* Sightings the filter refuses (500 m, beyond sighting_max_range_m) are
+ * said on stderr within about a second although the status line is off
+ * (status_period_s = 0). Before, every limit and warning line waited for a
+ * status report: with none, until the robot stopped. */
+static void limits_without_status(void **state)
+{
+    (void)state;
+    char dir[64];
+    char err[300];
+    replay_robot_dir(dir, "0", "30", "", err);
+    char logp[300];
+    snprintf(logp, sizeof logp, "%s/lm.log", dir);
+    FILE *f = fopen(logp, "w"); /* one landmark, and one sighting at 500 m a frame */
+    assert_non_null(f);
+    for (int k = 0; k < 50; ++k) {
+        fprintf(f, "Z %.3f 0 2.0 0.1\nZ %.3f 1 500.0 0.0\nO %.3f 0 0 0\n", 0.2 * k, 0.2 * k, 0.2 * k + 0.1);
+    }
+    fclose(f);
+    const pid_t pid = spawn_robot(dir, err, NULL, NULL);
+    sleep_ms(2500);
+    const char *log = slurp(err); /* still running */
+    const int said = strstr(log, "(rejected_sightings)") != NULL;
+    (void)stop_robot(pid, err);
+    assert_true(said);
+    remove_dir(dir);
+}
+
 /* ---- the map's observers in parts ------------------------------------------- */
 
 /* With a merge budget of one work unit, the status count's and the periodic
@@ -740,6 +803,8 @@ int main(int argc, char **argv)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(degraded),
         cmocka_unit_test(sigterm),
+        cmocka_unit_test(sighup_sigpipe),
+        cmocka_unit_test(limits_without_status),
         cmocka_unit_test(observers_in_parts),
         cmocka_unit_test(kill_restart),
         cmocka_unit_test(laser_pty),

@@ -6,6 +6,7 @@
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdio.h>
+#include <sys/stat.h>
 #include <string.h>
 
 #include "app/slam_params_ini.h"
@@ -624,6 +625,11 @@ static coslam_status_t set_number(robot_config_t *c, const cfg_key_t *k, const c
     }
     case K_US: {
         const uint32_t x = (uint32_t)llround(d * 1e6);
+        if (d > 0.0 && x == 0U) {
+            /* it would read back as 0, which means "never" or "off" */
+            put_text(msg, cap, "%s is below the microsecond these durations are kept in (0 means off)", v);
+            return COSLAM_E_ARG;
+        }
         memcpy(p, &x, sizeof x);
         break;
     }
@@ -887,8 +893,23 @@ coslam_status_t robot_config_load(robot_config_t *cfg, const char *path, char *m
     if (st.file == NULL) {
         return report(&st, -1, msg, msg_cap);
     }
+    /* a directory opens (and reads as an empty file): refused, as is any
+     * other file that is not a regular one */
+    struct stat sb;
+    if (fstat(fileno(st.file), &sb) != 0 || !S_ISREG(sb.st_mode)) {
+        (void)fclose(st.file);
+        put_text(msg, msg_cap, "%s: not a regular file (a directory?)", path);
+        return COSLAM_E_ARG;
+    }
     const int rc = ini_parse_stream(read_file_line, &st, on_ini, &st);
+    /* a read error ends fgets like the end of the file: the keys after it
+     * would be silently missing */
+    const int read_error = ferror(st.file);
     (void)fclose(st.file);
+    if (read_error) {
+        put_text(msg, msg_cap, "%s: read error after line %d", path, st.line);
+        return COSLAM_E_ARG;
+    }
     return report(&st, rc, msg, msg_cap);
 }
 

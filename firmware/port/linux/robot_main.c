@@ -15,10 +15,11 @@
  * the bumper / e-stop / LED line states in place of a GPIO chip
  * (robot_gpio_fd.h).
  *
- * Exit status: 0 after a clean stop (SIGTERM, SIGINT, --once, --dry-run);
- * 2 for a bad command line or configuration (including a configured fleet
- * key file that is missing, unreadable, too open or invalid); 1 when the
- * node cannot start.
+ * Exit status: 0 after a clean stop (SIGTERM, SIGINT, SIGHUP, SIGQUIT,
+ * --once, --dry-run; SIGPIPE is ignored); 2 for a bad command line or
+ * configuration (including a configured fleet key file that is missing,
+ * unreadable, too open or invalid); 1 when the node cannot start, or when
+ * the clock failed while it ran (after the same clean stop).
  *
  * Main loop: one robot_node_step per step_period on an absolute monotonic
  * schedule (hal_clock_linux: clock_nanosleep(TIMER_ABSTIME) on
@@ -33,6 +34,7 @@
  * parts of a merge or an export remain).
  */
 #include <errno.h>
+#include <math.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -391,14 +393,16 @@ static void load_snapshot(int restore)
      * numbers that the peers remember: go on beyond them */
     const uint32_t msg_seq = loaded.msg_seq + (loaded.clean_stop ? 0U : ROBOT_SNAPSHOT_SEQ_MARGIN);
     const coslam_status_t rs = robot_node_restore(&node, &loaded.map, msg_seq);
-    if (rs != COSLAM_OK && rs != COSLAM_E_CAPACITY) {
-        fprintf(stderr, "coslam-robot: snapshot: %s seq=%llu refused by the filter (%s): starting a new map\n", name,
-                (unsigned long long)loaded.seq, coslam_status_str(rs));
-        return;
-    }
+    /* the message numbers go on either way (robot_node_restore) */
     seq_book.base = loaded.msg_seq;
     seq_book.resumed = msg_seq;
     seq_book.unknown = !loaded.clean_stop;
+    if (rs != COSLAM_OK && rs != COSLAM_E_CAPACITY) {
+        fprintf(stderr, "coslam-robot: snapshot: %s seq=%llu refused by the filter (%s): starting a new map; map "
+                        "messages numbered on from %lu\n",
+                name, (unsigned long long)loaded.seq, coslam_status_str(rs), (unsigned long)msg_seq);
+        return;
+    }
     char restart[96] = "";
     if (!loaded.clean_stop) {
         (void)snprintf(restart, sizeof restart, " (not from a clean stop: map messages numbered on from %lu)",
@@ -544,14 +548,27 @@ int main(int argc, char **argv)
         return 0;
     }
 
+    /* every signal that would end the process stops it cleanly instead:
+     * drives stopped, final snapshot. SIGHUP comes when the terminal of a
+     * hand-started robot goes (a dropped SSH session), SIGQUIT from Ctrl-\;
+     * SIGPIPE (stderr piped into a reader that died) is ignored: a lost
+     * log line is no reason to leave the wheels turning */
     struct sigaction sa;
     memset(&sa, 0, sizeof sa);
     sa.sa_handler = on_signal;
     (void)sigemptyset(&sa.sa_mask);
-    (void)sigaction(SIGTERM, &sa, NULL);
-    (void)sigaction(SIGINT, &sa, NULL);
+    static const int stop_signals[] = {SIGTERM, SIGINT, SIGHUP, SIGQUIT};
+    for (size_t i = 0; i < sizeof stop_signals / sizeof stop_signals[0]; ++i) {
+        (void)sigaction(stop_signals[i], &sa, NULL);
+    }
+    struct sigaction ign;
+    memset(&ign, 0, sizeof ign);
+    ign.sa_handler = SIG_IGN;
+    (void)sigemptyset(&ign.sa_mask);
+    (void)sigaction(SIGPIPE, &ign, NULL);
 
     hal_clock_t *clock = hal_clock_linux();
+    int clock_failed = 0; /* the loop ended because the clock failed: exit 1 */
     uint64_t now = 0;
     if (hal_clock_now_us(clock, &now) != HAL_OK) {
         fprintf(stderr, "coslam-robot: the monotonic clock failed\n");
@@ -616,14 +633,16 @@ int main(int argc, char **argv)
                 strerror(werr));
     }
     const uint64_t period = cfg.step_period_us;
-    const uint64_t status_us = (uint64_t)(cfg.status_period_s * 1e6);
+    /* a positive period below a microsecond is a microsecond, not 0 (off) */
+    const uint64_t status_us = cfg.status_period_s > 0.0 ? (uint64_t)fmax(1.0, cfg.status_period_s * 1e6) : 0U;
     const uint64_t file_us = status_us > 0U ? status_us : 10000000U;
-    const uint64_t snap_us = (uint64_t)(cfg.snapshot_period_s * 1e6);
+    const uint64_t snap_us = cfg.snapshot_period_s > 0.0 ? (uint64_t)fmax(1.0, cfg.snapshot_period_s * 1e6) : 0U;
     robot_loop_stats_t loop;
     memset(&loop, 0, sizeof loop);
     uint64_t next = now + period;
     uint64_t next_status = now + status_us;
     uint64_t next_file = now + file_us;
+    uint64_t next_limits = now + 1000000U; /* limit and warning lines: every second, status or not */
     uint64_t next_snap = now + snap_us;
     uint64_t gpio_try = now;
     double cpu_mark = cpu_seconds();
@@ -680,6 +699,12 @@ int main(int argc, char **argv)
         }
         if (!(observer.want_line || observer.want_file)) {
             observer.status_due_us = now;
+        }
+        if (now >= next_limits) {
+            /* a capacity hit is said within a second, also with the status
+             * line off (status_period_s = 0) */
+            log_limits();
+            next_limits = now + 1000000U;
         }
         if (status_us > 0U && now >= next_status) {
             observer.want_line = 1;
@@ -743,7 +768,8 @@ int main(int argc, char **argv)
             next += (late / period + 1U) * period;
         }
         if (hal_clock_sleep_until_us(clock, next) != HAL_OK) {
-            fprintf(stderr, "coslam-robot: the monotonic clock failed while sleeping\n");
+            fprintf(stderr, "coslam-robot: the monotonic clock failed while sleeping: stopping (exit 1)\n");
+            clock_failed = 1;
             break;
         }
         next += period;
@@ -752,7 +778,12 @@ int main(int argc, char **argv)
     /* clean stop: drives stopped, final snapshot, devices closed */
     const int sig = (int)stop_signal;
     if (sig != 0) {
-        fprintf(stderr, "coslam-robot: %s: stopping\n", sig == SIGTERM ? "SIGTERM" : "SIGINT");
+        const char *name = sig == SIGTERM ? "SIGTERM"
+                           : sig == SIGINT ? "SIGINT"
+                           : sig == SIGHUP ? "SIGHUP"
+                           : sig == SIGQUIT ? "SIGQUIT"
+                                            : "signal";
+        fprintf(stderr, "coslam-robot: %s: stopping\n", name);
     }
     (void)robot_node_shutdown(&node);
     (void)hal_clock_now_us(clock, &now);
@@ -790,5 +821,5 @@ int main(int argc, char **argv)
     robot_devices_close_all(&dev);
     fprintf(stderr, "coslam-robot: stopped after %llu steps, %lu overruns%s\n", (unsigned long long)loop.steps,
             (unsigned long)loop.overruns, saved == 0 ? "" : " (no final snapshot)");
-    return 0;
+    return clock_failed ? 1 : 0; /* a failure: systemd's Restart=on-failure starts it again */
 }
