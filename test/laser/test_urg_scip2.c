@@ -755,6 +755,50 @@ static void test_lost_status_line_keeps_next_message(void **state)
     assert_int_equal(urg_scip2_stats(&f->urg)->resyncs, 0);
 }
 
+/* A peer that sends lines but never an empty one (another device on the
+ * port): a command gives up after URG_SCIP2_DISCARD_MAX bytes with GARBAGE,
+ * counted, instead of reading for ever; the next call goes on resyncing. */
+static void test_endless_lines_bounded(void **state)
+{
+    fixture_t *f = *state;
+    static char lines[24000];
+    size_t n = 0;
+    while (n + 40U < sizeof lines) {
+        n += (size_t)snprintf(lines + n, sizeof lines - n, "$GPGGA,123519,4807.038,N,01131.000,E\n");
+    }
+    fake_add(&f->fake, 1, lines, n);
+    assert_int_equal(urg_scip2_enter_scip2(&f->urg), COSLAM_E_URG_GARBAGE);
+    const urg_scip2_stats_t *st = urg_scip2_stats(&f->urg);
+    assert_int_equal(st->err_garbage, 1);
+    assert_true(f->fake.pos <= URG_SCIP2_DISCARD_MAX + URG_SCIP2_RX_CAP); /* the budget and one buffer */
+    assert_int_equal(urg_scip2_laser_on(&f->urg), COSLAM_E_URG_GARBAGE);
+    assert_int_equal(urg_scip2_stats(&f->urg)->err_garbage, 2);
+}
+
+/* A reply whose final empty line was lost: the command reports a timeout,
+ * and the next command's reply, whole, is read (not taken for the rest of
+ * the broken one and thrown away). */
+static void test_lost_reply_end_keeps_next_reply(void **state)
+{
+    fixture_t *f = *state;
+    fake_add_str(&f->fake, 1, "BM\n00P\n"); /* the final LF lost */
+    fake_add_str(&f->fake, 2, "QT\n00P\n\n");
+    assert_int_equal(urg_scip2_laser_on(&f->urg), COSLAM_E_URG_TIMEOUT);
+    assert_int_equal(urg_scip2_laser_off(&f->urg), COSLAM_OK);
+    assert_int_equal(urg_scip2_stats(&f->urg)->err_timeout, 1);
+    assert_int_equal(urg_scip2_stats(&f->urg)->resyncs, 1);
+}
+
+/* A stale scan of a running MD that breaks off while start_md skips it is
+ * a dropped reply: counted in err_timeout, as in every other command. */
+static void test_md_restart_broken_stale_scan_counted(void **state)
+{
+    fixture_t *f = *state;
+    fake_add_str(&f->fake, 1, "MD0044072501000\n99b\n0000");
+    assert_int_equal(urg_scip2_start_md(&f->urg, 44, 725, 1, 0, 0), COSLAM_E_URG_TIMEOUT);
+    assert_int_equal(urg_scip2_stats(&f->urg)->err_timeout, 1);
+}
+
 static void test_md_refused_and_bad_args(void **state)
 {
     fixture_t *f = *state;
@@ -906,6 +950,9 @@ int main(void)
         T(test_md_finite_and_cluster),
         T(test_qt_skips_scans_in_flight),
         T(test_md_refused_and_bad_args),
+        T(test_endless_lines_bounded),
+        T(test_lost_reply_end_keeps_next_reply),
+        T(test_md_restart_broken_stale_scan_counted),
         T(test_stream_status_error),
         T(test_md_restart_skips_running_scans),
         T(test_md_finite_last_scan_corrupt),

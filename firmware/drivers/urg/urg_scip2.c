@@ -215,6 +215,10 @@ static coslam_status_t next_byte(urg_scip2_t *u, uint32_t timeout_us, uint8_t *b
 static coslam_status_t discard_to_empty_line(urg_scip2_t *u, uint32_t timeout_us, int is_skip)
 {
     u->resync_pending = 1;
+    /* no reply is longer than the receive buffer: a peer that sends lines
+     * but never an empty one (another device on the port) ends the call
+     * after this many bytes instead of holding it for ever */
+    uint32_t budget = URG_SCIP2_DISCARD_MAX;
     for (;;) {
         const int at_line_start = u->last_byte_lf;
         uint8_t b = 0;
@@ -227,6 +231,10 @@ static coslam_status_t discard_to_empty_line(urg_scip2_t *u, uint32_t timeout_us
         }
         if (!is_skip) {
             u->stats.bytes_discarded++;
+        }
+        if (--budget == 0U) {
+            u->stats.err_garbage++; /* the resynchronisation stays pending */
+            return COSLAM_E_URG_GARBAGE;
         }
     }
     u->resync_pending = 0;
@@ -521,6 +529,19 @@ static coslam_status_t command(urg_scip2_t *u, const char *cmd, size_t n, char s
     COSLAM_ASSERT(n + 1U <= sizeof buf);
     memcpy(buf, cmd, n);
     buf[n] = '\n';
+    if (u->resync_pending) {
+        /* the rest of a broken reply, before this command's reply can come:
+         * after it, that reply would be taken for the rest and thrown away */
+        const coslam_status_t rs = discard_to_empty_line(u, u->cfg.byte_timeout_us, 0);
+        if (rs == COSLAM_E_URG_TIMEOUT) {
+            /* its end was lost: nothing more of it will come */
+            u->resync_pending = 0;
+            u->last_byte_lf = 1;
+            u->stats.resyncs++;
+        } else if (rs != COSLAM_OK) {
+            return rs;
+        }
+    }
     const coslam_status_t st = send_cmd(u, buf, n + 1U);
     if (st != COSLAM_OK) {
         return st;
@@ -937,6 +958,9 @@ coslam_status_t urg_scip2_start_md(urg_scip2_t *u, uint16_t first, uint16_t last
             return fail_resync(u, COSLAM_E_URG_ECHO);
         }
         st = discard_to_empty_line(u, u->cfg.byte_timeout_us, 1);
+        if (st == COSLAM_E_URG_TIMEOUT) {
+            u->stats.err_timeout++; /* the stale scan broke off: counted as in await_echo */
+        }
         if (st == COSLAM_OK) {
             st = reply_status(u, cmd, n, status);
         }

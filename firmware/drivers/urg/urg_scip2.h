@@ -81,6 +81,12 @@ extern "C" {
  *  so that urg_scip2_read_scan can wait for a whole message without
  *  blocking. */
 #define URG_SCIP2_RX_CAP (URG_SCIP2_MD_MSG_MAX + 128)
+/** Bytes one resynchronisation (the rest of a broken or stale message, up
+ *  to the next empty line) may discard before the call gives up with
+ *  COSLAM_E_URG_GARBAGE (counted in err_garbage; the resynchronisation
+ *  stays pending): twice the longest message, so that a peer that sends
+ *  lines but never an empty one cannot hold a command for ever. */
+#define URG_SCIP2_DISCARD_MAX (2U * URG_SCIP2_RX_CAP)
 /** Characters kept of one VV/PP/II text field (longer text is truncated and
  *  counted in stats.fields_truncated). */
 #define URG_SCIP2_TEXT_MAX 64
