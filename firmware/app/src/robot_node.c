@@ -418,17 +418,29 @@ static coslam_status_t run_drive(robot_node_t *n)
     }
     const coslam_status_t st = cia402_omni_poll(&n->drive, n->now_us);
     if (st == COSLAM_E_DRIVE_FAULT) {
-        if (n->state != ROBOT_NODE_FAULT) {
-            n->state = ROBOT_NODE_FAULT;
+        /* one fault is counted once, until the drive reports clear: an EMCY's
+         * reset clears asynchronously, so the polls right after the reset
+         * still report it */
+        if (!n->drive_fault_latched) {
+            n->drive_fault_latched = 1;
             n->ctr.drive_faults++;
-            n->retry_at_us = n->now_us + n->cfg.retry_period_us;
             result = st;
+        }
+        /* a reset just sent gets a retry period to clear before the node
+         * waits for the next one */
+        const int clearing = n->fault_reset_at_us != 0U && n->now_us - n->fault_reset_at_us < n->cfg.retry_period_us;
+        if (n->state != ROBOT_NODE_FAULT && !clearing) {
+            n->state = ROBOT_NODE_FAULT;
+            n->retry_at_us = n->now_us + n->cfg.retry_period_us;
         }
     } else if (st != COSLAM_OK) {
         n->ctr.drive_errors++;
+    } else {
+        n->drive_fault_latched = 0;
     }
     if (n->state == ROBOT_NODE_FAULT && n->now_us >= n->retry_at_us) {
         (void)cia402_omni_fault_reset(&n->drive, n->now_us);
+        n->fault_reset_at_us = n->now_us;
         n->state = ROBOT_NODE_DRIVE_UP;
     }
     if (n->state == ROBOT_NODE_DRIVE_UP && cia402_omni_is_running(&n->drive)) {

@@ -474,6 +474,25 @@ static void log_limits(void)
                 "(sightings_dropped; COSLAM_MAX_SIGHTINGS = %d in this build, profile %s)\n",
                 (unsigned)cfg.robot_id, (unsigned long)seen_dropped, (int)COSLAM_MAX_SIGHTINGS, COSLAM_PROFILE_NAME);
     }
+    /* a drive fault: which wheel and why (counted once per fault, robot_node) */
+    static uint32_t seen_drive_faults;
+    if (node.ctr.drive_faults > seen_drive_faults) {
+        seen_drive_faults = node.ctr.drive_faults;
+        cia402_omni_fault_t df;
+        if (cia402_omni_get_fault(&node.drive, &df) == COSLAM_OK) {
+            fprintf(stderr,
+                    "coslam-robot: robot %u: drive fault %lu: wheel %d (CANopen node %u): %s, EMCY code 0x%04x "
+                    "register 0x%02x, statusword 0x%04x, SDO abort 0x%08lx; stopped, reset in %.1f s "
+                    "(drive_faults)\n",
+                    (unsigned)cfg.robot_id, (unsigned long)seen_drive_faults, (int)df.wheel, (unsigned)df.node_id,
+                    cia402_fault_str(df.info.reason), (unsigned)df.info.emcy_code, (unsigned)df.info.emcy_register,
+                    (unsigned)df.info.statusword, (unsigned long)df.info.sdo_abort_code,
+                    (double)cfg.node.retry_period_us * 1e-6);
+        } else {
+            fprintf(stderr, "coslam-robot: robot %u: drive fault %lu (cleared before it was read; drive_faults)\n",
+                    (unsigned)cfg.robot_id, (unsigned long)seen_drive_faults);
+        }
+    }
     /* nothing is lost, but a step paid for the rest of a merge or a send */
     if (node.filter.merges_forced > seen_forced) {
         seen_forced = node.filter.merges_forced;

@@ -44,8 +44,10 @@
  *    e-stop roles are not attached the robot does not move, unless
  *    motion_without_gpio is set (the e-stop is a safety input).
  *  - robot_node_hold(): an external stop (shutdown, a supervisor).
- * With no CAN bus the drive bring-up keeps failing (counted in
- * drive_errors): no odometry, no motion; sightings, filter and meeting run.
+ * With no CAN bus the drive bring-up fails: drive_errors if the driver
+ * cannot start, else one drive fault (the bus fault, counted once while it
+ * lasts and reset every retry_period_us): no odometry, no motion;
+ * sightings, filter and meeting run.
  * In every mode a laser that went silent after start-up for laser_lost_us
  * (unplugged, garbled line) is counted in laser_lost and reconnected every
  * retry_period_us; without a scan the robot does not translate.
@@ -149,7 +151,8 @@ typedef struct {
     uint32_t sightings_dropped;   /**< reported by the source (frame full) */
     uint32_t filter_errors;       /**< predict/update returned an error */
     uint32_t odometry_errors;     /**< increments refused (non-finite) */
-    uint32_t drive_faults;        /**< faults reported by the drive driver */
+    uint32_t drive_faults;        /**< faults reported by the drive driver, each counted once until
+                                       the driver reports clear (reset every retry_period_us) */
     uint32_t drive_errors;        /**< other drive driver errors */
     uint32_t stop_steps;          /**< steps stopped by bumper / e-stop */
     uint32_t bumper_acks;         /**< bumper hits, acknowledged once released */
@@ -167,6 +170,8 @@ typedef struct {
     robot_node_state_t state;
     uint64_t now_us;
     uint64_t retry_at_us;
+    uint64_t fault_reset_at_us;   /**< when the last drive fault reset was sent (0: none yet) */
+    int drive_fault_latched;      /**< a counted drive fault not yet cleared (counted once) */
     /* drivers */
     urg_scip2_t urg;
     cia402_omni_t drive;
