@@ -457,6 +457,19 @@ static void sigterm(void **state)
     assert_non_null(strstr(json, "\"state\": \""));
     assert_non_null(strstr(json, "\"camera\": \"up\""));
     assert_null(strstr(json, "status_dropped")); /* every pair fits the report */
+    /* counters that used to reach neither the line nor the file */
+    for (const char *const *k = (const char *const[]){"\"diverged\"", "\"can_errors\"", "\"mt_pending_replaced\"",
+                                                      "\"mt_refused_implausible\"", "\"mt_ignored_disagreed\"",
+                                                      "\"mt_weak_not_sent\"", "\"mt_send_busy\"", "\"mt_rebased\"",
+                                                      "\"lm_capacity_drops\"", "\"rejected_sightings\"",
+                                                      "\"numeric_faults\"", "\"urg_err_capacity\"",
+                                                      "\"urg_bytes_discarded\"", NULL};
+         *k != NULL; ++k) {
+        if (strstr(json, *k) == NULL) {
+            fprintf(stderr, "status file lacks %s\n", *k);
+        }
+        assert_non_null(strstr(json, *k));
+    }
     assert_null(strstr(log, "LIMIT status"));
     assert_int_equal(d.clean_stop, 1); /* the final one: no map sent after it */
     const pid_t pid3 = spawn_robot(dir, err, "--once", "1");

@@ -90,6 +90,9 @@ void robot_status_collect(robot_status_t *s, robot_node_t *node, const robot_dev
     u64(s, "blind_steps", c->blind_steps);
     u64(s, "bumper_acks", c->bumper_acks);
     u64(s, "gpio_attach_failures", c->gpio_attach_failures);
+    u64(s, "diverged", c->diverged);
+    u64(s, "diverged_now", (uint64_t)robot_node_diverged(node));
+    u64(s, "can_errors", c->can_errors);
 
     const meeting_counters_t *m = robot_node_meeting_counters(node);
     u64(s, "mt_sent", m->sent);
@@ -107,6 +110,27 @@ void robot_status_collect(robot_status_t *s, robot_node_t *node, const robot_dev
     u64(s, "mt_refused_range", m->refused_range);
     u64(s, "mt_refused_disagree", m->refused_disagree);
     u64(s, "mt_events_dropped", m->events_dropped);
+    u64(s, "mt_pending_replaced", m->pending_replaced);
+    u64(s, "mt_refused_implausible", m->refused_implausible);
+    u64(s, "mt_ignored_disagreed", m->ignored_disagreed);
+    u64(s, "mt_weak_not_sent", m->weak_not_sent);
+    u64(s, "mt_send_waits", m->send_waits);
+    u64(s, "mt_send_busy", m->send_busy);
+    u64(s, "mt_rebased", node->meeting.session.rebased);
+    /* the filter's loss counters (the LIMIT / warning lines' counters) */
+    slam_filter_limit_t lim[SLAM_FILTER_N_LIMITS];
+    const int n_lim = slam_filter_limits(&node->filter, lim);
+    static const char *const loss_keys[] = {"lm_capacity_drops",   "sighting_capacity_drops", "export_capacity_drops",
+                                            "rejected_controls",   "rejected_sightings",      "numeric_faults"};
+    for (size_t k = 0; k < sizeof loss_keys / sizeof loss_keys[0]; ++k) {
+        uint64_t v = 0;
+        for (int i = 0; i < n_lim; ++i) {
+            if (strcmp(lim[i].counter, loss_keys[k]) == 0) {
+                v = lim[i].value;
+            }
+        }
+        u64(s, loss_keys[k], v);
+    }
     /* work in parts (docs/scale.md): merges, sends and the observers' exports */
     const slam_filter_t *fl = &node->filter;
     u64(s, "idle_calls", loop->idle_calls);
@@ -128,6 +152,14 @@ void robot_status_collect(robot_status_t *s, robot_node_t *node, const robot_dev
     u64(s, "urg_err_line", u->err_line);
     u64(s, "urg_err_garbage", u->err_garbage);
     u64(s, "urg_resyncs", u->resyncs);
+    u64(s, "urg_err_echo", u->err_echo);
+    u64(s, "urg_err_status", u->err_status);
+    u64(s, "urg_err_field", u->err_field);
+    u64(s, "urg_err_capacity", u->err_capacity);
+    u64(s, "urg_bytes_discarded", u->bytes_discarded);
+    u64(s, "urg_messages_skipped", u->messages_skipped);
+    u64(s, "urg_fields_truncated", u->fields_truncated);
+    u64(s, "urg_stamp_backwards", u->stamp_backwards);
 
     pose2_t pose;
     cov3_t cov;

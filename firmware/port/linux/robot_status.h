@@ -11,9 +11,14 @@
  *   steps overruns late_max_us cpu_pct: the main loop (CPU over the last
  *     report period, user + system, percent of one core);
  *   laser_streaming (1 while the node has the laser connected);
- *   the robot node's counters (robot_node_counters_t, same names);
- *   mt_* the meeting's counters (meeting_counters_t);
- *   urg_* the laser driver's (scans_ok and the err_ counters);
+ *   the robot node's counters (robot_node_counters_t, same names), and
+ *     diverged_now (the health monitor's judgement now);
+ *   mt_* the meeting's counters (meeting_counters_t), mt_rebased;
+ *   the filter's loss counters (slam_filter_limits: lm_capacity_drops,
+ *     sighting_capacity_drops, export_capacity_drops, rejected_controls,
+ *     rejected_sightings, numeric_faults), 0 when nothing was lost;
+ *   urg_* the laser driver's (scans_ok, the err_ counters, resyncs,
+ *     bytes_discarded, messages_skipped, fields_truncated, stamp_backwards);
  *   link_mode: auth | insecure | off(no_fleet_key) | off(no_dds_in_build)
  *     | off(no_auth_in_build); on stderr a link that is not authenticated
  *     also ends every line with "WARNING: link: ..." (robot_link_warning);
