@@ -474,6 +474,16 @@ static void log_limits(void)
                 "(sightings_dropped; COSLAM_MAX_SIGHTINGS = %d in this build, profile %s)\n",
                 (unsigned)cfg.robot_id, (unsigned long)seen_dropped, (int)COSLAM_MAX_SIGHTINGS, COSLAM_PROFILE_NAME);
     }
+    /* the health monitor judged the filter diverged (reported, not acted on:
+     * docs/robot-app.md) */
+    static uint32_t seen_diverged;
+    if (node.ctr.diverged > seen_diverged) {
+        seen_diverged = node.ctr.diverged;
+        fprintf(stderr,
+                "coslam-robot: warning: robot %u: the health monitor judges the filter diverged (episode %lu; "
+                "diverged): its pose and map are not to be trusted until it says otherwise (diverged_now)\n",
+                (unsigned)cfg.robot_id, (unsigned long)seen_diverged);
+    }
     /* a drive fault: which wheel and why (counted once per fault, robot_node) */
     static uint32_t seen_drive_faults;
     if (node.ctr.drive_faults > seen_drive_faults) {
