@@ -259,6 +259,16 @@ TEST(DetectDrawn, BearingAndPinholeRangeOfAnExactMarker)
     ASSERT_EQ(res.n_markers, 1);
     EXPECT_EQ(res.markers[0].kind, VISION_MARKER_ROBOT);
     EXPECT_EQ(res.markers[0].index, 1);
+    EXPECT_EQ(res.rejected_duplicate, 0);
+    // the same robot's marker twice in one frame (a reflection, a second
+    // robot with the same id): the larger is kept, the other counted
+    Drawn two;
+    two.marker(20, 160, 100, 120, 140, VISION_COLOUR_GREEN, VISION_COLOUR_YELLOW);  // robot 1
+    two.marker(200, 290, 150, 163, 176, VISION_COLOUR_GREEN, VISION_COLOUR_YELLOW); // robot 1, smaller
+    ASSERT_EQ(vision_detect_rgb(det.d, two.rgb.ptr<uint8_t>(0), 3u * W, &res), VISION_OK);
+    ASSERT_EQ(res.n_markers, 1);
+    EXPECT_EQ(res.markers[0].x, 20);
+    EXPECT_EQ(res.rejected_duplicate, 1);
 }
 
 TEST(DetectDrawn, WhatIsNotAMarker)

@@ -366,7 +366,10 @@ void pair_markers(vision_detector *d, vision_result_t *out)
                     smaller = true;
                 }
             }
-            if (replaced || smaller) continue;
+            if (replaced || smaller) {
+                out->rejected_duplicate++;  // one of the two is dropped: counted
+                continue;
+            }
         }
         if (out->n_markers >= VISION_MAX_MARKERS) {
             out->dropped++;
@@ -389,10 +392,12 @@ vision_status_t detect(vision_detector *d, vision_result_t *out)
         if (!runs_ok) d->ctr.runs_overflow++;
     }
     out->n_blobs = static_cast<uint32_t>(d->blobs.size());
+    const uint64_t pairs_overflow0 = d->ctr.pairs_overflow;
     pair_markers(d, out);
+    const bool pairs_overflow = d->ctr.pairs_overflow != pairs_overflow0;
     d->ctr.frames++;
     d->have_frame = true;
-    return (runs_ok && !blob_overflow) ? VISION_OK : VISION_E_CAPACITY;
+    return (runs_ok && !blob_overflow && !pairs_overflow) ? VISION_OK : VISION_E_CAPACITY;
 }
 
 }  // namespace

@@ -41,7 +41,12 @@ typedef struct hal_storage hal_storage_t;
 
 typedef struct {
     /** HAL_OK; HAL_E_OVERFLOW (no room on the medium or larger than the
-     *  backend's blob limit; old blob intact); HAL_E_IO (old blob intact). */
+     *  backend's blob limit; old blob intact); HAL_E_IO (old blob intact,
+     *  except in one case: the Linux backend's rename succeeded and the
+     *  directory's fsync then failed, so a read returns the new blob but
+     *  its durability across a power cut is not known). A caller keeps its
+     *  record of what was written as if the write had failed, which errs
+     *  towards the older state. */
     hal_status_t (*write)(hal_storage_t *dev, const char *name, const uint8_t *data, size_t len);
     /** HAL_OK (*len = blob size, bytes in buf); HAL_E_NOT_FOUND;
      *  HAL_E_OVERFLOW (cap < size; *len = size needed); HAL_E_CORRUPT;

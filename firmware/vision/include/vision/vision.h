@@ -201,6 +201,7 @@ typedef struct {
     uint16_t rejected_border;    /**< pairs touching the image border (not measurable) */
     uint16_t edge_robots;        /**< robot markers cut by a side, placed from their visible edge */
     uint16_t rejected_range;     /**< markers outside [min_range_m, max_range_m] */
+    uint16_t rejected_duplicate; /**< robot markers of an id already seen larger in this frame */
     uint32_t n_runs;             /**< runs labelled (VISION_BLOBS_RUNS) */
     uint32_t n_blobs;            /**< blobs kept (all colours) */
 } vision_result_t;
@@ -236,8 +237,9 @@ void vision_detector_destroy(vision_detector_t *det);
 
 /** Detect markers in an RGB24 frame (rows top to bottom, stride_bytes >=
  *  3 * width). Returns VISION_OK with *out filled; VISION_E_ARG;
- *  VISION_E_CAPACITY (runs or blobs overflowed: *out holds what was found in
- *  the part processed, counted). Time: O(W H) plus O(blobs^2) pairing;
+ *  VISION_E_CAPACITY (runs, blobs or candidate pairs overflowed: *out holds
+ *  what was found in the part processed, counted; a pair overflow can leave
+ *  out a real marker, since pairs are taken in blob order). Time: O(W H) plus O(blobs^2) pairing;
  *  about 0.3 ms for 320x240 on one x86-64 core (docs/vision.md). */
 vision_status_t vision_detect_rgb(vision_detector_t *det, const uint8_t *rgb, uint32_t stride_bytes,
                                   vision_result_t *out);

@@ -61,9 +61,12 @@ typedef struct {
 
 /** Bind camera, detector and frame buffer, read the camera's format and
  *  start streaming. Returns HAL_OK; HAL_E_ARG (NULL, cap too small for the
- *  format, a format size other than the detector's); the camera's
- *  get_format/start error (the source is still usable: next_frame then
- *  retries the start and reports HAL_E_CLOSED). */
+ *  format, a format size other than the detector's); the camera's start
+ *  error (the source is still usable: next_frame then retries the start and
+ *  reports HAL_E_CLOSED); the camera's get_format error (the format was not
+ *  read: every next_frame then fails with HAL_E_IO, counted in grab_errors,
+ *  until the source is initialised again, as the robot's device retry
+ *  does). */
 hal_status_t vision_source_init(vision_source_t *vs, hal_camera_t *camera, vision_detector_t *det, uint8_t *buf,
                                 size_t cap);
 static inline sighting_source_t *vision_source_handle(vision_source_t *vs)
