@@ -46,6 +46,7 @@ static struct {
     struct can_filter filters[32];
     int n_filters;
     uint32_t inject_drops; /* recvmsg: report this SO_RXQ_OVFL counter (0: none) */
+    int if_down;           /* SIOCGIFFLAGS: the interface is down */
 } W;
 
 int __real_socket(int domain, int type, int protocol);
@@ -84,6 +85,11 @@ int __wrap_ioctl(int fd, unsigned long request, ...)
     void *arg = va_arg(ap, void *);
     va_end(ap);
     if (!W.fake || fd != W.fd) return __real_ioctl(fd, request, arg);
+    if (request == SIOCGIFFLAGS) {
+        struct ifreq *fl = (struct ifreq *)arg;
+        fl->ifr_flags = (short)(W.if_down ? 0 : (IFF_UP | IFF_RUNNING));
+        return 0;
+    }
     if (request != SIOCGIFINDEX) {
         errno = ENOTTY;
         return -1;
@@ -334,6 +340,15 @@ static void test_open_failures(void **state)
         assert_false(fd_is_open(W.fd));
         close(W.peer);
     }
+    /* an interface that is down binds without error (Linux only marks the
+     * socket): refused as closed all the same, the socket closed */
+    memset(&W, 0, sizeof W);
+    W.fake = 1;
+    W.if_down = 1;
+    assert_int_equal(hal_can_socketcan_open(&sc, "can0"), HAL_E_CLOSED);
+    assert_false(fd_is_open(W.fd));
+    assert_int_equal(sc.fd, -1);
+    close(W.peer);
 }
 
 static void test_open_by_name(void **state)

@@ -402,6 +402,17 @@ hal_status_t hal_can_socketcan_open(hal_can_socketcan_t *sc, const char *ifname)
         st = e == ENODEV ? HAL_E_NOT_FOUND : e == ENETDOWN ? HAL_E_CLOSED : HAL_E_IO;
         goto fail;
     }
+    /* binding to an interface that is down succeeds: the kernel only sets a
+     * pending ENETDOWN on the socket (net/can/raw.c), which then fails the
+     * first send or receive once, even after the interface came up. So ask
+     * the interface, and clear a pending error. */
+    if (ioctl(fd, SIOCGIFFLAGS, &ifr) == 0 && (ifr.ifr_flags & IFF_UP) == 0) {
+        st = HAL_E_CLOSED;
+        goto fail;
+    }
+    int pending = 0;
+    socklen_t pending_len = sizeof pending;
+    (void)getsockopt(fd, SOL_SOCKET, SO_ERROR, &pending, &pending_len);
     init_state(sc, fd, 1);
     return HAL_OK;
 
