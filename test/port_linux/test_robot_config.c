@@ -241,6 +241,11 @@ static void bad_files_name_file_and_line(void **state)
     refused("[fleet]\nkey_id = 256\n", "bad.ini:2: [fleet] key_id: 256 is outside its domain [0, 255]");
     refused("[fleet]\nwindow_s = 0\n", "bad.ini:2: [fleet] window_s: 0 is outside its domain (0, 86400]");
     refused("[fleet]\nkey = 00112233\n", "bad.ini:2: unknown key 'key' in [fleet]");
+    /* one GPIO line in two roles: the later key's line */
+    refused("[gpio]\nbumper_lines = 1, 2\n\nestop_line = 2\n",
+            "bad.ini:4: [gpio] estop_line: GPIO line 2 is used by bumper_lines and by estop_line");
+    refused("[gpio]\nled_lines = 5\nbumper_lines = 5\n",
+            "bad.ini:3: [gpio] bumper_lines: GPIO line 5 is used by bumper_lines and by led_lines");
     /* a positive duration that would read back as 0 ("never", "off") */
     refused("[laser]\nlost_timeout_s = 0.0000001\n",
             "bad.ini:2: [laser] lost_timeout_s: 0.0000001 is below the microsecond these durations are kept in");

@@ -809,6 +809,17 @@ static char *read_text_line(char *str, int num, void *stream)
 }
 
 /* Derived settings and the rules between keys. */
+/* The line a key was read from (0: not in the file). */
+static int key_line_of(const load_t *st, const char *section, const char *name)
+{
+    for (size_t i = 0; i < N_KEYS; ++i) {
+        if (strcmp(keys[i].section, section) == 0 && strcmp(keys[i].name, name) == 0) {
+            return st->key_line[i];
+        }
+    }
+    return 0;
+}
+
 static void finish(load_t *st)
 {
     robot_config_t *c = st->cfg;
@@ -836,6 +847,41 @@ static void finish(load_t *st)
                        (unsigned)c->fleet_size);
         fail(st, "robot", a > b ? "id" : "fleet_size", msg);
         return;
+    }
+    /* a GPIO line in two roles: the gpio_roles driver would refuse it at
+     * start with no file and line (robot_node_init: E_ARG) */
+    {
+        uint32_t used[COSLAM_MAX_BUMPERS + COSLAM_MAX_STATUS_LEDS + 1];
+        const char *role[sizeof used / sizeof used[0]];
+        size_t n_used = 0;
+        const gpio_roles_config_t *g = &c->node.gpio;
+        for (uint8_t k = 0; k < g->n_bumpers; ++k) {
+            used[n_used] = g->bumpers[k].line;
+            role[n_used++] = "bumper_lines";
+        }
+        if (g->has_estop) {
+            used[n_used] = g->estop.line;
+            role[n_used++] = "estop_line";
+        }
+        for (uint8_t k = 0; k < g->n_leds; ++k) {
+            used[n_used] = g->leds[k].line;
+            role[n_used++] = "led_lines";
+        }
+        for (size_t a = 0; a < n_used; ++a) {
+            for (size_t b = a + 1; b < n_used; ++b) {
+                if (used[a] != used[b]) {
+                    continue;
+                }
+                /* the later of the two keys in the file is the one that contradicts */
+                const int la = key_line_of(st, "gpio", role[a]);
+                const int lb = key_line_of(st, "gpio", role[b]);
+                st->line = la > lb ? la : lb;
+                put_text(msg, sizeof msg, "GPIO line %lu is used by %s and by %s", (unsigned long)used[a], role[a],
+                         role[b]);
+                fail(st, "gpio", la > lb ? role[a] : role[b], msg);
+                return;
+            }
+        }
     }
     robot_node_config_t *n = &c->node;
     n->robot_id = c->robot_id;
