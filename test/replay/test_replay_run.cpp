@@ -506,7 +506,15 @@ TEST(ReplaySynthetic, MisreadRobotMarkerIsRefusedByTheRangeCheck)
             continue;
         }
         EXPECT_EQ(e.status, COSLAM_OK);
-        EXPECT_LT(e.t_err_m, 0.2);
+        // a good transform: its error within what its covariance says (NEES
+        // below the 99 % point of chi-square with 3 dof). The error itself
+        // depends on which sightings pair up: 0.06 / 0.09 m when the robots
+        // resent every frame, 0.229 m / 5.9 deg (NEES 6.7) / 0.023 m since
+        // the resend period holds (a later pair of sightings)
+        std::printf("merge t %.2f robot %d <- %d: transform error %.3f m %.2f deg, NEES %.2f\n", e.t_s, e.receiver,
+                    e.sender, e.t_err_m, e.t_err_rad * 180.0 / M_PI, e.t_nees);
+        EXPECT_LT(e.t_nees, 11.34);
+        EXPECT_LT(e.t_err_m, 0.3);
         ok++;
     }
     EXPECT_EQ(ok, 2);
