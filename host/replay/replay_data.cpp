@@ -9,6 +9,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <iomanip>
 #include <limits>
 #include <optional>
@@ -284,7 +285,11 @@ void note_unread(ParseReport &report, const std::vector<int> &ids, const std::se
 
 // The stamp of the first record of a file that is not read further (a robot
 // not selected), for t0; nullopt, with a note, if it has none.
-std::optional<double> first_stamp(const fs::path &p, ParseReport &report)
+// For a measurement file (`keep` not NULL) the first row a full read keeps:
+// a barcode keep() accepts (known, not the robot itself), as t0 is taken
+// from the kept rows.
+std::optional<double> first_stamp(const fs::path &p, ParseReport &report,
+                                  const std::function<bool(int barcode)> *keep = nullptr)
 {
     std::ifstream f(p);
     if (!f) {
@@ -292,8 +297,10 @@ std::optional<double> first_stamp(const fs::path &p, ParseReport &report)
     }
     LineReader r{f, p.string()};
     try {
-        if (r.next()) {
-            return r.num(0, "t");
+        while (r.next()) {
+            if (keep == nullptr || (r.fields.size() >= 2 && (*keep)(r.integer(1, "barcode")))) {
+                return r.num(0, "t");
+            }
         }
     } catch (const ReplayError &e) {
         report.notes.push_back(std::string(e.what()) + " (robot not selected: file not read further, not in t0)");
@@ -466,8 +473,13 @@ Dataset load_mrclam(const std::string &dir, const std::vector<int> &only)
         rr.id = id;
         const std::string base = "Robot" + std::to_string(id) + "_";
         if (selected.count(id) == 0) {
+            const std::function<bool(int)> kept = [&](int barcode) {
+                const auto it = barcode_to_subject.find(barcode);
+                return it != barcode_to_subject.end() && it->second != id;
+            };
             for (const char *file : {"Odometry.dat", "Measurement.dat", "Groundtruth.dat"}) {
-                if (const auto t = first_stamp(d / (base + file), ds.report)) {
+                const bool meas = std::string(file) == "Measurement.dat";
+                if (const auto t = first_stamp(d / (base + file), ds.report, meas ? &kept : nullptr)) {
                     t0 = std::min(t0, *t);
                 }
             }

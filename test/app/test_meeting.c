@@ -435,6 +435,11 @@ static void test_acknowledgement_owed_after_a_merge(void **state)
     const size_t len = make_msg_from1(2, t + 500000, t + 500000, r, b2, kMeetLm, (1U << 1) | 1U, 0);
     inject(g_buf, len, 1, t + 502000);
     meeting_poll_link(&g_m, link);
+    assert_int_equal(g_m.ctr.ignored_recent, 1U); /* merged lately: not merged again ... */
+    inject(g_buf, len, 1, t + 503000);            /* ... and its number is taken: */
+    meeting_poll_link(&g_m, link);
+    assert_int_equal(g_m.ctr.ignored_recent, 1U); /* the same message again is a replay */
+    assert_int_equal(g_m.ctr.replays, 1U);
     g_m.peer[1].sent_n_landmarks = 0; /* (the fixture's own map was empty when sent) */
     assert_true(meeting_acked_all(&g_m));
     meeting_on_sighting(&g_m, &g_filter, link, t + 600000, 1, r, b1, t + 600000, kOrigin, 0.0);

@@ -386,6 +386,20 @@ TEST(Mrclam, OnlySelectedRobotsAreRead)
     EXPECT_THROW(load_landmark_log(out, {4}), ReplayError);
 }
 
+// An unread robot's measurement rows that a full read skips (an unknown
+// barcode, a sighting of itself) do not set t0 either.
+TEST(Mrclam, UnreadRobotsSkippedRowsAreNotInT0)
+{
+    TempDir e;
+    write_mrclam(e);
+    e.file("Robot1_Measurement.dat", "# a\n# b\n# c\n# d\n998.0 99 2.0 0.1\n998.5 5 2.0 0.1\n1000.2 63 2.0 0.1\n");
+    e.file("Robot1_Groundtruth.dat", "# a\n1000.0 0 0 0\n");
+    const Dataset whole = load_mrclam(e.str());
+    const Dataset part = load_mrclam(e.str(), {2});
+    EXPECT_DOUBLE_EQ(whole.t0_s, 1000.0);
+    EXPECT_DOUBLE_EQ(part.t0_s, whole.t0_s);
+}
+
 TEST(Mrclam, ConvertsToLandmarkLogExactly)
 {
     TempDir d;

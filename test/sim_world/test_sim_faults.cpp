@@ -254,6 +254,24 @@ TEST(SimFaults, DriveEmcy)
     expect_recovered("drive_emcy_once", one, kFaultAtS + 0.001);
 }
 
+// A new EMCY soon after the robot came back from the last one (inside the
+// retry period after that reset) stops it at once: the grace a reset gets to
+// clear its own fault applies only until the drive is running again.
+TEST(SimFaults, DriveEmcyAgainAfterRecovery)
+{
+    Scenario sc = paper();
+    sc.faults.push_back(fault(FaultKind::DriveEmcy, kFaultAtS, 0.001));
+    sc.faults.push_back(fault(FaultKind::DriveEmcy, kFaultAtS + 1.5, 0.001));
+    SimulationOptions opt;
+    opt.seed = 1;
+    Simulation sim(sc, opt);
+    sim.advance_to(kFaultAtS + 1.45);  // reset after the sim's 1 s retry period, running again
+    EXPECT_EQ(robot_node_state(&sim.node(1)), ROBOT_NODE_RUN);
+    sim.advance_to(kFaultAtS + 1.6);
+    EXPECT_EQ(robot_node_state(&sim.node(1)), ROBOT_NODE_FAULT);
+    EXPECT_EQ(robot_node_counters(&sim.node(1))->drive_faults, 2u);
+}
+
 TEST(SimFaults, Estop)
 {
     const FaultRun r = run_fault(fault(FaultKind::Estop));

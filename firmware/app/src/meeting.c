@@ -409,11 +409,13 @@ static void accept_message(meeting_t *m, const hal_link_rx_info_t *info)
         return;
     }
     meeting_peer_t *p = &m->peer[from];
-    if (merge_session_check(&m->session, from, msg->seq) != COSLAM_OK) {
-        /* a replay (or a number too far ahead) changes nothing here: not
-         * the acknowledgement, not the send budget. The session counts it
-         * and tracks a restarted sender's numbers (MERGE_SEQ_REBASE_RUN). */
-        const coslam_status_t st = merge_session_accept(&m->session, from, msg->seq);
+    /* the sequence number first, and taken whatever follows (a merge, a
+     * hold-off, a stale refusal): a replay (or a number too far ahead)
+     * changes nothing here, not the acknowledgement, not the send budget,
+     * and a message seen once cannot act again. The session counts it and
+     * tracks a restarted sender's numbers (MERGE_SEQ_REBASE_RUN). */
+    const coslam_status_t st = merge_session_accept(&m->session, from, msg->seq);
+    if (st != COSLAM_OK) {
         m->ctr.replays++;
         push_event(m, MEETING_EV_REFUSED, info->stamp_us, from, msg->seq, st);
         return;
@@ -447,12 +449,6 @@ static void accept_message(meeting_t *m, const hal_link_rx_info_t *info)
      * of the meeting would only let one through by chance (multiple tests) */
     if (p->disagreed && since_us(info->stamp_us, p->disagreed_at_us) < m->cfg.remerge_period_us) {
         m->ctr.ignored_disagreed++;
-        return;
-    }
-    const coslam_status_t st = merge_session_accept(&m->session, from, msg->seq);
-    if (st != COSLAM_OK) { /* merge_session_check said it would pass */
-        m->ctr.replays++;
-        push_event(m, MEETING_EV_REFUSED, info->stamp_us, from, msg->seq, st);
         return;
     }
     const uint64_t age_us = msg->stamp_us >= msg->sighting.stamp_us ? msg->stamp_us - msg->sighting.stamp_us : 0U;

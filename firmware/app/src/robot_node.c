@@ -426,12 +426,15 @@ static coslam_status_t run_drive(robot_node_t *n)
             n->ctr.drive_faults++;
             result = st;
         }
-        /* a reset just sent gets a retry period to clear before the node
-         * waits for the next one */
-        const int clearing = n->fault_reset_at_us != 0U && n->now_us - n->fault_reset_at_us < n->cfg.retry_period_us;
+        /* a reset just sent gets a retry period to clear while the drive
+         * comes up again (not once it runs: a fault then is a new one) */
+        const int after_reset = n->state == ROBOT_NODE_DRIVE_UP && n->fault_reset_at_us != 0U;
+        const int clearing = after_reset && n->now_us - n->fault_reset_at_us < n->cfg.retry_period_us;
         if (n->state != ROBOT_NODE_FAULT && !clearing) {
             n->state = ROBOT_NODE_FAULT;
-            n->retry_at_us = n->now_us + n->cfg.retry_period_us;
+            /* a reset that did not clear it has had its retry period: the
+             * next one at once, so resets go every retry_period_us */
+            n->retry_at_us = after_reset ? n->now_us : n->now_us + n->cfg.retry_period_us;
         }
     } else if (st != COSLAM_OK) {
         n->ctr.drive_errors++;
@@ -446,6 +449,7 @@ static coslam_status_t run_drive(robot_node_t *n)
     if (n->state == ROBOT_NODE_DRIVE_UP && cia402_omni_is_running(&n->drive)) {
         if (cia402_omni_is_enabled(&n->drive)) {
             n->state = ROBOT_NODE_RUN;
+            n->fault_reset_at_us = 0U; /* running: no reset is clearing any more */
         } else {
             (void)cia402_omni_enable(&n->drive, 1);
         }

@@ -52,21 +52,13 @@ static int session_decide(const merge_session_t *s, uint8_t sender, uint32_t seq
         return diff > MERGE_SEQ_MAX_JUMP ? 2 : 0;
     }
     const uint32_t step = seq - s->run_seq[sender];
+    const uint32_t behind = s->last_seq[sender] - seq; /* how far below the remembered number */
     if (diff != 0U && s->run_n[sender] > 0U && step != 0U && step <= MERGE_SEQ_MAX_JUMP &&
-        s->run_n[sender] + 1U >= MERGE_SEQ_REBASE_RUN) {
+        s->run_n[sender] + 1U >= MERGE_SEQ_REBASE_RUN && behind > MERGE_SEQ_REBASE_MIN_BEHIND) {
         *rebase = 1;
         return 0;
     }
     return 1;
-}
-
-coslam_status_t merge_session_check(const merge_session_t *s, uint8_t sender, uint32_t seq)
-{
-    if (s == NULL || sender >= COSLAM_MAX_ROBOTS) {
-        return COSLAM_E_ARG;
-    }
-    int rebase;
-    return session_decide(s, sender, seq, &rebase) == 0 ? COSLAM_OK : COSLAM_E_MERGE_REPLAY;
 }
 
 coslam_status_t merge_session_accept(merge_session_t *s, uint8_t sender, uint32_t seq)

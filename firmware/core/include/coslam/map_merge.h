@@ -320,7 +320,7 @@ typedef struct {
      * sender that restarted without its last number (merge_session_accept) */
     uint32_t run_seq[COSLAM_MAX_ROBOTS]; /**< the run's last number */
     uint8_t run_n[COSLAM_MAX_ROBOTS];    /**< its length (0: none) */
-    uint32_t merges;
+    uint32_t merges;            /**< numbers accepted (the meeting takes them before it merges) */
     uint32_t rejected_replays;  /**< not newer than the last merged number */
     uint32_t rejected_jumps;    /**< newer by more than MERGE_SEQ_MAX_JUMP */
     uint32_t rebased;           /**< senders taken as restarted (MERGE_SEQ_REBASE_RUN) */
@@ -336,14 +336,19 @@ typedef struct {
  *  what the receiver remembers; every message would be a replay until it
  *  passed its old number (for the rest of a mission, at a few a meeting).
  *  This many refused older numbers in a row, each newer than the one before
- *  by at most MERGE_SEQ_MAX_JUMP, with no accepted one between, take the
- *  sender as restarted: the last of them is accepted and the window starts
- *  there (counted in rebased). A genuine message replayed once, or a late
- *  one overtaken by newer ones, never makes such a run; three old genuine
- *  messages replayed in order would, which the link's authentication
- *  refuses (docs/security.md) and which, without it, is no more than a
- *  forged message with a new number can do. */
+ *  by at most MERGE_SEQ_MAX_JUMP, with no accepted one between, the last of
+ *  them more than MERGE_SEQ_REBASE_MIN_BEHIND below the remembered number,
+ *  take the sender as restarted: the last of them is accepted and the
+ *  window starts there (counted in rebased). A genuine message replayed
+ *  again and again never makes such a run, and late messages overtaken by
+ *  a newer one are a few numbers behind it, not 64 (a robot sends a few
+ *  messages a second at most); three old genuine messages replayed in
+ *  order would, which the link's authentication refuses
+ *  (docs/security.md) and which, without it, is no more than a forged
+ *  message with a new number can do. A restarted sender less than that far
+ *  behind passes its old number within a few messages anyway. */
 #define MERGE_SEQ_REBASE_RUN 3U
+#define MERGE_SEQ_REBASE_MIN_BEHIND 64U
 
 void merge_session_init(merge_session_t *s);
 
@@ -357,13 +362,6 @@ void merge_session_init(merge_session_t *s);
  * a failed merge consumes the number.
  */
 coslam_status_t merge_session_accept(merge_session_t *s, uint8_t sender, uint32_t seq);
-
-/**
- * What merge_session_accept would return now, changing nothing and counting
- * nothing: a caller decides with it before letting a message change other
- * state (the meeting's acknowledgement and send budget).
- */
-coslam_status_t merge_session_check(const merge_session_t *s, uint8_t sender, uint32_t seq);
 
 /**
  * Step 1. The other robot's pose in self's body frame from the two mutual
