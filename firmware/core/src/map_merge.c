@@ -37,57 +37,35 @@ void merge_session_init(merge_session_t *s)
     memset(s, 0, sizeof *s);
 }
 
-/* The outcome for (sender, seq): 0 accept, 1 replay (older or equal), 2
- * jump; *rebase: an older number that completes a restarted sender's run
- * (then accepted). */
-static int session_decide(const merge_session_t *s, uint8_t sender, uint32_t seq, int *rebase)
-{
-    *rebase = 0;
-    if (!s->seen[sender]) {
-        return 0;
-    }
-    /* serial-number comparison: newer iff 0 < seq - last < 2^31 */
-    const uint32_t diff = seq - s->last_seq[sender];
-    if (diff != 0U && diff < 0x80000000U) {
-        return diff > MERGE_SEQ_MAX_JUMP ? 2 : 0;
-    }
-    const uint32_t step = seq - s->run_seq[sender];
-    const uint32_t behind = s->last_seq[sender] - seq; /* how far below the remembered number */
-    if (diff != 0U && s->run_n[sender] > 0U && step != 0U && step <= MERGE_SEQ_MAX_JUMP &&
-        s->run_n[sender] + 1U >= MERGE_SEQ_REBASE_RUN && behind > MERGE_SEQ_REBASE_MIN_BEHIND) {
-        *rebase = 1;
-        return 0;
-    }
-    return 1;
-}
-
 coslam_status_t merge_session_accept(merge_session_t *s, uint8_t sender, uint32_t seq)
 {
     if (s == NULL || sender >= COSLAM_MAX_ROBOTS) {
         return COSLAM_E_ARG;
     }
-    int rebase;
-    const int d = session_decide(s, sender, seq, &rebase);
-    if (d == 2) {
-        s->rejected_jumps++;
-        return COSLAM_E_MERGE_REPLAY;
-    }
-    if (d == 1) {
-        s->rejected_replays++;
-        /* an older number: does it continue a run of older numbers? */
-        const uint32_t step = seq - s->run_seq[sender];
-        if (seq != s->last_seq[sender]) {
-            if (s->run_n[sender] > 0U && step != 0U && step <= MERGE_SEQ_MAX_JUMP) {
-                s->run_n[sender]++;
-            } else {
-                s->run_n[sender] = 1U;
+    if (s->seen[sender]) {
+        /* serial-number comparison: newer iff 0 < seq - last < 2^31 */
+        const uint32_t diff = seq - s->last_seq[sender];
+        if (diff != 0U && diff < 0x80000000U) {
+            if (diff > MERGE_SEQ_MAX_JUMP) {
+                s->rejected_jumps++;
+                return COSLAM_E_MERGE_REPLAY;
             }
-            s->run_seq[sender] = seq;
+        } else {
+            /* not newer: taken only as the end of a restarted sender's run
+             * of older numbers (MERGE_SEQ_REBASE_RUN) */
+            const uint32_t step = seq - s->run_seq[sender];
+            const int continues = diff != 0U && s->run_n[sender] > 0U && step != 0U && step <= MERGE_SEQ_MAX_JUMP;
+            if (!continues || s->run_n[sender] + 1U < MERGE_SEQ_REBASE_RUN ||
+                s->last_seq[sender] - seq <= MERGE_SEQ_REBASE_MIN_BEHIND) {
+                s->rejected_replays++;
+                if (diff != 0U) {
+                    s->run_n[sender] = continues ? (uint8_t)(s->run_n[sender] + 1U) : 1U;
+                    s->run_seq[sender] = seq;
+                }
+                return COSLAM_E_MERGE_REPLAY;
+            }
+            s->rebased++;
         }
-        return COSLAM_E_MERGE_REPLAY;
-    }
-    if (rebase) {
-        s->rebased++;
     }
     s->seen[sender] = 1U;
     s->last_seq[sender] = seq;

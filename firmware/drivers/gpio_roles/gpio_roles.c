@@ -3,16 +3,32 @@
 
 #include <string.h>
 
-static bool line_used_twice(const gpio_roles_config_t *cfg)
+bool gpio_roles_line_conflict(const gpio_roles_config_t *cfg, uint32_t *line, gpio_role_t *first,
+                              gpio_role_t *second)
 {
     uint32_t lines[COSLAM_MAX_BUMPERS + COSLAM_MAX_STATUS_LEDS + 1];
+    gpio_role_t roles[sizeof lines / sizeof lines[0]];
     size_t n = 0;
-    for (uint8_t i = 0; i < cfg->n_bumpers; ++i) lines[n++] = cfg->bumpers[i].line;
-    for (uint8_t i = 0; i < cfg->n_leds; ++i) lines[n++] = cfg->leds[i].line;
-    if (cfg->has_estop) lines[n++] = cfg->estop.line;
+    for (uint8_t i = 0; i < cfg->n_bumpers; ++i) {
+        roles[n] = GPIO_ROLE_BUMPER;
+        lines[n++] = cfg->bumpers[i].line;
+    }
+    if (cfg->has_estop) {
+        roles[n] = GPIO_ROLE_ESTOP;
+        lines[n++] = cfg->estop.line;
+    }
+    for (uint8_t i = 0; i < cfg->n_leds; ++i) {
+        roles[n] = GPIO_ROLE_LED;
+        lines[n++] = cfg->leds[i].line;
+    }
     for (size_t i = 0; i < n; ++i) {
         for (size_t j = i + 1; j < n; ++j) {
-            if (lines[i] == lines[j]) return true;
+            if (lines[i] == lines[j]) {
+                if (line != NULL) *line = lines[i];
+                if (first != NULL) *first = roles[i];
+                if (second != NULL) *second = roles[j];
+                return true;
+            }
         }
     }
     return false;
@@ -48,7 +64,7 @@ hal_status_t gpio_roles_init(gpio_roles_t *r, const gpio_roles_config_t *cfg, ha
 {
     if (r == NULL || cfg == NULL || gpio == NULL || clock == NULL) return HAL_E_ARG;
     if (cfg->n_bumpers > COSLAM_MAX_BUMPERS || cfg->n_leds > COSLAM_MAX_STATUS_LEDS) return HAL_E_ARG;
-    if (line_used_twice(cfg)) return HAL_E_ARG;
+    if (gpio_roles_line_conflict(cfg, NULL, NULL, NULL)) return HAL_E_ARG;
 
     memset(r, 0, sizeof *r);
     r->gpio = gpio;

@@ -138,6 +138,16 @@ typedef struct {
     gpio_roles_counters_t counters;
 } gpio_roles_t;
 
+/** The roles a line can have (gpio_roles_line_conflict). */
+typedef enum { GPIO_ROLE_BUMPER, GPIO_ROLE_ESTOP, GPIO_ROLE_LED } gpio_role_t;
+
+/** A line given two roles: true, with the line and its first two roles in
+ *  the order bumpers, e-stop, LEDs (outputs may be NULL); false if every
+ *  line has one role. gpio_roles_init refuses such a config; a config
+ *  reader calls this to name the keys. O((B + L)^2). */
+bool gpio_roles_line_conflict(const gpio_roles_config_t *cfg, uint32_t *line, gpio_role_t *first,
+                              gpio_role_t *second);
+
 /** Check cfg and claim its lines: bumpers and e-stop as inputs (no edge
  *  events: sampled by update), LEDs as outputs driven off. r, gpio and
  *  clock must outlive the instance; cfg is copied. The e-stop (if any)

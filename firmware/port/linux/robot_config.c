@@ -850,38 +850,18 @@ static void finish(load_t *st)
     }
     /* a GPIO line in two roles: the gpio_roles driver would refuse it at
      * start with no file and line (robot_node_init: E_ARG) */
-    {
-        uint32_t used[COSLAM_MAX_BUMPERS + COSLAM_MAX_STATUS_LEDS + 1];
-        const char *role[sizeof used / sizeof used[0]];
-        size_t n_used = 0;
-        const gpio_roles_config_t *g = &c->node.gpio;
-        for (uint8_t k = 0; k < g->n_bumpers; ++k) {
-            used[n_used] = g->bumpers[k].line;
-            role[n_used++] = "bumper_lines";
-        }
-        if (g->has_estop) {
-            used[n_used] = g->estop.line;
-            role[n_used++] = "estop_line";
-        }
-        for (uint8_t k = 0; k < g->n_leds; ++k) {
-            used[n_used] = g->leds[k].line;
-            role[n_used++] = "led_lines";
-        }
-        for (size_t a = 0; a < n_used; ++a) {
-            for (size_t b = a + 1; b < n_used; ++b) {
-                if (used[a] != used[b]) {
-                    continue;
-                }
-                /* the later of the two keys in the file is the one that contradicts */
-                const int la = key_line_of(st, "gpio", role[a]);
-                const int lb = key_line_of(st, "gpio", role[b]);
-                st->line = la > lb ? la : lb;
-                put_text(msg, sizeof msg, "GPIO line %lu is used by %s and by %s", (unsigned long)used[a], role[a],
-                         role[b]);
-                fail(st, "gpio", la > lb ? role[a] : role[b], msg);
-                return;
-            }
-        }
+    uint32_t line;
+    gpio_role_t ra, rb;
+    if (gpio_roles_line_conflict(&c->node.gpio, &line, &ra, &rb)) {
+        static const char *const key_of[] = {"bumper_lines", "estop_line", "led_lines"}; /* gpio_role_t */
+        /* the later of the two keys in the file is the one that contradicts */
+        const int la = key_line_of(st, "gpio", key_of[ra]);
+        const int lb = key_line_of(st, "gpio", key_of[rb]);
+        st->line = la > lb ? la : lb;
+        put_text(msg, sizeof msg, "GPIO line %lu is used by %s and by %s", (unsigned long)line, key_of[ra],
+                 key_of[rb]);
+        fail(st, "gpio", la > lb ? key_of[ra] : key_of[rb], msg);
+        return;
     }
     robot_node_config_t *n = &c->node;
     n->robot_id = c->robot_id;
