@@ -208,7 +208,9 @@ void health_after_update(health_t *h, const slam_filter_t *f, const sighting_t *
                     fr.n_paired++;
                 }
             }
-            if (marked(h, z[q].signature)) {
+            /* held back (an ambiguous or too nonlinear revisit): the filter
+             * waits for a clearer frame; neither paired nor unassociated */
+            if (marked(h, z[q].signature) && !sc->held[i]) {
                 fr.n_eligible++;
                 if (j < 0) {
                     fr.n_unassoc++;
@@ -216,10 +218,17 @@ void health_after_update(health_t *h, const slam_filter_t *f, const sighting_t *
             }
             ++i;
         }
-        /* the update's matched[] is indexed like the state before it */
+        /* the update's matched[] is indexed like the state before it; a
+         * landmark that was a held sighting's best pairing was seen, not
+         * missed */
         for (uint16_t k = 0; k < h->n_in_view; ++k) {
+            const int32_t lm = (int32_t)h->in_view[k];
+            int seen = sc->matched[lm] != 0U;
+            for (int s = 0; s < i && !seen; ++s) {
+                seen = sc->held[s] != 0U && sc->best[s] == lm;
+            }
             fr.n_expected++;
-            if (!sc->matched[h->in_view[k]]) {
+            if (!seen) {
                 fr.n_missed++;
             }
         }

@@ -456,20 +456,39 @@ static int judge_pair(odo_check_t *c, uint64_t now_us, pose2_t odo_pose, double 
             best_info = info;
         }
     }
-    if (best_f < 0.0) {
-        /* no guess leaves enough points the reference could have seen:
-         * nothing to judge (a turn into open space) */
+    /* and the other way: the reference onto the newest scan. Only the
+     * newest scan's points the reference could have seen are checked, so a
+     * robot carried from a cramped place into an open one (every new return
+     * beyond the old ones) is not judged one way; the old returns, which
+     * the new scan reaches past, are judged the other way */
+    double rev_f = -1.0;
+    for (int k = 0; k < ng; ++k) {
+        pose2_t t;
+        size_t nc = 0;
+        const double f = odo_check_register(&c->cfg, &c->cur, &c->ref, pose2_inverse(guesses[k]), &t, NULL, &nc);
+        if (nc >= c->cfg.min_points && f > rev_f) {
+            rev_f = f;
+        }
+    }
+    if (best_f < 0.0 && rev_f < 0.0) {
+        /* no guess leaves enough points either scan could have seen of the
+         * other: nothing to judge (a turn into open space) */
         c->unjudged++;
         c->have_rate = 0;
         return 0;
     }
-    c->last_inlier_frac = best_f;
-    c->worst_inlier_frac = fmin(c->worst_inlier_frac, best_f);
+    const double frac = best_f < 0.0 ? rev_f : (rev_f < 0.0 ? best_f : fmin(best_f, rev_f));
+    c->last_inlier_frac = frac;
+    c->worst_inlier_frac = fmin(c->worst_inlier_frac, frac);
     int bad = 0;
-    if (best_f < c->cfg.min_inlier_frac) {
+    if (frac < c->cfg.min_inlier_frac) {
         c->mismatches++;
         c->have_rate = 0;
         bad = 1;
+    } else if (best_f < 0.0) {
+        /* judged the other way only, and it fits: no motion to compare */
+        c->agreements++;
+        c->have_rate = 0;
     } else {
         c->last_laser = best;
         c->last_odo = u;

@@ -29,7 +29,11 @@
  *    judged (counted);
  *  - best inlier fraction below min_inlier_frac: the two scans do not show
  *    the same place from any guess: MISMATCH (the robot was carried without
- *    its wheels knowing, or the view changed completely);
+ *    its wheels knowing, or the view changed completely). Both ways: the
+ *    newest scan onto the reference and the reference onto the newest (from
+ *    the inverse guesses), the smaller fraction of the ways judged counts;
+ *    one way checks only the points the other scan could have seen, so a
+ *    jump from a cramped place into an open one escapes it;
  *  - registered: e = L - U, the laser's motion against the odometry's (x,
  *    y, theta, from the reference to now, robot frame), is tested with the
  *    registration's covariance P_L = point_sd_m^2 H^-1 (H the Gauss-Newton
