@@ -28,6 +28,9 @@
 //              body's contact with walls and robots, and --bump K:T0:T1
 //              presses it from T0 to T1; the status LED's (line 2) edges
 //              are recorded;
+//   freeze:    --freeze K:T0:T1 stops robot K's process (SIGSTOP) from T0 to
+//              T1 (SIGCONT): a hung controller. Its drives' watchdog must
+//              stop the wheels (docs/robot.md "Drive watchdog");
 //   link:      Cyclone DDS on loopback between the two robots, authenticated
 //              with a fleet key made here (mode 0600).
 // Every sample period it records each robot's true pose (moved into its map
@@ -38,6 +41,7 @@
 //
 //   coslam-sim-devices --scenario F --robot BIN --out DIR [--duration S]
 //                      [--seed N] [--domain D] [--estop K:T0:T1] [--bump K:T0:T1]
+//                      [--freeze K:T0:T1]
 // Exit status: 0 the run finished (the numbers are in result.json; judging
 // them is the caller's job), 1 a failure of the server or a robot died, 2 usage.
 #include <algorithm>
@@ -264,6 +268,17 @@ double led_rate(const std::vector<double> &edges, double t0, double t1)
     return t1 > t0 ? static_cast<double>(k) / (t1 - t0) : NAN;
 }
 
+// "K:T0:T1" (robot, start, end [s]) of --estop, --bump, --freeze; false
+// (and a message) if it does not parse or is not a window
+bool parse_window(const std::string &v, const char *opt, const char *what, long &k, double &t0, double &t1)
+{
+    if (std::sscanf(v.c_str(), "%ld:%lf:%lf", &k, &t0, &t1) != 3 || k < 0 || !(t1 > t0) || t0 < 0.0) {
+        std::fprintf(stderr, "coslam-sim-devices: %s needs K:T0:T1 (robot, %s [s])\n", opt, what);
+        return false;
+    }
+    return true;
+}
+
 }  // namespace
 
 int main(int argc, char **argv)
@@ -276,6 +291,8 @@ int main(int argc, char **argv)
     double estop_t0 = 0.0, estop_t1 = 0.0;
     long bump_robot = -1;
     double bump_t0 = 0.0, bump_t1 = 0.0;
+    long freeze_robot = -1;
+    double freeze_t0 = 0.0, freeze_t1 = 0.0;
     for (int i = 1; i < argc; ++i) {
         const std::string a = argv[i];
         auto next = [&]() -> std::string {
@@ -292,22 +309,14 @@ int main(int argc, char **argv)
         else if (a == "--seed") seed_opt = std::atoll(next().c_str());
         else if (a == "--domain") domain = static_cast<unsigned>(std::atoi(next().c_str()));
         else if (a == "--estop") {
-            const std::string v = next();
-            if (std::sscanf(v.c_str(), "%ld:%lf:%lf", &estop_robot, &estop_t0, &estop_t1) != 3 || estop_robot < 0 ||
-                !(estop_t1 > estop_t0) || estop_t0 < 0.0) {
-                std::fprintf(stderr, "coslam-sim-devices: --estop needs K:T0:T1 (robot, press, release [s])\n");
-                return 2;
-            }
+            if (!parse_window(next(), "--estop", "press, release", estop_robot, estop_t0, estop_t1)) return 2;
         } else if (a == "--bump") {
-            const std::string v = next();
-            if (std::sscanf(v.c_str(), "%ld:%lf:%lf", &bump_robot, &bump_t0, &bump_t1) != 3 || bump_robot < 0 ||
-                !(bump_t1 > bump_t0) || bump_t0 < 0.0) {
-                std::fprintf(stderr, "coslam-sim-devices: --bump needs K:T0:T1 (robot, press, release [s])\n");
-                return 2;
-            }
+            if (!parse_window(next(), "--bump", "press, release", bump_robot, bump_t0, bump_t1)) return 2;
+        } else if (a == "--freeze") {
+            if (!parse_window(next(), "--freeze", "SIGSTOP, SIGCONT", freeze_robot, freeze_t0, freeze_t1)) return 2;
         } else {
             std::fprintf(stderr, "usage: coslam-sim-devices --scenario F --robot BIN --out DIR [--duration S] "
-                                 "[--seed N] [--domain D] [--estop K:T0:T1] [--bump K:T0:T1]\n");
+                                 "[--seed N] [--domain D] [--estop K:T0:T1] [--bump K:T0:T1] [--freeze K:T0:T1]\n");
             return 2;
         }
     }
@@ -331,6 +340,10 @@ int main(int argc, char **argv)
     }
     if (bump_robot >= static_cast<long>(n)) {
         std::fprintf(stderr, "coslam-sim-devices: --bump: no robot %ld\n", bump_robot);
+        return 2;
+    }
+    if (freeze_robot >= static_cast<long>(n)) {
+        std::fprintf(stderr, "coslam-sim-devices: --freeze: no robot %ld\n", freeze_robot);
         return 2;
     }
     if (estop_robot >= static_cast<long>(n)) {
@@ -444,6 +457,7 @@ int main(int argc, char **argv)
     uint8_t buf[8192];
     bool robot_died = false;
     int estop_state = 0;  // 0 before, 1 pressed, 2 released
+    int freeze_state = 0; // 0 before, 1 stopped, 2 continued
     while (!g_stop && t_sim < end_us) {
         // the wires, in both directions
         for (size_t k = 0; k < n; ++k) {
@@ -502,6 +516,17 @@ int main(int argc, char **argv)
                 gpio_pin(p, 0, level ? 1 : 0);
                 p.bumper = level;
                 if (level) p.bumper_presses++;
+            }
+        }
+        if (freeze_robot >= 0) {
+            const double ts = static_cast<double>(t_sim) * 1e-6;
+            const pid_t fp = ports[static_cast<size_t>(freeze_robot)].pid;
+            if (freeze_state == 0 && ts >= freeze_t0 && fp > 0) {
+                kill(fp, SIGSTOP);
+                freeze_state = 1;
+            } else if (freeze_state == 1 && ts >= freeze_t1 && fp > 0) {
+                kill(fp, SIGCONT);
+                freeze_state = 2;
             }
         }
         if (estop_robot >= 0) {
@@ -684,6 +709,17 @@ int main(int argc, char **argv)
                                   {"moved_during_m", path_m(truth_hist[k], bump_t0 + 0.5, bump_t1, hs)},
                                   {"turned_after_deg", turned_deg(truth_hist[k], bump_t1, bump_t1 + 4.0, hs)},
                                   {"moved_after_m", path_m(truth_hist[k], bump_t1 + 0.5, bump_t1 + 4.5, hs)}};
+        }
+        if (static_cast<long>(k) == freeze_robot && freeze_state == 2) {
+            // the process stopped: the drives' watchdog (200 ms) and their
+            // quick stop, then still; continued: a drive fault, a reset
+            // after the retry period (0.5 s), driving again
+            rj["freeze"] = {{"t0_s", freeze_t0}, {"t1_s", freeze_t1},
+                            {"moved_before_m", path_m(truth_hist[k], freeze_t0 - 1.0, freeze_t0, hs)},
+                            {"moved_first_m", path_m(truth_hist[k], freeze_t0, freeze_t0 + 0.5, hs)},
+                            {"moved_during_m", path_m(truth_hist[k], freeze_t0 + 0.5, freeze_t1, hs)},
+                            {"moved_after_m", path_m(truth_hist[k], freeze_t1 + 1.5, freeze_t1 + 4.0, hs)},
+                            {"drive_faults", num(last_status[k], "drive_faults")}};
         }
         if (static_cast<long>(k) == estop_robot) {
             const double len = estop_t1 - estop_t0;

@@ -480,6 +480,28 @@ protected:
         ADD_FAILURE() << "no truth at " << t;
         return pose2_t{0, 0, 0};
     }
+    // another driver and rig on the fixture's clock, ms milliseconds; the
+    // driver polled (a live master) or not (a dead one)
+    void run_other(cia402_omni_t &o, OmniCanRig &r, int ms, bool poll = true)
+    {
+        for (int i = 0; i < ms; ++i) {
+            if (poll) cia402_omni_poll(&o, now);
+            r.step(now);
+            now += 1000;
+        }
+    }
+    // a fault reset that restarts the bring-up, then enabled again
+    void reset_and_enable()
+    {
+        ASSERT_EQ(cia402_omni_fault_reset(&omni, now), COSLAM_OK);
+        run_until([&] { return cia402_omni_is_running(&omni) != 0; }, 500);
+        run_until([&] {
+            cia402_omni_fault_t r;
+            return cia402_omni_get_fault(&omni, &r) == COSLAM_E_EMPTY;
+        }, 100);
+        ASSERT_EQ(cia402_omni_enable(&omni, 1), COSLAM_OK);
+        run_until([&] { return cia402_omni_is_enabled(&omni) != 0; }, 200);
+    }
     void enable_all()
     {
         run_until([&] { return cia402_omni_is_running(&omni) != 0; }, 500);
@@ -502,6 +524,8 @@ TEST_F(EndToEnd, BringUpConfiguresTheDrives)
         const Cia402DriveEmu &d = rig.drive(k);
         EXPECT_EQ(d.mode(), 3);
         EXPECT_EQ(d.heartbeat_period_ms(), 100);
+        EXPECT_EQ(d.consumer_heartbeat(), (127u << 16) | 200u); // the drive-side watchdog
+        EXPECT_EQ(d.abort_option(), 3);
         EXPECT_EQ(d.nmt(), Cia402DriveEmu::Nmt::Operational);
         EXPECT_EQ(d.state(), Cia402DriveEmu::State::OperationEnabled);
         EXPECT_EQ(omni.drive[k].vendor_id, d.config().vendor_id);
@@ -517,7 +541,140 @@ TEST_F(EndToEnd, BringUpConfiguresTheDrives)
         EXPECT_EQ(omni.drive[k].rx_malformed, 0u);
         EXPECT_GE(rig.drive(k).counters().heartbeats, 19u);
         EXPECT_GE(rig.drive(k).counters().tpdos, 190u);
+        EXPECT_EQ(rig.drive(k).counters().consumer_timeouts, 0u); // a live master never trips it
     }
+    EXPECT_GE(omni.master_hb_sent, 40u);
+}
+
+// The master dies (the robot process crashed, hung or was killed: nothing
+// polls the driver any more) while the base drives at 0.3 m/s. The drives'
+// own watchdog stops every wheel: not before the consumer time after the
+// last master heartbeat (50 ms period, 200 ms), and at rest soon after.
+// Without the watchdog the wheels keep their last command: the case it fixes.
+TEST_F(EndToEnd, DeadMasterStopsTheWheels)
+{
+    enable_all();
+    ASSERT_EQ(cia402_omni_set_body_velocity(&omni, 0.3, 0.0, 0.0), COSLAM_OK);
+    run_ms(300);
+    const double rpm0 = std::fabs(rig.drive(0).motor_rpm());
+    ASSERT_GT(rpm0, 900.0);
+    const uint64_t t_dead = now;
+    const pose2_t at_death = truth;
+    // the drives and the physics go on; the firmware does not
+    auto dead_tick = [&] {
+        rig.step(now);
+        double vx, vy, w;
+        rig.true_body_velocity(vx, vy, w);
+        truth = motion_apply(truth, motion_from_body_velocity(vx, vy, w, 0.001));
+        now += 1000;
+    };
+    for (int i = 0; i < 140; ++i) dead_tick();
+    for (int k : {0, 2}) EXPECT_GT(std::fabs(rig.drive(k).motor_rpm()), 0.95 * rpm0) << "tripped early, wheel " << k;
+    uint64_t t_stop = 0;
+    for (int i = 0; i < 1000 && t_stop == 0; ++i) {
+        dead_tick();
+        bool all = true;
+        for (int k = 0; k < 3; ++k) all = all && std::fabs(rig.drive(k).motor_rpm()) < 1.0;
+        if (all) t_stop = now;
+    }
+    ASSERT_NE(t_stop, 0u) << "the wheels never stopped";
+    const double travelled = std::hypot(truth.x - at_death.x, truth.y - at_death.y);
+    std::printf("dead master -> wheels at rest after %.1f ms, %.3f m travelled\n", (t_stop - t_dead) / 1000.0,
+                travelled);
+    // trip at most 200 ms after death (+1 ms step), then the quick-stop lag
+    // (20 ms) from ~1000 rpm to below 1 rpm: 20 ms x ln(1000) = 138 ms
+    EXPECT_LE(t_stop - t_dead, 201000u + 140000u);
+    // 0.3 m/s for at most 200 ms, then braking: 0.3 x (0.2 + 0.02) = 0.066 m
+    EXPECT_LT(travelled, 0.3 * 0.22 + 0.005);
+    for (int k = 0; k < 3; ++k) {
+        const Cia402DriveEmu &d = rig.drive(k);
+        EXPECT_EQ(d.counters().consumer_timeouts, 1u) << "wheel " << k;
+        EXPECT_EQ(d.nmt(), Cia402DriveEmu::Nmt::PreOperational) << "wheel " << k;
+        EXPECT_EQ(d.state(), Cia402DriveEmu::State::SwitchOnDisabled) << "wheel " << k; // quick stop, then off
+    }
+
+    // the master comes back: the EMCY it missed is a fault, and the reset
+    // brings the drives up again (a new bring-up: they left OPERATIONAL)
+    run_until([&] {
+        cia402_omni_fault_t r;
+        return cia402_omni_get_fault(&omni, &r) == COSLAM_OK;
+    }, 50);
+    cia402_omni_fault_t rep;
+    ASSERT_EQ(cia402_omni_get_fault(&omni, &rep), COSLAM_OK);
+    EXPECT_EQ(rep.info.reason, CIA402_FAULT_EMCY);
+    EXPECT_EQ(rep.info.emcy_code, 0x8130);
+    reset_and_enable();
+    ASSERT_EQ(cia402_omni_set_body_velocity(&omni, 0.3, 0.0, 0.0), COSLAM_OK);
+    run_ms(1000);
+    EXPECT_GT(std::fabs(rig.drive(0).motor_rpm()), 0.95 * rpm0);
+    for (int k = 0; k < 3; ++k) EXPECT_EQ(rig.drive(k).counters().consumer_timeouts, 1u) << "wheel " << k;
+}
+
+// The other two 0x6007 actions, and the watchdog switched off.
+TEST_F(EndToEnd, DeadMasterActionsAndNoWatchdog)
+{
+    struct Case {
+        int16_t action;      // 0: no watchdog (master_node_id 0)
+        Cia402DriveEmu::State end;
+        bool stopped;
+    };
+    const Case cases[] = {{CIA402_ABORT_DISABLE_VOLTAGE, Cia402DriveEmu::State::SwitchOnDisabled, true},
+                          {CIA402_ABORT_FAULT, Cia402DriveEmu::State::Fault, true},
+                          {0, Cia402DriveEmu::State::OperationEnabled, false}};
+    for (const Case &c : cases) {
+        OmniCanRig r2{[this] { return now; }};
+        cia402_omni_config_t cfg = cia402_omni_config_default();
+        if (c.action == 0) {
+            cfg.drive.master_node_id = 0;
+        } else {
+            cfg.drive.master_loss_action = c.action;
+        }
+        cia402_omni_t o{};
+        ASSERT_EQ(cia402_omni_init(&o, &cfg, r2.robot_can()), COSLAM_OK);
+        ASSERT_EQ(cia402_omni_start(&o, now), COSLAM_OK);
+        run_other(o, r2, 200);
+        ASSERT_TRUE(cia402_omni_is_running(&o)) << "action " << c.action;
+        ASSERT_EQ(cia402_omni_enable(&o, 1), COSLAM_OK);
+        ASSERT_EQ(cia402_omni_set_body_velocity(&o, 0.3, 0.0, 0.0), COSLAM_OK);
+        run_other(o, r2, 300);
+        ASSERT_TRUE(cia402_omni_is_enabled(&o)) << "action " << c.action;
+        run_other(o, r2, 2000, false); // the master died
+        for (int k = 0; k < 3; ++k) {
+            const Cia402DriveEmu &d = r2.drive(k);
+            EXPECT_EQ(d.state(), c.end) << "action " << c.action << " wheel " << k;
+            EXPECT_EQ(d.counters().consumer_timeouts, c.stopped ? 1u : 0u) << "action " << c.action;
+            if (k != 1) { // wheel 1 stands still going straight ahead
+                EXPECT_EQ(std::fabs(d.motor_rpm()) < 1.0, c.stopped) << "action " << c.action << " wheel " << k;
+            }
+        }
+    }
+}
+
+// A drive without the watchdog objects refuses the set-up: the bring-up
+// halts with the object named, rather than run unguarded.
+TEST_F(EndToEnd, DriveWithoutWatchdogObjectsIsRefused)
+{
+    OmniCanRigConfig rc;
+    rc.drive.watchdog_objects = false;
+    OmniCanRig r2{[this] { return now; }, rc};
+    cia402_omni_config_t cfg = cia402_omni_config_default();
+    cia402_omni_t o{};
+    ASSERT_EQ(cia402_omni_init(&o, &cfg, r2.robot_can()), COSLAM_OK);
+    ASSERT_EQ(cia402_omni_start(&o, now), COSLAM_OK);
+    run_other(o, r2, 300);
+    cia402_omni_fault_t rep;
+    ASSERT_EQ(cia402_omni_get_fault(&o, &rep), COSLAM_OK);
+    EXPECT_EQ(rep.info.reason, CIA402_FAULT_SDO_ABORT);
+    EXPECT_EQ(rep.info.sdo_abort_code, 0x06020000u); // object does not exist
+    EXPECT_EQ(rep.info.sdo_index, 0x1016);
+    EXPECT_FALSE(cia402_omni_is_running(&o));
+    // switched off knowingly, the same drives run
+    cfg.drive.master_node_id = 0;
+    ASSERT_EQ(cia402_omni_init(&o, &cfg, r2.robot_can()), COSLAM_OK);
+    ASSERT_EQ(cia402_omni_start(&o, now), COSLAM_OK);
+    run_other(o, r2, 300);
+    EXPECT_TRUE(cia402_omni_is_running(&o));
+    EXPECT_EQ(cia402_omni_get_fault(&o, &rep), COSLAM_E_EMPTY);
 }
 
 TEST_F(EndToEnd, BodyVelocityCommandGivesMatchingOdometry)
@@ -677,13 +834,6 @@ TEST_F(EndToEnd, DriveRebootIsAnNmtFault)
     EXPECT_EQ(rep.wheel, 0);
     EXPECT_EQ(rep.info.reason, CIA402_FAULT_NMT);
     // the reset brings it up again from scratch
-    ASSERT_EQ(cia402_omni_fault_reset(&omni, now), COSLAM_OK);
-    run_until([&] { return cia402_omni_is_running(&omni) != 0; }, 500);
-    run_until([&] {
-        cia402_omni_fault_t r;
-        return cia402_omni_get_fault(&omni, &r) == COSLAM_E_EMPTY;
-    }, 100);
-    ASSERT_EQ(cia402_omni_enable(&omni, 1), COSLAM_OK);
-    run_until([&] { return cia402_omni_is_enabled(&omni) != 0; }, 200);
+    reset_and_enable();
     EXPECT_EQ(rig.drive(0).mode(), 3);
 }

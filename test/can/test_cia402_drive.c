@@ -150,6 +150,11 @@ static void test_canopen_parse(void **state)
     assert_int_equal(st, CANOPEN_NMT_STATE_OPERATIONAL);
     f.dlc = 2;
     assert_int_equal(canopen_heartbeat_parse(&f, &st), COSLAM_E_DRIVE_PROTOCOL);
+    /* a producer's heartbeat: the master's, node 127, operational */
+    assert_int_equal(canopen_heartbeat_frame(&f, 127, CANOPEN_NMT_STATE_OPERATIONAL), COSLAM_OK);
+    ASSERT_FRAME(f, 0x77F, 0x05);
+    assert_int_equal(canopen_heartbeat_frame(&f, 0, CANOPEN_NMT_STATE_OPERATIONAL), COSLAM_E_ARG);
+    assert_int_equal(canopen_heartbeat_frame(&f, 128, CANOPEN_NMT_STATE_OPERATIONAL), COSLAM_E_ARG);
 
     /* TPDO with a negative velocity */
     uint16_t sw;
@@ -302,18 +307,26 @@ static uint64_t bring_up_checked(void)
     ASSERT_FRAME(fc->sent[3], 0x600 + NODE, 0x2B, 0x17, 0x10, 0x00, 0x64, 0x00, 0, 0);
     PUSH(fc, 0x580 + NODE, t + 50, 0x60, 0x17, 0x10, 0x00, 0, 0, 0, 0);
     run(d, fc, t += 100);
-    ASSERT_FRAME(fc->sent[4], 0x600 + NODE, 0x2F, 0x60, 0x60, 0x00, 0x03, 0, 0, 0);
+    /* the drive-side watchdog: consume node 127's heartbeat, 200 ms (0x007F00C8) ... */
+    ASSERT_FRAME(fc->sent[4], 0x600 + NODE, 0x23, 0x16, 0x10, 0x01, 0xC8, 0x00, 0x7F, 0x00);
+    PUSH(fc, 0x580 + NODE, t + 50, 0x60, 0x16, 0x10, 0x01, 0, 0, 0, 0);
+    run(d, fc, t += 100);
+    /* ... and quick stop when it stays away (0x6007 = 3, i16) */
+    ASSERT_FRAME(fc->sent[5], 0x600 + NODE, 0x2B, 0x07, 0x60, 0x00, 0x03, 0x00, 0, 0);
+    PUSH(fc, 0x580 + NODE, t + 50, 0x60, 0x07, 0x60, 0x00, 0, 0, 0, 0);
+    run(d, fc, t += 100);
+    ASSERT_FRAME(fc->sent[6], 0x600 + NODE, 0x2F, 0x60, 0x60, 0x00, 0x03, 0, 0, 0);
     PUSH(fc, 0x580 + NODE, t + 50, 0x60, 0x60, 0x60, 0x00, 0, 0, 0, 0);
     run(d, fc, t += 100);
-    ASSERT_FRAME(fc->sent[5], 0x600 + NODE, 0x40, 0x61, 0x60, 0x00, 0, 0, 0, 0);
+    ASSERT_FRAME(fc->sent[7], 0x600 + NODE, 0x40, 0x61, 0x60, 0x00, 0, 0, 0, 0);
     PUSH(fc, 0x580 + NODE, t + 50, 0x4F, 0x61, 0x60, 0x00, 0x03, 0, 0, 0);
     run(d, fc, t += 100);
-    ASSERT_FRAME(fc->sent[6], 0x600 + NODE, 0x40, 0x41, 0x60, 0x00, 0, 0, 0, 0);
+    ASSERT_FRAME(fc->sent[8], 0x600 + NODE, 0x40, 0x41, 0x60, 0x00, 0, 0, 0, 0);
     PUSH(fc, 0x580 + NODE, t + 50, 0x4B, 0x41, 0x60, 0x00, 0x40, 0x02, 0, 0);
     PUSH(fc, 0x700 + NODE, t + 60, 0x7F);
     run(d, fc, t += 100);
-    assert_int_equal(fc->n_sent, 8);
-    ASSERT_FRAME(fc->sent[7], 0x000, 0x01, NODE);
+    assert_int_equal(fc->n_sent, 10);
+    ASSERT_FRAME(fc->sent[9], 0x000, 0x01, NODE);
     assert_int_equal(d->phase, CIA402_DRIVE_RUN);
     assert_int_equal(d->vendor_id, 0x12345678);
     assert_int_equal(d->product_code, 0x402);
@@ -322,8 +335,8 @@ static uint64_t bring_up_checked(void)
     PUSH(fc, 0x700 + NODE, t + 50, 0x05);
     PUSH(fc, 0x180 + NODE, t + 60, 0x40, 0x02, 0, 0, 0, 0);
     assert_int_equal(run(d, fc, t += 100), COSLAM_OK);
-    assert_int_equal(fc->n_sent, 9);
-    ASSERT_FRAME(fc->sent[8], 0x200 + NODE, 0x00, 0x00, 0, 0, 0, 0);
+    assert_int_equal(fc->n_sent, 11);
+    ASSERT_FRAME(fc->sent[10], 0x200 + NODE, 0x00, 0x00, 0, 0, 0, 0);
     assert_int_equal(d->nmt_confirmed, 1);
     assert_int_equal(d->fault.reason, CIA402_FAULT_NONE);
     return t;
@@ -498,27 +511,46 @@ static void test_device_fault_without_emcy(void **state)
     assert_int_equal(run(d, fc, t += 100), COSLAM_OK);
 }
 
-static void test_sdo_abort_during_config(void **state)
+/* Start the bring-up at t and answer the boot-up, both identity reads and
+ * the 0x1017 write, 10 ms apart; returns the time. */
+static uint64_t config_to_heartbeat(cia402_drive_t *d, fake_can_t *fc, uint64_t t)
 {
-    (void)state;
-    fake_can_t *fc = &g_fc;
-    cia402_drive_t *d = &g_d;
-    uint64_t t = 0;
     cia402_drive_start(d, t);
     PUSH(fc, 0x700 + NODE, t + 5, 0x00);
     run(d, fc, t += 10);
-    /* answer identity and heartbeat, then abort the mode write */
     PUSH(fc, 0x580 + NODE, t + 5, 0x43, 0x18, 0x10, 0x01, 1, 0, 0, 0);
     run(d, fc, t += 10);
     PUSH(fc, 0x580 + NODE, t + 5, 0x43, 0x18, 0x10, 0x02, 2, 0, 0, 0);
     run(d, fc, t += 10);
     PUSH(fc, 0x580 + NODE, t + 5, 0x60, 0x17, 0x10, 0x00, 0, 0, 0, 0);
     run(d, fc, t += 10);
+    return t;
+}
+
+/* ... and the two watchdog writes (0x1016:1, 0x6007) */
+static uint64_t config_to_watchdog(cia402_drive_t *d, fake_can_t *fc, uint64_t t)
+{
+    t = config_to_heartbeat(d, fc, t);
+    PUSH(fc, 0x580 + NODE, t + 5, 0x60, 0x16, 0x10, 0x01, 0, 0, 0, 0);
+    run(d, fc, t += 10);
+    PUSH(fc, 0x580 + NODE, t + 5, 0x60, 0x07, 0x60, 0x00, 0, 0, 0, 0);
+    run(d, fc, t += 10);
+    return t;
+}
+
+static void test_sdo_abort_during_config(void **state)
+{
+    (void)state;
+    fake_can_t *fc = &g_fc;
+    cia402_drive_t *d = &g_d;
+    /* answer identity, heartbeat and watchdog, then abort the mode write */
+    uint64_t t = config_to_watchdog(d, fc, 0);
     ASSERT_FRAME(*last_sent(fc), 0x600 + NODE, 0x2F, 0x60, 0x60, 0x00, 0x03, 0, 0, 0);
     PUSH(fc, 0x580 + NODE, t + 5, 0x80, 0x60, 0x60, 0x00, 0x30, 0x00, 0x09, 0x06);
     assert_int_equal(run(d, fc, t += 10), COSLAM_E_DRIVE_FAULT);
     assert_int_equal(d->fault.reason, CIA402_FAULT_SDO_ABORT);
     assert_int_equal(d->fault.sdo_abort_code, 0x06090030u);
+    assert_int_equal(d->fault.sdo_index, 0x6060);
     assert_int_equal(d->phase, CIA402_DRIVE_HALTED);
     /* halted: nothing more is sent, however long we wait */
     const size_t n = fc->n_sent;
@@ -588,20 +620,13 @@ static void test_config_rejects_bad_replies(void **state)
     assert_int_equal(d->fault.reason, CIA402_FAULT_CONFIG);
     ASSERT_FRAME(*last_sent(fc), 0x600 + NODE, 0x80, 0x18, 0x10, 0x01, 0x01, 0x00, 0x04, 0x05);
     /* a drive that does not take profile velocity mode */
-    cia402_drive_start(d, t);
-    PUSH(fc, 0x700 + NODE, t + 5, 0x00);
-    run(d, fc, t += 10);
-    PUSH(fc, 0x580 + NODE, t + 5, 0x43, 0x18, 0x10, 0x01, 1, 0, 0, 0);
-    run(d, fc, t += 10);
-    PUSH(fc, 0x580 + NODE, t + 5, 0x43, 0x18, 0x10, 0x02, 2, 0, 0, 0);
-    run(d, fc, t += 10);
-    PUSH(fc, 0x580 + NODE, t + 5, 0x60, 0x17, 0x10, 0x00, 0, 0, 0, 0);
-    run(d, fc, t += 10);
+    t = config_to_watchdog(d, fc, t);
     PUSH(fc, 0x580 + NODE, t + 5, 0x60, 0x60, 0x60, 0x00, 0, 0, 0, 0);
     run(d, fc, t += 10);
     PUSH(fc, 0x580 + NODE, t + 5, 0x4F, 0x61, 0x60, 0x00, 0x02, 0, 0, 0); /* mode 2 (vl) */
     assert_int_equal(run(d, fc, t += 10), COSLAM_E_DRIVE_FAULT);
     assert_int_equal(d->fault.reason, CIA402_FAULT_CONFIG);
+    assert_int_equal(d->fault.sdo_index, 0x6061); /* the mode check, not a mismatched reply */
     assert_int_equal(d->phase, CIA402_DRIVE_HALTED);
 }
 
@@ -662,11 +687,11 @@ static void test_nmt_and_pdo_supervision(void **state)
     cia402_drive_start(d, t);
     PUSH(fc, 0x700 + NODE, t, 0x00);
     run(d, fc, t += 10);
-    const uint8_t cmd[6] = {0x43, 0x43, 0x60, 0x60, 0x4F, 0x4B};
-    const uint16_t idx[6] = {0x1018, 0x1018, 0x1017, 0x6060, 0x6061, 0x6041};
-    const uint8_t sub[6] = {1, 2, 0, 0, 0, 0};
-    const uint8_t val[6] = {1, 2, 0, 0, 3, 0x40};
-    for (int i = 0; i < 6; ++i) {
+    const uint8_t cmd[8] = {0x43, 0x43, 0x60, 0x60, 0x60, 0x60, 0x4F, 0x4B};
+    const uint16_t idx[8] = {0x1018, 0x1018, 0x1017, 0x1016, 0x6007, 0x6060, 0x6061, 0x6041};
+    const uint8_t sub[8] = {1, 2, 0, 1, 0, 0, 0, 0};
+    const uint8_t val[8] = {1, 2, 0, 0, 0, 0, 3, 0x40};
+    for (int i = 0; i < 8; ++i) {
         const uint8_t rep[8] = {cmd[i], (uint8_t)(idx[i] & 0xFF), (uint8_t)(idx[i] >> 8), sub[i], val[i], 0, 0, 0};
         fake_can_push(fc, 0x580 + NODE, rep, 8, t);
         run(d, fc, t += 10);
@@ -680,6 +705,66 @@ static void test_nmt_and_pdo_supervision(void **state)
     }
     run(d, fc, run_at + d->cfg.heartbeat_timeout_us + 1);
     assert_int_equal(d->fault.reason, CIA402_FAULT_NMT);
+}
+
+/* The drive-side watchdog's configuration: checked, skipped when off,
+ * refused by a drive without the objects (halted, the object named), and a
+ * fired watchdog (EMCY 0x8130: the drive left OPERATIONAL) is cleared by a
+ * new bring-up, not by the in-place CiA 402 fault reset. */
+static void test_watchdog_config(void **state)
+{
+    (void)state;
+    fake_can_t *fc = &g_fc;
+    cia402_drive_t *d = &g_d;
+    cia402_drive_config_t c = cia402_drive_config_default(NODE);
+    assert_int_equal(cia402_drive_config_check(&c), COSLAM_OK);
+    c.master_node_id = NODE; /* its own id */
+    assert_int_equal(cia402_drive_config_check(&c), COSLAM_E_ARG);
+    c.master_node_id = 128;
+    assert_int_equal(cia402_drive_config_check(&c), COSLAM_E_ARG);
+    c = cia402_drive_config_default(NODE);
+    c.master_timeout_ms = 0;
+    assert_int_equal(cia402_drive_config_check(&c), COSLAM_E_ARG);
+    c = cia402_drive_config_default(NODE);
+    c.master_loss_action = 0; /* "no action" is no watchdog: say master_node_id = 0 */
+    assert_int_equal(cia402_drive_config_check(&c), COSLAM_E_ARG);
+    c.master_loss_action = 4;
+    assert_int_equal(cia402_drive_config_check(&c), COSLAM_E_ARG);
+    c.master_node_id = 0; /* off: the other two are not looked at */
+    c.master_timeout_ms = 0;
+    assert_int_equal(cia402_drive_config_check(&c), COSLAM_OK);
+
+    /* off: the bring-up goes from 0x1017 to the mode write */
+    fake_can_init(fc);
+    assert_int_equal(cia402_drive_init(d, &c, &fc->can), COSLAM_OK);
+    uint64_t t = 0;
+    t = config_to_heartbeat(d, fc, t);
+    ASSERT_FRAME(*last_sent(fc), 0x600 + NODE, 0x2F, 0x60, 0x60, 0x00, 0x03, 0, 0, 0);
+
+    /* on, and the drive has no 0x1016: halted on SDO_ABORT naming it */
+    setup(NULL);
+    t = 0;
+    t = config_to_heartbeat(d, fc, t);
+    PUSH(fc, 0x580 + NODE, t + 5, 0x80, 0x16, 0x10, 0x01, 0x00, 0x00, 0x02, 0x06); /* no object */
+    assert_int_equal(run(d, fc, t += 10), COSLAM_E_DRIVE_FAULT);
+    assert_int_equal(d->fault.reason, CIA402_FAULT_SDO_ABORT);
+    assert_int_equal(d->fault.sdo_abort_code, 0x06020000u);
+    assert_int_equal(d->fault.sdo_index, 0x1016);
+    assert_int_equal(d->phase, CIA402_DRIVE_HALTED);
+
+    /* a fired watchdog in RUN: EMCY 0x8130, then the drive's pre-operational heartbeat */
+    setup(NULL);
+    t = bring_up_checked();
+    PUSH(fc, 0x080 + NODE, t + 5, 0x30, 0x81, 0x11, 0, 0, 0, 0, 0);
+    assert_int_equal(run(d, fc, t += 10), COSLAM_E_DRIVE_FAULT);
+    assert_int_equal(d->fault.reason, CIA402_FAULT_EMCY);
+    assert_int_equal(d->fault.emcy_code, 0x8130);
+    const size_t n = fc->n_sent;
+    assert_int_equal(cia402_drive_fault_reset(d, t), COSLAM_OK);
+    assert_int_equal(d->phase, CIA402_DRIVE_BOOT); /* not the controlword reset */
+    assert_int_equal(d->fault.reason, CIA402_FAULT_NONE);
+    assert_true(fc->n_sent > n);
+    ASSERT_FRAME(fc->sent[n], 0x000, 0x81, NODE);
 }
 
 static void test_user_sdo(void **state)
@@ -789,6 +874,7 @@ int main(void)
         cmocka_unit_test_setup(test_sdo_timeout_and_boot_timeout, setup),
         cmocka_unit_test_setup(test_config_rejects_bad_replies, setup),
         cmocka_unit_test_setup(test_heartbeat_loss, setup),
+        cmocka_unit_test_setup(test_watchdog_config, setup),
         cmocka_unit_test_setup(test_nmt_and_pdo_supervision, setup),
         cmocka_unit_test_setup(test_user_sdo, setup),
         cmocka_unit_test_setup(test_malformed_and_foreign_frames, setup),

@@ -21,12 +21,19 @@ typedef struct {
     size_t seen;          /* sent frames already answered */
     int faulted[128];     /* node in FAULT until a 0x80 controlword */
     int tpdo_on;          /* answer RPDOs with TPDOs */
+    int hb_on;            /* nodes 1..3 send an OPERATIONAL heartbeat every 100 ms */
+    uint64_t next_hb;
 } responder_t;
 
 static responder_t g_r;
 
 static void respond(fake_can_t *fc, responder_t *r, uint64_t now)
 {
+    if (r->hb_on && now >= r->next_hb) {
+        const uint8_t op = 0x05;
+        for (uint32_t node = 1; node <= 3; ++node) fake_can_push(fc, 0x700u + node, &op, 1, now);
+        r->next_hb = now + 100000u;
+    }
     for (; r->seen < fc->n_sent; ++r->seen) {
         const hal_can_frame_t *f = &fc->sent[r->seen];
         uint8_t node = 0;
@@ -156,6 +163,81 @@ static uint64_t bring_up_and_enable(void)
     uint64_t t = step_until(1000, is_running, 100);
     assert_int_equal(cia402_omni_enable(&g_o, 1), COSLAM_OK);
     return step_until(t, is_enabled, 100);
+}
+
+static size_t count_master_heartbeats(size_t from)
+{
+    size_t n = 0;
+    for (size_t i = from; i < g_fc.n_sent; ++i) {
+        const hal_can_frame_t *f = &g_fc.sent[i];
+        if (f->id != 0x77Fu) continue;
+        assert_int_equal(f->dlc, 1);
+        assert_int_equal(f->data[0], 0x05); /* OPERATIONAL */
+        ++n;
+    }
+    return n;
+}
+
+/* The master heartbeat the drives' watchdog consumes: checked config, none
+ * before start, every 50 ms from start on, through a fault, none when off. */
+static void test_master_heartbeat(void **state)
+{
+    (void)state;
+    cia402_omni_t o;
+    cia402_omni_config_t c = cia402_omni_config_default();
+    c.drive.master_node_id = 2; /* a wheel's id */
+    assert_int_equal(cia402_omni_init(&o, &c, &g_fc.can), COSLAM_E_ARG);
+    c = cia402_omni_config_default();
+    c.master_heartbeat_period_ms = 101; /* one lost heartbeat would trip the 200 ms watchdog */
+    assert_int_equal(cia402_omni_init(&o, &c, &g_fc.can), COSLAM_E_ARG);
+    c.master_heartbeat_period_ms = 0;
+    assert_int_equal(cia402_omni_init(&o, &c, &g_fc.can), COSLAM_E_ARG);
+    c.master_heartbeat_period_ms = 100;
+    assert_int_equal(cia402_omni_init(&o, &c, &g_fc.can), COSLAM_OK);
+
+    /* not started: not the master yet */
+    for (uint64_t t = 0; t < 200000; t += 1000) cia402_omni_poll(&g_o, t);
+    assert_int_equal(count_master_heartbeats(0), 0);
+    /* from start on: at 0, 50, ..., 1000 ms with 1 ms polls */
+    uint64_t t = bring_up_and_enable();
+    g_r.hb_on = 1; /* the test runs past the drives' heartbeat timeout */
+    assert_true(count_master_heartbeats(0) >= 1u); /* the first poll sent one */
+    assert_int_equal(g_o.master_hb_sent, count_master_heartbeats(0));
+    g_fc.n_sent = 0; /* the recorder holds 512 frames: empty it between the windows */
+    g_r.seen = 0;
+    t = step_until(t, NULL, 1000);
+    assert_int_equal(count_master_heartbeats(0), 20);
+    /* a fault stops the wheels, not the master */
+    const uint8_t em[8] = {0x10, 0x23, 0x01, 0, 0, 0, 0, 0};
+    fake_can_push(&g_fc, 0x082, em, 8, t);
+    g_r.faulted[2] = 1;
+    g_fc.n_sent = 0;
+    g_r.seen = 0;
+    t = step_until(t, NULL, 500);
+    assert_int_equal(g_o.fault.wheel, 1);
+    assert_int_equal(count_master_heartbeats(0), 10);
+    /* a refused send is counted and retried at the next poll, not dropped for a period */
+    g_fc.send_status = HAL_E_BUSY;
+    g_fc.send_fail_count = 1000000;
+    const uint32_t fails = g_o.master_hb_failures;
+    t = step_until(t, NULL, 60);
+    assert_true(g_o.master_hb_failures > fails);
+    g_fc.send_fail_count = 0;
+    g_fc.n_sent = 0;
+    g_r.seen = 0;
+    t = step_until(t, NULL, 1);
+    assert_int_equal(count_master_heartbeats(0), 1);
+
+    /* off: no heartbeat at all */
+    setup(NULL);
+    c = cia402_omni_config_default();
+    c.drive.master_node_id = 0;
+    assert_int_equal(cia402_omni_init(&g_o, &c, &g_fc.can), COSLAM_OK);
+    t = bring_up_and_enable();
+    g_r.hb_on = 1;
+    step_until(t, NULL, 500);
+    assert_int_equal(count_master_heartbeats(0), 0);
+    assert_true(cia402_omni_is_enabled(&g_o));
 }
 
 static void test_body_velocity_to_rpdo(void **state)
@@ -449,8 +531,8 @@ static void test_random_frames(void **state)
                     const hal_can_frame_t *f = &g_fc.sent[k];
                     assert_true(hal_can_frame_is_valid(f));
                     const uint32_t fn = f->id & 0x780u;
-                    assert_true(f->id == 0 || fn == 0x200u || fn == 0x600u);
-                    assert_true(f->dlc == (f->id == 0 ? 2 : fn == 0x200u ? 6 : 8));
+                    assert_true(f->id == 0 || fn == 0x200u || fn == 0x600u || f->id == 0x77Fu);
+                    assert_true(f->dlc == (f->id == 0 ? 2 : fn == 0x200u ? 6 : f->id == 0x77Fu ? 1 : 8));
                 }
                 g_fc.n_sent = 0;
                 g_r.seen = 0;
@@ -471,6 +553,7 @@ int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test_setup(test_config_and_start, setup),
+        cmocka_unit_test_setup(test_master_heartbeat, setup),
         cmocka_unit_test_setup(test_body_velocity_to_rpdo, setup),
         cmocka_unit_test_setup(test_fault_on_one_wheel_stops_all, setup),
         cmocka_unit_test_setup(test_bus_errors, setup),

@@ -35,6 +35,10 @@ ESTOP_STILL_M = 0.02        # path length while the e-stop is held (from 0.5 s a
 ESTOP_MOVING_M = 0.1        # ... and in as long a time before it / after the release
 LED_RUN_HZ = (2.0, 6.0)     # status LED edges per second: heartbeat (4/s) while running
 LED_STOP_HZ = (6.0, 10.0)   # fast blink (8/s) while stopped
+# --freeze (SIGSTOP of a robot process): its drives' watchdog stops the
+# wheels 200 ms after the last heartbeat, the quick stop in about 0.1 s: at
+# most 0.3 m/s (the top speed) x 0.33 s in the first 0.5 s
+FREEZE_FIRST_M = 0.1
 
 
 def inproc(run):
@@ -102,6 +106,15 @@ def main():
                   "release (a quarter right: <= %.0f), moved %.2f m; presses %d, acknowledged %d"
                   % (bp["t0_s"], bp["t1_s"], bp["moved_during_m"], ESTOP_STILL_M, bp["turned_after_deg"],
                      BUMP_TURN_MAX_DEG, bp["moved_after_m"], g["bumper_presses"], acks))
+        fz = e.get("freeze")
+        if fz is not None:
+            check(fz["moved_first_m"] <= FREEZE_FIRST_M and fz["moved_during_m"] <= ESTOP_STILL_M
+                  and fz["drive_faults"] >= 1 and fz["moved_after_m"] >= ESTOP_MOVING_M,
+                  "process stopped %.1f .. %.1f s: moved %.3f m in its first 0.5 s (bound %.2f), %.3f m after "
+                  "(bound %.2f; the drives' watchdog), %.3f m in the second before; continued: %d drive faults, "
+                  "moved %.2f m 1.5-4 s later"
+                  % (fz["t0_s"], fz["t1_s"], fz["moved_first_m"], FREEZE_FIRST_M, fz["moved_during_m"], ESTOP_STILL_M,
+                     fz["moved_before_m"], fz["drive_faults"], fz["moved_after_m"]))
         m = col("merge")
         check(e["first_merge_s"] > 0 and min(m) - MERGE_MARGIN_S <= e["first_merge_s"] <= max(m) + MERGE_MARGIN_S,
               "first merge at %.1f s [%.1f .. %.1f] +- %.0f s" % (e["first_merge_s"], min(m), max(m), MERGE_MARGIN_S))

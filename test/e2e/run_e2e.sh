@@ -26,9 +26,11 @@ while :; do
     # shellcheck disable=SC2086
     # robot 0's e-stop held from 60 to 64 s and robot 1's bumper pressed
     # from 62 to 63 s (after the meeting: the run stays comparable with the
-    # in-process one), through the GPIO stand-in
+    # in-process one), through the GPIO stand-in; robot 0's process stopped
+    # (SIGSTOP) from 69 to 70.5 s: its drives' watchdog must stop the wheels
     "$devices" --scenario "$scenario" --robot "$robot" --out "$out/e2e" $dur_opt --domain "${COSLAM_E2E_DOMAIN:-175}" \
-        --estop "${COSLAM_E2E_ESTOP:-0:60:64}" --bump "${COSLAM_E2E_BUMP:-1:62:63}"
+        --estop "${COSLAM_E2E_ESTOP:-0:60:64}" --bump "${COSLAM_E2E_BUMP:-1:62:63}" \
+        --freeze "${COSLAM_E2E_FREEZE:-0:69:70.5}"
     if python3 "$here/e2e_compare.py" "$out/sweep" "$out/e2e"; then
         exit 0
     fi

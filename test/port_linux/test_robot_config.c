@@ -194,6 +194,48 @@ static void closure_keys_reach_the_filter(void **state)
     assert_true(f.u.ekf.cfg.active_spread_madds == 2000000U);
 }
 
+/* The drive-side watchdog's keys: the drivers' defaults, read, printed
+ * back, checked against each other and the wheels' ids, and accepted by
+ * the drive driver as loaded. */
+static void watchdog_keys_reach_the_drive(void **state)
+{
+    (void)state;
+    char msg[600];
+    robot_config_default(&cfg);
+    const cia402_omni_config_t oc = cia402_omni_config_default();
+    assert_int_equal(cfg.node.drive.drive.master_node_id, oc.drive.master_node_id);
+    assert_int_equal(cfg.node.drive.drive.master_node_id, 127);
+    assert_int_equal(cfg.node.drive.drive.master_timeout_ms, 200);
+    assert_int_equal(cfg.node.drive.master_heartbeat_period_ms, 50);
+    assert_int_equal(cfg.node.drive.drive.master_loss_action, CIA402_ABORT_QUICK_STOP);
+    const char *text = "[can]\nnode_ids = 4, 5, 6\nmaster_node_id = 1\nmaster_heartbeat_period_ms = 20\n"
+                       "watchdog_timeout_ms = 100\nwatchdog_action = disable_voltage\n";
+    assert_int_equal(robot_config_load_string(&cfg, text, "w.ini", msg, sizeof msg), COSLAM_OK);
+    assert_int_equal(cfg.node.drive.drive.master_node_id, 1);
+    assert_int_equal(cfg.node.drive.master_heartbeat_period_ms, 20);
+    assert_int_equal(cfg.node.drive.drive.master_timeout_ms, 100);
+    assert_int_equal(cfg.node.drive.drive.master_loss_action, CIA402_ABORT_DISABLE_VOLTAGE);
+    char *a = print_to_string(&cfg);
+    assert_non_null(strstr(a, "watchdog_action = disable_voltage"));
+    static robot_config_t back;
+    robot_config_default(&back);
+    assert_int_equal(robot_config_load_string(&back, a, "printed.ini", msg, sizeof msg), COSLAM_OK);
+    char *b = print_to_string(&back);
+    assert_string_equal(a, b);
+    free(a);
+    free(b);
+    /* the driver takes what the file gave */
+    static cia402_omni_t o;
+    hal_can_t can;
+    memset(&can, 0, sizeof can);
+    assert_int_equal(cia402_omni_init(&o, &cfg.node.drive, &can), COSLAM_OK);
+    assert_int_equal(o.drive[2].cfg.master_timeout_ms, 100);
+    /* off: the other keys are not checked against each other */
+    assert_int_equal(robot_config_load_string(&cfg, "[can]\nmaster_node_id = 0\nwatchdog_timeout_ms = 1\n", "o.ini", msg,
+                                              sizeof msg),
+                     COSLAM_OK);
+}
+
 static void bad_files_name_file_and_line(void **state)
 {
     (void)state;
@@ -216,6 +258,15 @@ static void bad_files_name_file_and_line(void **state)
     refused("[gpio]\nrequired = maybe\n", "bad.ini:2: [gpio] required: expected a boolean");
     refused("[gpio]\nbumper_lines = 1, x\n", "bad.ini:2: [gpio] bumper_lines: expected an integer");
     refused("[can]\nnode_ids = 1, 2\n", "bad.ini:2: [can] node_ids: expected 3 CANopen node ids");
+    refused("[can]\nmaster_node_id = 128\n", "bad.ini:2: [can] master_node_id: 128 is outside its domain [0, 127]");
+    refused("[can]\nwatchdog_action = stop\n",
+            "bad.ini:2: [can] watchdog_action: expected quick_stop, disable_voltage or fault");
+    refused("[can]\nmaster_node_id = 2\n", "bad.ini:2: [can] master_node_id: master node id 2 is also wheel 1's node id");
+    refused("[can]\nmaster_node_id = 9\n\nnode_ids = 7, 8, 9\n",
+            "bad.ini:4: [can] node_ids: master node id 9 is also wheel 2's node id");
+    refused("[can]\nwatchdog_timeout_ms = 60\n",
+            "bad.ini:2: [can] watchdog_timeout_ms: watchdog_timeout_ms 60 must be at least twice "
+            "master_heartbeat_period_ms 50");
     /* a profile this build is not */
     refused(strcmp(COSLAM_PROFILE_NAME, "large") != 0 ? "[robot]\nprofile = large\n" : "[robot]\nprofile = host\n",
             "bad.ini:2: [robot] profile: this binary is built for");
@@ -282,6 +333,29 @@ static int run_robot(const char *text, const char *extra, char *err, size_t cap)
     unlink(path);
     rmdir(dir);
     return WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+}
+
+/* The start-up says whether the drives are guarded by the watchdog. */
+static void binary_says_the_drive_watchdog(void **state)
+{
+    (void)state;
+    char err[8192];
+    const char *base = "[laser]\ndevice =\n[gpio]\nchip =\n[fleet]\nkey_file =\n[storage]\ndir = /nonexistent-coslam/wd-store\n"
+                       "[can]\ninterface = nosuchcan0\n";
+    assert_int_equal(run_robot(base, "--dry-run", err, sizeof err), 0);
+    assert_non_null(strstr(err, "can: drive watchdog: heartbeat as node 127 every 50 ms; a drive that misses it for "
+                                "200 ms stops its wheel (quick_stop)"));
+    char text[512];
+    snprintf(text, sizeof text, "%smaster_node_id = 0\n", base);
+    assert_int_equal(run_robot(text, "--dry-run", err, sizeof err), 0);
+    assert_non_null(strstr(err, "can: warning: no drive watchdog ([can] master_node_id = 0): if this process dies or "
+                                "hangs, the wheels keep their last command"));
+    /* no CAN interface configured: nothing to say about drives */
+    assert_int_equal(run_robot("[laser]\ndevice =\n[gpio]\nchip =\n[fleet]\nkey_file =\n[storage]\ndir = "
+                               "/nonexistent-coslam/wd-store\n[can]\ninterface =\n",
+                               "--dry-run", err, sizeof err),
+                     0);
+    assert_null(strstr(err, "drive watchdog"));
 }
 
 static void binary_exits_2_with_file_and_line(void **state)
@@ -432,7 +506,9 @@ int main(int argc, char **argv)
         cmocka_unit_test(link_keys_defaults_and_round_trip),
         cmocka_unit_test(meeting_noise_comes_from_slam),
         cmocka_unit_test(closure_keys_reach_the_filter),
+        cmocka_unit_test(watchdog_keys_reach_the_drive),
         cmocka_unit_test(bad_files_name_file_and_line),
+        cmocka_unit_test(binary_says_the_drive_watchdog),
         cmocka_unit_test(binary_exits_2_with_file_and_line),
         cmocka_unit_test(binary_refuses_a_bad_fleet_key),
     };

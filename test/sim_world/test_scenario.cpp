@@ -177,9 +177,18 @@ TEST(PaperScenarioProtocol, MergeInPartsStillMerges)
 
 TEST(PaperScenarioProtocol, OutOfRadioRangeNoMerge)
 {
+    // run until 20 s after the first merge of the same run in radio range
+    // (the premise: they meet), wherever a change moves that moment
     Scenario sc = load_scenario_file(kPaper);
+    double t_merge = -1.0;
+    {
+        Simulation ref(sc, SimulationOptions{5u, sc.duration_s});
+        ref.run();
+        ASSERT_FALSE(ref.result().merges.empty()) << "in radio range the robots must merge";
+        t_merge = ref.result().merges.front().t_s;
+    }
     sc.link.range_m = 0.5; // they meet 2 m apart
-    Simulation sim(sc, SimulationOptions{5u, 100.0});
+    Simulation sim(sc, SimulationOptions{5u, std::fmin(sc.duration_s, t_merge + 20.0)});
     sim.run();
     const SimulationResult &r = sim.result();
     EXPECT_TRUE(r.merges.empty());

@@ -185,6 +185,28 @@ static coslam_status_t parse_node_ids(robot_config_t *c, const char *v, char *ms
     return COSLAM_OK;
 }
 
+static coslam_status_t parse_loss_action(robot_config_t *c, const char *v, char *msg, size_t cap)
+{
+    static const char *const names[] = {"fault", "disable_voltage", "quick_stop"}; /* 0x6007 1, 2, 3 */
+    for (int k = 0; k < 3; ++k) {
+        if (strcmp(v, names[k]) == 0) {
+            c->node.drive.drive.master_loss_action = (int16_t)(CIA402_ABORT_FAULT + k);
+            return COSLAM_OK;
+        }
+    }
+    put_text(msg, cap, "expected quick_stop, disable_voltage or fault");
+    return COSLAM_E_ARG;
+}
+
+static void print_loss_action(const robot_config_t *c, FILE *out)
+{
+    switch (c->node.drive.drive.master_loss_action) {
+    case CIA402_ABORT_FAULT: fprintf(out, "fault"); break;
+    case CIA402_ABORT_DISABLE_VOLTAGE: fprintf(out, "disable_voltage"); break;
+    default: fprintf(out, "quick_stop"); break;
+    }
+}
+
 static void print_node_ids(const robot_config_t *c, FILE *out)
 {
     for (int k = 0; k < OMNI_WHEELS; ++k) {
@@ -437,6 +459,10 @@ static const cfg_key_t keys[] = {
 
     S_("can", "interface", can_interface),
     C_("can", "node_ids", parse_node_ids, print_node_ids),
+    N_("can", "master_node_id", K_U8, node.drive.drive.master_node_id, 0, 127),
+    N_("can", "master_heartbeat_period_ms", K_U16, node.drive.master_heartbeat_period_ms, 1, 10000),
+    N_("can", "watchdog_timeout_ms", K_U16, node.drive.drive.master_timeout_ms, 1, 60000),
+    C_("can", "watchdog_action", parse_loss_action, print_loss_action),
 
     S_("gpio", "chip", gpio_chip),
     B_("gpio", "required", gpio_required),
@@ -862,6 +888,32 @@ static void finish(load_t *st)
                  key_of[rb]);
         fail(st, "gpio", la > lb ? key_of[ra] : key_of[rb], msg);
         return;
+    }
+    /* the drive-side watchdog (cia402_omni_init would refuse these with no file and line) */
+    const cia402_omni_config_t *dc = &c->node.drive;
+    if (dc->drive.master_node_id != 0U) {
+        for (int k = 0; k < OMNI_WHEELS; ++k) {
+            if (dc->node_id[k] == dc->drive.master_node_id) {
+                const int la = key_line_of(st, "can", "master_node_id");
+                const int lb = key_line_of(st, "can", "node_ids");
+                st->line = la > lb ? la : lb;
+                put_text(msg, sizeof msg, "master node id %u is also wheel %d's node id",
+                         (unsigned)dc->drive.master_node_id, k);
+                fail(st, "can", la > lb ? "master_node_id" : "node_ids", msg);
+                return;
+            }
+        }
+        if ((uint32_t)dc->drive.master_timeout_ms < 2U * (uint32_t)dc->master_heartbeat_period_ms) {
+            const int la = key_line_of(st, "can", "watchdog_timeout_ms");
+            const int lb = key_line_of(st, "can", "master_heartbeat_period_ms");
+            st->line = la > lb ? la : lb;
+            put_text(msg, sizeof msg,
+                     "watchdog_timeout_ms %u must be at least twice master_heartbeat_period_ms %u (one lost "
+                     "heartbeat must not stop the robot)",
+                     (unsigned)dc->drive.master_timeout_ms, (unsigned)dc->master_heartbeat_period_ms);
+            fail(st, "can", la > lb ? "watchdog_timeout_ms" : "master_heartbeat_period_ms", msg);
+            return;
+        }
     }
     robot_node_config_t *n = &c->node;
     n->robot_id = c->robot_id;

@@ -490,14 +490,24 @@ static void log_limits(void)
         seen_drive_faults = node.ctr.drive_faults;
         cia402_omni_fault_t df;
         if (cia402_omni_get_fault(&node.drive, &df) == COSLAM_OK) {
+            const char *hint = "";
+            if (df.info.reason == CIA402_FAULT_EMCY && df.info.emcy_code == CANOPEN_EMCY_HEARTBEAT) {
+                hint = " (the drive's watchdog fired: it missed this process's heartbeat for "
+                       "[can] watchdog_timeout_ms; the control loop stalled or frames were lost)";
+            } else if (df.info.reason == CIA402_FAULT_SDO_ABORT &&
+                       (df.info.sdo_index == CIA402_OD_CONSUMER_HEARTBEAT ||
+                        df.info.sdo_index == CIA402_OD_ABORT_CONNECTION)) {
+                hint = " (the drive refused the watchdog set-up: [can] master_node_id = 0 runs it without the "
+                       "drive-side watchdog, so that a dead process leaves the wheels turning)";
+            }
             fprintf(stderr,
                     "coslam-robot: robot %u: drive fault %lu: wheel %d (CANopen node %u): %s, EMCY code 0x%04x "
-                    "register 0x%02x, statusword 0x%04x, SDO abort 0x%08lx; stopped, reset in %.1f s "
-                    "(drive_faults)\n",
+                    "register 0x%02x, statusword 0x%04x, SDO abort 0x%08lx on 0x%04x; stopped, reset in %.1f s "
+                    "(drive_faults)%s\n",
                     (unsigned)cfg.robot_id, (unsigned long)seen_drive_faults, (int)df.wheel, (unsigned)df.node_id,
                     cia402_fault_str(df.info.reason), (unsigned)df.info.emcy_code, (unsigned)df.info.emcy_register,
                     (unsigned)df.info.statusword, (unsigned long)df.info.sdo_abort_code,
-                    (double)cfg.node.retry_period_us * 1e-6);
+                    (unsigned)df.info.sdo_index, (double)cfg.node.retry_period_us * 1e-6, hint);
         } else {
             fprintf(stderr, "coslam-robot: robot %u: drive fault %lu (cleared before it was read; drive_faults)\n",
                     (unsigned)cfg.robot_id, (unsigned long)seen_drive_faults);
@@ -644,6 +654,22 @@ int main(int argc, char **argv)
     }
     if (dev.dev[ROBOT_DEV_CAN].state != ROBOT_DEV_UP) {
         fprintf(stderr, "coslam-robot: can: no drives: no motion, no odometry\n");
+    }
+    if (cfg.can_interface[0] != '\0') {
+        const cia402_drive_config_t *wd = &cfg.node.drive.drive;
+        if (wd->master_node_id != 0U) {
+            fprintf(stderr,
+                    "coslam-robot: can: drive watchdog: heartbeat as node %u every %u ms; a drive that misses it for "
+                    "%u ms stops its wheel (%s)\n",
+                    (unsigned)wd->master_node_id, (unsigned)cfg.node.drive.master_heartbeat_period_ms,
+                    (unsigned)wd->master_timeout_ms,
+                    wd->master_loss_action == CIA402_ABORT_FAULT             ? "fault"
+                    : wd->master_loss_action == CIA402_ABORT_DISABLE_VOLTAGE ? "disable_voltage"
+                                                                             : "quick_stop");
+        } else {
+            fprintf(stderr, "coslam-robot: can: warning: no drive watchdog ([can] master_node_id = 0): if this "
+                            "process dies or hangs, the wheels keep their last command\n");
+        }
     }
     load_snapshot(!opt.dry_run);
 

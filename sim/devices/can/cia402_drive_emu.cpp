@@ -141,9 +141,42 @@ void Cia402DriveEmu::reset_application()
     fault_pending_ = false;
     fault_code_ = 0;
     last_tpdo_sw_ = 0xFFFF;
+    abort_option_ = 1;
 }
 
-void Cia402DriveEmu::reset_communication() { hb_period_ms_ = cfg_.heartbeat_period_ms; }
+void Cia402DriveEmu::reset_communication()
+{
+    hb_period_ms_ = cfg_.heartbeat_period_ms;
+    consumer_ = 0;
+    consumer_armed_ = false;
+}
+
+// The watched heartbeat stayed away: EMCY, the 0x6007 action, and the
+// 0x1029 default reaction (OPERATIONAL -> PRE-OPERATIONAL).
+void Cia402DriveEmu::consumer_timeout()
+{
+    counters_.consumer_timeouts++;
+    consumer_armed_ = false;
+    constexpr uint16_t kHeartbeatError = 0x8130;
+    constexpr uint8_t kRegister = 0x11; // generic + communication
+    switch (abort_option_) {
+    case 1: raise_fault(kHeartbeatError, kRegister); break; // sends the EMCY
+    case 2:
+        if (state_ != State::Fault && state_ != State::FaultReactionActive && state_ != State::NotReady) {
+            state_ = State::SwitchOnDisabled;
+        }
+        break;
+    case 3:
+        if (state_ == State::OperationEnabled) state_ = State::QuickStopActive;
+        break;
+    default: break;
+    }
+    if (abort_option_ != 1) {
+        error_register_ = kRegister;
+        if (nmt_ != Nmt::Stopped) send_emcy(kHeartbeatError, kRegister);
+    }
+    if (nmt_ == Nmt::Operational) nmt_ = Nmt::PreOperational;
+}
 
 void Cia402DriveEmu::power_cycle(uint64_t now_us)
 {
@@ -280,10 +313,19 @@ void Cia402DriveEmu::on_sdo(const hal_can_frame_t &f)
     switch (index) {
     case 0x1000: obj = {4, false}; break;
     case 0x1001: obj = {1, false}; break;
+    case 0x1016:
+        exists = cfg_.watchdog_objects;
+        obj = {static_cast<uint8_t>(sub == 0 ? 1 : 4), sub == 1};
+        sub_ok = sub <= 1;
+        break;
     case 0x1017: obj = {2, true}; break;
     case 0x1018:
         obj = {static_cast<uint8_t>(sub == 0 ? 1 : 4), false};
         sub_ok = sub <= 4;
+        break;
+    case 0x6007:
+        exists = cfg_.watchdog_objects;
+        obj = {2, true};
         break;
     case 0x6040: obj = {2, true}; break;
     case 0x6041: obj = {2, false}; break;
@@ -308,6 +350,16 @@ void Cia402DriveEmu::on_sdo(const hal_can_frame_t &f)
             hb_period_ms_ = static_cast<uint16_t>(value);
             next_hb_us_ = now_us_ + static_cast<uint64_t>(hb_period_ms_) * 1000u;
             break;
+        case 0x1016:
+            consumer_ = value;
+            consumer_armed_ = false; // starts at the watched node's next heartbeat
+            break;
+        case 0x6007: {
+            const int16_t v = static_cast<int16_t>(value & 0xFFFF);
+            if (v < 0 || v > 3) return sdo_abort(index, sub, kAbortRange);
+            abort_option_ = v;
+            break;
+        }
         case 0x6040: apply_controlword(static_cast<uint16_t>(value)); break;
         case 0x6060:
             if (static_cast<int8_t>(value & 0xFF) != 3) return sdo_abort(index, sub, kAbortRange);
@@ -328,12 +380,14 @@ void Cia402DriveEmu::on_sdo(const hal_can_frame_t &f)
         switch (index) {
         case 0x1000: value = 0x00020192u; break;
         case 0x1001: value = error_register_; break;
+        case 0x1016: value = sub == 0 ? 1u : consumer_; break;
         case 0x1017: value = hb_period_ms_; break;
         case 0x1018: {
             const uint32_t ident[5] = {4, cfg_.vendor_id, cfg_.product_code, cfg_.revision, cfg_.serial};
             value = ident[sub];
             break;
         }
+        case 0x6007: value = static_cast<uint16_t>(abort_option_); break;
         case 0x6040: value = controlword_; break;
         case 0x6041: value = statusword(); break;
         case 0x6060:
@@ -363,6 +417,11 @@ void Cia402DriveEmu::on_rpdo(const hal_can_frame_t &f)
 void Cia402DriveEmu::on_frame(const hal_can_frame_t &f)
 {
     if ((f.flags & (HAL_CAN_FLAG_EXT | HAL_CAN_FLAG_RTR)) != 0u) return;
+    const uint32_t watched = (consumer_ >> 16) & 0x7Fu;
+    if (watched != 0 && (consumer_ & 0xFFFFu) != 0 && f.id == 0x700u + watched && f.dlc == 1 && nmt_ != Nmt::Init) {
+        consumer_armed_ = true;
+        consumer_last_us_ = now_us_;
+    }
     if (f.id == 0x000) {
         on_nmt(f);
     } else if (f.id == 0x600u + cfg_.node_id) {
@@ -408,6 +467,9 @@ void Cia402DriveEmu::step(uint64_t now_us)
         on_frame(f);
     }
 
+    if (consumer_armed_ && now_us > consumer_last_us_ + static_cast<uint64_t>(consumer_ & 0xFFFFu) * 1000u) {
+        consumer_timeout();
+    }
     if (nmt_ == Nmt::Init && now_us >= boot_at_us_) {
         const uint8_t boot = 0x00;
         send(0x700u + cfg_.node_id, &boot, 1);

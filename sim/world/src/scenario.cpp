@@ -483,7 +483,7 @@ void read_fault(const toml::table &t, size_t i, const Scenario &sc, FaultSpec &f
         {"can_errors", FaultKind::CanErrors},     {"drive_emcy", FaultKind::DriveEmcy},
         {"estop", FaultKind::Estop},              {"camera_stall", FaultKind::CameraStall},
         {"link_partition", FaultKind::LinkPartition}, {"kidnap", FaultKind::Kidnap},
-        {"odometry_wild", FaultKind::OdometryWild}};
+        {"odometry_wild", FaultKind::OdometryWild}, {"controller_hang", FaultKind::ControllerHang}};
     bool found = false;
     for (const auto &k : kinds) {
         if (kind == k.first) {
@@ -494,7 +494,7 @@ void read_fault(const toml::table &t, size_t i, const Scenario &sc, FaultSpec &f
     if (!found) {
         r.fail("kind", "unknown fault kind '" + kind +
                            "' (laser_unplug, laser_garbage, can_errors, drive_emcy, estop, camera_stall, "
-                           "link_partition, kidnap, odometry_wild)");
+                           "link_partition, kidnap, odometry_wild, controller_hang)");
     }
     r.num("at_s", f.at_s, 0.0, kMaxDurationS);
     if (f.kind != FaultKind::Kidnap) r.require("duration_s");
@@ -613,6 +613,7 @@ const char *fault_kind_name(FaultKind k)
     case FaultKind::LinkPartition: return "link_partition";
     case FaultKind::Kidnap: return "kidnap";
     case FaultKind::OdometryWild: return "odometry_wild";
+    case FaultKind::ControllerHang: return "controller_hang";
     }
     return "?";
 }

@@ -192,6 +192,7 @@ Simulation::Simulation(const Scenario &sc, const SimulationOptions &opt)
         nodes_.push_back(std::move(node));
     }
     truth_hist_.resize(n);
+    hung_.assign(n, 0);
     last_sample_.resize(n);
     result_.robots.resize(n);
     for (size_t k = 0; k < n; ++k) {
@@ -308,6 +309,7 @@ void Simulation::set_fault(FaultRecord &f, bool on)
     case FaultKind::OdometryWild:
         for (int w = 0; w < 3; ++w) r.rig().drive(w).set_encoder_fault(on ? s.scale : 1.0, on && s.garbage);
         break;
+    case FaultKind::ControllerHang: hung_.at(static_cast<size_t>(s.robot)) = on ? 1 : 0; break;
     }
 }
 
@@ -397,6 +399,7 @@ void Simulation::advance_to(double t_end_s, const std::function<void(const Simul
                 for (size_t j = 0; j < d.size() && j < result_.team_detections.size(); ++j) result_.team_detections[j] += d[j];
             }
             for (size_t k = 0; k < nodes_.size(); ++k) {
+                if (hung_[k] != 0u) continue; /* its process stalls: no step, no idle work, no events */
                 const int was = robot_node_diverged(nodes_[k].get());
                 (void)robot_node_step(nodes_[k].get());
                 robot_node_idle(nodes_[k].get()); /* as the robot does in the rest of its period */

@@ -68,6 +68,14 @@ void canopen_nmt_frame(hal_can_frame_t *f, canopen_nmt_cmd_t cmd, uint8_t node_i
     f->data[1] = node_id;
 }
 
+coslam_status_t canopen_heartbeat_frame(hal_can_frame_t *f, uint8_t node_id, canopen_nmt_state_t state)
+{
+    if (f == NULL || !canopen_node_id_valid(node_id)) return COSLAM_E_ARG;
+    frame_init(f, CANOPEN_COB_HEARTBEAT + node_id, 1);
+    f->data[0] = (uint8_t)state;
+    return COSLAM_OK;
+}
+
 static void sdo_head(hal_can_frame_t *f, uint8_t node_id, uint8_t cmd, uint16_t index, uint8_t subindex)
 {
     frame_init(f, CANOPEN_COB_SDO_RX + node_id, 8);

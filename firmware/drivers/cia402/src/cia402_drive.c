@@ -8,6 +8,8 @@ enum {
     STEP_VENDOR = 0,
     STEP_PRODUCT,
     STEP_HEARTBEAT,
+    STEP_MASTER_WATCH, /* skipped without a master node id */
+    STEP_LOSS_ACTION,  /* skipped without a master node id */
     STEP_MODE,
     STEP_MODE_CHECK,
     STEP_STATUSWORD,
@@ -30,6 +32,9 @@ cia402_drive_config_t cia402_drive_config_default(uint8_t node_id)
     c.boot_timeout_us = 2000000;
     c.pdo_timeout_us = 100000;
     c.rpdo_period_us = 10000;
+    c.master_node_id = 127;
+    c.master_timeout_ms = 200;
+    c.master_loss_action = CIA402_ABORT_QUICK_STOP;
     return c;
 }
 
@@ -39,6 +44,13 @@ coslam_status_t cia402_drive_config_check(const cia402_drive_config_t *c)
     if (c->heartbeat_period_ms == 0u) return COSLAM_E_ARG;
     if ((uint64_t)c->heartbeat_timeout_us <= (uint64_t)c->heartbeat_period_ms * 1000u) return COSLAM_E_ARG;
     if (c->sdo_timeout_us == 0u || c->boot_timeout_us == 0u || c->rpdo_period_us == 0u) return COSLAM_E_ARG;
+    if (c->master_node_id != 0u) {
+        if (!canopen_node_id_valid(c->master_node_id) || c->master_node_id == c->node_id) return COSLAM_E_ARG;
+        if (c->master_timeout_ms == 0u) return COSLAM_E_ARG;
+        if (c->master_loss_action < CIA402_ABORT_FAULT || c->master_loss_action > CIA402_ABORT_QUICK_STOP) {
+            return COSLAM_E_ARG;
+        }
+    }
     return COSLAM_OK;
 }
 
@@ -344,6 +356,13 @@ static void config_start_step(cia402_drive_t *d)
     case STEP_HEARTBEAT:
         sdo_begin(d, 0, CIA402_OD_HEARTBEAT_PRODUCER, 0, d->cfg.heartbeat_period_ms, 2, 1);
         break;
+    case STEP_MASTER_WATCH:
+        sdo_begin(d, 0, CIA402_OD_CONSUMER_HEARTBEAT, 1,
+                  ((uint32_t)d->cfg.master_node_id << 16) | (uint32_t)d->cfg.master_timeout_ms, 4, 1);
+        break;
+    case STEP_LOSS_ACTION:
+        sdo_begin(d, 0, CIA402_OD_ABORT_CONNECTION, 0, (uint32_t)(uint16_t)d->cfg.master_loss_action, 2, 1);
+        break;
     case STEP_MODE: sdo_begin(d, 0, CIA402_OD_MODES_OF_OPERATION, 0, CIA402_MODE_PROFILE_VELOCITY, 1, 1); break;
     case STEP_MODE_CHECK: sdo_begin(d, 1, CIA402_OD_MODES_DISPLAY, 0, 0, 0, 1); break;
     case STEP_STATUSWORD: sdo_begin(d, 1, CIA402_OD_STATUSWORD, 0, 0, 0, 1); break;
@@ -363,6 +382,8 @@ static int config_finish_step(cia402_drive_t *d, uint64_t now_us)
         d->hb_supervised = 1;
         d->last_hb_us = now_us;
         break;
+    case STEP_MASTER_WATCH:
+    case STEP_LOSS_ACTION:
     case STEP_MODE: break;
     case STEP_MODE_CHECK:
         if ((s->value & 0xFFu) != (uint32_t)CIA402_MODE_PROFILE_VELOCITY) {
@@ -385,14 +406,24 @@ static void poll_config(cia402_drive_t *d, uint64_t now_us)
     cia402_sdo_t *s = &d->sdo;
     switch (s->state) {
     case CIA402_SDO_DONE:
-        if (!config_finish_step(d, now_us)) return;
+        if (!config_finish_step(d, now_us)) {
+            d->fault.sdo_index = s->index;
+            return;
+        }
         break;
     case CIA402_SDO_ABORTED:
         d->fault.sdo_abort_code = s->abort_code;
+        d->fault.sdo_index = s->index;
         latch(d, CIA402_FAULT_SDO_ABORT, now_us);
         return;
-    case CIA402_SDO_TIMEOUT: latch(d, CIA402_FAULT_SDO_TIMEOUT, now_us); return;
-    case CIA402_SDO_ERROR: latch(d, CIA402_FAULT_CONFIG, now_us); return;
+    case CIA402_SDO_TIMEOUT:
+        d->fault.sdo_index = s->index;
+        latch(d, CIA402_FAULT_SDO_TIMEOUT, now_us);
+        return;
+    case CIA402_SDO_ERROR:
+        d->fault.sdo_index = s->index;
+        latch(d, CIA402_FAULT_CONFIG, now_us);
+        return;
     case CIA402_SDO_IDLE:
     case CIA402_SDO_BUSY: break;
     }
@@ -408,7 +439,12 @@ static void poll_config(cia402_drive_t *d, uint64_t now_us)
         }
         return;
     }
-    if (s->state == CIA402_SDO_IDLE) config_start_step(d);
+    if (s->state == CIA402_SDO_IDLE) {
+        if (d->cfg.master_node_id == 0u && (d->step == STEP_MASTER_WATCH || d->step == STEP_LOSS_ACTION)) {
+            d->step = STEP_MODE; /* no drive-side watchdog configured */
+        }
+        config_start_step(d);
+    }
     sdo_progress(d, now_us);
 }
 
@@ -519,7 +555,11 @@ coslam_status_t cia402_drive_fault_reset(cia402_drive_t *d, uint64_t now_us)
     d->target_velocity = 0;
     const cia402_fault_t r = d->fault.reason;
     if (r == CIA402_FAULT_NONE) return COSLAM_OK;
-    if (d->phase == CIA402_DRIVE_RUN && (r == CIA402_FAULT_EMCY || r == CIA402_FAULT_DEVICE)) {
+    /* a communication EMCY (its watchdog fired): the drive left OPERATIONAL
+     * and takes no PDOs, so only a new bring-up brings it back */
+    const int comm = r == CIA402_FAULT_EMCY &&
+                     (d->fault.emcy_code & CANOPEN_EMCY_COMMUNICATION_MASK) == CANOPEN_EMCY_COMMUNICATION;
+    if (d->phase == CIA402_DRIVE_RUN && !comm && (r == CIA402_FAULT_EMCY || r == CIA402_FAULT_DEVICE)) {
         d->reset_requested = 1;
         return COSLAM_OK;
     }

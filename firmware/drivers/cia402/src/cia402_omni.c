@@ -14,6 +14,7 @@ cia402_omni_config_t cia402_omni_config_default(void)
     c.velocity_unit_rpm = 0.1;
     c.max_motor_rpm = 3000.0;
     c.set_hal_filters = 1;
+    c.master_heartbeat_period_ms = 50;
     return c;
 }
 
@@ -26,6 +27,13 @@ static coslam_status_t config_check(const cia402_omni_config_t *c)
         for (int j = 0; j < k; ++j) {
             if (c->node_id[j] == c->node_id[k]) return COSLAM_E_ARG;
         }
+    }
+    if (c->drive.master_node_id != 0u) {
+        for (int k = 0; k < OMNI_WHEELS; ++k) {
+            if (c->node_id[k] == c->drive.master_node_id) return COSLAM_E_ARG;
+        }
+        if (c->master_heartbeat_period_ms == 0u) return COSLAM_E_ARG;
+        if ((uint32_t)c->drive.master_timeout_ms < 2u * (uint32_t)c->master_heartbeat_period_ms) return COSLAM_E_ARG;
     }
     if (omni_kinematics_config_check(&c->kinematics) != COSLAM_OK) return COSLAM_E_ARG;
     if (!isfinite(c->velocity_unit_rpm) || !(c->velocity_unit_rpm > 0.0)) return COSLAM_E_ARG;
@@ -100,6 +108,8 @@ coslam_status_t cia402_omni_start(cia402_omni_t *o, uint64_t now_us)
     memset(&o->odo_acc, 0, sizeof o->odo_acc);
     memset(&o->fault, 0, sizeof o->fault);
     o->fault.wheel = -1;
+    o->master_hb_on = o->cfg.drive.master_node_id != 0u;
+    o->master_hb_next_us = now_us;
     for (int k = 0; k < OMNI_WHEELS; ++k) (void)cia402_drive_start(&o->drive[k], now_us);
     return COSLAM_OK;
 }
@@ -179,6 +189,22 @@ static void dispatch(cia402_omni_t *o, const hal_can_frame_t *f)
     o->rx_foreign++;
 }
 
+/* The master's heartbeat, when due; a refused send is retried at the next poll. */
+static void master_heartbeat(cia402_omni_t *o, uint64_t now_us)
+{
+    if (!o->master_hb_on || now_us < o->master_hb_next_us) return;
+    hal_can_frame_t f;
+    (void)canopen_heartbeat_frame(&f, o->cfg.drive.master_node_id, CANOPEN_NMT_STATE_OPERATIONAL);
+    if (hal_can_send(o->can, &f, 0) != HAL_OK) {
+        o->master_hb_failures++;
+        return;
+    }
+    o->master_hb_sent++;
+    const uint64_t period = (uint64_t)o->cfg.master_heartbeat_period_ms * 1000u;
+    o->master_hb_next_us += period;
+    if (o->master_hb_next_us <= now_us) o->master_hb_next_us = now_us + period; /* late: no burst */
+}
+
 /* Refresh the fault report; 1 if a new fault was reported. */
 static int update_fault(cia402_omni_t *o)
 {
@@ -230,6 +256,7 @@ coslam_status_t cia402_omni_poll(cia402_omni_t *o, uint64_t now_us)
         for (int k = 0; k < OMNI_WHEELS; ++k) cia402_drive_bus_error(&o->drive[k], s, now_us);
         break;
     }
+    master_heartbeat(o, now_us);
     int stop_now = update_fault(o);
     apply_commands(o);
     for (int k = 0; k < OMNI_WHEELS; ++k) (void)cia402_drive_poll(&o->drive[k], now_us);

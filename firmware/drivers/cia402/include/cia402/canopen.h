@@ -139,6 +139,9 @@ coslam_status_t canopen_sdo_parse_reply(const hal_can_frame_t *f, canopen_sdo_re
 /** Parse an EMCY frame (dlc 8). COSLAM_E_DRIVE_PROTOCOL for another dlc. */
 coslam_status_t canopen_emcy_parse(const hal_can_frame_t *f, canopen_emcy_t *e);
 
+/** Heartbeat of node_id (a producer's): id 0x700+node, dlc 1, [state]. COSLAM_E_ARG bad node id. */
+coslam_status_t canopen_heartbeat_frame(hal_can_frame_t *f, uint8_t node_id, canopen_nmt_state_t state);
+
 /** Parse a heartbeat (dlc 1, state in bit 0..6). COSLAM_E_DRIVE_PROTOCOL for another dlc. */
 coslam_status_t canopen_heartbeat_parse(const hal_can_frame_t *f, canopen_nmt_state_t *state);
 

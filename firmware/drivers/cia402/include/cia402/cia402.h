@@ -47,8 +47,10 @@ extern "C" {
 /* object dictionary (CiA 301 communication, CiA 402 profile) */
 #define CIA402_OD_DEVICE_TYPE 0x1000u          /**< u32 */
 #define CIA402_OD_ERROR_REGISTER 0x1001u       /**< u8 */
+#define CIA402_OD_CONSUMER_HEARTBEAT 0x1016u   /**< sub 1..n u32: node id << 16 | consumer time [ms] */
 #define CIA402_OD_HEARTBEAT_PRODUCER 0x1017u   /**< u16 [ms], 0 = off */
 #define CIA402_OD_IDENTITY 0x1018u             /**< sub 1 vendor, 2 product, 3 revision, 4 serial (u32) */
+#define CIA402_OD_ABORT_CONNECTION 0x6007u     /**< i16: the drive's action on a communication loss */
 #define CIA402_OD_CONTROLWORD 0x6040u          /**< u16 */
 #define CIA402_OD_STATUSWORD 0x6041u           /**< u16 */
 #define CIA402_OD_MODES_OF_OPERATION 0x6060u   /**< i8 */
@@ -57,6 +59,16 @@ extern "C" {
 #define CIA402_OD_TARGET_VELOCITY 0x60FFu      /**< i32, drive velocity units */
 
 #define CIA402_MODE_PROFILE_VELOCITY 3
+
+/* 0x6007 abort connection option codes (0 = no action; negative: manufacturer's) */
+#define CIA402_ABORT_FAULT 1           /**< fault signal: FAULT_REACTION_ACTIVE, then FAULT */
+#define CIA402_ABORT_DISABLE_VOLTAGE 2 /**< power stage off: the motor coasts */
+#define CIA402_ABORT_QUICK_STOP 3      /**< brake on the quick-stop ramp */
+
+/* CiA 301 emergency error codes the driver acts on */
+#define CANOPEN_EMCY_COMMUNICATION_MASK 0xFF00u /**< 0x81xx: a communication error */
+#define CANOPEN_EMCY_COMMUNICATION 0x8100u
+#define CANOPEN_EMCY_HEARTBEAT 0x8130u          /**< life guard or heartbeat consumer error */
 
 /* controlword commands */
 #define CIA402_CW_DISABLE_VOLTAGE 0x0000u

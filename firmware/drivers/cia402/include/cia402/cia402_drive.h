@@ -20,13 +20,25 @@
  *   BOOT    NMT reset node [0x81, id]; wait boot_timeout_us for the boot-up
  *           heartbeat (0x700+id, [0x00])
  *   CONFIG  read 0x1018:1 vendor id, 0x1018:2 product code; write 0x1017
- *           heartbeat producer time (u16 ms); write 0x6060 = 3 (profile
- *           velocity); read 0x6061 (must be 3); read 0x6041 statusword;
- *           then NMT start [0x01, id]
+ *           heartbeat producer time (u16 ms); with a master node id, the
+ *           drive-side watchdog: write 0x1016:1 = master id << 16 | consumer
+ *           time (u32 ms) and 0x6007 = master_loss_action (i16); write
+ *           0x6060 = 3 (profile velocity); read 0x6061 (must be 3); read
+ *           0x6041 statusword; then NMT start [0x01, id]
  *   RUN     every poll: the controlword towards the goal (cia402.h) and the
  *           target velocity go out in RPDO1 when they change and at least
  *           every rpdo_period_us; TPDO1 updates statusword and velocity.
  * Heartbeat supervision starts when 0x1017 was written.
+ *
+ * Drive-side watchdog: the master (cia402_omni.h sends it) produces a
+ * heartbeat as node master_node_id; the drive consumes it (0x1016) and, when
+ * it stays away for master_timeout_ms (the master process crashed, hung, was
+ * killed, or lost the bus), acts on its own: 0x6007 (quick stop by default),
+ * an EMCY 0x8130 and, by the drive's 0x1029 default, NMT PRE-OPERATIONAL.
+ * Without it a dead master leaves the wheels at their last target velocity.
+ * A drive that lacks 0x1016 or 0x6007 aborts the SDO and the bring-up halts
+ * (SDO_ABORT with the object's abort code): set master_node_id = 0 to run
+ * such a drive without the watchdog, knowingly.
  *
  * Faults (latched, first cause kept, see cia402_fault_t): any failure in
  * BOOT/CONFIG halts the bring-up (phase HALTED). In RUN a fault makes the
@@ -34,10 +46,12 @@
  * in FAULT) with target velocity 0 until cia402_drive_fault_reset():
  * a drive fault (EMCY, statusword FAULT) is cleared by the CiA 402 fault
  * reset (controlword 0x00 then 0x80, until the statusword leaves FAULT);
- * any other fault restarts the bring-up from BOOT. Every EMCY with a
+ * any other fault, and an EMCY of the communication class (0x81xx: the
+ * drive's watchdog fired, it is no longer OPERATIONAL), restarts the
+ * bring-up from BOOT. Every EMCY with a
  * non-zero error code is a fault (0x0000, "error reset", is only counted).
  *
- * Memory: sizeof(cia402_drive_t) = 248 bytes on Cortex-M7, 264 on x86-64 (the
+ * Memory: sizeof(cia402_drive_t) = 256 bytes on Cortex-M7, 272 on x86-64 (the
  * build reports it, build/cortexm/drivers); every call is O(1).
  */
 #ifndef CIA402_CIA402_DRIVE_H
@@ -62,6 +76,11 @@ typedef struct {
     uint32_t boot_timeout_us;       /**< boot-up message after NMT reset, > 0 */
     uint32_t pdo_timeout_us;        /**< TPDO silence that is a fault in RUN; 0 = not checked */
     uint32_t rpdo_period_us;        /**< RPDO refresh period, > 0 */
+    uint8_t master_node_id;         /**< the master's heartbeat node id the drive watches (0x1016:1),
+                                         1..127 and not node_id; 0 = no drive-side watchdog */
+    uint16_t master_timeout_ms;     /**< the drive's consumer time: no master heartbeat this long and
+                                         it acts (0x6007); > 0 when master_node_id is set */
+    int16_t master_loss_action;     /**< 0x6007: CIA402_ABORT_FAULT, _DISABLE_VOLTAGE or _QUICK_STOP */
 } cia402_drive_config_t;
 
 typedef enum {
@@ -96,6 +115,7 @@ typedef struct {
     uint16_t emcy_code;      /**< last EMCY error code received (kept across causes) */
     uint8_t emcy_register;   /**< its error register */
     uint32_t sdo_abort_code; /**< abort code of a failed configuration SDO */
+    uint16_t sdo_index;      /**< its object (SDO_ABORT, SDO_TIMEOUT, CONFIG in the bring-up) */
     uint16_t statusword;     /**< statusword at the time of the last update */
     hal_status_t hal_status; /**< last failing HAL status (BUS) */
 } cia402_fault_info_t;
@@ -175,7 +195,10 @@ typedef struct {
     uint32_t fault_count;    /**< faults latched */
 } cia402_drive_t;
 
-/** Defaults: heartbeat 100 ms / consumer 250 ms, SDO 50 ms, boot 2 s, PDO 100 ms, RPDO 10 ms. */
+/**
+ * Defaults: heartbeat 100 ms / consumer 250 ms, SDO 50 ms, boot 2 s, PDO 100 ms, RPDO 10 ms;
+ * drive-side watchdog on master node 127, 200 ms, quick stop.
+ */
 cia402_drive_config_t cia402_drive_config_default(uint8_t node_id);
 
 /** COSLAM_OK or COSLAM_E_ARG for a value outside its documented range. */

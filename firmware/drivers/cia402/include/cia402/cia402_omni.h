@@ -22,6 +22,13 @@
  * 0, velocity commands are refused (COSLAM_E_DRIVE_FAULT), and the first
  * fault is reported by cia402_omni_get_fault() until cia402_omni_fault_reset().
  *
+ * Master heartbeat: from cia402_omni_start() on, every poll that is due sends
+ * the master's heartbeat (0x700 + drive.master_node_id, [0x05 OPERATIONAL])
+ * every master_heartbeat_period_ms, faults or not. The drives watch it
+ * (cia402_drive.h "Drive-side watchdog"): when the process that polls this
+ * driver dies or stalls for drive.master_timeout_ms, each drive stops its
+ * wheel by itself. Poll at least every master_heartbeat_period_ms.
+ *
  * Odometry: each TPDO (velocity actual of one wheel) is a speed sample at
  * its receive stamp; samples with the same stamp form one sample of all
  * wheels. Between two sample stamps the motor speeds are averaged
@@ -36,7 +43,7 @@
  * (odo_gaps). cia402_omni_take_odometry() hands out the
  * increment accumulated up to the newest sample stamp, and that stamp.
  *
- * Memory: sizeof(cia402_omni_t) = 1040 bytes on Cortex-M7, 1088 on x86-64 (the
+ * Memory: sizeof(cia402_omni_t) = 1128 bytes on Cortex-M7, 1176 on x86-64 (the
  * build reports it, build/cortexm/drivers); poll is O(frames received).
  */
 #ifndef CIA402_CIA402_OMNI_H
@@ -69,6 +76,8 @@ typedef struct {
     double velocity_unit_rpm;        /**< motor rpm per drive velocity unit, > 0; default 0.1 */
     double max_motor_rpm;            /**< command saturation, > 0; default 3000 */
     int set_hal_filters;             /**< 1: start() installs acceptance filters for the 12 COB-IDs */
+    uint16_t master_heartbeat_period_ms; /**< with drive.master_node_id (not a wheel's id): > 0 and
+                                              drive.master_timeout_ms >= 2 x this; default 50 */
 } cia402_omni_config_t;
 
 typedef struct {
@@ -93,7 +102,11 @@ typedef struct {
     uint64_t odo_pending_us;              /**< stamp of the newest sample */
     odo_increment_t odo_acc;              /**< since the last take */
     cia402_omni_fault_t fault;
+    uint8_t master_hb_on;                 /**< started: the master heartbeat is produced */
+    uint64_t master_hb_next_us;           /**< when the next one is due */
     /* counters since init */
+    uint32_t master_hb_sent;              /**< master heartbeats sent */
+    uint32_t master_hb_failures;          /**< master heartbeats the HAL refused (retried at the next poll) */
     uint32_t rx_frames;                   /**< frames received from the HAL */
     uint32_t rx_foreign;                  /**< frames no wheel claimed */
     uint32_t rx_overflows;                /**< HAL_E_OVERFLOW reports (frames lost in the HAL) */
@@ -104,7 +117,7 @@ typedef struct {
                                                longer than the PDO timeout (odometry restarted) */
 } cia402_omni_t;
 
-/** Defaults: nodes 1, 2, 3; cia402_drive_config_default timing; Robotino kinematics. */
+/** Defaults: nodes 1, 2, 3; cia402_drive_config_default timing (master 127); master heartbeat 50 ms; Robotino kinematics. */
 cia402_omni_config_t cia402_omni_config_default(void);
 
 /**

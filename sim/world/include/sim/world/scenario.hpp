@@ -158,6 +158,8 @@ enum class FaultKind {
     LinkPartition, ///< the robot's link drops every datagram, both ways
     Kidnap,        ///< the true pose jumps to `to` at at_s (duration ignored)
     OdometryWild,  ///< the drives' encoders report `scale` times the motor speed, or garbage
+    ControllerHang,///< the robot's control process stalls: robot_node_step is not called (a hang,
+                   ///< a SIGSTOP, a crash before a restart); the devices and the world go on
 };
 
 /// "laser_unplug", ...; nullptr-safe name of a kind.

@@ -182,6 +182,7 @@ private:
     std::unique_ptr<SimLinkHub> hub_;
     std::vector<std::unique_ptr<SimRobot>> robots_;
     std::vector<std::unique_ptr<robot_node_t>> nodes_;
+    std::vector<uint8_t> hung_;                      ///< controller_hang: the node is not stepped
     std::vector<std::vector<pose2_t>> truth_hist_;   ///< per control step, from truth_hist_base_
     uint64_t truth_hist_base_ = 0;                   ///< control step of truth_hist_[k][0]
     uint64_t path_stride_ = 1, sample_stride_ = 1;   ///< multiples of the path / sample periods

@@ -7,7 +7,9 @@
 //    (0x700+id, [0x00]) boot_delay_us later and is pre-operational.
 //  - SDO server (0x600+id -> 0x580+id), expedited only, object dictionary:
 //      0x1000 u32 ro device type 0x00020192      0x1001 u8 ro error register
+//      0x1016:0 u8 ro 1, :1 u32 rw consumer heartbeat (node << 16 | ms)
 //      0x1017 u16 rw heartbeat producer [ms]     0x1018:1..4 u32 ro identity
+//      0x6007 i16 rw abort connection option (0..3; default 1)
 //      0x6040 u16 rw controlword                 0x6041 u16 ro statusword
 //      0x6060 i8  rw modes of operation (3 only) 0x6061 i8 ro mode display
 //      0x606C i32 ro velocity actual             0x60FF i32 rw target velocity
@@ -20,6 +22,14 @@
 //    power-on default unless heartbeat_period_ms is set).
 //  - EMCY (0x080+id) on a fault ([code LE, error register, 0 x 5]) and the
 //    "error reset" EMCY (code 0) when a fault reset clears it.
+//  - heartbeat consumer (CiA 301): with 0x1016:1 set, monitoring starts at
+//    the first heartbeat of that node afterwards (any NMT state but Init);
+//    no heartbeat for the consumer time and the drive sends EMCY 0x8130
+//    (error register 0x11), takes the 0x6007 action (1 fault: FAULT_REACTION
+//    -> FAULT; 2 disable voltage: SWITCH_ON_DISABLED, the motor coasts; 3
+//    quick stop from OPERATION_ENABLED) and, as 0x1029:1 = 0 (the CiA 301
+//    default), goes OPERATIONAL -> PRE-OPERATIONAL. Monitoring starts again
+//    at the next heartbeat; a reset (node or communication) clears 0x1016.
 // CiA 402 power state machine as in firmware cia402.h; in
 // OPERATION_ENABLED with mode 3 the motor follows the target velocity
 // (clamped to max_motor_rpm); otherwise it is commanded to 0. Quick stop and
@@ -66,6 +76,7 @@ struct Cia402DriveEmuConfig {
     double gear_ratio = 16.0;              ///< motor turns per wheel turn
     double slip_sigma = 0.0;               ///< relative slip noise per step (0: none)
     uint64_t seed = 1;                     ///< slip noise RNG seed
+    bool watchdog_objects = true;          ///< false: no 0x1016 / 0x6007 (an older drive: writes abort)
 };
 
 class Cia402DriveEmu {
@@ -107,12 +118,14 @@ public:
     uint16_t controlword() const { return controlword_; }
     int8_t mode() const { return mode_; }
     uint16_t heartbeat_period_ms() const { return hb_period_ms_; }
+    uint32_t consumer_heartbeat() const { return consumer_; }  ///< 0x1016:1
+    int16_t abort_option() const { return abort_option_; }     ///< 0x6007
     bool silent() const { return silent_; }
     const Cia402DriveEmuConfig &config() const { return cfg_; }
 
     struct Counters {
         uint64_t rx_frames = 0, sdo_requests = 0, sdo_aborts = 0, rpdos = 0, tpdos = 0, heartbeats = 0, emcys = 0,
-                 nmt_commands = 0, tx_failures = 0;
+                 nmt_commands = 0, tx_failures = 0, consumer_timeouts = 0;
     };
     const Counters &counters() const { return counters_; }
 
@@ -129,6 +142,7 @@ private:
     void send_tpdo();
     void send_emcy(uint16_t code, uint8_t reg);
     void sdo_abort(uint16_t index, uint8_t sub, uint32_t code);
+    void consumer_timeout();
     int32_t velocity_actual_units() const;
     double target_rpm() const;
 
@@ -144,6 +158,10 @@ private:
     uint64_t next_hb_us_ = 0;
     uint64_t next_tpdo_us_ = 0;
     uint16_t hb_period_ms_ = 0;
+    uint32_t consumer_ = 0;         // 0x1016:1
+    bool consumer_armed_ = false;   // a heartbeat of the watched node came since 0x1016 was set
+    uint64_t consumer_last_us_ = 0;
+    int16_t abort_option_ = 1;      // 0x6007
     State state_ = State::NotReady;
     uint16_t controlword_ = 0;
     int32_t target_velocity_ = 0;
