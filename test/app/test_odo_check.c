@@ -148,6 +148,31 @@ static void test_carried_robot_is_seen_and_the_flag_clears(void **state)
     assert_false(r.bad_at_end); /* hold 3 s, the run goes on 5.9 s */
 }
 
+/* Carried from a closet into a hall with the wheels still: every new return
+ * lies beyond the old ones, so the newest scan has no point the reference
+ * could have seen and one way alone judges nothing (before the check went
+ * both ways, this was not judged); the closet's walls, which the hall scan
+ * reaches past, are judged the other way: a mismatch. */
+static void test_carried_from_a_closet_into_a_hall(void **state)
+{
+    (void)state;
+    room_t room;
+    memset(&room, 0, sizeof room);
+    add_box(&room, -0.6, -0.6, 0.6, 0.6);
+    add_box(&room, 17.0, -3.0, 23.0, 3.0);
+    odo_check_t c;
+    const odo_check_config_t cfg = odo_check_config_default();
+    assert_int_equal(odo_check_init(&c, &cfg), COSLAM_OK);
+    point2_t pts[N_RAYS];
+    const pose2_t odo = {0.0, 0.0, 0.0};
+    (void)odo_check_on_scan(&c, 100000U, odo, pts, scan(&room, (pose2_t){0.0, 0.0, 0.0}, pts));
+    assert_int_equal(odo_check_on_scan(&c, 600000U, odo, pts, scan(&room, (pose2_t){20.0, 0.0, 0.0}, pts)), 1);
+    assert_int_equal(c.mismatches, 1);
+    assert_int_equal(c.unjudged, 0);
+    assert_true(c.bad);
+    assert_true(c.last_inlier_frac < cfg.min_inlier_frac);
+}
+
 static void test_corridor_along_not_judged_across_judged(void **state)
 {
     (void)state;
@@ -200,6 +225,7 @@ int main(void)
         cmocka_unit_test(test_scaled_odometry_disagrees),
         cmocka_unit_test(test_doubled_odometry_is_a_drift),
         cmocka_unit_test(test_carried_robot_is_seen_and_the_flag_clears),
+        cmocka_unit_test(test_carried_from_a_closet_into_a_hall),
         cmocka_unit_test(test_corridor_along_not_judged_across_judged),
         cmocka_unit_test(test_config_bounds),
     };

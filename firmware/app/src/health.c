@@ -41,18 +41,23 @@ coslam_status_t health_init(health_t *h, const health_config_t *cfg)
     return COSLAM_OK;
 }
 
-/* The landmark at m is in view of pose p: inside the sensor's range and
- * field of view (the predicted sighting, without margin). */
-static int in_view(const slam_params_t *sp, pose2_t p, point2_t m)
+/* The landmark at m is in view of pose p: its predicted sighting is one the
+ * filter itself says should be seen (landmark_should_be_seen: inside the
+ * visibility margin of the range and field of view, so that one at the
+ * border is not expected), and no wall the laser has mapped stands between
+ * (the camera cannot see through it). */
+static int in_view(const health_t *h, const occ_grid_t *g, const slam_params_t *sp, pose2_t p, point2_t m)
 {
     const double dx = m.x - p.x;
     const double dy = m.y - p.y;
-    const double r = sqrt(dx * dx + dy * dy);
-    if (!(r >= sp->sensor_min_range_m) || r > sp->sensor_max_range_m) {
+    sighting_t zhat;
+    memset(&zhat, 0, sizeof zhat);
+    zhat.range_m = sqrt(dx * dx + dy * dy);
+    zhat.bearing_rad = angle_wrap(atan2(dy, dx) - p.theta);
+    if (!landmark_should_be_seen(sp, zhat)) {
         return 0;
     }
-    const double b = angle_wrap(atan2(dy, dx) - p.theta);
-    return fabs(b) <= 0.5 * sp->sensor_fov_rad;
+    return g == NULL || occ_grid_line_free(g, (point2_t){p.x, p.y}, m, h->cfg.wall_logodds, 0.2);
 }
 
 static void mark(health_t *h, uint8_t sig)
@@ -147,7 +152,7 @@ void health_on_motion_scan(health_t *h, uint64_t now_us, pose2_t odo_pose, const
     judge(h, h->frame_bad);
 }
 
-void health_before_update(health_t *h, const slam_filter_t *f)
+void health_before_update(health_t *h, const slam_filter_t *f, const occ_grid_t *g)
 {
     memset(h->in_view_sig, 0, sizeof h->in_view_sig);
     h->n_in_view = 0;
@@ -157,7 +162,7 @@ void health_before_update(health_t *h, const slam_filter_t *f)
         const pose2_t p = {e->x[0], e->x[1], e->x[2]};
         for (uint16_t j = 0; j < e->n_lm; ++j) {
             const point2_t m = ekfslam_landmark_mean(e, j);
-            if (in_view(sp, p, m)) {
+            if (in_view(h, g, sp, p, m)) {
                 mark(h, e->meta[j].signature);
                 h->in_view[h->n_in_view++] = j;
             }
@@ -175,7 +180,7 @@ void health_before_update(health_t *h, const slam_filter_t *f)
     const fastslam_particle_t *pt = &fs->particles[best];
     for (uint16_t j = 0; j < pt->n_lm; ++j) {
         const landmark_t *lm = fastslam_particle_lm(fs, best, j);
-        if (in_view(sp, pt->pose, lm->mean)) {
+        if (in_view(h, g, sp, pt->pose, lm->mean)) {
             mark(h, lm->signature);
             h->in_view_id[h->n_in_view] = lm->id;
             h->in_view_obs[h->n_in_view] = lm->n_obs;

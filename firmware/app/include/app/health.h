@@ -8,9 +8,12 @@
  * health_after_update with the same sightings):
  *  - "in view": before the update, the landmarks of the map (EKF-SLAM: the
  *    state; Fast-SLAM: the particle of largest weight) whose predicted
- *    sighting from the pose estimate lies within the sensor's range and
- *    field of view (slam_params_t sensor_*). A sighting is *eligible* when a
- *    landmark of its class is in view: the map says what it should be.
+ *    sighting from the pose estimate the filter says should be seen
+ *    (landmark_should_be_seen: inside visibility_margin of the sensor's
+ *    range and field of view) and whose line of sight crosses no wall of the
+ *    occupancy grid (above wall_logodds; g NULL: not checked). A sighting is
+ *    *eligible* when a landmark of its class is in view: the map says what
+ *    it should be.
  *  - EKF-SLAM: each sighting paired by the association (JCBB) contributes
  *    its normalized innovation squared NIS = nu^T S^-1 nu against the
  *    prior expectation (the filter's scratch after the update holds the
@@ -162,8 +165,12 @@ void health_on_scan(health_t *h, const occ_grid_t *g, pose2_t sensor_pose, const
  */
 void health_on_motion_scan(health_t *h, uint64_t now_us, pose2_t odo_pose, const point2_t *pts, size_t n);
 
-/** Before slam_filter_update: note the landmark classes in view and the counters. O(landmarks). */
-void health_before_update(health_t *h, const slam_filter_t *f);
+/**
+ * Before slam_filter_update: note the landmark classes in view and the
+ * counters; g is the laser's occupancy grid (may be NULL). O(landmarks x
+ * the sight line's cells).
+ */
+void health_before_update(health_t *h, const slam_filter_t *f, const occ_grid_t *g);
 
 /** After slam_filter_update(f, z, n): the frame's figures, the window, the flag. O(window + n). */
 void health_after_update(health_t *h, const slam_filter_t *f, const sighting_t *z, int n);

@@ -1,0 +1,112 @@
+/*
+ * The health monitor's landmark measures (firmware/app health.h) on an
+ * EKF-SLAM map built by hand: which landmarks it expects to see. Proves: a
+ * landmark near the border of the field of view (inside the sensor's 50 deg
+ * but outside the filter's visibility margin) is not expected; one behind a
+ * wall of the occupancy grid is not expected, and is when no grid is given;
+ * so a frame that sees only the landmark in plain view misses nothing with
+ * the grid and half of what it expects without.
+ */
+#include <math.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <string.h>
+
+#include <cmocka.h>
+
+#include "app/health.h"
+#include "app/slam_filter.h"
+#include "coslam/occ_grid.h"
+
+#define DEG (COSLAM_PI / 180.0)
+
+static slam_filter_t g_f;
+static health_t g_h;
+static occ_grid_t g_grid;
+
+/* A landmark of class sig at robot-frame (x, y), well known. */
+static void add(double x, double y, uint8_t sig)
+{
+    ekfslam_meta_t meta;
+    memset(&meta, 0, sizeof meta);
+    meta.signature = sig;
+    meta.exist = 1.0f;
+    meta.n_obs = 10;
+    const cov2_t cov = {1e-4, 0.0, 1e-4};
+    assert_int_equal(ekfslam_add_landmark_body(&g_f.u.ekf, (point2_t){x, y}, cov, &meta), COSLAM_OK);
+}
+
+/* A wall segment x = 2 m, y in [0.4, 1.0], seen four times from the origin. */
+static void build_wall(void)
+{
+    assert_int_equal(occ_grid_init(&g_grid, NULL, -0.5 * COSLAM_GRID_CELLS_X * OCC_GRID_CELL_M,
+                                   -0.5 * COSLAM_GRID_CELLS_Y * OCC_GRID_CELL_M),
+                     COSLAM_OK);
+    double r[64], a[64];
+    size_t n = 0;
+    for (double y = 0.4; y <= 1.0 + 1e-9; y += 0.02) {
+        a[n] = atan2(y, 2.0);
+        r[n] = hypot(2.0, y);
+        ++n;
+    }
+    for (int k = 0; k < 4; ++k) {
+        (void)occ_grid_integrate_scan(&g_grid, (pose2_t){0.0, 0.0, 0.0}, r, a, n, NULL);
+    }
+}
+
+static int setup(void **state)
+{
+    (void)state;
+    slam_filter_config_t cfg = slam_filter_config_default();
+    cfg.kind = SLAM_FILTER_EKF;
+    assert_int_equal(slam_filter_init(&g_f, &cfg, (pose2_t){0.0, 0.0, 0.0}), COSLAM_OK);
+    const health_config_t hc = health_config_default();
+    assert_int_equal(health_init(&g_h, &hc), COSLAM_OK);
+    add(3.0, 0.0, 1);                                         /* 0: plain view */
+    add(3.0 * cos(24.0 * DEG), 3.0 * sin(24.0 * DEG), 2);     /* 1: inside 25 deg, outside 0.9 x 25 */
+    add(3.0, 1.0, 3);                                         /* 2: 18 deg, behind the wall */
+    build_wall();
+    return 0;
+}
+
+static void test_expected_landmarks(void **state)
+{
+    (void)state;
+    const slam_params_t *sp = slam_filter_params(&g_f);
+    assert_true(fabs(24.0 * DEG) <= 0.5 * sp->sensor_fov_rad); /* the premise: in the raw field */
+    health_before_update(&g_h, &g_f, &g_grid);
+    assert_int_equal(g_h.n_in_view, 1);
+    assert_int_equal(g_h.in_view[0], 0);
+    health_before_update(&g_h, &g_f, NULL); /* no grid: the landmark behind the wall is expected */
+    assert_int_equal(g_h.n_in_view, 2);
+    assert_int_equal(g_h.in_view[0], 0);
+    assert_int_equal(g_h.in_view[1], 2);
+}
+
+/* One frame that sees the landmark in plain view: nothing missed with the
+ * grid; without it, the one behind the wall counts as missed. */
+static void test_missed_fraction(void **state)
+{
+    (void)state;
+    const sighting_t z = {3.0, 0.0, 1};
+    health_before_update(&g_h, &g_f, &g_grid);
+    assert_int_equal(slam_filter_update(&g_f, &z, 1), COSLAM_OK);
+    health_after_update(&g_h, &g_f, &z, 1);
+    assert_true(g_h.missed_frac == 0.0);
+    health_before_update(&g_h, &g_f, NULL);
+    assert_int_equal(slam_filter_update(&g_f, &z, 1), COSLAM_OK);
+    health_after_update(&g_h, &g_f, &z, 1);
+    /* the window: frame 1 expected 1, missed 0; frame 2 expected 2, missed 1 */
+    assert_true(fabs(g_h.missed_frac - 1.0 / 3.0) < 1e-12);
+}
+
+int main(void)
+{
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test_setup(test_expected_landmarks, setup),
+        cmocka_unit_test_setup(test_missed_fraction, setup),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
