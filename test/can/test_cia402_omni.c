@@ -240,6 +240,24 @@ static void test_master_heartbeat(void **state)
     assert_true(cia402_omni_is_enabled(&g_o));
 }
 
+/* The drives' power-on boot-up messages, queued before the master started
+ * (the robot process starts after the drives): read and dropped at start,
+ * not taken for the answers to the NMT resets (then the real boot-ups
+ * looked like reboots in CONFIG: an NMT fault at every start). */
+static void test_frames_queued_before_start_are_stale(void **state)
+{
+    (void)state;
+    const uint8_t boot = 0x00;
+    for (uint32_t node = 1; node <= 3; ++node) fake_can_push(&g_fc, 0x700u + node, &boot, 1, 0);
+    const uint8_t em[8] = {0x10, 0x23, 0x01, 0, 0, 0, 0, 0}; /* and an EMCY of a previous run */
+    fake_can_push(&g_fc, 0x082, em, 8, 0);
+    (void)bring_up_and_enable();
+    cia402_omni_fault_t rep;
+    assert_int_equal(cia402_omni_get_fault(&g_o, &rep), COSLAM_E_EMPTY);
+    assert_int_equal(g_o.rx_stale, 4);
+    assert_true(cia402_omni_is_enabled(&g_o));
+}
+
 static void test_body_velocity_to_rpdo(void **state)
 {
     (void)state;
@@ -554,6 +572,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test_setup(test_config_and_start, setup),
         cmocka_unit_test_setup(test_master_heartbeat, setup),
+        cmocka_unit_test_setup(test_frames_queued_before_start_are_stale, setup),
         cmocka_unit_test_setup(test_body_velocity_to_rpdo, setup),
         cmocka_unit_test_setup(test_fault_on_one_wheel_stops_all, setup),
         cmocka_unit_test_setup(test_bus_errors, setup),

@@ -98,6 +98,21 @@ coslam_status_t cia402_omni_start(cia402_omni_t *o, uint64_t now_us)
         const hal_status_t s = hal_can_set_filters(o->can, flt, n);
         if (s != HAL_OK && s != HAL_E_UNSUPPORTED) return COSLAM_E_DRIVE_BUS;
     }
+    /* frames queued before this start (a drive's power-on boot-up message,
+     * sent before this process was there; the tail of a run before a
+     * restart) answer nothing sent from now on: read and dropped, so that an
+     * old boot-up is not taken for the answer to the NMT reset below */
+    for (int n = 0; n < 4 * CIA402_OMNI_RX_BUDGET; ++n) {
+        hal_can_frame_t f;
+        const hal_status_t s = hal_can_receive(o->can, &f, 0);
+        if (s == HAL_OK) {
+            o->rx_stale++;
+        } else if (s == HAL_E_OVERFLOW) {
+            o->rx_overflows++;
+        } else {
+            break;
+        }
+    }
     o->enabled_goal = 0;
     memset(o->cmd_rpm, 0, sizeof o->cmd_rpm);
     memset(o->meas_rpm, 0, sizeof o->meas_rpm);

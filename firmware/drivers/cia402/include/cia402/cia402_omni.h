@@ -108,6 +108,7 @@ typedef struct {
     uint32_t master_hb_sent;              /**< master heartbeats sent */
     uint32_t master_hb_failures;          /**< master heartbeats the HAL refused (retried at the next poll) */
     uint32_t rx_frames;                   /**< frames received from the HAL */
+    uint32_t rx_stale;                    /**< frames queued before a start, dropped by it */
     uint32_t rx_foreign;                  /**< frames no wheel claimed */
     uint32_t rx_overflows;                /**< HAL_E_OVERFLOW reports (frames lost in the HAL) */
     uint32_t rx_errors;                   /**< other HAL receive errors */
@@ -129,7 +130,11 @@ coslam_status_t cia402_omni_init(cia402_omni_t *o, const cia402_omni_config_t *c
 /**
  * Start (or restart) the bring-up of all three drives (cia402_drive_start),
  * clear faults, odometry and commands. With set_hal_filters, installs the
- * filters first (a backend without filters is fine). Returns COSLAM_OK;
+ * filters first (a backend without filters is fine). Frames already queued
+ * in the HAL (at most 4 x CIA402_OMNI_RX_BUDGET) are read and dropped
+ * (rx_stale): they were sent before this bring-up, such as the drives'
+ * power-on boot-up messages, which would otherwise pass for the answers to
+ * the NMT resets. Returns COSLAM_OK;
  * COSLAM_E_DRIVE_BUS the HAL refused the filters; COSLAM_E_ARG NULL.
  */
 coslam_status_t cia402_omni_start(cia402_omni_t *o, uint64_t now_us);
