@@ -458,6 +458,22 @@ int main(int argc, char **argv)
     bool robot_died = false;
     int estop_state = 0;  // 0 before, 1 pressed, 2 released
     int freeze_state = 0; // 0 before, 1 stopped, 2 continued
+    // the stop comes at the first moment from T0 on when the robot's wheels
+    // turn (at most 3 s late), so that a standing robot cannot pass the
+    // check; its length stays T1 - T0
+    double freeze_at = 0.0, freeze_end = 0.0, freeze_rpm_at = 0.0, freeze_rpm_max = 0.0;
+    uint64_t freeze_consumer0 = 0;
+    double freeze_stalls0 = 0.0, freeze_resets0 = 0.0;
+    auto wheel_rpm = [&](size_t k) {
+        double r = 0.0;
+        for (int w = 0; w < 3; ++w) r += std::fabs(robots[k]->rig().drive(w).motor_rpm());
+        return r;
+    };
+    auto consumer_timeouts = [&](size_t k) {
+        uint64_t c = 0;
+        for (int w = 0; w < 3; ++w) c += robots[k]->rig().drive(w).counters().consumer_timeouts;
+        return c;
+    };
     while (!g_stop && t_sim < end_us) {
         // the wires, in both directions
         for (size_t k = 0; k < n; ++k) {
@@ -520,13 +536,24 @@ int main(int argc, char **argv)
         }
         if (freeze_robot >= 0) {
             const double ts = static_cast<double>(t_sim) * 1e-6;
-            const pid_t fp = ports[static_cast<size_t>(freeze_robot)].pid;
-            if (freeze_state == 0 && ts >= freeze_t0 && fp > 0) {
+            const size_t fk = static_cast<size_t>(freeze_robot);
+            const pid_t fp = ports[fk].pid;
+            if (freeze_state == 0 && ts >= freeze_t0 && fp > 0 &&
+                (wheel_rpm(fk) > 100.0 || ts >= freeze_t0 + 3.0)) {
+                freeze_rpm_at = wheel_rpm(fk);
+                freeze_consumer0 = consumer_timeouts(fk);
+                freeze_stalls0 = num(last_status[fk], "stalls");
+                freeze_resets0 = num(last_status[fk], "stall_resets");
                 kill(fp, SIGSTOP);
+                freeze_at = ts;
+                freeze_end = ts + (freeze_t1 - freeze_t0);
                 freeze_state = 1;
-            } else if (freeze_state == 1 && ts >= freeze_t1 && fp > 0) {
-                kill(fp, SIGCONT);
-                freeze_state = 2;
+            } else if (freeze_state == 1) {
+                if (ts >= freeze_at + 0.5) freeze_rpm_max = std::fmax(freeze_rpm_max, wheel_rpm(fk));
+                if (ts >= freeze_end && fp > 0) {
+                    kill(fp, SIGCONT);
+                    freeze_state = 2;
+                }
             }
         }
         if (estop_robot >= 0) {
@@ -648,6 +675,11 @@ int main(int argc, char **argv)
     const double wall_s = static_cast<double>(mono_us() - t0) * 1e-6;
 
     // ---- stop the robots: SIGTERM, they stop the drives and write a snapshot ----
+    // (a robot still stopped by --freeze is continued first, or the SIGTERM
+    // would wait in vain)
+    if (freeze_state == 1 && ports[static_cast<size_t>(freeze_robot)].pid > 0) {
+        kill(ports[static_cast<size_t>(freeze_robot)].pid, SIGCONT);
+    }
     for (auto &p : ports) {
         if (p.pid > 0) kill(p.pid, SIGTERM);
     }
@@ -712,14 +744,19 @@ int main(int argc, char **argv)
         }
         if (static_cast<long>(k) == freeze_robot && freeze_state == 2) {
             // the process stopped: the drives' watchdog (200 ms) and their
-            // quick stop, then still; continued: a drive fault, a reset
-            // after the retry period (0.5 s), driving again
-            rj["freeze"] = {{"t0_s", freeze_t0}, {"t1_s", freeze_t1},
-                            {"moved_before_m", path_m(truth_hist[k], freeze_t0 - 1.0, freeze_t0, hs)},
-                            {"moved_first_m", path_m(truth_hist[k], freeze_t0, freeze_t0 + 0.5, hs)},
-                            {"moved_during_m", path_m(truth_hist[k], freeze_t0 + 0.5, freeze_t1, hs)},
-                            {"moved_after_m", path_m(truth_hist[k], freeze_t1 + 1.5, freeze_t1 + 4.0, hs)},
-                            {"drive_faults", num(last_status[k], "drive_faults")}};
+            // quick stop, then still; continued: the stall noticed, the
+            // drive fault reset at once, driving again
+            rj["freeze"] = {{"t0_s", freeze_at},
+                            {"t1_s", freeze_end},
+                            {"wheel_rpm_at_stop", freeze_rpm_at},
+                            {"wheel_rpm_max_stopped", freeze_rpm_max},
+                            {"consumer_timeouts", consumer_timeouts(k) - freeze_consumer0},
+                            {"moved_before_m", path_m(truth_hist[k], freeze_at - 1.0, freeze_at, hs)},
+                            {"moved_first_m", path_m(truth_hist[k], freeze_at, freeze_at + 0.5, hs)},
+                            {"moved_during_m", path_m(truth_hist[k], freeze_at + 0.5, freeze_end, hs)},
+                            {"moved_after_m", path_m(truth_hist[k], freeze_end + 1.5, freeze_end + 4.0, hs)},
+                            {"stalls", num(last_status[k], "stalls") - freeze_stalls0},
+                            {"stall_resets", num(last_status[k], "stall_resets") - freeze_resets0}};
         }
         if (static_cast<long>(k) == estop_robot) {
             const double len = estop_t1 - estop_t0;

@@ -184,6 +184,7 @@ nlohmann::json run_metrics(const Simulation &sim)
             {"node", {{"steps", rr.node.steps}, {"scans", rr.node.scans}, {"scan_errors", rr.node.scan_errors},
                       {"frames", rr.node.frames}, {"filter_errors", rr.node.filter_errors},
                       {"drive_faults", rr.node.drive_faults}, {"drive_errors", rr.node.drive_errors},
+                      {"stalls", rr.node.stalls}, {"stall_resets", rr.node.stall_resets},
                       {"stop_steps", rr.node.stop_steps}, {"bumper_acks", rr.node.bumper_acks},
                       {"grid_out_of_grid", rr.node.grid_out_of_grid}, {"laser_lost", rr.node.laser_lost},
                       {"laser_connect_failures", rr.node.laser_connect_failures},

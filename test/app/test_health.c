@@ -102,11 +102,40 @@ static void test_missed_fraction(void **state)
     assert_true(fabs(g_h.missed_frac - 1.0 / 3.0) < 1e-12);
 }
 
+/* A sighting the association held back (an ambiguous revisit; the
+ * filter's scratch written by hand, as ekfslam_update leaves it): neither
+ * eligible nor unassociated, and the landmark it was held against counts
+ * as seen. The same frame with the sighting left unpaired instead: one
+ * unassociated, one missed. */
+static void test_held_sighting_counts_as_neither(void **state)
+{
+    (void)state;
+    const sighting_t z = {3.0, 0.0, 1};
+    ekfslam_scratch_t *sc = &g_f.u.ekf.scratch;
+    for (int held = 1; held >= 0; --held) {
+        const health_config_t hc = health_config_default();
+        assert_int_equal(health_init(&g_h, &hc), COSLAM_OK);
+        health_before_update(&g_h, &g_f, &g_grid);
+        assert_int_equal(g_h.n_in_view, 1);
+        memset(sc->matched, 0, sizeof sc->matched);
+        sc->assign[0] = -1;
+        sc->best[0] = 0;
+        sc->held[0] = (uint8_t)held;
+        health_after_update(&g_h, &g_f, &z, 1);
+        const health_frame_t *fr = &g_h.frame[0];
+        assert_int_equal(fr->n_eligible, held ? 0 : 1);
+        assert_int_equal(fr->n_unassoc, held ? 0 : 1);
+        assert_int_equal(fr->n_expected, 1);
+        assert_int_equal(fr->n_missed, held ? 0 : 1);
+    }
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test_setup(test_expected_landmarks, setup),
         cmocka_unit_test_setup(test_missed_fraction, setup),
+        cmocka_unit_test_setup(test_held_sighting_counts_as_neither, setup),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -610,6 +610,29 @@ TEST_F(EndToEnd, DeadMasterStopsTheWheels)
     for (int k = 0; k < 3; ++k) EXPECT_EQ(rig.drive(k).counters().consumer_timeouts, 1u) << "wheel " << k;
 }
 
+// A clean stop: disabled, then released. The drives' watchdog is switched
+// off by the NMT reset communication, so the heartbeat stopping does not
+// end every clean stop in their EMCY.
+TEST_F(EndToEnd, ReleasedDrivesDoNotTrip)
+{
+    enable_all();
+    ASSERT_EQ(cia402_omni_set_body_velocity(&omni, 0.2, 0.0, 0.0), COSLAM_OK);
+    run_ms(300);
+    ASSERT_EQ(cia402_omni_set_body_velocity(&omni, 0.0, 0.0, 0.0), COSLAM_OK);
+    ASSERT_EQ(cia402_omni_enable(&omni, 0), COSLAM_OK);
+    run_ms(100);
+    ASSERT_EQ(cia402_omni_release(&omni), COSLAM_OK);
+    run_other(omni, rig, 1000, false); // the process has exited
+    for (int k = 0; k < 3; ++k) {
+        const Cia402DriveEmu &d = rig.drive(k);
+        EXPECT_EQ(d.counters().consumer_timeouts, 0u) << "wheel " << k;
+        EXPECT_EQ(d.consumer_heartbeat(), 0u) << "wheel " << k;
+        EXPECT_EQ(d.nmt(), Cia402DriveEmu::Nmt::PreOperational) << "wheel " << k;
+        EXPECT_EQ(d.state(), Cia402DriveEmu::State::SwitchOnDisabled) << "wheel " << k;
+        EXPECT_LT(std::fabs(d.motor_rpm()), 1.0) << "wheel " << k;
+    }
+}
+
 // The other two 0x6007 actions, and the watchdog switched off.
 TEST_F(EndToEnd, DeadMasterActionsAndNoWatchdog)
 {

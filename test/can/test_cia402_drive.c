@@ -765,6 +765,26 @@ static void test_watchdog_config(void **state)
     assert_int_equal(d->fault.reason, CIA402_FAULT_NONE);
     assert_true(fc->n_sent > n);
     ASSERT_FRAME(fc->sent[n], 0x000, 0x81, NODE);
+
+    /* the fault is classified by the EMCY that latched it: a device EMCY
+     * after the 0x8130 (its 0x6007 fault reaction) still gets the bring-up */
+    setup(NULL);
+    t = bring_up_checked();
+    PUSH(fc, 0x080 + NODE, t + 5, 0x30, 0x81, 0x11, 0, 0, 0, 0, 0);
+    PUSH(fc, 0x080 + NODE, t + 6, 0x10, 0x23, 0x01, 0, 0, 0, 0, 0);
+    assert_int_equal(run(d, fc, t += 10), COSLAM_E_DRIVE_FAULT);
+    assert_int_equal(d->fault.emcy_code, 0x2310); /* the last one received */
+    assert_int_equal(cia402_drive_fault_reset(d, t), COSLAM_OK);
+    assert_int_equal(d->phase, CIA402_DRIVE_BOOT);
+    /* another communication EMCY (0x8110, CAN overrun) leaves the drive
+     * OPERATIONAL: the CiA 402 fault reset, in RUN */
+    setup(NULL);
+    t = bring_up_checked();
+    PUSH(fc, 0x080 + NODE, t + 5, 0x10, 0x81, 0x11, 0, 0, 0, 0, 0);
+    assert_int_equal(run(d, fc, t += 10), COSLAM_E_DRIVE_FAULT);
+    assert_int_equal(cia402_drive_fault_reset(d, t), COSLAM_OK);
+    assert_int_equal(d->phase, CIA402_DRIVE_RUN);
+    assert_int_equal(d->reset_requested, 1);
 }
 
 static void test_user_sdo(void **state)

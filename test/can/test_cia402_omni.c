@@ -228,6 +228,22 @@ static void test_master_heartbeat(void **state)
     t = step_until(t, NULL, 1);
     assert_int_equal(count_master_heartbeats(0), 1);
 
+    /* released (a clean stop): NMT reset communication to each wheel, then no heartbeat */
+    g_fc.n_sent = 0;
+    g_r.seen = 0;
+    assert_int_equal(cia402_omni_release(&g_o), COSLAM_OK);
+    assert_int_equal(g_fc.n_sent, 3);
+    for (int k = 0; k < 3; ++k) {
+        assert_int_equal(g_fc.sent[k].id, 0);
+        assert_int_equal(g_fc.sent[k].dlc, 2);
+        assert_int_equal(g_fc.sent[k].data[0], 0x82);
+        assert_int_equal(g_fc.sent[k].data[1], k + 1);
+    }
+    g_fc.n_sent = 0;
+    for (int i = 0; i < 200; ++i) (void)cia402_omni_poll(&g_o, t += 1000);
+    assert_int_equal(count_master_heartbeats(0), 0);
+    assert_int_equal(cia402_omni_release(NULL), COSLAM_E_ARG);
+
     /* off: no heartbeat at all */
     setup(NULL);
     c = cia402_omni_config_default();

@@ -108,13 +108,20 @@ def main():
                      BUMP_TURN_MAX_DEG, bp["moved_after_m"], g["bumper_presses"], acks))
         fz = e.get("freeze")
         if fz is not None:
-            check(fz["moved_first_m"] <= FREEZE_FIRST_M and fz["moved_during_m"] <= ESTOP_STILL_M
-                  and fz["drive_faults"] >= 1 and fz["moved_after_m"] >= ESTOP_MOVING_M,
-                  "process stopped %.1f .. %.1f s: moved %.3f m in its first 0.5 s (bound %.2f), %.3f m after "
-                  "(bound %.2f; the drives' watchdog), %.3f m in the second before; continued: %d drive faults, "
+            # the wheels turned at the stop (the server waits for that), then
+            # stood: the drives' own watchdog, one consumer timeout per drive;
+            # continued, the robot saw its stall and reset the drives at once
+            check(fz["wheel_rpm_at_stop"] > 100.0 and fz["wheel_rpm_max_stopped"] < 3.0
+                  and fz["consumer_timeouts"] == 3 and fz["moved_first_m"] <= FREEZE_FIRST_M
+                  and fz["moved_during_m"] <= ESTOP_STILL_M and fz["stalls"] >= 1 and fz["stall_resets"] >= 1
+                  and fz["moved_after_m"] >= ESTOP_MOVING_M,
+                  "process stopped %.1f .. %.1f s: wheels %.0f rpm at the stop, at most %.1f rpm from 0.5 s on, "
+                  "%d drive watchdog trips; moved %.3f m in the first 0.5 s (bound %.2f), %.3f m after (bound "
+                  "%.2f), %.3f m in the second before; continued: %d stall(s) noticed, %d reset(s) at once, "
                   "moved %.2f m 1.5-4 s later"
-                  % (fz["t0_s"], fz["t1_s"], fz["moved_first_m"], FREEZE_FIRST_M, fz["moved_during_m"], ESTOP_STILL_M,
-                     fz["moved_before_m"], fz["drive_faults"], fz["moved_after_m"]))
+                  % (fz["t0_s"], fz["t1_s"], fz["wheel_rpm_at_stop"], fz["wheel_rpm_max_stopped"],
+                     fz["consumer_timeouts"], fz["moved_first_m"], FREEZE_FIRST_M, fz["moved_during_m"],
+                     ESTOP_STILL_M, fz["moved_before_m"], fz["stalls"], fz["stall_resets"], fz["moved_after_m"]))
         m = col("merge")
         check(e["first_merge_s"] > 0 and min(m) - MERGE_MARGIN_S <= e["first_merge_s"] <= max(m) + MERGE_MARGIN_S,
               "first merge at %.1f s [%.1f .. %.1f] +- %.0f s" % (e["first_merge_s"], min(m), max(m), MERGE_MARGIN_S))

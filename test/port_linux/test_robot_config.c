@@ -264,6 +264,10 @@ static void bad_files_name_file_and_line(void **state)
     refused("[can]\nmaster_node_id = 2\n", "bad.ini:2: [can] master_node_id: master node id 2 is also wheel 1's node id");
     refused("[can]\nmaster_node_id = 9\n\nnode_ids = 7, 8, 9\n",
             "bad.ini:4: [can] node_ids: master node id 9 is also wheel 2's node id");
+    refused("[robot]\nstep_period_s = 0.25\n",
+            "bad.ini:2: [robot] step_period_s: step_period_s 0.25 is longer than [can] master_heartbeat_period_ms 50");
+    refused("[robot]\nstep_period_s = 0.02\n[can]\nmaster_heartbeat_period_ms = 10\nwatchdog_timeout_ms = 100\n",
+            "bad.ini:4: [can] master_heartbeat_period_ms: step_period_s 0.02 is longer than");
     refused("[can]\nwatchdog_timeout_ms = 60\n",
             "bad.ini:2: [can] watchdog_timeout_ms: watchdog_timeout_ms 60 must be at least twice "
             "master_heartbeat_period_ms 50");

@@ -212,6 +212,7 @@ TEST(SimFaults, FaultFreeReference)
     const FaultRun r = run_with(paper(), 1, kFaultAtS, kFaultAtS + kFaultS);
     expect_recovered("none", r, kFaultAtS + kFaultS);
     EXPECT_TRUE(r.diverged_at_s.empty());
+    EXPECT_EQ(r.ctr.stalls, 0u);
 }
 
 TEST(SimFaults, LaserUnplugThenReplug)
@@ -315,8 +316,11 @@ TEST(SimFaults, ControllerHang)
     for (int w = 0; w < 3; ++w) EXPECT_EQ(sim.robot(1).rig().drive(w).counters().consumer_timeouts, 1u);
 
     const FaultRun r = run_fault(fault(FaultKind::ControllerHang));
-    std::printf("controller_hang 5 s: drive_faults %u\n", r.ctr.drive_faults);
+    std::printf("controller_hang 5 s: drive_faults %u, stalls %u, stall_resets %u\n", r.ctr.drive_faults,
+                r.ctr.stalls, r.ctr.stall_resets);
     EXPECT_GE(r.ctr.drive_faults, 1u);
+    EXPECT_EQ(r.ctr.stalls, 1u);        /* the node saw its own 5 s gap */
+    EXPECT_EQ(r.ctr.stall_resets, 1u);  /* and reset the drives at once, not after the retry period */
     expect_recovered("controller_hang", r, kFaultAtS + kFaultS);
 }
 

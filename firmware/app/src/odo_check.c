@@ -456,13 +456,15 @@ static int judge_pair(odo_check_t *c, uint64_t now_us, pose2_t odo_pose, double 
             best_info = info;
         }
     }
-    /* and the other way: the reference onto the newest scan. Only the
-     * newest scan's points the reference could have seen are checked, so a
-     * robot carried from a cramped place into an open one (every new return
-     * beyond the old ones) is not judged one way; the old returns, which
-     * the new scan reaches past, are judged the other way */
+    /* not judged that way: the other way, the reference onto the newest
+     * scan. Only the newest scan's points the reference could have seen are
+     * checked, so a robot carried from a cramped place into an open one
+     * (every new return beyond the old ones) is not judged one way; the old
+     * returns, which the new scan reaches past, are judged the other way.
+     * Only then: judged both ways always, an obstacle that leaves the view
+     * (the other robot, a person) would be a mismatch as it went too */
     double rev_f = -1.0;
-    for (int k = 0; k < ng; ++k) {
+    for (int k = 0; k < ng && best_f < 0.0; ++k) {
         pose2_t t;
         size_t nc = 0;
         const double f = odo_check_register(&c->cfg, &c->cur, &c->ref, pose2_inverse(guesses[k]), &t, NULL, &nc);
@@ -477,7 +479,7 @@ static int judge_pair(odo_check_t *c, uint64_t now_us, pose2_t odo_pose, double 
         c->have_rate = 0;
         return 0;
     }
-    const double frac = best_f < 0.0 ? rev_f : (rev_f < 0.0 ? best_f : fmin(best_f, rev_f));
+    const double frac = best_f < 0.0 ? rev_f : best_f;
     c->last_inlier_frac = frac;
     c->worst_inlier_frac = fmin(c->worst_inlier_frac, frac);
     int bad = 0;

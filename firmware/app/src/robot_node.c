@@ -192,6 +192,28 @@ static coslam_status_t laser_connect(robot_node_t *n)
     return urg_scip2_start_md(&n->urg, (uint16_t)first, (uint16_t)last, 1U, 0U, 0U);
 }
 
+/* The drives' watchdog time [us]; 0 without it. */
+static uint64_t drive_watchdog_us(const robot_node_t *n)
+{
+    const cia402_drive_config_t *d = &n->cfg.drive.drive;
+    return d->master_node_id != 0U ? (uint64_t)d->master_timeout_ms * 1000U : 0U;
+}
+
+/* The drives went unpolled from `from` to `to` (no master heartbeat): longer
+ * than their watchdog, they have stopped the base by themselves. */
+static void note_gap(robot_node_t *n, uint64_t from, uint64_t to)
+{
+    const uint64_t wd = drive_watchdog_us(n);
+    /* not while shutting down: the base is being stopped anyway (the
+     * laser's QT there may block a reply timeout) */
+    if (wd == 0U || !n->drive_started || n->state == ROBOT_NODE_SHUTDOWN || to <= from || to - from <= wd) {
+        return;
+    }
+    n->ctr.stalls++;
+    n->stall_at_us = to;
+    n->stall_us = to - from > UINT32_MAX ? UINT32_MAX : (uint32_t)(to - from);
+}
+
 /* laser_optional: connect in the background, notice a laser that went
  * silent. A connect blocks up to three URG reply timeouts, so the base is
  * told to stand still first. */
@@ -221,6 +243,8 @@ static coslam_status_t laser_background(robot_node_t *n)
     const coslam_status_t st = laser_connect(n);
     uint64_t t = n->now_us;
     (void)hal_clock_now_us(n->io.clock, &t);
+    note_gap(n, n->now_us, t); /* a connect to a laser that does not answer blocks up to 3 reply timeouts */
+    n->last_step_us = t;       /* the next step's gap is counted from here: the same stall once */
     if (st == COSLAM_OK) {
         n->laser_up = 1;
         n->laser_alive_us = t;
@@ -435,6 +459,15 @@ static coslam_status_t run_drive(robot_node_t *n)
             /* a reset that did not clear it has had its retry period: the
              * next one at once, so resets go every retry_period_us */
             n->retry_at_us = after_reset ? n->now_us : n->now_us + n->cfg.retry_period_us;
+            /* a fault found within a second of this node's own stall is the
+             * drives' watchdog (or this side's supervision seeing the stale
+             * frames): the stall explains it, so the reset goes at once;
+             * a reset that does not clear it falls back to the rule above */
+            if (!after_reset && n->stall_at_us != 0U && n->now_us - n->stall_at_us <= 1000000U) {
+                n->retry_at_us = n->now_us;
+                n->ctr.stall_resets++;
+                n->stall_at_us = 0U;
+            }
         }
     } else if (st != COSLAM_OK) {
         n->ctr.drive_errors++;
@@ -472,6 +505,10 @@ coslam_status_t robot_node_step(robot_node_t *n)
         return COSLAM_E_ARG;
     }
     n->now_us = now;
+    if (n->last_step_us != 0U) {
+        note_gap(n, n->last_step_us, now); /* a late step: the process stalled between steps */
+    }
+    n->last_step_us = now;
     if (n->state == ROBOT_NODE_SHUTDOWN) {
         if (n->drive_started) {
             (void)cia402_omni_poll(&n->drive, now); /* let the disable sequence finish */
@@ -618,6 +655,14 @@ coslam_status_t robot_node_shutdown(robot_node_t *n)
         n->state = ROBOT_NODE_SHUTDOWN;
     }
     return result;
+}
+
+coslam_status_t robot_node_release_drives(robot_node_t *n)
+{
+    if (n == NULL) {
+        return COSLAM_E_ARG;
+    }
+    return n->drive_started ? cia402_omni_release(&n->drive) : COSLAM_OK;
 }
 
 robot_node_state_t robot_node_state(const robot_node_t *n)

@@ -846,6 +846,17 @@ static int key_line_of(const load_t *st, const char *section, const char *name)
     return 0;
 }
 
+/* Two keys that contradict each other: the later of the two in the file
+ * is the one named, with its line. */
+static void fail_pair(load_t *st, const char *sec_a, const char *key_a, const char *sec_b, const char *key_b,
+                      const char *msg)
+{
+    const int la = key_line_of(st, sec_a, key_a);
+    const int lb = key_line_of(st, sec_b, key_b);
+    st->line = la > lb ? la : lb;
+    fail(st, la > lb ? sec_a : sec_b, la > lb ? key_a : key_b, msg);
+}
+
 static void finish(load_t *st)
 {
     robot_config_t *c = st->cfg;
@@ -880,13 +891,9 @@ static void finish(load_t *st)
     gpio_role_t ra, rb;
     if (gpio_roles_line_conflict(&c->node.gpio, &line, &ra, &rb)) {
         static const char *const key_of[] = {"bumper_lines", "estop_line", "led_lines"}; /* gpio_role_t */
-        /* the later of the two keys in the file is the one that contradicts */
-        const int la = key_line_of(st, "gpio", key_of[ra]);
-        const int lb = key_line_of(st, "gpio", key_of[rb]);
-        st->line = la > lb ? la : lb;
         put_text(msg, sizeof msg, "GPIO line %lu is used by %s and by %s", (unsigned long)line, key_of[ra],
                  key_of[rb]);
-        fail(st, "gpio", la > lb ? key_of[ra] : key_of[rb], msg);
+        fail_pair(st, "gpio", key_of[ra], "gpio", key_of[rb], msg);
         return;
     }
     /* the drive-side watchdog (cia402_omni_init would refuse these with no file and line) */
@@ -894,24 +901,28 @@ static void finish(load_t *st)
     if (dc->drive.master_node_id != 0U) {
         for (int k = 0; k < OMNI_WHEELS; ++k) {
             if (dc->node_id[k] == dc->drive.master_node_id) {
-                const int la = key_line_of(st, "can", "master_node_id");
-                const int lb = key_line_of(st, "can", "node_ids");
-                st->line = la > lb ? la : lb;
                 put_text(msg, sizeof msg, "master node id %u is also wheel %d's node id",
                          (unsigned)dc->drive.master_node_id, k);
-                fail(st, "can", la > lb ? "master_node_id" : "node_ids", msg);
+                fail_pair(st, "can", "master_node_id", "can", "node_ids", msg);
                 return;
             }
         }
         if ((uint32_t)dc->drive.master_timeout_ms < 2U * (uint32_t)dc->master_heartbeat_period_ms) {
-            const int la = key_line_of(st, "can", "watchdog_timeout_ms");
-            const int lb = key_line_of(st, "can", "master_heartbeat_period_ms");
-            st->line = la > lb ? la : lb;
             put_text(msg, sizeof msg,
                      "watchdog_timeout_ms %u must be at least twice master_heartbeat_period_ms %u (one lost "
                      "heartbeat must not stop the robot)",
                      (unsigned)dc->drive.master_timeout_ms, (unsigned)dc->master_heartbeat_period_ms);
-            fail(st, "can", la > lb ? "watchdog_timeout_ms" : "master_heartbeat_period_ms", msg);
+            fail_pair(st, "can", "watchdog_timeout_ms", "can", "master_heartbeat_period_ms", msg);
+            return;
+        }
+        /* the heartbeat goes out from the control step: a longer step
+         * starves the drives' watchdog, which then stops the base forever */
+        if ((uint64_t)c->step_period_us > (uint64_t)dc->master_heartbeat_period_ms * 1000U) {
+            put_text(msg, sizeof msg,
+                     "step_period_s %g is longer than [can] master_heartbeat_period_ms %u: the heartbeat the "
+                     "drives' watchdog needs is sent once per step",
+                     (double)c->step_period_us * 1e-6, (unsigned)dc->master_heartbeat_period_ms);
+            fail_pair(st, "robot", "step_period_s", "can", "master_heartbeat_period_ms", msg);
             return;
         }
     }

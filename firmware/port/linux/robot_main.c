@@ -484,10 +484,24 @@ static void log_limits(void)
                 "diverged): its pose and map are not to be trusted until it says otherwise (diverged_now)\n",
                 (unsigned)cfg.robot_id, (unsigned long)seen_diverged);
     }
+    /* this process stalled past the drives' watchdog: they stopped the base */
+    static uint32_t seen_stalls;
+    if (node.ctr.stalls > seen_stalls) {
+        seen_stalls = node.ctr.stalls;
+        fprintf(stderr,
+                "coslam-robot: robot %u: warning: this process did not poll the drives for %.0f ms, longer than "
+                "their watchdog (%u ms): they stopped the base themselves; the drive fault that follows is reset "
+                "at once (stalls %lu)\n",
+                (unsigned)cfg.robot_id, (double)node.stall_us * 1e-3, (unsigned)cfg.node.drive.drive.master_timeout_ms,
+                (unsigned long)seen_stalls);
+    }
     /* a drive fault: which wheel and why (counted once per fault, robot_node) */
     static uint32_t seen_drive_faults;
+    static uint32_t seen_stall_resets;
     if (node.ctr.drive_faults > seen_drive_faults) {
         seen_drive_faults = node.ctr.drive_faults;
+        const int at_once = node.ctr.stall_resets > seen_stall_resets; /* right after a stall */
+        seen_stall_resets = node.ctr.stall_resets;
         cia402_omni_fault_t df;
         if (cia402_omni_get_fault(&node.drive, &df) == COSLAM_OK) {
             const char *hint = "";
@@ -497,17 +511,20 @@ static void log_limits(void)
             } else if (df.info.reason == CIA402_FAULT_SDO_ABORT &&
                        (df.info.sdo_index == CIA402_OD_CONSUMER_HEARTBEAT ||
                         df.info.sdo_index == CIA402_OD_ABORT_CONNECTION)) {
-                hint = " (the drive refused the watchdog set-up: [can] master_node_id = 0 runs it without the "
-                       "drive-side watchdog, so that a dead process leaves the wheels turning)";
+                hint = df.info.sdo_abort_code == CANOPEN_SDO_ABORT_VALUE_RANGE
+                           ? " (the drive does not take this [can] watchdog_action: try another)"
+                           : " (the drive refused the watchdog set-up; [can] master_node_id = 0 runs it "
+                             "without the drive-side watchdog, and then a dead process leaves the wheels turning)";
             }
             fprintf(stderr,
                     "coslam-robot: robot %u: drive fault %lu: wheel %d (CANopen node %u): %s, EMCY code 0x%04x "
-                    "register 0x%02x, statusword 0x%04x, SDO abort 0x%08lx on 0x%04x; stopped, reset in %.1f s "
+                    "register 0x%02x, statusword 0x%04x, SDO abort 0x%08lx on 0x%04x; stopped, reset %s%.1f s "
                     "(drive_faults)%s\n",
                     (unsigned)cfg.robot_id, (unsigned long)seen_drive_faults, (int)df.wheel, (unsigned)df.node_id,
                     cia402_fault_str(df.info.reason), (unsigned)df.info.emcy_code, (unsigned)df.info.emcy_register,
                     (unsigned)df.info.statusword, (unsigned long)df.info.sdo_abort_code,
-                    (unsigned)df.info.sdo_index, (double)cfg.node.retry_period_us * 1e-6, hint);
+                    (unsigned)df.info.sdo_index, at_once ? "at once (after this process's stall), not in " : "in ",
+                    (double)cfg.node.retry_period_us * 1e-6, hint);
         } else {
             fprintf(stderr, "coslam-robot: robot %u: drive fault %lu (cleared before it was read; drive_faults)\n",
                     (unsigned)cfg.robot_id, (unsigned long)seen_drive_faults);
@@ -655,7 +672,7 @@ int main(int argc, char **argv)
     if (dev.dev[ROBOT_DEV_CAN].state != ROBOT_DEV_UP) {
         fprintf(stderr, "coslam-robot: can: no drives: no motion, no odometry\n");
     }
-    if (cfg.can_interface[0] != '\0') {
+    if (cfg.can_interface[0] != '\0' || opt.can_fd >= 0) {
         const cia402_drive_config_t *wd = &cfg.node.drive.drive;
         if (wd->master_node_id != 0U) {
             fprintf(stderr,
@@ -849,6 +866,9 @@ int main(int argc, char **argv)
         (void)robot_node_step(&node);
         now = next;
     }
+    /* the drives are disabled: switch their watchdog off before the
+     * heartbeat stops, or every clean stop ends in its EMCY */
+    (void)robot_node_release_drives(&node);
     (void)hal_clock_now_us(clock, &now);
     /* a periodic write still in flight ends first (its generation is the
      * one the final snapshot must come after) */

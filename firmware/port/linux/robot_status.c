@@ -85,6 +85,8 @@ void robot_status_collect(robot_status_t *s, robot_node_t *node, const robot_dev
     u64(s, "odometry_errors", c->odometry_errors);
     u64(s, "drive_faults", c->drive_faults);
     u64(s, "drive_errors", c->drive_errors);
+    u64(s, "stalls", c->stalls);
+    u64(s, "stall_resets", c->stall_resets);
     u64(s, "stop_steps", c->stop_steps);
     u64(s, "hold_steps", c->hold_steps);
     u64(s, "blind_steps", c->blind_steps);

@@ -539,7 +539,10 @@ Scenario parse(const toml::table &root, const std::string &source)
     if (const toml::table *t = r.table("timing")) {
         Reader tr(*t, "timing");
         tr.num("physics_dt_ms", sc.physics_dt_ms, 0.1, 100.0);
-        tr.num("control_period_ms", sc.control_period_ms, 0.1, 1000.0);
+        // at most the robots' master heartbeat period (50 ms): the heartbeat
+        // goes out from the step, and the drives' watchdog stops a robot
+        // whose steps come less often (docs/robot.md "Drive watchdog")
+        tr.num("control_period_ms", sc.control_period_ms, 0.1, 50.0);
         tr.num("sample_period_s", sc.sample_period_s, 0.01, 1e6);
         tr.num("path_period_s", sc.path_period_s, 0.001, 1e6);
         tr.done();

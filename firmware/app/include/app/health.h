@@ -19,14 +19,17 @@
  *    prior expectation (the filter's scratch after the update holds the
  *    expectations computed from the prior and the pairing; read only). An
  *    eligible sighting left unpaired (a new landmark, or refused) is
- *    *unassociated*; sightings held back as ambiguous count as neither.
+ *    *unassociated*; sightings the association held back (ekfslam scratch
+ *    held[]: an ambiguous or too nonlinear revisit, or an unpaired sighting
+ *    with a loop-closing candidate) count as neither.
  *  - Fast-SLAM: no per-sighting innovation is exposed; an eligible sighting
  *    that starts a new landmark identity (ctr.landmarks_added moved) is
  *    unassociated (the k new identities of a frame are charged to its
  *    eligible sightings, at most one each), and the effective sample size
  *    after the update (last_ess / N) is kept.
  *  - every frame: the landmarks in view that no sighting was paired with
- *    (missed; Fast-SLAM: in the best particle, by identity and count).
+ *    (missed; EKF-SLAM: a held sighting's best landmark counts as seen;
+ *    Fast-SLAM: in the best particle, by identity and count).
  * Over the window: mean NIS (2 dof: 2 when the filter is consistent),
  * unassociated fraction of the eligible sightings, missed fraction of the
  * landmarks in view, mean ESS fraction. Per laser scan (health_on_scan),
@@ -47,7 +50,8 @@
  * wheels went wrong or the robot was carried (docs/sim.md "Faults").
  * `diverged` is a status flag (cleared when all are back within
  * bounds); `episodes` counts its rises, `diverged_frames` the frames spent
- * diverged. Caller-owned, no heap; O(landmarks + sightings) per frame.
+ * diverged. Caller-owned, no heap; per frame O(landmarks x sight-line cells
+ * + landmarks in view x sightings).
  */
 #ifndef COSLAM_APP_HEALTH_H
 #define COSLAM_APP_HEALTH_H
@@ -172,7 +176,7 @@ void health_on_motion_scan(health_t *h, uint64_t now_us, pose2_t odo_pose, const
  */
 void health_before_update(health_t *h, const slam_filter_t *f, const occ_grid_t *g);
 
-/** After slam_filter_update(f, z, n): the frame's figures, the window, the flag. O(window + n). */
+/** After slam_filter_update(f, z, n): the frame's figures, the window, the flag. O(window + n x landmarks in view). */
 void health_after_update(health_t *h, const slam_filter_t *f, const sighting_t *z, int n);
 
 #ifdef __cplusplus

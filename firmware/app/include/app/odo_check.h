@@ -29,11 +29,10 @@
  *    judged (counted);
  *  - best inlier fraction below min_inlier_frac: the two scans do not show
  *    the same place from any guess: MISMATCH (the robot was carried without
- *    its wheels knowing, or the view changed completely). Both ways: the
- *    newest scan onto the reference and the reference onto the newest (from
- *    the inverse guesses), the smaller fraction of the ways judged counts;
- *    one way checks only the points the other scan could have seen, so a
- *    jump from a cramped place into an open one escapes it;
+ *    its wheels knowing, or the view changed completely). When the
+ *    newest scan has too few points the reference could have seen (a jump
+ *    from a cramped place into an open one), the other way: the reference
+ *    onto the newest scan, from the inverse guesses;
  *  - registered: e = L - U, the laser's motion against the odometry's (x,
  *    y, theta, from the reference to now, robot frame), is tested with the
  *    registration's covariance P_L = point_sd_m^2 H^-1 (H the Gauss-Newton
@@ -61,7 +60,7 @@
  *
  * Caller-owned, no heap; O(guesses * iters * P^2) per check with P points,
  * every period_s (about 0.35 M distance evaluations for P = 96: a few ms
- * on a 500 MHz core, twice a second).
+ * on a 500 MHz core, twice a second; twice that when the fallback way runs).
  */
 #ifndef COSLAM_APP_ODO_CHECK_H
 #define COSLAM_APP_ODO_CHECK_H

@@ -154,6 +154,11 @@ typedef struct {
     uint32_t drive_faults;        /**< faults reported by the drive driver, each counted once until
                                        the driver reports clear (reset every retry_period_us) */
     uint32_t drive_errors;        /**< other drive driver errors */
+    uint32_t stalls;              /**< this node did not poll the drives for longer than their
+                                       watchdog (a late step, a blocking laser connect): the drives
+                                       stopped the base themselves */
+    uint32_t stall_resets;        /**< drive faults right after a stall, reset at once (the stall
+                                       explains them) instead of after retry_period_us */
     uint32_t stop_steps;          /**< steps stopped by bumper / e-stop */
     uint32_t bumper_acks;         /**< bumper hits, acknowledged once released */
     uint32_t laser_lost;          /**< laser_optional: connected laser silent for laser_lost_us */
@@ -172,6 +177,9 @@ typedef struct {
     uint64_t retry_at_us;
     uint64_t fault_reset_at_us;   /**< when the last drive fault reset was sent (0: none yet) */
     int drive_fault_latched;      /**< a counted drive fault not yet cleared (counted once) */
+    uint64_t last_step_us;        /**< the previous step's start (0: none yet) */
+    uint64_t stall_at_us;         /**< the last stall's end (0: none) */
+    uint32_t stall_us;            /**< its length */
     /* drivers */
     urg_scip2_t urg;
     cia402_omni_t drive;
@@ -295,6 +303,15 @@ void robot_node_hold(robot_node_t *n, int hold);
  * error (COSLAM_E_DRIVE_FAULT: the base is being stopped anyway).
  */
 coslam_status_t robot_node_shutdown(robot_node_t *n);
+
+/**
+ * After robot_node_shutdown and the polls that send the disable sequence:
+ * let the drives go (cia402_omni_release: their watchdog is switched off,
+ * the master heartbeat stops), so a clean stop does not end in their
+ * watchdog's EMCY. Returns COSLAM_OK (also without drives); an error of
+ * cia402_omni_release; COSLAM_E_ARG NULL.
+ */
+coslam_status_t robot_node_release_drives(robot_node_t *n);
 
 /** 1 while the laser is connected and streaming. O(1). */
 int robot_node_laser_up(const robot_node_t *n);

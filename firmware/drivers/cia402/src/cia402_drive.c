@@ -79,6 +79,7 @@ static void latch(cia402_drive_t *d, cia402_fault_t reason, uint64_t now_us)
 {
     if (d->fault.reason != CIA402_FAULT_NONE) return; /* the first cause is kept */
     d->fault.reason = reason;
+    d->latched_emcy = reason == CIA402_FAULT_EMCY ? d->fault.emcy_code : 0u; /* later EMCYs overwrite emcy_code */
     d->fault.stamp_us = now_us;
     d->fault.statusword = d->statusword;
     d->fault_count++;
@@ -555,10 +556,12 @@ coslam_status_t cia402_drive_fault_reset(cia402_drive_t *d, uint64_t now_us)
     d->target_velocity = 0;
     const cia402_fault_t r = d->fault.reason;
     if (r == CIA402_FAULT_NONE) return COSLAM_OK;
-    /* a communication EMCY (its watchdog fired): the drive left OPERATIONAL
-     * and takes no PDOs, so only a new bring-up brings it back */
+    /* its heartbeat consumer fired (0x8130), or it came back from bus-off
+     * (0x8140): by the drive's 0x1029 default it left OPERATIONAL and takes
+     * no PDOs, so only a new bring-up brings it back. Classified by the
+     * EMCY that latched the fault, not a later one */
     const int comm = r == CIA402_FAULT_EMCY &&
-                     (d->fault.emcy_code & CANOPEN_EMCY_COMMUNICATION_MASK) == CANOPEN_EMCY_COMMUNICATION;
+                     (d->latched_emcy == CANOPEN_EMCY_HEARTBEAT || d->latched_emcy == CANOPEN_EMCY_BUS_OFF_RECOVERED);
     if (d->phase == CIA402_DRIVE_RUN && !comm && (r == CIA402_FAULT_EMCY || r == CIA402_FAULT_DEVICE)) {
         d->reset_requested = 1;
         return COSLAM_OK;

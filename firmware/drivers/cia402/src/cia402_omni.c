@@ -109,6 +109,8 @@ coslam_status_t cia402_omni_start(cia402_omni_t *o, uint64_t now_us)
             o->rx_stale++;
         } else if (s == HAL_E_OVERFLOW) {
             o->rx_overflows++;
+        } else if (s == HAL_E_CORRUPT) {
+            o->rx_errors++; /* a malformed frame: the ones behind it are still stale */
         } else {
             break;
         }
@@ -371,6 +373,19 @@ coslam_status_t cia402_omni_take_odometry(cia402_omni_t *o, odo_increment_t *u, 
     if (until_us != NULL) *until_us = o->odo_last_us;
     memset(&o->odo_acc, 0, sizeof o->odo_acc);
     return COSLAM_OK;
+}
+
+coslam_status_t cia402_omni_release(cia402_omni_t *o)
+{
+    if (o == NULL) return COSLAM_E_ARG;
+    o->master_hb_on = 0;
+    coslam_status_t st = COSLAM_OK;
+    for (int k = 0; k < OMNI_WHEELS; ++k) {
+        hal_can_frame_t f;
+        canopen_nmt_frame(&f, CANOPEN_NMT_RESET_COMM, o->cfg.node_id[k]);
+        if (hal_can_send(o->can, &f, 0) != HAL_OK) st = COSLAM_E_DRIVE_BUS;
+    }
+    return st;
 }
 
 coslam_status_t cia402_omni_get_fault(const cia402_omni_t *o, cia402_omni_fault_t *out)

@@ -66,9 +66,8 @@ extern "C" {
 #define CIA402_ABORT_QUICK_STOP 3      /**< brake on the quick-stop ramp */
 
 /* CiA 301 emergency error codes the driver acts on */
-#define CANOPEN_EMCY_COMMUNICATION_MASK 0xFF00u /**< 0x81xx: a communication error */
-#define CANOPEN_EMCY_COMMUNICATION 0x8100u
 #define CANOPEN_EMCY_HEARTBEAT 0x8130u          /**< life guard or heartbeat consumer error */
+#define CANOPEN_EMCY_BUS_OFF_RECOVERED 0x8140u  /**< recovered from bus-off */
 
 /* controlword commands */
 #define CIA402_CW_DISABLE_VOLTAGE 0x0000u

@@ -46,9 +46,10 @@
  * in FAULT) with target velocity 0 until cia402_drive_fault_reset():
  * a drive fault (EMCY, statusword FAULT) is cleared by the CiA 402 fault
  * reset (controlword 0x00 then 0x80, until the statusword leaves FAULT);
- * any other fault, and an EMCY of the communication class (0x81xx: the
- * drive's watchdog fired, it is no longer OPERATIONAL), restarts the
- * bring-up from BOOT. Every EMCY with a
+ * any other fault, and a fault latched by EMCY 0x8130 (the drive's
+ * heartbeat consumer fired) or 0x8140 (it recovered from bus-off): by the
+ * drive's 0x1029 default it is no longer OPERATIONAL, restarts the bring-up
+ * from BOOT. Every EMCY with a
  * non-zero error code is a fault (0x0000, "error reset", is only counted).
  *
  * Memory: sizeof(cia402_drive_t) = 256 bytes on Cortex-M7, 272 on x86-64 (the
@@ -184,6 +185,7 @@ typedef struct {
     uint32_t vendor_id;
     uint32_t product_code;
     cia402_fault_info_t fault;
+    uint16_t latched_emcy;   /**< the EMCY code that latched the fault (0: not an EMCY) */
 
     /* counters since init */
     uint32_t rx_frames;      /**< frames of this node consumed */

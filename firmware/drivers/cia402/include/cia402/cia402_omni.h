@@ -183,6 +183,18 @@ coslam_status_t cia402_omni_measured_velocity(const cia402_omni_t *o, double *vx
  */
 coslam_status_t cia402_omni_take_odometry(cia402_omni_t *o, odo_increment_t *u, uint64_t *until_us);
 
+/**
+ * The master leaves, after a clean stop's disable sequence went out: NMT
+ * reset communication [0x82, id] to each wheel, which puts its object 0x1016
+ * back to the power-on default (no heartbeat consumer), so its watchdog does
+ * not fire when the master heartbeat stops, and the master heartbeat stops
+ * here. The drives keep their power state (disabled by then); a later
+ * cia402_omni_start brings them up again. Returns COSLAM_OK;
+ * COSLAM_E_DRIVE_BUS if a send failed (the watchdog then fires as after a
+ * crash: they stop); COSLAM_E_ARG NULL.
+ */
+coslam_status_t cia402_omni_release(cia402_omni_t *o);
+
 /** COSLAM_OK and the report if a fault is reported, else COSLAM_E_EMPTY (out->wheel = -1). */
 coslam_status_t cia402_omni_get_fault(const cia402_omni_t *o, cia402_omni_fault_t *out);
 
