@@ -463,7 +463,7 @@ static void sigterm(void **state)
                                                       "\"mt_weak_not_sent\"", "\"mt_send_busy\"", "\"mt_rebased\"",
                                                       "\"lm_capacity_drops\"", "\"rejected_sightings\"",
                                                       "\"numeric_faults\"", "\"urg_err_capacity\"",
-                                                      "\"urg_bytes_discarded\"", NULL};
+                                                      "\"urg_bytes_discarded\"", "\"stalls\"", "\"stall_resets\"", NULL};
          *k != NULL; ++k) {
         if (strstr(json, *k) == NULL) {
             fprintf(stderr, "status file lacks %s\n", *k);
