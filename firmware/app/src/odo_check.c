@@ -424,6 +424,28 @@ static double disagreement(const odo_check_config_t *cfg, pose2_t l, const cov3_
     return chi2;
 }
 
+/* Register cur onto ref from each guess (inverted: the inverse guesses);
+ * the best inlier fraction among the registrations with enough checkable
+ * points (ties to the first guess), its pose and information; -1 if none. */
+static double best_registration(const odo_check_t *c, const odo_scan_t *ref, const odo_scan_t *cur,
+                                const pose2_t *guesses, int ng, int inverted, pose2_t *best, cov3_t *best_info)
+{
+    double best_f = -1.0;
+    for (int k = 0; k < ng; ++k) {
+        pose2_t t;
+        cov3_t info;
+        size_t nc = 0;
+        const pose2_t g = inverted ? pose2_inverse(guesses[k]) : guesses[k];
+        const double f = odo_check_register(&c->cfg, ref, cur, g, &t, &info, &nc);
+        if (nc >= c->cfg.min_points && f > best_f + 1e-9) {
+            best_f = f;
+            *best = t;
+            *best_info = info;
+        }
+    }
+    return best_f;
+}
+
 /* Compare the newest scan with the reference (header comment); returns 1
  * if judged. */
 static int judge_pair(odo_check_t *c, uint64_t now_us, pose2_t odo_pose, double dt)
@@ -444,18 +466,7 @@ static int judge_pair(odo_check_t *c, uint64_t now_us, pose2_t odo_pose, double 
     }
     pose2_t best = u;
     cov3_t best_info = cov3_zero();
-    double best_f = -1.0;
-    for (int k = 0; k < ng; ++k) {
-        pose2_t t;
-        cov3_t info;
-        size_t nc = 0;
-        const double f = odo_check_register(&c->cfg, &c->ref, &c->cur, guesses[k], &t, &info, &nc);
-        if (nc >= c->cfg.min_points && f > best_f + 1e-9) {
-            best_f = f;
-            best = t;
-            best_info = info;
-        }
-    }
+    const double best_f = best_registration(c, &c->ref, &c->cur, guesses, ng, 0, &best, &best_info);
     /* not judged that way: the other way, the reference onto the newest
      * scan. Only the newest scan's points the reference could have seen are
      * checked, so a robot carried from a cramped place into an open one
@@ -463,15 +474,9 @@ static int judge_pair(odo_check_t *c, uint64_t now_us, pose2_t odo_pose, double 
      * returns, which the new scan reaches past, are judged the other way.
      * Only then: judged both ways always, an obstacle that leaves the view
      * (the other robot, a person) would be a mismatch as it went too */
-    double rev_f = -1.0;
-    for (int k = 0; k < ng && best_f < 0.0; ++k) {
-        pose2_t t;
-        size_t nc = 0;
-        const double f = odo_check_register(&c->cfg, &c->cur, &c->ref, pose2_inverse(guesses[k]), &t, NULL, &nc);
-        if (nc >= c->cfg.min_points && f > rev_f) {
-            rev_f = f;
-        }
-    }
+    pose2_t rev = u;
+    cov3_t rev_info;
+    const double rev_f = best_f < 0.0 ? best_registration(c, &c->cur, &c->ref, guesses, ng, 1, &rev, &rev_info) : -1.0;
     if (best_f < 0.0 && rev_f < 0.0) {
         /* no guess leaves enough points either scan could have seen of the
          * other: nothing to judge (a turn into open space) */

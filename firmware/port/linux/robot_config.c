@@ -898,33 +898,33 @@ static void finish(load_t *st)
     }
     /* the drive-side watchdog (cia402_omni_init would refuse these with no file and line) */
     const cia402_omni_config_t *dc = &c->node.drive;
-    if (dc->drive.master_node_id != 0U) {
-        for (int k = 0; k < OMNI_WHEELS; ++k) {
-            if (dc->node_id[k] == dc->drive.master_node_id) {
-                put_text(msg, sizeof msg, "master node id %u is also wheel %d's node id",
-                         (unsigned)dc->drive.master_node_id, k);
-                fail_pair(st, "can", "master_node_id", "can", "node_ids", msg);
-                return;
-            }
-        }
-        if ((uint32_t)dc->drive.master_timeout_ms < 2U * (uint32_t)dc->master_heartbeat_period_ms) {
-            put_text(msg, sizeof msg,
-                     "watchdog_timeout_ms %u must be at least twice master_heartbeat_period_ms %u (one lost "
-                     "heartbeat must not stop the robot)",
-                     (unsigned)dc->drive.master_timeout_ms, (unsigned)dc->master_heartbeat_period_ms);
-            fail_pair(st, "can", "watchdog_timeout_ms", "can", "master_heartbeat_period_ms", msg);
-            return;
-        }
-        /* the heartbeat goes out from the control step: a longer step
-         * starves the drives' watchdog, which then stops the base forever */
-        if ((uint64_t)c->step_period_us > (uint64_t)dc->master_heartbeat_period_ms * 1000U) {
-            put_text(msg, sizeof msg,
-                     "step_period_s %g is longer than [can] master_heartbeat_period_ms %u: the heartbeat the "
-                     "drives' watchdog needs is sent once per step",
-                     (double)c->step_period_us * 1e-6, (unsigned)dc->master_heartbeat_period_ms);
-            fail_pair(st, "robot", "step_period_s", "can", "master_heartbeat_period_ms", msg);
-            return;
-        }
+    int wheel = 0;
+    switch (cia402_omni_watchdog_check(dc, &wheel)) {
+    case CIA402_OMNI_WATCHDOG_MASTER_IS_WHEEL:
+        put_text(msg, sizeof msg, "master node id %u is also wheel %d's node id", (unsigned)dc->drive.master_node_id,
+                 wheel);
+        fail_pair(st, "can", "master_node_id", "can", "node_ids", msg);
+        return;
+    case CIA402_OMNI_WATCHDOG_TIMEOUT_SHORT:
+        put_text(msg, sizeof msg,
+                 "watchdog_timeout_ms %u must be at least twice master_heartbeat_period_ms %u (one lost "
+                 "heartbeat must not stop the robot)",
+                 (unsigned)dc->drive.master_timeout_ms, (unsigned)dc->master_heartbeat_period_ms);
+        fail_pair(st, "can", "watchdog_timeout_ms", "can", "master_heartbeat_period_ms", msg);
+        return;
+    case CIA402_OMNI_WATCHDOG_NO_PERIOD: /* the key's domain starts at 1 */
+    case CIA402_OMNI_WATCHDOG_OK: break;
+    }
+    /* the heartbeat goes out from the control step: a longer step starves
+     * the drives' watchdog, which then stops the base for good */
+    if (dc->drive.master_node_id != 0U &&
+        (uint64_t)c->step_period_us > (uint64_t)dc->master_heartbeat_period_ms * 1000U) {
+        put_text(msg, sizeof msg,
+                 "step_period_s %g is longer than [can] master_heartbeat_period_ms %u: the heartbeat the "
+                 "drives' watchdog needs is sent once per step",
+                 (double)c->step_period_us * 1e-6, (unsigned)dc->master_heartbeat_period_ms);
+        fail_pair(st, "robot", "step_period_s", "can", "master_heartbeat_period_ms", msg);
+        return;
     }
     robot_node_config_t *n = &c->node;
     n->robot_id = c->robot_id;

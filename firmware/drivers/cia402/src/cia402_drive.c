@@ -371,6 +371,13 @@ static void config_start_step(cia402_drive_t *d)
     }
 }
 
+/* A bring-up step failed: its object is kept with the fault. */
+static void config_fail(cia402_drive_t *d, cia402_fault_t reason, uint64_t now_us)
+{
+    d->fault.sdo_index = d->sdo.index;
+    latch(d, reason, now_us);
+}
+
 /* Take the finished SDO of the current step; 0 if the bring-up stopped. */
 static int config_finish_step(cia402_drive_t *d, uint64_t now_us)
 {
@@ -388,7 +395,7 @@ static int config_finish_step(cia402_drive_t *d, uint64_t now_us)
     case STEP_MODE: break;
     case STEP_MODE_CHECK:
         if ((s->value & 0xFFu) != (uint32_t)CIA402_MODE_PROFILE_VELOCITY) {
-            latch(d, CIA402_FAULT_CONFIG, now_us);
+            config_fail(d, CIA402_FAULT_CONFIG, now_us);
             return 0;
         }
         break;
@@ -407,24 +414,14 @@ static void poll_config(cia402_drive_t *d, uint64_t now_us)
     cia402_sdo_t *s = &d->sdo;
     switch (s->state) {
     case CIA402_SDO_DONE:
-        if (!config_finish_step(d, now_us)) {
-            d->fault.sdo_index = s->index;
-            return;
-        }
+        if (!config_finish_step(d, now_us)) return;
         break;
     case CIA402_SDO_ABORTED:
         d->fault.sdo_abort_code = s->abort_code;
-        d->fault.sdo_index = s->index;
-        latch(d, CIA402_FAULT_SDO_ABORT, now_us);
+        config_fail(d, CIA402_FAULT_SDO_ABORT, now_us);
         return;
-    case CIA402_SDO_TIMEOUT:
-        d->fault.sdo_index = s->index;
-        latch(d, CIA402_FAULT_SDO_TIMEOUT, now_us);
-        return;
-    case CIA402_SDO_ERROR:
-        d->fault.sdo_index = s->index;
-        latch(d, CIA402_FAULT_CONFIG, now_us);
-        return;
+    case CIA402_SDO_TIMEOUT: config_fail(d, CIA402_FAULT_SDO_TIMEOUT, now_us); return;
+    case CIA402_SDO_ERROR: config_fail(d, CIA402_FAULT_CONFIG, now_us); return;
     case CIA402_SDO_IDLE:
     case CIA402_SDO_BUSY: break;
     }

@@ -18,6 +18,22 @@ cia402_omni_config_t cia402_omni_config_default(void)
     return c;
 }
 
+cia402_omni_watchdog_rule_t cia402_omni_watchdog_check(const cia402_omni_config_t *c, int *wheel)
+{
+    if (c == NULL || c->drive.master_node_id == 0u) return CIA402_OMNI_WATCHDOG_OK;
+    for (int k = 0; k < OMNI_WHEELS; ++k) {
+        if (c->node_id[k] == c->drive.master_node_id) {
+            if (wheel != NULL) *wheel = k;
+            return CIA402_OMNI_WATCHDOG_MASTER_IS_WHEEL;
+        }
+    }
+    if (c->master_heartbeat_period_ms == 0u) return CIA402_OMNI_WATCHDOG_NO_PERIOD;
+    if ((uint32_t)c->drive.master_timeout_ms < 2u * (uint32_t)c->master_heartbeat_period_ms) {
+        return CIA402_OMNI_WATCHDOG_TIMEOUT_SHORT;
+    }
+    return CIA402_OMNI_WATCHDOG_OK;
+}
+
 static coslam_status_t config_check(const cia402_omni_config_t *c)
 {
     for (int k = 0; k < OMNI_WHEELS; ++k) {
@@ -28,13 +44,7 @@ static coslam_status_t config_check(const cia402_omni_config_t *c)
             if (c->node_id[j] == c->node_id[k]) return COSLAM_E_ARG;
         }
     }
-    if (c->drive.master_node_id != 0u) {
-        for (int k = 0; k < OMNI_WHEELS; ++k) {
-            if (c->node_id[k] == c->drive.master_node_id) return COSLAM_E_ARG;
-        }
-        if (c->master_heartbeat_period_ms == 0u) return COSLAM_E_ARG;
-        if ((uint32_t)c->drive.master_timeout_ms < 2u * (uint32_t)c->master_heartbeat_period_ms) return COSLAM_E_ARG;
-    }
+    if (cia402_omni_watchdog_check(c, NULL) != CIA402_OMNI_WATCHDOG_OK) return COSLAM_E_ARG;
     if (omni_kinematics_config_check(&c->kinematics) != COSLAM_OK) return COSLAM_E_ARG;
     if (!isfinite(c->velocity_unit_rpm) || !(c->velocity_unit_rpm > 0.0)) return COSLAM_E_ARG;
     if (!isfinite(c->max_motor_rpm) || !(c->max_motor_rpm > 0.0)) return COSLAM_E_ARG;

@@ -118,6 +118,22 @@ typedef struct {
                                                longer than the PDO timeout (odometry restarted) */
 } cia402_omni_t;
 
+/** A rule of the drive-side watchdog that a configuration breaks. */
+typedef enum {
+    CIA402_OMNI_WATCHDOG_OK = 0,
+    CIA402_OMNI_WATCHDOG_MASTER_IS_WHEEL, /**< drive.master_node_id is a wheel's node id */
+    CIA402_OMNI_WATCHDOG_NO_PERIOD,       /**< master_heartbeat_period_ms is 0 */
+    CIA402_OMNI_WATCHDOG_TIMEOUT_SHORT,   /**< drive.master_timeout_ms < 2 x master_heartbeat_period_ms */
+} cia402_omni_watchdog_rule_t;
+
+/**
+ * The first watchdog rule cfg breaks (OK without a master node id, or when
+ * none is broken); *wheel (may be NULL) gets the wheel of MASTER_IS_WHEEL.
+ * cia402_omni_init refuses what this reports; a configuration reader can
+ * name the keys.
+ */
+cia402_omni_watchdog_rule_t cia402_omni_watchdog_check(const cia402_omni_config_t *cfg, int *wheel);
+
 /** Defaults: nodes 1, 2, 3; cia402_drive_config_default timing (master 127); master heartbeat 50 ms; Robotino kinematics. */
 cia402_omni_config_t cia402_omni_config_default(void);
 
