@@ -130,12 +130,76 @@ static void test_held_sighting_counts_as_neither(void **state)
     }
 }
 
+/* A frame that cannot be held behind an EKF-SLAM merge's held inputs
+ * (the queue is full) makes them apply first: here a held prediction that
+ * turns the robot 90 deg left, then SLAM_FILTER_HELD_FRAMES empty updates.
+ * The monitor must judge the frame against the state the update applies
+ * to (robot_node's order: prepare, look, apply). After the turn nothing is
+ * in view, so the frame's sighting of class 1 straight ahead is neither
+ * expected nor missed. Judged on the state before the turn (the order
+ * before slam_filter_update_prepare), landmark 0 was expected and missed. */
+static void test_judged_on_the_state_the_update_applies_to(void **state)
+{
+    (void)state;
+    slam_filter_t *f = &g_f;
+    memset(f->held, 0, sizeof f->held);
+    f->held[0].is_update = 0U;
+    f->held[0].u = (odo_increment_t){0.0, 0.0, 0.5 * COSLAM_PI};
+    for (uint16_t k = 1; k <= SLAM_FILTER_HELD_FRAMES; ++k) {
+        f->held[k].is_update = 1U; /* no sightings */
+    }
+    f->n_held = (uint16_t)(SLAM_FILTER_HELD_FRAMES + 1U);
+    f->held_next = 0U;
+    f->n_held_z = 0U;
+    f->n_held_frames = (uint16_t)SLAM_FILTER_HELD_FRAMES;
+    const uint32_t updates0 = f->u.ekf.ctr.updates;
+    const sighting_t z = {3.0, 0.0, 1};
+
+    assert_int_equal(slam_filter_update_prepare(f, 1), 0); /* does not fit: the held inputs apply */
+    assert_int_equal(f->n_held, 0);
+    assert_int_equal(f->holds_forced, 1);
+    assert_int_equal(f->u.ekf.ctr.updates, updates0 + SLAM_FILTER_HELD_FRAMES);
+    health_before_update(&g_h, f, &g_grid);
+    assert_int_equal(g_h.n_in_view, 0);
+    assert_int_equal(slam_filter_update_apply(f, &z, 1), COSLAM_OK);
+    assert_int_equal(f->u.ekf.ctr.updates, updates0 + SLAM_FILTER_HELD_FRAMES + 1U); /* exactly this frame */
+    health_after_update(&g_h, f, &z, 1);
+    const health_frame_t *fr = &g_h.frame[0];
+    assert_int_equal(fr->n_expected, 0);
+    assert_int_equal(fr->n_missed, 0);
+    assert_int_equal(fr->n_eligible, 0);
+}
+
+/* A frame that fits behind the held inputs is held: prepare says so and
+ * changes nothing, the apply holds it. */
+static void test_prepare_of_a_held_frame_changes_nothing(void **state)
+{
+    (void)state;
+    slam_filter_t *f = &g_f;
+    memset(f->held, 0, sizeof f->held);
+    f->held[0].u = (odo_increment_t){0.0, 0.0, 0.5 * COSLAM_PI};
+    f->n_held = 1U;
+    f->held_next = 0U;
+    f->n_held_z = 0U;
+    f->n_held_frames = 0U;
+    const pose2_t before = {f->u.ekf.x[0], f->u.ekf.x[1], f->u.ekf.x[2]};
+    const sighting_t z = {3.0, 0.0, 1};
+    assert_int_equal(slam_filter_update_prepare(f, 1), 1);
+    assert_int_equal(f->n_held, 1);
+    assert_true(f->u.ekf.x[2] == before.theta);
+    assert_int_equal(slam_filter_update_apply(f, &z, 1), COSLAM_E_MERGE_PENDING);
+    assert_int_equal(f->n_held, 2);
+    assert_int_equal(f->n_held_frames, 1);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test_setup(test_expected_landmarks, setup),
         cmocka_unit_test_setup(test_missed_fraction, setup),
         cmocka_unit_test_setup(test_held_sighting_counts_as_neither, setup),
+        cmocka_unit_test_setup(test_judged_on_the_state_the_update_applies_to, setup),
+        cmocka_unit_test_setup(test_prepare_of_a_held_frame_changes_nothing, setup),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -352,8 +352,12 @@ static void read_sightings(robot_node_t *n)
     n->ctr.sightings_dropped += n->frame.dropped;
     flush_prediction(n);
     const int nz = n->frame.n_landmarks <= COSLAM_MAX_SIGHTINGS ? (int)n->frame.n_landmarks : COSLAM_MAX_SIGHTINGS;
-    health_before_update(&n->health, &n->filter, &n->grid);
-    const coslam_status_t st = slam_filter_update(&n->filter, n->frame.landmarks, nz);
+    /* the monitor reads the state the update applies to: a merge or held
+     * inputs that must finish first are finished before it looks */
+    if (!slam_filter_update_prepare(&n->filter, nz)) {
+        health_before_update(&n->health, &n->filter, &n->grid);
+    }
+    const coslam_status_t st = slam_filter_update_apply(&n->filter, n->frame.landmarks, nz);
     /* held while an EKF-SLAM merge runs in parts (slam_filter inputs_held):
      * no update to judge yet */
     if (st != COSLAM_E_MERGE_PENDING) {

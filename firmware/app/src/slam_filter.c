@@ -297,15 +297,22 @@ static int ekf_hold_fits(const slam_filter_t *f, int is_update, int n)
                           (size_t)f->n_held_z + (size_t)n <= sizeof f->held_z / sizeof f->held_z[0]);
 }
 
+/* The queue has room for one more input once the applied ones are dropped. */
+static int ekf_hold_room(slam_filter_t *f, int is_update, int n)
+{
+    if (ekf_hold_fits(f, is_update, n)) {
+        return 1;
+    }
+    ekf_held_compact(f);
+    return ekf_hold_fits(f, is_update, n);
+}
+
 /* Hold one input while the merge runs; 0 if it does not fit (the caller
  * finishes the merge first). */
 static int ekf_hold(slam_filter_t *f, int is_update, odo_increment_t u, const sighting_t *z, int n)
 {
-    if (!ekf_hold_fits(f, is_update, n)) {
-        ekf_held_compact(f);
-        if (!ekf_hold_fits(f, is_update, n)) {
-            return 0;
-        }
+    if (!ekf_hold_room(f, is_update, n)) {
+        return 0;
     }
     slam_filter_held_t *h = &f->held[f->n_held];
     h->is_update = (uint8_t)is_update;
@@ -413,16 +420,17 @@ static void export_table_for_robot(slam_filter_t *f)
     send_finish_now(f);
 }
 
-coslam_status_t slam_filter_update(slam_filter_t *f, const sighting_t *z, int n)
+int slam_filter_update_prepare(slam_filter_t *f, int n)
 {
     if (ekf_holding(f)) {
-        if (ekf_hold(f, 1, (odo_increment_t){0.0, 0.0, 0.0}, z, n)) {
-            return COSLAM_E_MERGE_PENDING; /* applied once the merge is done (held_failures) */
+        if (ekf_hold_room(f, 1, n)) {
+            return 1;
         }
         ekf_finish_now(f);
+        return 0;
     }
     if (f->kind == SLAM_FILTER_EKF) {
-        return ekf_update_now(f, z, n);
+        return 0;
     }
     if (f->merge_due != NULL && ++f->merge_due_updates > SLAM_FILTER_MERGE_MAX_UPDATES) {
         f->merges_forced++;
@@ -431,13 +439,32 @@ coslam_status_t slam_filter_update(slam_filter_t *f, const sighting_t *z, int n)
     if (f->send_state == 1U && ++f->send_updates > SLAM_FILTER_MERGE_MAX_UPDATES) {
         send_finish_now(f);
     }
-    const coslam_status_t st =
-        f->kind == SLAM_FILTER_EKF ? ekfslam_update(&f->u.ekf, z, n) : fastslam_update(&f->u.fs, z, n);
+    return 0;
+}
+
+coslam_status_t slam_filter_update_apply(slam_filter_t *f, const sighting_t *z, int n)
+{
+    if (ekf_holding(f)) {
+        if (ekf_hold(f, 1, (odo_increment_t){0.0, 0.0, 0.0}, z, n)) {
+            return COSLAM_E_MERGE_PENDING; /* applied once the merge is done (held_failures) */
+        }
+        ekf_finish_now(f); /* not prepared: it did not fit after all */
+    }
+    if (f->kind == SLAM_FILTER_EKF) {
+        return ekf_update_now(f, z, n);
+    }
+    const coslam_status_t st = fastslam_update(&f->u.fs, z, n);
     pose2_t pose;
     cov3_t cov;
     slam_filter_pose(f, &pose, &cov);
     merge_coverage_note(&f->coverage, pose);
     return st;
+}
+
+coslam_status_t slam_filter_update(slam_filter_t *f, const sighting_t *z, int n)
+{
+    (void)slam_filter_update_prepare(f, n);
+    return slam_filter_update_apply(f, z, n);
 }
 
 void slam_merge_work_init(slam_merge_work_t *w)

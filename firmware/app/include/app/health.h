@@ -4,8 +4,9 @@
  * run are the same with or without it) and keeps a sliding window of the
  * last COSLAM_APP_HEALTH_WINDOW camera frames.
  *
- * Per frame (health_before_update before slam_filter_update, then
- * health_after_update with the same sightings):
+ * Per frame (slam_filter_update_prepare, then health_before_update, then
+ * slam_filter_update_apply, then health_after_update with the same
+ * sightings; a frame the prepare says is held is not judged):
  *  - "in view": before the update, the landmarks of the map (EKF-SLAM: the
  *    state; Fast-SLAM: the particle of largest weight) whose predicted
  *    sighting from the pose estimate the filter says should be seen
@@ -170,13 +171,15 @@ void health_on_scan(health_t *h, const occ_grid_t *g, pose2_t sensor_pose, const
 void health_on_motion_scan(health_t *h, uint64_t now_us, pose2_t odo_pose, const point2_t *pts, size_t n);
 
 /**
- * Before slam_filter_update: note the landmark classes in view and the
- * counters; g is the laser's occupancy grid (may be NULL). O(landmarks x
- * the sight line's cells).
+ * Between slam_filter_update_prepare and slam_filter_update_apply (so on
+ * the state the update applies to, after any merge or held inputs it had
+ * to finish first): note the landmark classes in view and the counters; g
+ * is the laser's occupancy grid (may be NULL). O(landmarks x the sight
+ * line's cells).
  */
 void health_before_update(health_t *h, const slam_filter_t *f, const occ_grid_t *g);
 
-/** After slam_filter_update(f, z, n): the frame's figures, the window, the flag. O(window + n x landmarks in view). */
+/** After slam_filter_update_apply(f, z, n): the frame's figures, the window, the flag. O(window + n x landmarks in view). */
 void health_after_update(health_t *h, const slam_filter_t *f, const sighting_t *z, int n);
 
 #ifdef __cplusplus

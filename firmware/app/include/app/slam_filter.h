@@ -187,8 +187,25 @@ coslam_status_t slam_filter_seed(slam_filter_t *f, const slam_filter_config_t *c
  */
 coslam_status_t slam_filter_predict(slam_filter_t *f, odo_increment_t u, double dt_s);
 
-/** fastslam_update / ekfslam_update with one frame's landmark sightings. */
+/** fastslam_update / ekfslam_update with one frame's landmark sightings:
+ *  slam_filter_update_prepare(f, n), then slam_filter_update_apply(f, z, n). */
 coslam_status_t slam_filter_update(slam_filter_t *f, const sighting_t *z, int n);
+
+/**
+ * The first half of slam_filter_update, for a caller that reads the filter
+ * between the halves (the robot's health monitor). What must finish before
+ * an update of n sightings can apply is finished here: a Fast-SLAM merge
+ * or send export held past SLAM_FILTER_MERGE_MAX_UPDATES, or an EKF-SLAM
+ * merge whose held inputs the frame would not fit behind (and those held
+ * inputs, applied). So what the caller reads next is the state the update
+ * applies to. Returns 1 if the frame will be held instead (EKF-SLAM merge
+ * in parts, nothing applied: the apply returns COSLAM_E_MERGE_PENDING), 0
+ * if it will update. Call once per frame, then the apply with the same n.
+ */
+int slam_filter_update_prepare(slam_filter_t *f, int n);
+
+/** The second half: the update (or the frame held). */
+coslam_status_t slam_filter_update_apply(slam_filter_t *f, const sighting_t *z, int n);
 
 /** Deferred work done in one idle call, in per-step shares
  *  (active_spread_madds): ekfslam_idle keeps at most two steps' worth
