@@ -915,6 +915,143 @@ static void test_init_args(void **state)
     assert_int_equal(urg_scip2_laser_on(NULL), COSLAM_E_ARG);
 }
 
+/* ---------------------------------------------------------------------------
+ * The set-up without waiting (urg_scip2_begin_*, urg_scip2_poll)
+ * ------------------------------------------------------------------------ */
+
+#define PP04_REPLY                                                                                                     \
+    "PP\n00P\nMODL:URG-04LX(Hokuyo Automatic Co.,Ltd.);N\nDMIN:20;4\nDMAX:5600;_\nARES:1024;\\\n"                     \
+    "AMIN:44;7\nAMAX:725;o\nAFRT:384;6\nSCAN:600;e\n\n"
+
+/* The robot's connect: SCIP2.0, PP, MD, each reply arriving in two halves,
+ * the second held back until the test releases it. Every poll before that
+ * returns "not yet" without counting anything and without reading past what
+ * has come; the frames written are byte-exact; the result is the waiting
+ * calls' (parameters read, streaming, the first scan decodes). */
+static void test_connect_without_waiting(void **state)
+{
+    fixture_t *f = *state;
+    const char *replies[3] = {"SCIP2.0\n0\n\n", PP04_REPLY, "MD0044072501000\n00P\n\n"};
+    for (unsigned k = 0; k < 3; ++k) {
+        const size_t n = strlen(replies[k]);
+        fake_add(&f->fake, k + 1U, replies[k], n / 2U);
+        fake_add(&f->fake, 100U * (k + 1U), replies[k] + n / 2U, n - n / 2U);
+    }
+    const urg_scip2_stats_t before = *urg_scip2_stats(&f->urg);
+    assert_int_equal(urg_scip2_poll(&f->urg), COSLAM_E_EMPTY); /* nothing begun */
+    for (unsigned k = 0; k < 3; ++k) {
+        f->fake.n_written = 0;
+        coslam_status_t st = k == 0U ? urg_scip2_begin_enter_scip2(&f->urg)
+                             : k == 1U ? urg_scip2_begin_read_params(&f->urg)
+                                       : urg_scip2_begin_start_md(&f->urg, 44, 725, 1, 0, 0);
+        assert_int_equal(st, COSLAM_OK);
+        assert_written(&f->fake, k == 0U ? "SCIP2.0\n" : k == 1U ? "PP\n" : "MD0044072501000\n");
+        for (int i = 0; i < 3; ++i) {
+            assert_int_equal(urg_scip2_poll(&f->urg), COSLAM_E_URG_TIMEOUT);
+            assert_true(urg_scip2_pending(&f->urg));
+        }
+        assert_memory_equal(urg_scip2_stats(&f->urg), &before, sizeof before); /* nothing counted */
+        f->fake.released = 100U * (k + 1U) - f->fake.n_writes; /* the rest of this reply only */
+        assert_int_equal(urg_scip2_poll(&f->urg), COSLAM_OK);
+        assert_false(urg_scip2_pending(&f->urg));
+        assert_int_equal(urg_scip2_poll(&f->urg), COSLAM_E_EMPTY);
+    }
+    assert_int_equal(f->fake.n_flushes, 1); /* SCIP2.0 drops unread input, as the waiting call */
+    assert_int_equal(urg_scip2_params(&f->urg)->afrt, 384);
+    assert_int_equal(urg_scip2_params(&f->urg)->scan_rpm, 600);
+    assert_true(urg_scip2_is_streaming(&f->urg));
+    assert_memory_equal(urg_scip2_stats(&f->urg), &before, sizeof before);
+    const size_t n = build_scan(msg, "MD0044072501000", "99", 1234, vals04, N04, CORRUPT_NONE, 0);
+    fake_add(&f->fake, 0, msg, n);
+    assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_OK);
+    expect_scan04(&f->scan, 1234);
+}
+
+/* Replies to something else are skipped as a waiting command skips them:
+ * a scan of an earlier MD before PP's reply, and, while MD starts, a scan
+ * of an MD of this very command still running (same echo, status "99")
+ * before its acknowledgement. Counted as skipped messages only. */
+static void test_poll_skips_stale_replies(void **state)
+{
+    fixture_t *f = *state;
+    size_t n = build_scan(msg, "MD0044072501000", "99", 10, vals04, N04, CORRUPT_NONE, 0);
+    fake_add(&f->fake, 1, msg, n);
+    fake_add_str(&f->fake, 1, PP04_REPLY);
+    assert_int_equal(urg_scip2_begin_read_params(&f->urg), COSLAM_OK);
+    assert_int_equal(urg_scip2_poll(&f->urg), COSLAM_OK);
+    assert_int_equal(urg_scip2_stats(&f->urg)->messages_skipped, 1);
+    assert_int_equal(urg_scip2_params(&f->urg)->ares, 1024);
+
+    n = build_scan(msg, "MD0044072501000", "99", 20, vals04, N04, CORRUPT_NONE, 0);
+    fake_add(&f->fake, 2, msg, n);
+    fake_add_str(&f->fake, 2, "MD0044072501000\n00P\n\n");
+    assert_int_equal(urg_scip2_begin_start_md(&f->urg, 44, 725, 1, 0, 0), COSLAM_OK);
+    assert_int_equal(urg_scip2_poll(&f->urg), COSLAM_OK);
+    assert_int_equal(urg_scip2_stats(&f->urg)->messages_skipped, 2);
+    assert_true(urg_scip2_is_streaming(&f->urg));
+    assert_int_equal(urg_scip2_stats(&f->urg)->err_echo, 0);
+}
+
+/* No reply, or only stale ones: the caller gives up by its clock
+ * (abandon: one timeout counted, as a waiting command's); the reply that
+ * comes late is skipped by the next command, which gets its own. More
+ * stale replies than max_skipped_messages end the command (counted). A
+ * refusal and a broken reply end it with the waiting call's code. */
+static void test_poll_gives_up_and_fails_as_the_waiting_call(void **state)
+{
+    fixture_t *f = *state;
+    assert_int_equal(urg_scip2_begin_read_params(&f->urg), COSLAM_OK);
+    for (int i = 0; i < 5; ++i) {
+        assert_int_equal(urg_scip2_poll(&f->urg), COSLAM_E_URG_TIMEOUT);
+    }
+    assert_int_equal(urg_scip2_stats(&f->urg)->err_timeout, 0);
+    urg_scip2_abandon(&f->urg);
+    assert_false(urg_scip2_pending(&f->urg));
+    assert_int_equal(urg_scip2_stats(&f->urg)->err_timeout, 1);
+    urg_scip2_abandon(&f->urg); /* nothing begun: nothing counted */
+    assert_int_equal(urg_scip2_stats(&f->urg)->err_timeout, 1);
+    fake_add_str(&f->fake, 0, PP04_REPLY);                 /* the late reply */
+    fake_add_str(&f->fake, 2, "BM\n00P\n\n");              /* the next command's */
+    assert_int_equal(urg_scip2_laser_on(&f->urg), COSLAM_OK); /* a waiting command skips it too */
+    assert_int_equal(urg_scip2_stats(&f->urg)->messages_skipped, 1);
+
+    /* stale replies beyond max_skipped_messages */
+    const unsigned max = f->urg.cfg.max_skipped_messages;
+    for (unsigned i = 0; i <= max; ++i) {
+        fake_add_str(&f->fake, 3, "BM\n00P\n\n");
+    }
+    assert_int_equal(urg_scip2_begin_read_params(&f->urg), COSLAM_OK);
+    assert_int_equal(urg_scip2_poll(&f->urg), COSLAM_E_URG_ECHO);
+    assert_int_equal(urg_scip2_stats(&f->urg)->err_echo, 1);
+    assert_false(urg_scip2_pending(&f->urg));
+
+    /* refused: MD while the laser is broken ("50" + sum) */
+    f->fake.pos = f->fake.stream_len;
+    f->urg.resync_pending = 0;
+    f->urg.last_byte_lf = 1;
+    char refusal[32];
+    sprintf(refusal, "MD0044072501000\n50%c\n\n", sum_of("50", 2));
+    fake_add_str(&f->fake, 4, refusal);
+    assert_int_equal(urg_scip2_begin_start_md(&f->urg, 44, 725, 1, 0, 0), COSLAM_OK);
+    assert_int_equal(urg_scip2_poll(&f->urg), COSLAM_E_URG_STATUS);
+    assert_string_equal(urg_scip2_last_status(&f->urg), "50");
+    assert_false(urg_scip2_is_streaming(&f->urg));
+
+    /* a PP reply whose sum is wrong */
+    fake_add_str(&f->fake, 5, "PP\n00P\nMODL:URG-04LX(Hokuyo Automatic Co.,Ltd.);M\n\n");
+    assert_int_equal(urg_scip2_begin_read_params(&f->urg), COSLAM_OK);
+    assert_int_equal(urg_scip2_poll(&f->urg), COSLAM_E_URG_CHECKSUM);
+    assert_int_equal(urg_scip2_stats(&f->urg)->err_checksum, 1);
+
+    /* arguments refused before anything is sent, as start_md's */
+    const unsigned writes = f->fake.n_writes;
+    assert_int_equal(urg_scip2_begin_start_md(&f->urg, 725, 44, 1, 0, 0), COSLAM_E_ARG);
+    assert_int_equal(urg_scip2_begin_start_md(&f->urg, 44, 725, 1, 10, 0), COSLAM_E_ARG);
+    assert_int_equal(f->fake.n_writes, writes);
+    assert_int_equal(urg_scip2_begin_read_params(NULL), COSLAM_E_ARG);
+    assert_int_equal(urg_scip2_poll(NULL), COSLAM_E_ARG);
+}
+
 int main(void)
 {
 #define T(fn) cmocka_unit_test_setup_teardown(fn, setup, teardown)
@@ -958,6 +1095,9 @@ int main(void)
         T(test_md_finite_last_scan_corrupt),
         T(test_lost_status_line_keeps_next_message),
         T(test_fuzz_mutated_messages),
+        T(test_connect_without_waiting),
+        T(test_poll_skips_stale_replies),
+        T(test_poll_gives_up_and_fails_as_the_waiting_call),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

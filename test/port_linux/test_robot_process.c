@@ -712,6 +712,67 @@ static void laser_pty(void **state)
     remove_dir(dir);
 }
 
+/* ---- a laser that goes silent: its reconnects do not hold the loop --------- */
+
+/* The laser's line goes quiet (the bridge stopped: the pty stays open, no
+ * byte comes back, as from a sensor that lost power behind its cable). The
+ * robot counts it lost after laser_lost_s and tries to connect again every
+ * retry period. A connect that waited for its replies held the control
+ * loop for the reply timeout (0.5 s here) at every try; it must not: no
+ * step is late by half of that. When the line answers again, the stale
+ * replies to the tries are skipped and the scans come back. */
+static void laser_silent(void **state)
+{
+    (void)state;
+    char dir[64];
+    make_dir(dir, sizeof dir);
+    char store[300];
+    snprintf(store, sizeof store, "%s/store", dir);
+    char body[4096];
+    snprintf(body, sizeof body, base_config, "0.2", "30", dir, "urg", dir, "", store, "ekf");
+    char *rt = strstr(body, "reply_timeout_s = 0.1");
+    assert_non_null(rt);
+    rt[strlen("reply_timeout_s = 0.")] = '5';
+    write_config(dir, body);
+    const pid_t bridge = spawn_bridge(dir);
+    char err[300];
+    snprintf(err, sizeof err, "%s/err", dir);
+    const pid_t pid = spawn_robot(dir, err, NULL, NULL);
+    sleep_ms(1500);
+    const char *log = slurp(err);
+    const long scans_up = last_value(log, "scans");
+    const long late_up = last_value(log, "late_max_us");
+    kill(bridge, SIGSTOP);
+    sleep_ms(4000);
+    log = slurp(err);
+    const long late_silent = last_value(log, "late_max_us");
+    const long lost = last_value(log, "laser_lost");
+    const long failures = last_value(log, "laser_connect_failures");
+    const long steps_silent = last_value(log, "steps");
+    kill(bridge, SIGCONT);
+    sleep_ms(2500);
+    log = stop_robot(pid, err);
+    stop_bridge(bridge);
+    const long scans_end = last_value(log, "scans");
+    fprintf(stderr,
+            "laser_silent: scans %ld when it went quiet, %ld at the end; late_max_us %ld before, %ld while silent; "
+            "laser_lost %ld, connect_failures %ld, urg_err_timeout %ld, urg_messages_skipped %ld\n",
+            scans_up, scans_end, late_up, late_silent, lost, failures, last_value(log, "urg_err_timeout"),
+            last_value(log, "urg_messages_skipped"));
+    if (lost < 1 || late_silent < 0 || late_silent >= 250000 || scans_end <= scans_up + 5) {
+        fprintf(stderr, "%s\n", log);
+    }
+    assert_true(scans_up >= 5);
+    assert_int_equal(lost, 1);
+    assert_true(failures >= 1);                         /* a try ran into its deadline */
+    assert_true(last_value(log, "urg_err_timeout") >= 1); /* counted by the driver */
+    assert_true(steps_silent > 0);
+    assert_true(late_silent >= 0 && late_silent < 250000); /* no try held the loop (0.5 s reply timeout) */
+    assert_true(scans_end > scans_up + 5);              /* connected again, scanning */
+    assert_int_equal(last_value(log, "scan_errors") >= 0, 1);
+    remove_dir(dir);
+}
+
 /* ---- a storage that blocks ------------------------------------------------- */
 
 static void touch(const char *path)
@@ -821,6 +882,7 @@ int main(int argc, char **argv)
         cmocka_unit_test(observers_in_parts),
         cmocka_unit_test(kill_restart),
         cmocka_unit_test(laser_pty),
+        cmocka_unit_test(laser_silent),
         cmocka_unit_test(slow_storage),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

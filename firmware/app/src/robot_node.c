@@ -174,22 +174,55 @@ coslam_status_t robot_node_restore(robot_node_t *n, const map_estimate_t *map, u
     return st;
 }
 
-/* SCIP 2.0, parameters, then continuous scans over the configured field of view. */
-static coslam_status_t laser_connect(robot_node_t *n)
+/* The laser's connect, one step of it: SCIP 2.0, parameters, then
+ * continuous scans over the configured field of view, each command begun
+ * once the last one's reply has come (urg_scip2_begin_*, urg_scip2_poll:
+ * nothing waits, so the control loop goes on meanwhile). A reply must be
+ * whole within twice the driver's reply timeout of its command (a PP
+ * reply is about 250 bytes, 0.13 s at 19,200 baud). Returns 1 connected, 0
+ * still waiting, -1 failed (*why: the driver's code; begun again from
+ * SCIP2.0 by the next call). */
+static int laser_connect_step(robot_node_t *n, coslam_status_t *why)
 {
-    coslam_status_t st = urg_scip2_enter_scip2(&n->urg);
-    if (st == COSLAM_OK) {
-        st = urg_scip2_read_params(&n->urg, NULL);
+    for (;;) {
+        coslam_status_t st = COSLAM_OK;
+        if (!urg_scip2_pending(&n->urg)) {
+            if (n->laser_phase == 0U) {
+                st = urg_scip2_begin_enter_scip2(&n->urg);
+            } else if (n->laser_phase == 1U) {
+                st = urg_scip2_begin_read_params(&n->urg);
+            } else {
+                const urg_scip2_params_t *p = urg_scip2_params(&n->urg);
+                const double half_steps = 0.5 * n->cfg.laser_fov_rad / (COSLAM_TWO_PI / (double)p->ares);
+                const uint32_t half = (uint32_t)fmin(half_steps, 4096.0);
+                const uint32_t first = p->afrt > p->amin + half ? p->afrt - half : p->amin;
+                const uint32_t last = p->afrt + half < p->amax ? p->afrt + half : p->amax;
+                st = urg_scip2_begin_start_md(&n->urg, (uint16_t)first, (uint16_t)last, 1U, 0U, 0U);
+            }
+            n->laser_cmd_at_us = n->now_us;
+            if (st != COSLAM_OK) {
+                n->laser_phase = 0U;
+                *why = st;
+                return -1;
+            }
+        }
+        st = urg_scip2_poll(&n->urg);
+        if (st == COSLAM_E_URG_TIMEOUT) {
+            if (n->now_us - n->laser_cmd_at_us <= 2U * (uint64_t)n->cfg.urg.reply_timeout_us) {
+                return 0;
+            }
+            urg_scip2_abandon(&n->urg); /* counted as the driver's timeout */
+        }
+        if (st != COSLAM_OK) {
+            n->laser_phase = 0U;
+            *why = st;
+            return -1;
+        }
+        if (++n->laser_phase == 3U) {
+            n->laser_phase = 0U;
+            return 1;
+        }
     }
-    if (st != COSLAM_OK) {
-        return st;
-    }
-    const urg_scip2_params_t *p = urg_scip2_params(&n->urg);
-    const double half_steps = 0.5 * n->cfg.laser_fov_rad / (COSLAM_TWO_PI / (double)p->ares);
-    const uint32_t half = (uint32_t)fmin(half_steps, 4096.0);
-    const uint32_t first = p->afrt > p->amin + half ? p->afrt - half : p->amin;
-    const uint32_t last = p->afrt + half < p->amax ? p->afrt + half : p->amax;
-    return urg_scip2_start_md(&n->urg, (uint16_t)first, (uint16_t)last, 1U, 0U, 0U);
 }
 
 /* The drives' watchdog time [us]; 0 without it. */
@@ -215,8 +248,8 @@ static void note_gap(robot_node_t *n, uint64_t from, uint64_t to)
 }
 
 /* laser_optional: connect in the background, notice a laser that went
- * silent. A connect blocks up to three URG reply timeouts, so the base is
- * told to stand still first. */
+ * silent. The connect does not wait (laser_connect_step): the base goes on
+ * meanwhile, without translating while no scan comes (scan_max_age_us). */
 static coslam_status_t laser_background(robot_node_t *n)
 {
     if (n->laser_up) {
@@ -232,26 +265,23 @@ static coslam_status_t laser_background(robot_node_t *n)
         const urg_scip2_stats_t keep = *urg_scip2_stats(&n->urg);
         (void)urg_scip2_init(&n->urg, n->io.laser, &n->cfg.urg);
         n->urg.stats = keep;
+        n->laser_phase = 0U;
     }
     if (n->now_us < n->laser_retry_at_us) {
         return COSLAM_OK;
     }
-    if (n->drive_started) {
-        (void)cia402_omni_set_body_velocity(&n->drive, 0.0, 0.0, 0.0);
-        (void)cia402_omni_poll(&n->drive, n->now_us);
+    coslam_status_t st = COSLAM_OK;
+    const int r = laser_connect_step(n, &st);
+    if (r == 0) {
+        return COSLAM_OK;
     }
-    const coslam_status_t st = laser_connect(n);
-    uint64_t t = n->now_us;
-    (void)hal_clock_now_us(n->io.clock, &t);
-    note_gap(n, n->now_us, t); /* a connect to a laser that does not answer blocks up to 3 reply timeouts */
-    n->last_step_us = t;       /* the next step's gap is counted from here: the same stall once */
-    if (st == COSLAM_OK) {
+    if (r > 0) {
         n->laser_up = 1;
-        n->laser_alive_us = t;
+        n->laser_alive_us = n->now_us;
         return COSLAM_OK;
     }
     n->ctr.laser_connect_failures++;
-    n->laser_retry_at_us = t + n->cfg.retry_period_us;
+    n->laser_retry_at_us = n->now_us + n->cfg.retry_period_us;
     return st;
 }
 
@@ -531,12 +561,13 @@ coslam_status_t robot_node_step(robot_node_t *n)
     if (n->cfg.laser_optional) {
         result = laser_background(n);
     } else if (n->state == ROBOT_NODE_LASER_UP && now >= n->retry_at_us) {
-        const coslam_status_t st = laser_connect(n);
-        if (st == COSLAM_OK) {
+        coslam_status_t st = COSLAM_OK;
+        const int r = laser_connect_step(n, &st);
+        if (r > 0) {
             n->state = ROBOT_NODE_DRIVE_UP;
             n->laser_up = 1;
             n->laser_alive_us = now;
-        } else {
+        } else if (r < 0) {
             n->ctr.laser_connect_failures++;
             n->retry_at_us = now + n->cfg.retry_period_us;
             result = st;

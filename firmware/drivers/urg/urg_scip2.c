@@ -542,6 +542,7 @@ static coslam_status_t command(urg_scip2_t *u, const char *cmd, size_t n, char s
             return rs;
         }
     }
+    u->pend = URG_SCIP2_PEND_NONE; /* a command begun without waiting is abandoned */
     const coslam_status_t st = send_cmd(u, buf, n + 1U);
     if (st != COSLAM_OK) {
         return st;
@@ -567,31 +568,26 @@ static coslam_status_t simple_command(urg_scip2_t *u, const char *cmd, const cha
     return end_of_message(u);
 }
 
-coslam_status_t urg_scip2_enter_scip2(urg_scip2_t *u)
+/* Drop unread input and any broken reply: the stream starts afresh at a
+ * line start. */
+static void reset_input(urg_scip2_t *u)
 {
-    if (u == NULL) {
-        return COSLAM_E_ARG;
-    }
     (void)hal_serial_flush_input(u->serial); /* unsupported flush is harmless */
     u->rx_pos = u->rx_len = 0;
     u->last_byte_lf = 1;
     u->resync_pending = 0;
     u->streaming = 0;
-    static const char cmd[] = "SCIP2.0";
-    coslam_status_t st = send_cmd(u, "SCIP2.0\n", 8U);
+}
+
+/* SCIP2.0's reply after its echo. SCIP 1.1 answers "0" without a sum; a
+ * sensor already in SCIP 2.0 does not know the command and answers "0E" +
+ * sum. */
+static coslam_status_t scip2_rest(urg_scip2_t *u)
+{
+    coslam_status_t st = body_line(u);
     if (st != COSLAM_OK) {
         return st;
     }
-    st = await_echo(u, cmd, sizeof cmd - 1U);
-    if (st != COSLAM_OK) {
-        return st;
-    }
-    st = body_line(u);
-    if (st != COSLAM_OK) {
-        return st;
-    }
-    /* SCIP 1.1 answers "0" without a sum; a sensor already in SCIP 2.0
-     * does not know the command and answers "0E" + sum. */
     if (!(u->line_len == 1U && u->line[0] == '0')) {
         char status[3];
         st = check_status_line(u, status);
@@ -603,6 +599,25 @@ coslam_status_t urg_scip2_enter_scip2(urg_scip2_t *u)
         }
     }
     return end_of_message(u);
+}
+
+coslam_status_t urg_scip2_enter_scip2(urg_scip2_t *u)
+{
+    if (u == NULL) {
+        return COSLAM_E_ARG;
+    }
+    u->pend = URG_SCIP2_PEND_NONE;
+    reset_input(u);
+    static const char cmd[] = "SCIP2.0";
+    coslam_status_t st = send_cmd(u, "SCIP2.0\n", 8U);
+    if (st != COSLAM_OK) {
+        return st;
+    }
+    st = await_echo(u, cmd, sizeof cmd - 1U);
+    if (st != COSLAM_OK) {
+        return st;
+    }
+    return scip2_rest(u);
 }
 
 coslam_status_t urg_scip2_laser_on(urg_scip2_t *u)
@@ -726,10 +741,12 @@ static int parse_u32(const char *s, uint32_t *out)
     return 1;
 }
 
-coslam_status_t urg_scip2_read_params(urg_scip2_t *u, urg_scip2_params_t *out)
+/* PP's reply after its status line: the fields, checked, into the instance
+ * and *out (may be NULL). */
+static coslam_status_t params_rest(urg_scip2_t *u, const char status[3], urg_scip2_params_t *out)
 {
-    if (u == NULL) {
-        return COSLAM_E_ARG;
+    if (strcmp(status, "00") != 0) {
+        return status_error(u, status);
     }
     char text[8][URG_SCIP2_TEXT_MAX];
     memset(text, 0, sizeof text);
@@ -737,7 +754,7 @@ coslam_status_t urg_scip2_read_params(urg_scip2_t *u, urg_scip2_params_t *out)
         {"MODL", text[0], 0}, {"DMIN", text[1], 0}, {"DMAX", text[2], 0}, {"ARES", text[3], 0},
         {"AMIN", text[4], 0}, {"AMAX", text[5], 0}, {"AFRT", text[6], 0}, {"SCAN", text[7], 0},
     };
-    const coslam_status_t st = info_command(u, "PP", f, sizeof f / sizeof f[0]);
+    const coslam_status_t st = read_info_body(u, f, sizeof f / sizeof f[0]);
     if (st != COSLAM_OK) {
         return st;
     }
@@ -762,6 +779,19 @@ coslam_status_t urg_scip2_read_params(urg_scip2_t *u, urg_scip2_params_t *out)
         *out = p;
     }
     return COSLAM_OK;
+}
+
+coslam_status_t urg_scip2_read_params(urg_scip2_t *u, urg_scip2_params_t *out)
+{
+    if (u == NULL) {
+        return COSLAM_E_ARG;
+    }
+    char status[3];
+    const coslam_status_t st = command(u, "PP", 2U, status);
+    if (st != COSLAM_OK) {
+        return st;
+    }
+    return params_rest(u, status, out);
 }
 
 coslam_status_t urg_scip2_read_info(urg_scip2_t *u, urg_scip2_info_t *out)
@@ -933,6 +963,28 @@ static void scan_header(urg_scip2_scan_t *scan, uint16_t first, uint16_t last, u
     scan->n_points = 0U;
 }
 
+/* MD's acknowledgement after its status line (not "99"): streaming from
+ * here on. */
+static coslam_status_t md_rest(urg_scip2_t *u, const char status[3], const char *cmd, uint16_t first, uint16_t last,
+                               uint16_t cluster, uint8_t n_scans)
+{
+    if (strcmp(status, "00") != 0) {
+        return status_error(u, status);
+    }
+    const coslam_status_t st = end_of_message(u);
+    if (st != COSLAM_OK) {
+        return st;
+    }
+    memcpy(u->md_echo, cmd, 13U);
+    u->md_echo[13] = '\0';
+    u->md_first = first;
+    u->md_last = last;
+    u->md_cluster = cluster;
+    u->md_n_scans = n_scans;
+    u->streaming = 1;
+    return COSLAM_OK;
+}
+
 coslam_status_t urg_scip2_start_md(urg_scip2_t *u, uint16_t first, uint16_t last, uint16_t cluster,
                                    uint8_t interval, uint8_t n_scans)
 {
@@ -968,21 +1020,158 @@ coslam_status_t urg_scip2_start_md(urg_scip2_t *u, uint16_t first, uint16_t last
     if (st != COSLAM_OK) {
         return st;
     }
-    if (strcmp(status, "00") != 0) {
-        return status_error(u, status);
-    }
-    st = end_of_message(u);
+    return md_rest(u, status, cmd, first, last, cluster, n_scans);
+}
+
+/* ------------------------------------------------------------------------
+ * Commands without waiting (urg_scip2_begin_*, urg_scip2_poll)
+ * --------------------------------------------------------------------- */
+
+/* Send `cmd` (without LF) and note it as the command whose reply the polls
+ * wait for. */
+static coslam_status_t begin(urg_scip2_t *u, uint8_t kind, const char *cmd, size_t n)
+{
+    char buf[24];
+    COSLAM_ASSERT(n + 1U <= sizeof buf && n <= sizeof u->pend_cmd);
+    memcpy(buf, cmd, n);
+    buf[n] = '\n';
+    u->pend = URG_SCIP2_PEND_NONE;
+    const coslam_status_t st = send_cmd(u, buf, n + 1U);
     if (st != COSLAM_OK) {
         return st;
     }
-    memcpy(u->md_echo, cmd, 13U);
-    u->md_echo[13] = '\0';
-    u->md_first = first;
-    u->md_last = last;
-    u->md_cluster = cluster;
-    u->md_n_scans = n_scans;
-    u->streaming = 1;
+    memcpy(u->pend_cmd, cmd, n);
+    u->pend_len = (uint8_t)n;
+    u->pend_skipped = 0U;
+    u->pend = kind;
     return COSLAM_OK;
+}
+
+coslam_status_t urg_scip2_begin_enter_scip2(urg_scip2_t *u)
+{
+    if (u == NULL) {
+        return COSLAM_E_ARG;
+    }
+    reset_input(u);
+    return begin(u, URG_SCIP2_PEND_SCIP2, "SCIP2.0", 7U);
+}
+
+coslam_status_t urg_scip2_begin_read_params(urg_scip2_t *u)
+{
+    if (u == NULL) {
+        return COSLAM_E_ARG;
+    }
+    return begin(u, URG_SCIP2_PEND_PP, "PP", 2U);
+}
+
+coslam_status_t urg_scip2_begin_start_md(urg_scip2_t *u, uint16_t first, uint16_t last, uint16_t cluster,
+                                         uint8_t interval, uint8_t n_scans)
+{
+    if (u == NULL || interval > 9U || n_scans > 99U) {
+        return COSLAM_E_ARG;
+    }
+    const coslam_status_t st = check_range_args(u, first, last, cluster);
+    if (st != COSLAM_OK) {
+        return st;
+    }
+    char cmd[16];
+    const size_t n = format_scan_cmd(cmd, 'M', first, last, cluster, 1, interval, n_scans);
+    u->streaming = 0;
+    u->pend_first = first;
+    u->pend_last = last;
+    u->pend_cluster = cluster;
+    u->pend_n_scans = n_scans;
+    return begin(u, URG_SCIP2_PEND_MD, cmd, n);
+}
+
+/* The reply to the begun command, whose echo has been read: the rest of it,
+ * from the buffer. *stale is set for an MD scan that repeats the command as
+ * its echo (status "99": an MD of this very command still running). */
+static coslam_status_t pend_rest(urg_scip2_t *u, int *stale)
+{
+    *stale = 0;
+    if (u->pend == URG_SCIP2_PEND_SCIP2) {
+        return scip2_rest(u);
+    }
+    coslam_status_t st = body_line(u);
+    char status[3];
+    if (st == COSLAM_OK) {
+        st = check_status_line(u, status);
+    }
+    if (st != COSLAM_OK) {
+        return st;
+    }
+    if (u->pend == URG_SCIP2_PEND_PP) {
+        return params_rest(u, status, NULL);
+    }
+    if (strcmp(status, "99") == 0) {
+        *stale = 1;
+        return COSLAM_OK;
+    }
+    return md_rest(u, status, u->pend_cmd, u->pend_first, u->pend_last, u->pend_cluster, u->pend_n_scans);
+}
+
+coslam_status_t urg_scip2_poll(urg_scip2_t *u)
+{
+    if (u == NULL) {
+        return COSLAM_E_ARG;
+    }
+    if (u->pend == URG_SCIP2_PEND_NONE) {
+        return COSLAM_E_EMPTY;
+    }
+    for (;;) {
+        coslam_status_t st = gather_message(u, 0U);
+        if (st == COSLAM_E_URG_TIMEOUT) {
+            return st; /* not (whole) yet: not counted */
+        }
+        int began = 0;
+        if (st == COSLAM_OK) {
+            /* a whole message is buffered: what follows reads only it */
+            st = first_line(u, 0U, &began);
+        }
+        if (st != COSLAM_OK) {
+            u->pend = URG_SCIP2_PEND_NONE;
+            return st;
+        }
+        if (u->line_len == 0U) {
+            continue; /* a stray empty line */
+        }
+        if (u->line_len == u->pend_len && memcmp(u->line, u->pend_cmd, u->pend_len) == 0) {
+            int stale = 0;
+            st = pend_rest(u, &stale);
+            if (st != COSLAM_OK || !stale) {
+                u->pend = URG_SCIP2_PEND_NONE;
+                return st;
+            }
+        }
+        /* a reply to something else (a scan of an earlier MD, an answer to
+         * an earlier command): skipped, as a waiting command skips it */
+        if (u->pend_skipped >= u->cfg.max_skipped_messages) {
+            u->stats.err_echo++;
+            u->pend = URG_SCIP2_PEND_NONE;
+            return fail_resync(u, COSLAM_E_URG_ECHO);
+        }
+        u->pend_skipped++;
+        st = discard_to_empty_line(u, 0U, 1);
+        if (st != COSLAM_OK) {
+            u->pend = URG_SCIP2_PEND_NONE;
+            return st;
+        }
+    }
+}
+
+int urg_scip2_pending(const urg_scip2_t *u)
+{
+    return u != NULL && u->pend != URG_SCIP2_PEND_NONE;
+}
+
+void urg_scip2_abandon(urg_scip2_t *u)
+{
+    if (u == NULL || u->pend == URG_SCIP2_PEND_NONE) {
+        return;
+    }
+    u->stats.err_timeout++; /* a reply was due */
+    u->pend = URG_SCIP2_PEND_NONE;
 }
 
 coslam_status_t urg_scip2_read_scan(urg_scip2_t *u, urg_scip2_scan_t *scan, uint32_t timeout_us)

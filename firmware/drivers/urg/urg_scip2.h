@@ -197,8 +197,20 @@ typedef struct {
     uint32_t last_raw_ms;
     uint64_t stamp_ms;
     char last_status[3]; /* last error status received, e.g. "10" */
+    /* the command begun without waiting (urg_scip2_begin_*) */
+    uint8_t pend;         /* URG_SCIP2_PEND_*: what the polls wait for */
+    uint8_t pend_len;
+    uint8_t pend_skipped; /* stale replies skipped meanwhile */
+    uint8_t pend_n_scans;
+    char pend_cmd[16];    /* its echo */
+    uint16_t pend_first;
+    uint16_t pend_last;
+    uint16_t pend_cluster;
     urg_scip2_stats_t stats;
 } urg_scip2_t;
+
+/** What a begun command is (urg_scip2_t.pend; private). */
+enum { URG_SCIP2_PEND_NONE = 0, URG_SCIP2_PEND_SCIP2, URG_SCIP2_PEND_PP, URG_SCIP2_PEND_MD };
 
 /* ---------------------------------------------------------------------------
  * Set-up
@@ -292,6 +304,45 @@ coslam_status_t urg_scip2_read_scan(urg_scip2_t *u, urg_scip2_scan_t *scan, uint
  */
 coslam_status_t urg_scip2_get_scan(urg_scip2_t *u, uint16_t first, uint16_t last, uint16_t cluster,
                                    urg_scip2_scan_t *scan);
+
+/* ---------------------------------------------------------------------------
+ * The same set-up without waiting, for a control loop that must not block
+ * (the robot's reconnect of a lost laser). urg_scip2_begin_* sends the
+ * command and returns; urg_scip2_poll, called every step, reads what the
+ * port holds (every read with timeout 0) and parses the reply only once
+ * the whole message is in the receive buffer, so no call waits. The driver
+ * has no clock: the caller gives up on a reply that is late by its own
+ * clock (urg_scip2_abandon). One command at a time: a begin, or a waiting
+ * command, abandons the one begun before (not counted).
+ * ------------------------------------------------------------------------ */
+
+/** Begin SCIP2.0, as urg_scip2_enter_scip2 (drops any unread input first). */
+coslam_status_t urg_scip2_begin_enter_scip2(urg_scip2_t *u);
+
+/** Begin PP, as urg_scip2_read_params (the parameters go into the instance). */
+coslam_status_t urg_scip2_begin_read_params(urg_scip2_t *u);
+
+/** Begin MD, as urg_scip2_start_md (same arguments and refusals). */
+coslam_status_t urg_scip2_begin_start_md(urg_scip2_t *u, uint16_t first, uint16_t last, uint16_t cluster,
+                                         uint8_t interval, uint8_t n_scans);
+
+/**
+ * The reply to the begun command, if it has come. COSLAM_E_URG_TIMEOUT: not
+ * yet (not counted; still pending). COSLAM_E_EMPTY: nothing begun. Else the
+ * command is over and this is its result, as the waiting call would return
+ * it (COSLAM_OK, the corrupt-reply codes, COSLAM_E_URG_STATUS, _FIELD;
+ * replies to something else are skipped and counted as a waiting command
+ * skips them). O(bytes arrived).
+ */
+coslam_status_t urg_scip2_poll(urg_scip2_t *u);
+
+/** 1 while a begun command waits for its reply. */
+int urg_scip2_pending(const urg_scip2_t *u);
+
+/** Give up the begun command (the caller's deadline passed): counted in
+ *  err_timeout, as a waiting command that timed out. A reply that comes
+ *  later is skipped as stale by the next command. */
+void urg_scip2_abandon(urg_scip2_t *u);
 
 /* ---------------------------------------------------------------------------
  * Accessors and pure helpers (O(1) unless stated, no I/O)

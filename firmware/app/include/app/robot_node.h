@@ -213,6 +213,8 @@ typedef struct {
     int laser_up;                 /**< the laser is connected and streaming */
     uint64_t laser_retry_at_us;   /**< laser_optional: next connect attempt */
     uint64_t laser_alive_us;      /**< laser_optional: connected at */
+    uint8_t laser_phase;          /**< the connect's next command: 0 SCIP2.0, 1 PP, 2 MD */
+    uint64_t laser_cmd_at_us;     /**< the connect's command under way was sent at */
     int hold;                     /**< robot_node_hold */
     health_t health;              /**< the filter's health monitor (reads the filter only) */
 } robot_node_t;
