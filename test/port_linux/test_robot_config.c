@@ -314,6 +314,15 @@ static void bad_files_name_file_and_line(void **state)
     /* a directory opens and reads as an empty file: refused, not defaults */
     assert_int_equal(robot_config_load(&cfg, "/tmp", msg, sizeof msg), COSLAM_E_ARG);
     assert_non_null(strstr(msg, "/tmp: not a regular file"));
+    /* a read error ends the parse like the end of the file: refused and
+     * named, never taken for a shorter file with defaults after it.
+     * /proc/self/mem is a regular file whose read at offset 0 fails (EIO:
+     * nothing is mapped at address 0) */
+    robot_config_default(&cfg);
+    const robot_config_t defaults = cfg;
+    assert_int_equal(robot_config_load(&cfg, "/proc/self/mem", msg, sizeof msg), COSLAM_E_ARG);
+    assert_non_null(strstr(msg, "/proc/self/mem: read error after line 0"));
+    assert_memory_equal(&cfg, &defaults, sizeof cfg); /* nothing half-read */
 }
 
 /* Run the binary on a file; returns the exit status, stderr into err. */

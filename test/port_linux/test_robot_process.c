@@ -712,6 +712,74 @@ static void laser_pty(void **state)
     remove_dir(dir);
 }
 
+/* ---- a carried robot: the health monitor's warning line ------------------- */
+
+/* The six landmarks of write_log for 6 s, then the robot is carried off
+ * (the wheels, absent here, report nothing) and faces a bare wall: the
+ * camera's frames go on (each holds a sighting of another robot, id 7, not
+ * of this team), the mapped landmarks, in plain view by the map, go
+ * unseen. */
+static void write_carried_log(const char *path)
+{
+    FILE *f = fopen(path, "w");
+    assert_non_null(f);
+    fprintf(f, "# coslam-robot test: six landmarks, then the robot is carried to a bare wall, 5 Hz\n");
+    const point2_t lm[6] = {{2.0, 0.5}, {2.5, -0.8}, {3.0, 1.2}, {1.5, -0.3}, {3.5, 0.2}, {2.2, 1.6}};
+    rng_t rng;
+    rng_seed(&rng, 7);
+    for (int k = 0; k < 100; ++k) {
+        const double t = 0.2 * k;
+        if (k >= 30) {
+            fprintf(f, "R %.3f 7 2.0000 0.10000\n", t);
+        }
+        for (int i = 0; i < 6 && k < 30; ++i) {
+            const double r = hypot(lm[i].x, lm[i].y) + rng_normal(&rng, 0.0, 0.02);
+            const double b = atan2(lm[i].y, lm[i].x) + rng_normal(&rng, 0.0, 0.0175);
+            if (fabs(b) < 0.43) {
+                fprintf(f, "Z %.3f %d %.4f %.5f\n", t, i, r, b);
+            }
+        }
+        fprintf(f, "O %.3f 0 0 0\n", t + 0.1);
+    }
+    fclose(f);
+}
+
+/* The warning line a diverged filter prints (once per episode), on the
+ * real process: the map of the first 6 s stops explaining the sightings,
+ * and the monitor says so by name, in the status line's counters too. */
+static void diverged_warning(void **state)
+{
+    (void)state;
+    char dir[64];
+    char err[300];
+    replay_robot_dir(dir, "0.5", "30", "", err);
+    char logp[300];
+    snprintf(logp, sizeof logp, "%s/lm.log", dir);
+    write_carried_log(logp);
+    const pid_t pid = spawn_robot(dir, err, NULL, NULL);
+    sleep_ms(5000);
+    const char *log = slurp(err);
+    const long before = last_value(log, "diverged");
+    const int warned_before = strstr(log, "judges the filter diverged") != NULL;
+    sleep_ms(8000);
+    log = stop_robot(pid, err);
+    const char *w = strstr(log, "coslam-robot: warning: robot 0: the health monitor judges the filter diverged "
+                                "(episode 1; diverged)");
+    fprintf(stderr, "diverged_warning: diverged %ld before the carry, %ld at the end; warning line %s\n", before,
+            last_value(log, "diverged"), w != NULL ? "printed" : "missing");
+    if (w == NULL) {
+        fprintf(stderr, "%s\n", log);
+    }
+    assert_int_equal(before, 0);
+    assert_false(warned_before);
+    assert_non_null(w);
+    assert_true(last_value(log, "diverged") >= 1);
+    const char *eol = strchr(w, '\n');
+    assert_non_null(eol);
+    assert_null(strstr(eol, "(episode 1;")); /* once per episode */
+    remove_dir(dir);
+}
+
 /* ---- a laser that goes silent: its reconnects do not hold the loop --------- */
 
 /* The laser's line goes quiet (the bridge stopped: the pty stays open, no
@@ -883,6 +951,7 @@ int main(int argc, char **argv)
         cmocka_unit_test(kill_restart),
         cmocka_unit_test(laser_pty),
         cmocka_unit_test(laser_silent),
+        cmocka_unit_test(diverged_warning),
         cmocka_unit_test(slow_storage),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
