@@ -192,6 +192,7 @@ nlohmann::json run_metrics(const Simulation &sim)
                       {"diverged", rr.node.diverged}}},
             {"health", {{"diverged_now", rr.health.diverged != 0}, {"episodes", rr.health.episodes},
                         {"diverged_frames", rr.health.diverged_frames}, {"diverged_at_s", rr.diverged_at_s},
+                        {"unjudged_frames", rr.health.unjudged_frames},
                         {"worst_mean_nis", rr.health.worst_nis}, {"worst_unassociated", rr.health.worst_unassoc},
                         {"worst_ess_fraction", rr.health.worst_ess}, {"worst_missed", rr.health.worst_missed},
                         {"odometry_check",

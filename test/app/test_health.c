@@ -121,6 +121,7 @@ static void test_held_sighting_counts_as_neither(void **state)
         sc->assign[0] = -1;
         sc->best[0] = 0;
         sc->held[0] = (uint8_t)held;
+        g_f.u.ekf.ctr.updates++; /* the update that left this scratch */
         health_after_update(&g_h, &g_f, &z, 1);
         const health_frame_t *fr = &g_h.frame[0];
         assert_int_equal(fr->n_eligible, held ? 0 : 1);
@@ -170,6 +171,41 @@ static void test_judged_on_the_state_the_update_applies_to(void **state)
     assert_int_equal(fr->n_eligible, 0);
 }
 
+/* The monitor checks its own precondition: a frame whose update is not
+ * the one it looked at is not judged but counted. The order before
+ * slam_filter_update_prepare (look, then slam_filter_update, which applied
+ * the held inputs' 16 updates first) and an update nobody looked at. */
+static void test_a_frame_of_another_state_is_not_judged(void **state)
+{
+    (void)state;
+    slam_filter_t *f = &g_f;
+    memset(f->held, 0, sizeof f->held);
+    f->held[0].u = (odo_increment_t){0.0, 0.0, 0.5 * COSLAM_PI};
+    for (uint16_t k = 1; k <= SLAM_FILTER_HELD_FRAMES; ++k) {
+        f->held[k].is_update = 1U;
+    }
+    f->n_held = (uint16_t)(SLAM_FILTER_HELD_FRAMES + 1U);
+    f->held_next = 0U;
+    f->n_held_z = 0U;
+    f->n_held_frames = (uint16_t)SLAM_FILTER_HELD_FRAMES;
+    const sighting_t z = {3.0, 0.0, 1};
+    health_before_update(&g_h, f, &g_grid);
+    assert_int_equal(g_h.n_in_view, 1);
+    assert_int_equal(slam_filter_update(f, &z, 1), COSLAM_OK);
+    health_after_update(&g_h, f, &z, 1);
+    assert_int_equal(g_h.unjudged_frames, 1);
+    assert_int_equal(g_h.count, 0); /* nothing entered the window */
+    assert_int_equal(slam_filter_update(f, &z, 1), COSLAM_OK);
+    health_after_update(&g_h, f, &z, 1); /* not looked at */
+    assert_int_equal(g_h.unjudged_frames, 2);
+    assert_int_equal(g_h.count, 0);
+    health_before_update(&g_h, f, &g_grid); /* the right order again: judged */
+    assert_int_equal(slam_filter_update(f, &z, 1), COSLAM_OK);
+    health_after_update(&g_h, f, &z, 1);
+    assert_int_equal(g_h.unjudged_frames, 2);
+    assert_int_equal(g_h.count, 1);
+}
+
 /* A frame that fits behind the held inputs is held: prepare says so and
  * changes nothing, the apply holds it. */
 static void test_prepare_of_a_held_frame_changes_nothing(void **state)
@@ -182,14 +218,22 @@ static void test_prepare_of_a_held_frame_changes_nothing(void **state)
     f->held_next = 0U;
     f->n_held_z = 0U;
     f->n_held_frames = 0U;
-    const pose2_t before = {f->u.ekf.x[0], f->u.ekf.x[1], f->u.ekf.x[2]};
+    static ekfslam_t before;
+    before = f->u.ekf;
+    const uint32_t inputs_held = f->inputs_held;
     const sighting_t z = {3.0, 0.0, 1};
     assert_int_equal(slam_filter_update_prepare(f, 1), 1);
     assert_int_equal(f->n_held, 1);
-    assert_true(f->u.ekf.x[2] == before.theta);
+    assert_int_equal(f->holds_forced, 0);
+    assert_int_equal(f->inputs_held, inputs_held);
+    assert_memory_equal(f->u.ekf.x, before.x, sizeof before.x); /* the state untouched */
+    assert_int_equal(f->u.ekf.ctr.updates, before.ctr.updates);
+    assert_int_equal(f->u.ekf.n_lm, before.n_lm);
     assert_int_equal(slam_filter_update_apply(f, &z, 1), COSLAM_E_MERGE_PENDING);
     assert_int_equal(f->n_held, 2);
     assert_int_equal(f->n_held_frames, 1);
+    assert_int_equal(f->inputs_held, inputs_held + 1U);
+    assert_int_equal(f->u.ekf.ctr.updates, before.ctr.updates);
 }
 
 int main(void)
@@ -200,6 +244,7 @@ int main(void)
         cmocka_unit_test_setup(test_held_sighting_counts_as_neither, setup),
         cmocka_unit_test_setup(test_judged_on_the_state_the_update_applies_to, setup),
         cmocka_unit_test_setup(test_prepare_of_a_held_frame_changes_nothing, setup),
+        cmocka_unit_test_setup(test_a_frame_of_another_state_is_not_judged, setup),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -76,6 +76,11 @@ static size_t build_scan(char *out, const char *echo, const char *status, uint32
     return k;
 }
 
+/* PP's reply of a URG-04LX (the published example) */
+#define PP04_REPLY                                                                                                     \
+    "PP\n00P\nMODL:URG-04LX(Hokuyo Automatic Co.,Ltd.);N\nDMIN:20;4\nDMAX:5600;_\nARES:1024;\\\n"                     \
+    "AMIN:44;7\nAMAX:725;o\nAFRT:384;6\nSCAN:600;e\n\n"
+
 #define N04 682 /* URG-04LX: steps 44..725 */
 static uint32_t vals04[N04];
 static char msg[16384];
@@ -899,6 +904,81 @@ static void test_fuzz_mutated_messages(void **state)
     assert_true(a->scans_ok >= (uint32_t)rounds + (uint32_t)rounds / 2U);
 }
 
+/* The poll of a begun command until it ends, at most 4 polls (the fake
+ * delivers what it holds at once); still waiting: abandoned. */
+static coslam_status_t poll_to_end(fixture_t *f)
+{
+    for (int i = 0; i < 4; ++i) {
+        const coslam_status_t st = urg_scip2_poll(&f->urg);
+        if (st != COSLAM_E_URG_TIMEOUT) {
+            return st;
+        }
+    }
+    urg_scip2_abandon(&f->urg);
+    return COSLAM_E_URG_TIMEOUT;
+}
+
+static uint32_t err_sum(const urg_scip2_stats_t *a)
+{
+    return a->err_timeout + a->err_io + a->err_checksum + a->err_line + a->err_garbage + a->err_echo +
+           a->err_status + a->err_field + a->err_capacity;
+}
+
+/* The commands without waiting under the same mutations: a mutated PP
+ * reply (after a stale scan), then two clean ones for two more begun PPs.
+ * Every command that fails bumps exactly one error counter, none that
+ * succeeds does, and the last always succeeds: the driver recovers. */
+static void test_fuzz_poll_mutated_replies(void **state)
+{
+    fixture_t *f = *state;
+    rng_t rng;
+    rng_seed(&rng, 0xB00C);
+    uint32_t v[30];
+    const int rounds = COSLAM_TEST_FULL ? 20000 : 2000;
+    int failed = 0;
+    for (int round = 0; round < rounds; ++round) {
+        for (int i = 0; i < 30; ++i) v[i] = 20 + rng_below(&rng, 5000);
+        size_t n = build_scan(msg, "MD0044007301000", "99", 100 + (uint32_t)round, v, 30, CORRUPT_NONE, 0);
+        memcpy(msg + n, PP04_REPLY, strlen(PP04_REPLY));
+        n += strlen(PP04_REPLY);
+        const int n_mut = 1 + (int)rng_below(&rng, 4);
+        for (int m = 0; m < n_mut && n > 2; ++m) {
+            const size_t at = rng_below(&rng, (uint32_t)n);
+            switch (rng_below(&rng, 3)) {
+            case 0: msg[at] = (char)rng_below(&rng, 256); break;
+            case 1: memmove(msg + at, msg + at + 1, n - at - 1); --n; break;
+            default: memmove(msg + at + 1, msg + at, n - at); msg[at] = (char)rng_below(&rng, 256); ++n; break;
+            }
+        }
+        f->fake.stream_len = f->fake.pos = 0;
+        f->fake.n_segments = 0;
+        f->fake.n_writes = 0;
+        f->fake.n_written = 0;
+        fake_add(&f->fake, 1, msg, n);
+        fake_add_str(&f->fake, 2, PP04_REPLY);
+        fake_add_str(&f->fake, 3, PP04_REPLY);
+        coslam_status_t st = COSLAM_OK;
+        for (int c = 0; c < 3; ++c) {
+            const uint32_t before = err_sum(urg_scip2_stats(&f->urg));
+            assert_int_equal(urg_scip2_begin_read_params(&f->urg), COSLAM_OK);
+            st = poll_to_end(f);
+            const uint32_t counted = err_sum(urg_scip2_stats(&f->urg)) - before;
+            ASSERT_TRUE_MSG(counted == (st == COSLAM_OK ? 0U : 1U), "round %d command %d: %s, %u counted\n", round,
+                            c, coslam_status_str(st), counted);
+            failed += st != COSLAM_OK;
+            assert_false(urg_scip2_pending(&f->urg));
+        }
+        ASSERT_TRUE_MSG(st == COSLAM_OK, "round %d: no recovery (%s)\n", round, coslam_status_str(st));
+        assert_int_equal(urg_scip2_params(&f->urg)->ares, 1024);
+    }
+    const urg_scip2_stats_t *a = urg_scip2_stats(&f->urg);
+    print_message("poll fuzz: %d rounds, %d commands failed; timeout %u, checksum %u, line %u, garbage %u, echo %u, "
+                  "field %u, skipped %u\n",
+                  rounds, failed, a->err_timeout, a->err_checksum, a->err_line, a->err_garbage, a->err_echo,
+                  a->err_field, a->messages_skipped);
+    assert_true(failed > 0 && a->err_checksum > 0 && a->err_line + a->err_field > 0);
+}
+
 static void test_init_args(void **state)
 {
     (void)state;
@@ -919,10 +999,6 @@ static void test_init_args(void **state)
  * The set-up without waiting (urg_scip2_begin_*, urg_scip2_poll)
  * ------------------------------------------------------------------------ */
 
-#define PP04_REPLY                                                                                                     \
-    "PP\n00P\nMODL:URG-04LX(Hokuyo Automatic Co.,Ltd.);N\nDMIN:20;4\nDMAX:5600;_\nARES:1024;\\\n"                     \
-    "AMIN:44;7\nAMAX:725;o\nAFRT:384;6\nSCAN:600;e\n\n"
-
 /* The robot's connect: SCIP2.0, PP, MD, each reply arriving in two halves,
  * the second held back until the test releases it. Every poll before that
  * returns "not yet" without counting anything and without reading past what
@@ -932,14 +1008,11 @@ static void test_connect_without_waiting(void **state)
 {
     fixture_t *f = *state;
     const char *replies[3] = {"SCIP2.0\n0\n\n", PP04_REPLY, "MD0044072501000\n00P\n\n"};
-    for (unsigned k = 0; k < 3; ++k) {
-        const size_t n = strlen(replies[k]);
-        fake_add(&f->fake, k + 1U, replies[k], n / 2U);
-        fake_add(&f->fake, 100U * (k + 1U), replies[k] + n / 2U, n - n / 2U);
-    }
     const urg_scip2_stats_t before = *urg_scip2_stats(&f->urg);
     assert_int_equal(urg_scip2_poll(&f->urg), COSLAM_E_EMPTY); /* nothing begun */
     for (unsigned k = 0; k < 3; ++k) {
+        const size_t half = strlen(replies[k]) / 2U;
+        fake_add(&f->fake, k + 1U, replies[k], half); /* readable once its command is written */
         f->fake.n_written = 0;
         coslam_status_t st = k == 0U ? urg_scip2_begin_enter_scip2(&f->urg)
                              : k == 1U ? urg_scip2_begin_read_params(&f->urg)
@@ -951,7 +1024,7 @@ static void test_connect_without_waiting(void **state)
             assert_true(urg_scip2_pending(&f->urg));
         }
         assert_memory_equal(urg_scip2_stats(&f->urg), &before, sizeof before); /* nothing counted */
-        f->fake.released = 100U * (k + 1U) - f->fake.n_writes; /* the rest of this reply only */
+        fake_add_str(&f->fake, 0U, replies[k] + half); /* the rest */
         assert_int_equal(urg_scip2_poll(&f->urg), COSLAM_OK);
         assert_false(urg_scip2_pending(&f->urg));
         assert_int_equal(urg_scip2_poll(&f->urg), COSLAM_E_EMPTY);
@@ -1026,9 +1099,6 @@ static void test_poll_gives_up_and_fails_as_the_waiting_call(void **state)
     assert_false(urg_scip2_pending(&f->urg));
 
     /* refused: MD while the laser is broken ("50" + sum) */
-    f->fake.pos = f->fake.stream_len;
-    f->urg.resync_pending = 0;
-    f->urg.last_byte_lf = 1;
     char refusal[32];
     sprintf(refusal, "MD0044072501000\n50%c\n\n", sum_of("50", 2));
     fake_add_str(&f->fake, 4, refusal);
@@ -1050,6 +1120,105 @@ static void test_poll_gives_up_and_fails_as_the_waiting_call(void **state)
     assert_int_equal(f->fake.n_writes, writes);
     assert_int_equal(urg_scip2_begin_read_params(NULL), COSLAM_E_ARG);
     assert_int_equal(urg_scip2_poll(NULL), COSLAM_E_ARG);
+}
+
+/* A reply that breaks off costs only itself, as for the waiting commands:
+ * abandoned with part of it buffered (its end lost), the next begun
+ * command still gets its own reply; and a begin after a waiting command
+ * whose reply's end was lost does too (the rest, should it come later,
+ * begins with a line that is not the echo and is skipped). */
+static void test_poll_after_a_broken_reply(void **state)
+{
+    fixture_t *f = *state;
+    fake_add_str(&f->fake, 1, "PP\n00P\nMODL:URG-04LX(Hokuyo Automatic Co.,Ltd.);N\n"); /* end lost */
+    fake_add_str(&f->fake, 2, "MD0044072501000\n00P\n\n");
+    assert_int_equal(urg_scip2_begin_read_params(&f->urg), COSLAM_OK);
+    assert_int_equal(urg_scip2_poll(&f->urg), COSLAM_E_URG_TIMEOUT);
+    urg_scip2_abandon(&f->urg);
+    assert_int_equal(urg_scip2_begin_start_md(&f->urg, 44, 725, 1, 0, 0), COSLAM_OK);
+    assert_int_equal(urg_scip2_poll(&f->urg), COSLAM_OK);
+    assert_true(urg_scip2_is_streaming(&f->urg));
+
+    /* a waiting command whose reply's final LF is lost, then a begun one */
+    fixture_t *g = f;
+    fake_init(&g->fake);
+    assert_int_equal(urg_scip2_init(&g->urg, &g->fake.dev, NULL), COSLAM_OK);
+    fake_add_str(&g->fake, 1, "BM\n00P\n");
+    fake_add_str(&g->fake, 2, PP04_REPLY);
+    assert_int_equal(urg_scip2_laser_on(&g->urg), COSLAM_E_URG_TIMEOUT);
+    assert_int_equal(urg_scip2_begin_read_params(&g->urg), COSLAM_OK);
+    assert_int_equal(urg_scip2_poll(&g->urg), COSLAM_OK);
+    assert_int_equal(urg_scip2_params(&g->urg)->ares, 1024);
+    assert_int_equal(urg_scip2_stats(&g->urg)->resyncs, 1); /* counted as command() counts it */
+
+    /* the rest of an abandoned reply arriving late is skipped as stale */
+    fake_init(&g->fake);
+    assert_int_equal(urg_scip2_init(&g->urg, &g->fake.dev, NULL), COSLAM_OK);
+    fake_add_str(&g->fake, 1, "PP\n00P\nMODL:URG-04LX(Hokuyo Automatic Co.,Ltd.);N\n");
+    assert_int_equal(urg_scip2_begin_read_params(&g->urg), COSLAM_OK);
+    assert_int_equal(urg_scip2_poll(&g->urg), COSLAM_E_URG_TIMEOUT);
+    urg_scip2_abandon(&g->urg);
+    fake_add_str(&g->fake, 2, "DMIN:20;4\nDMAX:5600;_\n\nMD0044072501000\n00P\n\n");
+    assert_int_equal(urg_scip2_begin_start_md(&g->urg, 44, 725, 1, 0, 0), COSLAM_OK);
+    assert_int_equal(urg_scip2_poll(&g->urg), COSLAM_OK);
+    assert_true(urg_scip2_is_streaming(&g->urg));
+    assert_int_equal(urg_scip2_stats(&g->urg)->messages_skipped, 1);
+}
+
+/* A stale message longer than the receive buffer (a scan of a bigger MD
+ * left running by another tool) is skipped as it streams in, as a waiting
+ * command skips it; stray empty lines count against max_skipped_messages
+ * in both. */
+static void test_poll_skips_what_a_waiting_command_skips(void **state)
+{
+    fixture_t *f = *state;
+    static char big[URG_SCIP2_RX_CAP + 400];
+    size_t n = (size_t)sprintf(big, "ME0000108001000\n99b\n");
+    while (n < URG_SCIP2_RX_CAP + 200U) {
+        memcpy(big + n, "0123456789012345678901234567890123456789012345678901234567890123X\n", 66);
+        n += 66;
+    }
+    big[n++] = '\n';
+    fake_add(&f->fake, 1, big, n);
+    fake_add_str(&f->fake, 1, PP04_REPLY);
+    assert_int_equal(urg_scip2_read_params(&f->urg, NULL), COSLAM_OK);
+    fake_add(&f->fake, 2, big, n);
+    fake_add_str(&f->fake, 2, PP04_REPLY);
+    f->fake.max_chunk = 700; /* it streams in over several reads */
+    assert_int_equal(urg_scip2_begin_read_params(&f->urg), COSLAM_OK);
+    assert_int_equal(urg_scip2_poll(&f->urg), COSLAM_OK);
+    const urg_scip2_stats_t *st = urg_scip2_stats(&f->urg);
+    assert_int_equal(st->messages_skipped, 2);
+    assert_int_equal(st->err_garbage, 0);
+    assert_int_equal(st->bytes_discarded, 0);
+
+    const unsigned max = f->urg.cfg.max_skipped_messages;
+    char lines[64];
+    memset(lines, '\n', max + 1U);
+    lines[max + 1U] = '\0';
+    fake_add_str(&f->fake, 3, lines);
+    fake_add_str(&f->fake, 3, PP04_REPLY);
+    assert_int_equal(urg_scip2_read_params(&f->urg, NULL), COSLAM_E_URG_ECHO);
+    fake_add_str(&f->fake, 4, lines);
+    fake_add_str(&f->fake, 4, PP04_REPLY);
+    assert_int_equal(urg_scip2_begin_read_params(&f->urg), COSLAM_OK);
+    assert_int_equal(urg_scip2_poll(&f->urg), COSLAM_E_URG_ECHO);
+    assert_int_equal(urg_scip2_stats(&f->urg)->err_echo, 2);
+}
+
+/* While a command is begun, what comes is its poll's: read_scan of a
+ * running MD takes none of it. A refused begin gives up the one before. */
+static void test_one_command_at_a_time(void **state)
+{
+    fixture_t *f = *state;
+    start_md04(f, 0);
+    fake_add_str(&f->fake, 2, PP04_REPLY);
+    assert_int_equal(urg_scip2_begin_read_params(&f->urg), COSLAM_OK);
+    assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_E_EMPTY);
+    assert_int_equal(urg_scip2_poll(&f->urg), COSLAM_OK);
+    assert_int_equal(urg_scip2_begin_read_params(&f->urg), COSLAM_OK);
+    assert_int_equal(urg_scip2_begin_start_md(&f->urg, 44, 725, 1, 10, 0), COSLAM_E_ARG);
+    assert_false(urg_scip2_pending(&f->urg));
 }
 
 int main(void)
@@ -1098,6 +1267,10 @@ int main(void)
         T(test_connect_without_waiting),
         T(test_poll_skips_stale_replies),
         T(test_poll_gives_up_and_fails_as_the_waiting_call),
+        T(test_poll_after_a_broken_reply),
+        T(test_poll_skips_what_a_waiting_command_skips),
+        T(test_one_command_at_a_time),
+        T(test_fuzz_poll_mutated_replies),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -9,6 +9,8 @@
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <errno.h>
+#include <fcntl.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -318,11 +320,22 @@ static void bad_files_name_file_and_line(void **state)
      * named, never taken for a shorter file with defaults after it.
      * /proc/self/mem is a regular file whose read at offset 0 fails (EIO:
      * nothing is mapped at address 0) */
+    int fd = open("/proc/self/mem", O_RDONLY);
+    char byte;
+    const int read_fails = fd >= 0 && read(fd, &byte, 1) < 0 && errno == EIO;
+    if (fd >= 0) {
+        close(fd);
+    }
+    if (!read_fails) {
+        print_message("skipped the read-error case: /proc/self/mem does not fail its read with EIO here\n");
+        return;
+    }
     robot_config_default(&cfg);
-    const robot_config_t defaults = cfg;
+    static robot_config_t defaults;
+    memcpy(&defaults, &cfg, sizeof cfg);
     assert_int_equal(robot_config_load(&cfg, "/proc/self/mem", msg, sizeof msg), COSLAM_E_ARG);
     assert_non_null(strstr(msg, "/proc/self/mem: read error after line 0"));
-    assert_memory_equal(&cfg, &defaults, sizeof cfg); /* nothing half-read */
+    assert_memory_equal(&cfg, &defaults, sizeof cfg); /* nothing read: the defaults as they were */
 }
 
 /* Run the binary on a file; returns the exit status, stderr into err. */

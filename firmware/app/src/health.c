@@ -168,6 +168,8 @@ void health_before_update(health_t *h, const slam_filter_t *f, const occ_grid_t 
             }
         }
         h->added_before = e->ctr.landmarks_added;
+        h->updates_before = e->ctr.updates;
+        h->looked = 1;
         return;
     }
     const fastslam_t *fs = &f->u.fs;
@@ -188,10 +190,19 @@ void health_before_update(health_t *h, const slam_filter_t *f, const occ_grid_t 
         }
     }
     h->added_before = fs->ctr.landmarks_added;
+    h->updates_before = fs->ctr.updates;
+    h->looked = 1;
 }
 
 void health_after_update(health_t *h, const slam_filter_t *f, const sighting_t *z, int n)
 {
+    const uint32_t updates = f->kind == SLAM_FILTER_EKF ? f->u.ekf.ctr.updates : f->u.fs.ctr.updates;
+    const int same = h->looked && updates == h->updates_before + 1U;
+    h->looked = 0;
+    if (!same) {
+        h->unjudged_frames++;
+        return;
+    }
     const slam_params_t *sp = slam_filter_params(f);
     health_frame_t fr;
     memset(&fr, 0, sizeof fr);

@@ -682,7 +682,9 @@ coslam_status_t robot_node_shutdown(robot_node_t *n)
     }
     if (n->state != ROBOT_NODE_SHUTDOWN) {
         flush_prediction(n);
-        if (urg_scip2_is_streaming(&n->urg)) {
+        /* streaming, or a connect under way (its MD may be about to start
+         * the scans): QT, which ends either (and gives up the command) */
+        if (urg_scip2_is_streaming(&n->urg) || urg_scip2_pending(&n->urg)) {
             (void)urg_scip2_laser_off(&n->urg);
         }
         n->laser_up = 0;

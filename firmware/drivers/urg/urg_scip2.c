@@ -215,6 +215,7 @@ static coslam_status_t next_byte(urg_scip2_t *u, uint32_t timeout_us, uint8_t *b
 static coslam_status_t discard_to_empty_line(urg_scip2_t *u, uint32_t timeout_us, int is_skip)
 {
     u->resync_pending = 1;
+    u->resync_skip = 0;
     /* no reply is longer than the receive buffer: a peer that sends lines
      * but never an empty one (another device on the port) ends the call
      * after this many bytes instead of holding it for ever */
@@ -250,6 +251,7 @@ static coslam_status_t discard_to_empty_line(urg_scip2_t *u, uint32_t timeout_us
 static coslam_status_t fail_resync(urg_scip2_t *u, coslam_status_t st)
 {
     u->resync_pending = 1;
+    u->resync_skip = 0;
     return st;
 }
 
@@ -271,16 +273,38 @@ static int message_end_buffered(const urg_scip2_t *u)
     return 0;
 }
 
+/* The line at rx_pos is whole in the buffer, printable and at most
+ * URG_SCIP2_LINE_MAX long: its length, or -1 (not whole yet, or a line
+ * first_line will refuse as garbage). */
+static long buffered_line(const urg_scip2_t *u)
+{
+    for (size_t i = u->rx_pos; i < u->rx_len; ++i) {
+        const uint8_t b = u->rx[i];
+        if (b == LF) {
+            return (long)(i - u->rx_pos);
+        }
+        if (b < 0x20U || b > 0x7EU || i - u->rx_pos >= URG_SCIP2_LINE_MAX) {
+            return -1;
+        }
+    }
+    return -1;
+}
+
 /*
- * For urg_scip2_read_scan: finish a pending resynchronisation and make sure
- * a whole message is in the receive buffer, reading what the port holds
- * (each read waits at most timeout_us) but never waiting inside a message.
+ * For urg_scip2_read_scan and urg_scip2_poll: finish a pending
+ * resynchronisation and make sure a whole message is in the receive buffer,
+ * reading what the port holds (each read waits at most timeout_us) but never
+ * waiting inside a message. With `echo` (the poll of a begun command), a
+ * message whose first line is whole and is not `echo` is skipped as it
+ * streams in (a stale scan of any length costs no buffer), and a stray
+ * empty line is consumed; *skipped counts both (the caller's budget).
  * COSLAM_OK: the parse that follows reads only buffered bytes, since no
  * parse reads past a message's empty line. COSLAM_E_URG_TIMEOUT: no whole
  * message yet, what came is kept (not counted). COSLAM_E_URG_GARBAGE: the
  * buffer filled without a message end (counted; discarded, resync pending).
  */
-static coslam_status_t gather_message(urg_scip2_t *u, uint32_t timeout_us)
+static coslam_status_t gather_message(urg_scip2_t *u, uint32_t timeout_us, const char *echo, size_t echo_len,
+                                      unsigned *skipped)
 {
     for (;;) {
         while (u->resync_pending && u->rx_pos < u->rx_len) {
@@ -289,9 +313,29 @@ static coslam_status_t gather_message(urg_scip2_t *u, uint32_t timeout_us)
             u->last_byte_lf = (b == LF);
             if (b == LF && at_line_start) {
                 u->resync_pending = 0;
-                u->stats.resyncs++;
-            } else {
+                if (u->resync_skip) {
+                    u->stats.messages_skipped++;
+                } else {
+                    u->stats.resyncs++;
+                }
+                u->resync_skip = 0;
+            } else if (!u->resync_skip) {
                 u->stats.bytes_discarded++;
+            }
+        }
+        if (!u->resync_pending && echo != NULL && u->last_byte_lf) {
+            const long len = buffered_line(u);
+            if (len == 0) {
+                u->rx_pos++; /* a stray empty line: nothing to skip */
+                (*skipped)++;
+                continue;
+            }
+            if (len > 0 && ((size_t)len != echo_len || memcmp(&u->rx[u->rx_pos], echo, echo_len) != 0)) {
+                u->rx_pos += (size_t)len + 1U; /* its first line; the rest as it comes */
+                u->resync_pending = 1;
+                u->resync_skip = 1;
+                (*skipped)++;
+                continue;
             }
         }
         if (!u->resync_pending && message_end_buffered(u)) {
@@ -529,6 +573,7 @@ static coslam_status_t command(urg_scip2_t *u, const char *cmd, size_t n, char s
     COSLAM_ASSERT(n + 1U <= sizeof buf);
     memcpy(buf, cmd, n);
     buf[n] = '\n';
+    u->pend = URG_SCIP2_PEND_NONE; /* a command begun without waiting is abandoned */
     if (u->resync_pending) {
         /* the rest of a broken reply, before this command's reply can come:
          * after it, that reply would be taken for the rest and thrown away */
@@ -542,7 +587,6 @@ static coslam_status_t command(urg_scip2_t *u, const char *cmd, size_t n, char s
             return rs;
         }
     }
-    u->pend = URG_SCIP2_PEND_NONE; /* a command begun without waiting is abandoned */
     const coslam_status_t st = send_cmd(u, buf, n + 1U);
     if (st != COSLAM_OK) {
         return st;
@@ -576,6 +620,7 @@ static void reset_input(urg_scip2_t *u)
     u->rx_pos = u->rx_len = 0;
     u->last_byte_lf = 1;
     u->resync_pending = 0;
+    u->resync_skip = 0;
     u->streaming = 0;
 }
 
@@ -1028,7 +1073,12 @@ coslam_status_t urg_scip2_start_md(urg_scip2_t *u, uint16_t first, uint16_t last
  * --------------------------------------------------------------------- */
 
 /* Send `cmd` (without LF) and note it as the command whose reply the polls
- * wait for. */
+ * wait for. What is buffered is dropped first, and a pending
+ * resynchronisation with it: no reply is due (nothing was pending), and the
+ * rest of a broken or abandoned one, should it still come, begins with a
+ * line that is not this echo and is skipped by the polls. The write does
+ * not wait either: a port that cannot take the command now fails it
+ * (COSLAM_E_URG_IO). */
 static coslam_status_t begin(urg_scip2_t *u, uint8_t kind, const char *cmd, size_t n)
 {
     char buf[24];
@@ -1036,9 +1086,18 @@ static coslam_status_t begin(urg_scip2_t *u, uint8_t kind, const char *cmd, size
     memcpy(buf, cmd, n);
     buf[n] = '\n';
     u->pend = URG_SCIP2_PEND_NONE;
-    const coslam_status_t st = send_cmd(u, buf, n + 1U);
-    if (st != COSLAM_OK) {
-        return st;
+    if (u->resync_pending && !u->resync_skip) {
+        u->stats.resyncs++; /* its end was lost, as command() counts it */
+    }
+    u->stats.bytes_discarded += (uint32_t)(u->rx_len - u->rx_pos);
+    u->rx_pos = u->rx_len = 0U;
+    u->last_byte_lf = 1;
+    u->resync_pending = 0;
+    u->resync_skip = 0;
+    const hal_status_t h = hal_serial_write(u->serial, (const uint8_t *)buf, n + 1U, 0U);
+    if (h != HAL_OK) {
+        u->stats.err_io++;
+        return COSLAM_E_URG_IO;
     }
     memcpy(u->pend_cmd, cmd, n);
     u->pend_len = (uint8_t)n;
@@ -1067,7 +1126,11 @@ coslam_status_t urg_scip2_begin_read_params(urg_scip2_t *u)
 coslam_status_t urg_scip2_begin_start_md(urg_scip2_t *u, uint16_t first, uint16_t last, uint16_t cluster,
                                          uint8_t interval, uint8_t n_scans)
 {
-    if (u == NULL || interval > 9U || n_scans > 99U) {
+    if (u == NULL) {
+        return COSLAM_E_ARG;
+    }
+    u->pend = URG_SCIP2_PEND_NONE; /* refused or not, the one begun before is given up */
+    if (interval > 9U || n_scans > 99U) {
         return COSLAM_E_ARG;
     }
     const coslam_status_t st = check_range_args(u, first, last, cluster);
@@ -1111,6 +1174,19 @@ static coslam_status_t pend_rest(urg_scip2_t *u, int *stale)
     return md_rest(u, status, u->pend_cmd, u->pend_first, u->pend_last, u->pend_cluster, u->pend_n_scans);
 }
 
+/* One more stale reply skipped while a command waits: within
+ * max_skipped_messages, as a waiting command's (stray empty lines count). */
+static int pend_skip_ok(urg_scip2_t *u, unsigned n)
+{
+    if ((unsigned)u->pend_skipped + n > u->cfg.max_skipped_messages) {
+        u->stats.err_echo++;
+        u->pend = URG_SCIP2_PEND_NONE;
+        return 0;
+    }
+    u->pend_skipped = (uint8_t)(u->pend_skipped + n);
+    return 1;
+}
+
 coslam_status_t urg_scip2_poll(urg_scip2_t *u)
 {
     if (u == NULL) {
@@ -1120,38 +1196,34 @@ coslam_status_t urg_scip2_poll(urg_scip2_t *u)
         return COSLAM_E_EMPTY;
     }
     for (;;) {
-        coslam_status_t st = gather_message(u, 0U);
+        unsigned skipped = 0U;
+        coslam_status_t st = gather_message(u, 0U, u->pend_cmd, u->pend_len, &skipped);
+        if (!pend_skip_ok(u, skipped)) {
+            return COSLAM_E_URG_ECHO; /* the last one's rest is being skipped */
+        }
         if (st == COSLAM_E_URG_TIMEOUT) {
             return st; /* not (whole) yet: not counted */
         }
         int began = 0;
         if (st == COSLAM_OK) {
-            /* a whole message is buffered: what follows reads only it */
+            /* a whole message is buffered, its first line this echo (or one
+             * first_line refuses): what follows reads only it */
             st = first_line(u, 0U, &began);
         }
         if (st != COSLAM_OK) {
             u->pend = URG_SCIP2_PEND_NONE;
             return st;
         }
-        if (u->line_len == 0U) {
-            continue; /* a stray empty line */
-        }
-        if (u->line_len == u->pend_len && memcmp(u->line, u->pend_cmd, u->pend_len) == 0) {
-            int stale = 0;
-            st = pend_rest(u, &stale);
-            if (st != COSLAM_OK || !stale) {
-                u->pend = URG_SCIP2_PEND_NONE;
-                return st;
-            }
-        }
-        /* a reply to something else (a scan of an earlier MD, an answer to
-         * an earlier command): skipped, as a waiting command skips it */
-        if (u->pend_skipped >= u->cfg.max_skipped_messages) {
-            u->stats.err_echo++;
+        int stale = 0;
+        st = pend_rest(u, &stale);
+        if (st != COSLAM_OK || !stale) {
             u->pend = URG_SCIP2_PEND_NONE;
+            return st;
+        }
+        /* a scan of an MD of this very command still running: skipped */
+        if (!pend_skip_ok(u, 1U)) {
             return fail_resync(u, COSLAM_E_URG_ECHO);
         }
-        u->pend_skipped++;
         st = discard_to_empty_line(u, 0U, 1);
         if (st != COSLAM_OK) {
             u->pend = URG_SCIP2_PEND_NONE;
@@ -1172,6 +1244,11 @@ void urg_scip2_abandon(urg_scip2_t *u)
     }
     u->stats.err_timeout++; /* a reply was due */
     u->pend = URG_SCIP2_PEND_NONE;
+    if (u->rx_pos < u->rx_len || !u->last_byte_lf) {
+        /* part of a reply came: broken, as a waiting command's that stops
+         * mid-message (the next command discards its rest) */
+        (void)fail_resync(u, COSLAM_E_URG_TIMEOUT);
+    }
 }
 
 coslam_status_t urg_scip2_read_scan(urg_scip2_t *u, urg_scip2_scan_t *scan, uint32_t timeout_us)
@@ -1179,12 +1256,12 @@ coslam_status_t urg_scip2_read_scan(urg_scip2_t *u, urg_scip2_scan_t *scan, uint
     if (u == NULL || scan == NULL) {
         return COSLAM_E_ARG;
     }
-    if (!u->streaming) {
-        return COSLAM_E_EMPTY;
+    if (!u->streaming || u->pend != URG_SCIP2_PEND_NONE) {
+        return COSLAM_E_EMPTY; /* while a command is begun, what comes is its poll's */
     }
     scan_header(scan, u->md_first, u->md_last, u->md_cluster);
     for (;;) {
-        coslam_status_t st = gather_message(u, timeout_us);
+        coslam_status_t st = gather_message(u, timeout_us, NULL, 0U, NULL);
         if (st != COSLAM_OK) {
             return st;
         }

@@ -182,6 +182,8 @@ typedef struct {
     size_t rx_len;
     int last_byte_lf;   /* the last consumed byte was LF */
     int resync_pending; /* discard up to the next empty line before parsing */
+    int resync_skip;    /* ... and it is a stale message being skipped (counted in
+                           messages_skipped, not as a resync) */
     /* the line being assembled */
     char line[URG_SCIP2_LINE_MAX + 1];
     size_t line_len;

@@ -124,7 +124,8 @@ void robot_config_default(robot_config_t *cfg);
 /**
  * Apply the INI file `path` on top of *cfg (start from robot_config_default).
  * Returns COSLAM_OK; COSLAM_E_ARG (the file is wrong: msg holds
- * "FILE:LINE: ..." or "FILE: cannot open ..."); COSLAM_E_ARG also for NULL
+ * "FILE:LINE: ...", "FILE: cannot open ...", "FILE: not a regular file
+ * ..." or "FILE: read error after line N"); COSLAM_E_ARG also for NULL
  * arguments. On error *cfg holds the keys read before the error.
  */
 coslam_status_t robot_config_load(robot_config_t *cfg, const char *path, char *msg, size_t msg_cap);

@@ -94,6 +94,7 @@ void robot_status_collect(robot_status_t *s, robot_node_t *node, const robot_dev
     u64(s, "gpio_attach_failures", c->gpio_attach_failures);
     u64(s, "diverged", c->diverged);
     u64(s, "diverged_now", (uint64_t)robot_node_diverged(node));
+    u64(s, "health_unjudged", node->health.unjudged_frames);
     u64(s, "can_errors", c->can_errors);
 
     const meeting_counters_t *m = robot_node_meeting_counters(node);

@@ -123,6 +123,10 @@ typedef struct {
     uint16_t head, count;
     /* before the current update */
     uint32_t added_before;
+    uint32_t updates_before;      /**< the filter's update count health_before_update saw */
+    int looked;                   /**< health_before_update ran for the coming update */
+    uint32_t unjudged_frames;     /**< frames not judged: the update that came was not the one
+                                       looked at (another update in between, or none looked at) */
     uint8_t in_view_sig[32];      /**< bit set of the classes in view (256 bits) */
     uint16_t n_in_view;
     uint16_t in_view[COSLAM_MAX_LANDMARKS];     /**< EKF-SLAM: their indices */
@@ -179,7 +183,10 @@ void health_on_motion_scan(health_t *h, uint64_t now_us, pose2_t odo_pose, const
  */
 void health_before_update(health_t *h, const slam_filter_t *f, const occ_grid_t *g);
 
-/** After slam_filter_update_apply(f, z, n): the frame's figures, the window, the flag. O(window + n x landmarks in view). */
+/** After slam_filter_update_apply(f, z, n): the frame's figures, the window, the flag. A frame whose
+ *  update is not exactly the one health_before_update looked at (the filter's update count moved by
+ *  other than one since, or nothing was looked at) is not judged, and counted in unjudged_frames: its
+ *  "in view" would describe another state. O(window + n x landmarks in view). */
 void health_after_update(health_t *h, const slam_filter_t *f, const sighting_t *z, int n);
 
 #ifdef __cplusplus

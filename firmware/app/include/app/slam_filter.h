@@ -195,12 +195,16 @@ coslam_status_t slam_filter_update(slam_filter_t *f, const sighting_t *z, int n)
  * The first half of slam_filter_update, for a caller that reads the filter
  * between the halves (the robot's health monitor). What must finish before
  * an update of n sightings can apply is finished here: a Fast-SLAM merge
- * or send export held past SLAM_FILTER_MERGE_MAX_UPDATES, or an EKF-SLAM
- * merge whose held inputs the frame would not fit behind (and those held
- * inputs, applied). So what the caller reads next is the state the update
- * applies to. Returns 1 if the frame will be held instead (EKF-SLAM merge
- * in parts, nothing applied: the apply returns COSLAM_E_MERGE_PENDING), 0
- * if it will update. Call once per frame, then the apply with the same n.
+ * or send export held past SLAM_FILTER_MERGE_MAX_UPDATES (their counters
+ * count updates here), or, for EKF-SLAM, whatever holds its inputs (a
+ * merge or a send export in parts, held inputs still to apply) when the
+ * frame would not fit behind them (then those held inputs are applied;
+ * the queue may be compacted either way). So what the caller reads next is
+ * the state the update applies to. Returns 1 if the frame will be held
+ * instead (EKF-SLAM, nothing applied: the apply returns
+ * COSLAM_E_MERGE_PENDING), 0 if it will update. Call it once per frame,
+ * then the apply with the same n: an apply without it skips the
+ * finishing.
  */
 int slam_filter_update_prepare(slam_filter_t *f, int n);
 
