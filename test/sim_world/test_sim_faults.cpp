@@ -93,6 +93,7 @@ struct FaultRun {
     double first_merge_s = -1.0;
     double map_rmse_end_m = 0.0;
     uint32_t rejected_controls = 0;       ///< the filter's (EKF-SLAM robot 1)
+    urg_scip2_stats_t urg{};              ///< the laser driver's counters at the end
 };
 
 std::set<int> held(Simulation &sim, size_t k, map_estimate_t &buf, map_eval_t *ev_out = nullptr)
@@ -162,6 +163,7 @@ FaultRun run_with(const Scenario &sc, size_t k, double fault_at_s, double fault_
     r.link = sim.link().stats(static_cast<uint16_t>(k));
     r.first_merge_s = sim.result().robots[k].first_merge_s;
     if (sim.node(k).filter.kind == SLAM_FILTER_EKF) r.rejected_controls = sim.node(k).filter.u.ekf.ctr.rejected_controls;
+    r.urg = *urg_scip2_stats(&sim.node(k).urg);
     return r;
 }
 
@@ -222,6 +224,63 @@ TEST(SimFaults, LaserUnplugThenReplug)
     EXPECT_GE(r.ctr.laser_connect_failures, 1u); // reconnects refused while unplugged
     EXPECT_GT(r.ctr.scan_errors, 0u);
     expect_recovered("laser_unplug", r, kFaultAtS + kFaultS);
+}
+
+// The URG's line goes silent for kFaultS (the port stays open, nothing
+// comes through either way). The node counts the laser lost after 2 s
+// without a scan and tries to connect every retry period; each try's
+// replies never come, so it is given up after twice the reply timeout by
+// the node's clock (the driver's err_timeout), without the control loop
+// waiting for it (no stall). Restored, the next try connects.
+TEST(SimFaults, LaserSilent)
+{
+    const FaultRun r = run_fault(fault(FaultKind::LaserSilent));
+    std::printf("laser_silent: laser_lost %u, connect failures %u, urg err_timeout %u, stalls %u\n", r.ctr.laser_lost,
+                r.ctr.laser_connect_failures, r.urg.err_timeout, r.ctr.stalls);
+    EXPECT_EQ(r.ctr.laser_lost, 1u);
+    EXPECT_GE(r.ctr.laser_connect_failures, 1u);
+    EXPECT_GE(r.urg.err_timeout, 1u);   // tries given up by the deadline
+    EXPECT_EQ(r.ctr.stalls, 0u);        // and never by waiting
+    expect_recovered("laser_silent", r, kFaultAtS + kFaultS);
+}
+
+// A URG whose replies take 30 ms (a real sensor's are never inside the
+// write, as the emulator's are by default): the connect runs over several
+// control steps (a command is seen pending between steps) and completes;
+// a stop while its MD is pending sends QT, so the sensor does not go on
+// scanning after the robot has stopped.
+TEST(SimFaults, LaserRepliesTakeTime)
+{
+    Scenario sc = paper();
+    sc.laser.reply_delay_ms = 30.0;
+    sc.duration_s = 4.0;
+    {
+        Simulation sim(sc);
+        int pending_steps = 0;
+        for (double t = 0.01; t < 1.0; t += 0.01) {
+            sim.advance_to(t);
+            pending_steps += urg_scip2_pending(&sim.node(0).urg) ? 1 : 0;
+        }
+        EXPECT_GE(pending_steps, 3); // SCIP2.0, PP and MD each waited at least a step
+        EXPECT_TRUE(robot_node_laser_up(&sim.node(0)));
+        sim.run();
+        EXPECT_GT(sim.result().robots[0].node.scans, 20u);
+        EXPECT_EQ(sim.result().robots[0].node.laser_connect_failures, 0u);
+    }
+    {
+        Simulation sim(sc);
+        bool md_pending = false;
+        for (double t = 0.001; t < 1.0 && !md_pending; t += 0.001) {
+            sim.advance_to(t);
+            md_pending = sim.node(0).urg.pend == URG_SCIP2_PEND_MD;
+        }
+        ASSERT_TRUE(md_pending);
+        EXPECT_TRUE(sim.robot(0).urg().streaming()); // the sensor took the MD already
+        (void)robot_node_shutdown(&sim.node(0));
+        EXPECT_FALSE(sim.robot(0).urg().streaming()); // QT
+        EXPECT_FALSE(sim.robot(0).urg().laser_on());
+        EXPECT_FALSE(urg_scip2_pending(&sim.node(0).urg));
+    }
 }
 
 TEST(SimFaults, LaserGarbage)

@@ -68,8 +68,19 @@ void UrgEmulator::set_unplugged(bool unplugged)
         md_active_ = false;
         laser_ = false;
         scip2_ = cfg_.start_in_scip2;
+        delayed_.clear();
     }
     unplugged_ = unplugged;
+}
+
+void UrgEmulator::set_silent(bool silent)
+{
+    if (silent && !silent_) {
+        for (const auto &d : delayed_) stats_.silent_bytes_lost += d.second.size();
+        delayed_.clear(); // replies not yet on the wire are lost with it
+        in_.clear();
+    }
+    silent_ = silent;
 }
 
 char UrgEmulator::sum(const std::string &s)
@@ -111,6 +122,10 @@ hal_status_t UrgEmulator::op_write(hal_serial_t *d, const uint8_t *data, size_t 
     if (self->unplugged_) {
         self->stats_.unplugged_ops++;
         return HAL_E_IO;
+    }
+    if (self->silent_) {
+        self->stats_.silent_bytes_lost += len; // written into a dead line
+        return HAL_OK;
     }
     self->stats_.bytes_in += len;
     for (size_t i = 0; i < len; ++i) {
@@ -166,6 +181,14 @@ void UrgEmulator::op_close(hal_serial_t *d)
 
 void UrgEmulator::emit(const std::string &bytes)
 {
+    if (silent_) {
+        stats_.silent_bytes_lost += bytes.size();
+        return;
+    }
+    if (in_command_ && cfg_.reply_delay_us > 0) {
+        delayed_.emplace_back(now_us_ + cfg_.reply_delay_us, bytes);
+        return;
+    }
     if (out_.size() + bytes.size() > cfg_.max_queued_bytes) {
         stats_.bytes_dropped += bytes.size();
         return;
@@ -197,6 +220,13 @@ void UrgEmulator::on_line(const std::string &line)
 {
     stats_.commands++;
     run_until(now_us_);
+    in_command_ = true;
+    on_command(line);
+    in_command_ = false;
+}
+
+void UrgEmulator::on_command(const std::string &line)
+{
     if (!scip2_) {
         // SCIP 1.1 is not emulated beyond the switch command.
         if (line == "SCIP2.0") {
@@ -309,6 +339,10 @@ void UrgEmulator::set_time_us(uint64_t t_us)
         }
         stats_.noise_bytes += junk.size();
         emit(junk);
+    }
+    while (!delayed_.empty() && delayed_.front().first <= now_us_) {
+        emit(delayed_.front().second); // the replies due, before this step's scans
+        delayed_.pop_front();
     }
     run_until(now_us_);
 }

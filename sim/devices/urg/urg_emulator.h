@@ -84,6 +84,10 @@ struct UrgEmulatorConfig {
     std::size_t max_read_chunk = 0;
     // queued output beyond this is dropped (counted), like a full USB buffer
     std::size_t max_queued_bytes = 1u << 20;
+    // a command's reply comes this long after the command [us] (0: at once,
+    // inside the write); keep it below one scan period (100 ms at 600 rpm)
+    // so that an MD's acknowledgement precedes its first scan
+    uint64_t reply_delay_us = 0;
 };
 
 enum class UrgFault : int { BadChecksum = 0, TruncatedLine = 1, Garbage = 2 };
@@ -102,6 +106,7 @@ public:
         uint64_t bytes_dropped = 0;     // output lost to max_queued_bytes or flush
         uint64_t noise_bytes = 0;       // random bytes put on the line (set_line_noise)
         uint64_t unplugged_ops = 0;     // reads/writes refused while unplugged (HAL_E_IO)
+        uint64_t silent_bytes_lost = 0; // both ways while the line was silent (set_silent)
     };
 
     UrgEmulator(const UrgEmulatorConfig &cfg, RangeFn range_m);
@@ -124,6 +129,13 @@ public:
     /// driver has to connect again.
     void set_unplugged(bool unplugged);
     bool unplugged() const { return unplugged_; }
+    /// Fault: the line goes silent (true), as a cut RS-232 cable or a
+    /// sensor hung behind a live USB adapter: the port stays open, what
+    /// the driver writes is lost and nothing comes back (the sensor's scans
+    /// and replies meanwhile are lost too). Restored (false): the sensor as
+    /// it was (an MD still running keeps streaming).
+    void set_silent(bool silent);
+    bool silent() const { return silent_; }
     /// Fault: put bytes_per_ms random bytes (any value, LF included) on the
     /// line per millisecond of simulated time, between and inside the
     /// sensor's messages (a noisy cable); 0 = off. Own seeded RNG.
@@ -162,6 +174,7 @@ private:
     static const hal_serial_ops_t kOps;
 
     void on_line(const std::string &line);
+    void on_command(const std::string &line);
     void reply(const std::string &echo, const std::string &status, const std::string &body = std::string());
     std::string info_lines(const std::vector<std::pair<std::string, std::string>> &kv) const;
     void handle_scan_cmd(const std::string &line, bool md);
@@ -196,6 +209,9 @@ private:
     std::deque<UrgFault> pending_faults_;
     Stats stats_;
     bool unplugged_ = false;
+    bool silent_ = false;
+    bool in_command_ = false; // on_line runs: its output is a reply (reply_delay_us)
+    std::deque<std::pair<uint64_t, std::string>> delayed_; // replies and when they come
     double noise_bytes_per_ms_ = 0.0;
     double noise_carry_ = 0.0;
     rng_t noise_line_rng_;

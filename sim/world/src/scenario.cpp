@@ -333,6 +333,7 @@ void read_laser(const toml::table &t, LaserSpec &l)
     r.pose_deg("mount", l.mount);
     r.num("noise_sd_m", l.noise_sd_m, 0.0, 1.0);
     r.num("noise_rel", l.noise_rel, 0.0, 1.0);
+    r.num("reply_delay_ms", l.reply_delay_ms, 0.0, 99.0);
     r.done();
 }
 
@@ -480,6 +481,7 @@ void read_fault(const toml::table &t, size_t i, const Scenario &sc, FaultSpec &f
     r.str("kind", kind);
     static const std::pair<const char *, FaultKind> kinds[] = {
         {"laser_unplug", FaultKind::LaserUnplug}, {"laser_garbage", FaultKind::LaserGarbage},
+        {"laser_silent", FaultKind::LaserSilent},
         {"can_errors", FaultKind::CanErrors},     {"drive_emcy", FaultKind::DriveEmcy},
         {"estop", FaultKind::Estop},              {"camera_stall", FaultKind::CameraStall},
         {"link_partition", FaultKind::LinkPartition}, {"kidnap", FaultKind::Kidnap},
@@ -493,7 +495,7 @@ void read_fault(const toml::table &t, size_t i, const Scenario &sc, FaultSpec &f
     }
     if (!found) {
         r.fail("kind", "unknown fault kind '" + kind +
-                           "' (laser_unplug, laser_garbage, can_errors, drive_emcy, estop, camera_stall, "
+                           "' (laser_unplug, laser_garbage, laser_silent, can_errors, drive_emcy, estop, camera_stall, "
                            "link_partition, kidnap, odometry_wild, controller_hang)");
     }
     r.num("at_s", f.at_s, 0.0, kMaxDurationS);
@@ -609,6 +611,7 @@ const char *fault_kind_name(FaultKind k)
     switch (k) {
     case FaultKind::LaserUnplug: return "laser_unplug";
     case FaultKind::LaserGarbage: return "laser_garbage";
+    case FaultKind::LaserSilent: return "laser_silent";
     case FaultKind::CanErrors: return "can_errors";
     case FaultKind::DriveEmcy: return "drive_emcy";
     case FaultKind::Estop: return "estop";

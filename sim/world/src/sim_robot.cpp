@@ -24,6 +24,7 @@ UrgEmulatorConfig urg_config(const SimRobotConfig &c)
     uc.seed = c.seed_laser;
     uc.noise_sigma_m = c.laser_noise_sd_m;
     uc.noise_rel = c.laser_noise_rel;
+    uc.reply_delay_us = c.laser_reply_delay_us;
     return uc;
 }
 

@@ -83,6 +83,7 @@ SimRobotConfig robot_config_from_scenario(const Scenario &sc, size_t k, uint64_t
     rc.laser_mount = sc.laser.mount;
     rc.laser_noise_sd_m = sc.laser.noise_sd_m;
     rc.laser_noise_rel = sc.laser.noise_rel;
+    rc.laser_reply_delay_us = static_cast<uint64_t>(std::llround(sc.laser.reply_delay_ms * 1000.0));
     SightingOracleConfig oc;
     oc.period_us = period_us;
     // robots' cameras are not synchronised: spread the frames over a period
@@ -294,6 +295,7 @@ void Simulation::set_fault(FaultRecord &f, bool on)
     switch (s.kind) {
     case FaultKind::LaserUnplug: r.urg().set_unplugged(on); break;
     case FaultKind::LaserGarbage: r.urg().set_line_noise(on ? s.bytes_per_ms : 0.0); break;
+    case FaultKind::LaserSilent: r.urg().set_silent(on); break;
     case FaultKind::CanErrors:
         r.rig().bus().set_error_rate(on ? s.loss : 0.0, derive_seed(seed_, s.robot, 6));
         break;

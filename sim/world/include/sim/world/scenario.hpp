@@ -82,6 +82,7 @@ struct LaserSpec {
     pose2_t mount{0.12, 0.0, 0.0};        ///< robot frame (heading in rad after loading)
     double noise_sd_m = 0.01;             ///< URG emulator: sd = max(noise_sd_m, noise_rel * r)
     double noise_rel = 0.01;
+    double reply_delay_ms = 0.0;          ///< URG emulator: a command's reply this long after it (< 100)
 };
 
 struct LinkSpec {
@@ -151,6 +152,7 @@ struct EvaluationSpec {
 enum class FaultKind {
     LaserUnplug,   ///< the URG's serial device errors, output lost; replugged: a fresh device (SCIP 1.1, laser off)
     LaserGarbage,  ///< random bytes on the URG's serial line
+    LaserSilent,   ///< the URG's line goes silent (port open, nothing through: a cut cable, a hung sensor)
     CanErrors,     ///< frames destroyed on the robot's CAN bus with probability `loss`
     DriveEmcy,     ///< drive `wheel` goes to FAULT with an EMCY; faults again while the window lasts
     Estop,         ///< the e-stop loop opened (line low)

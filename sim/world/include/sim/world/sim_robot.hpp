@@ -52,6 +52,7 @@ struct SimRobotConfig {
     pose2_t laser_mount{0.12, 0.0, 0.0};
     double laser_noise_sd_m = 0.01;
     double laser_noise_rel = 0.01;
+    uint64_t laser_reply_delay_us = 0;              ///< URG emulator reply_delay_us
     CameraSource camera = CameraSource::Pixels;
     SightingOracleConfig oracle;          ///< camera == Oracle
     PixelCameraConfig pixels;             ///< camera == Pixels
