@@ -845,6 +845,22 @@ static void test_stream_status_error(void **state)
  * or insertions, then two good messages. Whatever the damage, every call
  * returns, every failure is counted, and the last good message decodes
  * exactly (the driver resynchronises). One driver instance for all rounds. */
+/* 1-4 random mutations of buf[0..n): a byte changed, removed or inserted
+ * (buf has room for 4 more); the new length. */
+static size_t mutate(char *buf, size_t n, rng_t *rng)
+{
+    const int n_mut = 1 + (int)rng_below(rng, 4);
+    for (int m = 0; m < n_mut && n > 2; ++m) {
+        const size_t at = rng_below(rng, (uint32_t)n);
+        switch (rng_below(rng, 3)) {
+        case 0: buf[at] = (char)rng_below(rng, 256); break;
+        case 1: memmove(buf + at, buf + at + 1, n - at - 1); --n; break;
+        default: memmove(buf + at + 1, buf + at, n - at); buf[at] = (char)rng_below(rng, 256); ++n; break;
+        }
+    }
+    return n;
+}
+
 static void test_fuzz_mutated_messages(void **state)
 {
     fixture_t *f = *state;
@@ -857,15 +873,7 @@ static void test_fuzz_mutated_messages(void **state)
     for (int round = 0; round < rounds; ++round) {
         for (int i = 0; i < 30; ++i) v[i] = 20 + rng_below(&rng, 5000);
         size_t n = build_scan(msg, "MD0044007301000", "99", 1000 + (uint32_t)round, v, 30, CORRUPT_NONE, 0);
-        const int n_mut = 1 + (int)rng_below(&rng, 4);
-        for (int m = 0; m < n_mut && n > 2; ++m) {
-            const size_t at = rng_below(&rng, (uint32_t)n);
-            switch (rng_below(&rng, 3)) {
-            case 0: msg[at] = (char)rng_below(&rng, 256); break;
-            case 1: memmove(msg + at, msg + at + 1, n - at - 1); --n; break;
-            default: memmove(msg + at + 1, msg + at, n - at); msg[at] = (char)rng_below(&rng, 256); ++n; break;
-            }
-        }
+        n = mutate(msg, n, &rng);
         f->fake.stream_len = f->fake.pos = 0;
         f->fake.n_segments = 0;
         fake_add(&f->fake, 0, msg, n);
@@ -941,15 +949,7 @@ static void test_fuzz_poll_mutated_replies(void **state)
         size_t n = build_scan(msg, "MD0044007301000", "99", 100 + (uint32_t)round, v, 30, CORRUPT_NONE, 0);
         memcpy(msg + n, PP04_REPLY, strlen(PP04_REPLY));
         n += strlen(PP04_REPLY);
-        const int n_mut = 1 + (int)rng_below(&rng, 4);
-        for (int m = 0; m < n_mut && n > 2; ++m) {
-            const size_t at = rng_below(&rng, (uint32_t)n);
-            switch (rng_below(&rng, 3)) {
-            case 0: msg[at] = (char)rng_below(&rng, 256); break;
-            case 1: memmove(msg + at, msg + at + 1, n - at - 1); --n; break;
-            default: memmove(msg + at + 1, msg + at, n - at); msg[at] = (char)rng_below(&rng, 256); ++n; break;
-            }
-        }
+        n = mutate(msg, n, &rng);
         f->fake.stream_len = f->fake.pos = 0;
         f->fake.n_segments = 0;
         f->fake.n_writes = 0;
