@@ -883,6 +883,70 @@ static void laser_silent(void **state)
     remove_dir(dir);
 }
 
+/* ---- a device open that blocks is said ------------------------------------ */
+
+/* Device opens in the loop's retries block (docs/robot.md "Known trips"):
+ * one that takes long must be said, with its length, not only seen as a
+ * late step. The camera's landmark log is first missing (the camera is
+ * down, retried every 0.3 s), then a FIFO: the next retry's open waits for
+ * a writer, which comes 1 s later (and the log it writes cannot be
+ * rewound, so that try fails); then the FIFO is replaced by the log as a
+ * file, and the camera comes up. */
+static void slow_open_said(void **state)
+{
+    (void)state;
+    char dir[64];
+    char err[300];
+    make_dir(dir, sizeof dir);
+    char camera[400];
+    char fifo[300];
+    snprintf(fifo, sizeof fifo, "%s/lm.fifo", dir);
+    snprintf(camera, sizeof camera, "replay_log = %s\nreplay_loop = true", fifo);
+    char store[300];
+    snprintf(store, sizeof store, "%s/store", dir);
+    config(dir, "no-laser", "0.2", "30", camera, store, "fastslam2");
+    snprintf(err, sizeof err, "%s/err", dir);
+    const pid_t pid = spawn_robot(dir, err, NULL, NULL);
+    assert_true(wait_value(err, "steps", 20, 10000) >= 20); /* the loop runs, the camera down */
+    assert_int_equal(mkfifo(fifo, 0600), 0);
+    sleep_ms(1000); /* a retry is waiting in the FIFO's open */
+    char tmp[300];
+    snprintf(tmp, sizeof tmp, "%s/lm.tmp", dir);
+    write_log(tmp);
+    int w = -1;
+    for (int i = 0; i < 40 && w < 0; ++i) { /* ENXIO until the robot's open waits in it */
+        w = open(fifo, O_WRONLY | O_NONBLOCK);
+        if (w < 0) {
+            sleep_ms(100);
+        }
+    }
+    assert_true(w >= 0);
+    const char line[] = "Z 0.0 0 2.0 0.1\n";
+    assert_true(write(w, line, sizeof line - 1) == (ssize_t)(sizeof line - 1));
+    close(w);
+    assert_int_equal(rename(tmp, fifo), 0); /* the next retry finds the log as a file */
+    const long slow = wait_value(err, "dev_slow_opens", 1, 5000);
+    (void)wait_value(err, "frames", 3, 5000);
+    const char *log = stop_robot(pid, err);
+    const char *said = strstr(log, "this open attempt held the control loop for ");
+    const long held_ms = said != NULL ? strtol(said + strlen("this open attempt held the control loop for "), NULL, 10)
+                                      : -1;
+    fprintf(stderr, "slow_open: said %s, %ld ms; dev_slow_opens %ld, dev_open_max_ms %ld, late_max_us %ld, frames %ld\n",
+            said != NULL ? "yes" : "no", held_ms, slow, last_value(log, "dev_open_max_ms"),
+            last_value(log, "late_max_us"), last_value(log, "frames"));
+    if (said == NULL) {
+        fprintf(stderr, "%s\n", log);
+    }
+    assert_non_null(said);
+    assert_true(held_ms >= 500);                      /* the writer came 1 s after the FIFO */
+    assert_true(slow >= 1);
+    assert_true(last_value(log, "dev_open_max_ms") >= held_ms);
+    assert_true(last_value(log, "late_max_us") >= 400000); /* the step did wait: the trip is real */
+    assert_non_null(strstr(log, ": back up after "));
+    assert_true(last_value(log, "frames") >= 3);      /* and then the camera came up */
+    remove_dir(dir);
+}
+
 /* ---- a storage that blocks ------------------------------------------------- */
 
 static void touch(const char *path)
@@ -994,6 +1058,7 @@ int main(int argc, char **argv)
         cmocka_unit_test(laser_pty),
         cmocka_unit_test(laser_silent),
         cmocka_unit_test(diverged_warning),
+        cmocka_unit_test(slow_open_said),
         cmocka_unit_test(slow_storage),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -569,7 +569,26 @@ unsigned robot_devices_service(robot_devices_t *d, uint64_t now_us)
             continue;
         }
         const uint32_t failures = st->open_failures;
-        if (try_open(d, id, now_us)) {
+        uint64_t t0 = now_us;
+        (void)hal_clock_now_us(d->clock, &t0);
+        const int up = try_open(d, id, now_us);
+        uint64_t t1 = t0;
+        (void)hal_clock_now_us(d->clock, &t1);
+        const uint64_t took_ms = t1 > t0 ? (t1 - t0) / 1000U : 0U;
+        if (took_ms > st->open_max_ms) {
+            st->open_max_ms = took_ms > UINT32_MAX ? UINT32_MAX : (uint32_t)took_ms;
+        }
+        if (took_ms >= ROBOT_DEVICES_SLOW_OPEN_MS) {
+            /* limits are loud: the loop waited, and the drives may have
+             * stopped the base meanwhile (the stall line says so) */
+            st->slow_opens++;
+            put_text(text, sizeof text,
+                     "this open attempt held the control loop for %llu ms (device opens block; docs/robot.md "
+                     "\"Known trips\")",
+                     (unsigned long long)took_ms);
+            say(d, st->name, st, text);
+        }
+        if (up) {
             put_text(text, sizeof text, "back up after %lu failed attempt%s", (unsigned long)failures,
                            failures == 1U ? "" : "s");
             say(d, st->name, st, text);

@@ -70,6 +70,12 @@ extern "C" {
 /** Consecutive HAL_E_IO answers after which a device counts as gone. */
 #define ROBOT_DEVICES_IO_LIMIT 50u
 
+/** A device open in the loop's service (a retry) that takes at least this
+ *  long [ms] is reported: opens block, and the control loop waited for it
+ *  (a quarter of the drives' 200 ms watchdog; docs/robot.md "Known
+ *  trips"). */
+#define ROBOT_DEVICES_SLOW_OPEN_MS 50u
+
 typedef enum {
     ROBOT_DEV_LASER = 0,
     ROBOT_DEV_CAN = 1,
@@ -98,6 +104,8 @@ typedef struct {
     uint32_t opens;              /**< successful opens */
     uint32_t open_failures;
     uint32_t losses;             /**< went away while up */
+    uint32_t open_max_ms;        /**< the longest open attempt in the loop's service [ms] */
+    uint32_t slow_opens;         /**< attempts there of ROBOT_DEVICES_SLOW_OPEN_MS or more (reported) */
     uint64_t next_try_us;        /**< next open attempt (DOWN) */
 } robot_dev_status_t;
 

@@ -191,6 +191,14 @@ void robot_status_collect(robot_status_t *s, robot_node_t *node, const robot_dev
     u64(s, "dds_lost", lc.dds_lost);
     u64(s, "dds_rejected", lc.dds_rejected);
     u64(s, "dds_rx_io", lc.dds_rx_io);
+    uint64_t slow = 0U;
+    uint64_t open_max = 0U;
+    for (int i = 0; i < ROBOT_DEV_COUNT; ++i) {
+        slow += dev->dev[i].slow_opens;
+        open_max = dev->dev[i].open_max_ms > open_max ? dev->dev[i].open_max_ms : open_max;
+    }
+    u64(s, "dev_slow_opens", slow);
+    u64(s, "dev_open_max_ms", open_max);
     u64(s, "link_opens", dev->dev[ROBOT_DEV_LINK].opens);
     u64(s, "link_open_failures", dev->dev[ROBOT_DEV_LINK].open_failures);
     u64(s, "link_losses", dev->dev[ROBOT_DEV_LINK].losses);
