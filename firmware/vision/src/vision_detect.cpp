@@ -458,7 +458,7 @@ vision_status_t vision_detector_create(vision_detector_t **out, const vision_con
         d->mask.create(h, w, CV_8U);
         d->labels.create(h, w, CV_32S);
         d->blobs.reserve(VISION_MAX_BLOBS);
-        d->cands.reserve(static_cast<size_t>(VISION_MAX_BLOBS) * 8u);
+        d->cands.reserve(static_cast<size_t>(VISION_MAX_PAIR_CANDIDATES));
         d->used.assign(VISION_MAX_BLOBS, 0);
         *out = d;
     } catch (const std::bad_alloc &) {

@@ -220,7 +220,7 @@ typedef struct {
     uint64_t runs_overflow;      /**< frames whose runs exceeded VISION_MAX_RUNS */
     uint64_t blobs_overflow;     /**< blobs beyond VISION_MAX_BLOBS, summed */
     uint64_t markers_overflow;   /**< markers beyond VISION_MAX_MARKERS, summed */
-    uint64_t pairs_overflow;     /**< candidate pairs beyond 8 * VISION_MAX_BLOBS, summed */
+    uint64_t pairs_overflow;     /**< candidate pairs beyond VISION_MAX_PAIR_CANDIDATES, summed */
     uint64_t markers;            /**< markers reported */
 } vision_counters_t;
 

@@ -21,6 +21,14 @@
 #define VISION_MAX_BLOBS 512
 #endif
 
+/** Candidate blob pairs (a top blob and a bottom blob that may be one
+ *  marker) per frame; past it, the pairs left are skipped, counted
+ *  (pairs_overflow), and the frame reports VISION_E_CAPACITY. A marker is
+ *  one candidate, so 8 per blob is far more than a frame holds. */
+#ifndef VISION_MAX_PAIR_CANDIDATES
+#define VISION_MAX_PAIR_CANDIDATES (8 * VISION_MAX_BLOBS)
+#endif
+
 /** Markers reported per frame (landmarks and robots together). */
 #ifndef VISION_MAX_MARKERS
 #define VISION_MAX_MARKERS 32
@@ -31,6 +39,9 @@
 #endif
 #if VISION_MAX_BLOBS < 8 || VISION_MAX_BLOBS > 65535
 #error "VISION_MAX_BLOBS must be in [8, 65535]"
+#endif
+#if VISION_MAX_PAIR_CANDIDATES < 1 || VISION_MAX_PAIR_CANDIDATES > 8 * 65535
+#error "VISION_MAX_PAIR_CANDIDATES must be in [1, 8 * 65535]"
 #endif
 #if VISION_MAX_MARKERS < 1 || VISION_MAX_MARKERS > 255
 #error "VISION_MAX_MARKERS must be in [1, 255]"
