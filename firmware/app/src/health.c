@@ -152,8 +152,16 @@ void health_on_motion_scan(health_t *h, uint64_t now_us, pose2_t odo_pose, const
     judge(h, h->frame_bad);
 }
 
+/* The filter's update count (the core's ctr.updates). */
+static uint32_t filter_updates(const slam_filter_t *f)
+{
+    return f->kind == SLAM_FILTER_EKF ? f->u.ekf.ctr.updates : f->u.fs.ctr.updates;
+}
+
 void health_before_update(health_t *h, const slam_filter_t *f, const occ_grid_t *g)
 {
+    h->updates_before = filter_updates(f);
+    h->looked = 1;
     memset(h->in_view_sig, 0, sizeof h->in_view_sig);
     h->n_in_view = 0;
     const slam_params_t *sp = slam_filter_params(f);
@@ -168,8 +176,6 @@ void health_before_update(health_t *h, const slam_filter_t *f, const occ_grid_t 
             }
         }
         h->added_before = e->ctr.landmarks_added;
-        h->updates_before = e->ctr.updates;
-        h->looked = 1;
         return;
     }
     const fastslam_t *fs = &f->u.fs;
@@ -190,14 +196,11 @@ void health_before_update(health_t *h, const slam_filter_t *f, const occ_grid_t 
         }
     }
     h->added_before = fs->ctr.landmarks_added;
-    h->updates_before = fs->ctr.updates;
-    h->looked = 1;
 }
 
 void health_after_update(health_t *h, const slam_filter_t *f, const sighting_t *z, int n)
 {
-    const uint32_t updates = f->kind == SLAM_FILTER_EKF ? f->u.ekf.ctr.updates : f->u.fs.ctr.updates;
-    const int same = h->looked && updates == h->updates_before + 1U;
+    const int same = h->looked && filter_updates(f) == h->updates_before + 1U;
     h->looked = 0;
     if (!same) {
         h->unjudged_frames++;

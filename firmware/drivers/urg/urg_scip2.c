@@ -505,9 +505,15 @@ static coslam_status_t status_error(urg_scip2_t *u, const char status[3])
  * Command / reply
  * --------------------------------------------------------------------- */
 
-static coslam_status_t send_cmd(urg_scip2_t *u, const char *cmd, size_t n)
+/* Send `cmd` (n chars, without LF) and its LF, the write waiting at most
+ * timeout_us. */
+static coslam_status_t send_cmd(urg_scip2_t *u, const char *cmd, size_t n, uint32_t timeout_us)
 {
-    const hal_status_t h = hal_serial_write(u->serial, (const uint8_t *)cmd, n, u->cfg.reply_timeout_us);
+    char buf[24];
+    COSLAM_ASSERT(n + 1U <= sizeof buf);
+    memcpy(buf, cmd, n);
+    buf[n] = '\n';
+    const hal_status_t h = hal_serial_write(u->serial, (const uint8_t *)buf, n + 1U, timeout_us);
     if (h != HAL_OK) {
         u->stats.err_io++;
         return COSLAM_E_URG_IO;
@@ -569,10 +575,6 @@ static coslam_status_t reply_status(urg_scip2_t *u, const char *cmd, size_t n, c
 /* Send `cmd` (without LF) and read its echo and status line. */
 static coslam_status_t command(urg_scip2_t *u, const char *cmd, size_t n, char status[3])
 {
-    char buf[24];
-    COSLAM_ASSERT(n + 1U <= sizeof buf);
-    memcpy(buf, cmd, n);
-    buf[n] = '\n';
     u->pend = URG_SCIP2_PEND_NONE; /* a command begun without waiting is abandoned */
     if (u->resync_pending) {
         /* the rest of a broken reply, before this command's reply can come:
@@ -587,7 +589,7 @@ static coslam_status_t command(urg_scip2_t *u, const char *cmd, size_t n, char s
             return rs;
         }
     }
-    const coslam_status_t st = send_cmd(u, buf, n + 1U);
+    const coslam_status_t st = send_cmd(u, cmd, n, u->cfg.reply_timeout_us);
     if (st != COSLAM_OK) {
         return st;
     }
@@ -654,7 +656,7 @@ coslam_status_t urg_scip2_enter_scip2(urg_scip2_t *u)
     u->pend = URG_SCIP2_PEND_NONE;
     reset_input(u);
     static const char cmd[] = "SCIP2.0";
-    coslam_status_t st = send_cmd(u, "SCIP2.0\n", 8U);
+    coslam_status_t st = send_cmd(u, cmd, sizeof cmd - 1U, u->cfg.reply_timeout_us);
     if (st != COSLAM_OK) {
         return st;
     }
@@ -1081,10 +1083,7 @@ coslam_status_t urg_scip2_start_md(urg_scip2_t *u, uint16_t first, uint16_t last
  * (COSLAM_E_URG_IO). */
 static coslam_status_t begin(urg_scip2_t *u, uint8_t kind, const char *cmd, size_t n)
 {
-    char buf[24];
-    COSLAM_ASSERT(n + 1U <= sizeof buf && n <= sizeof u->pend_cmd);
-    memcpy(buf, cmd, n);
-    buf[n] = '\n';
+    COSLAM_ASSERT(n <= sizeof u->pend_cmd);
     u->pend = URG_SCIP2_PEND_NONE;
     if (u->resync_pending && !u->resync_skip) {
         u->stats.resyncs++; /* its end was lost, as command() counts it */
@@ -1094,10 +1093,9 @@ static coslam_status_t begin(urg_scip2_t *u, uint8_t kind, const char *cmd, size
     u->last_byte_lf = 1;
     u->resync_pending = 0;
     u->resync_skip = 0;
-    const hal_status_t h = hal_serial_write(u->serial, (const uint8_t *)buf, n + 1U, 0U);
-    if (h != HAL_OK) {
-        u->stats.err_io++;
-        return COSLAM_E_URG_IO;
+    const coslam_status_t st = send_cmd(u, cmd, n, 0U);
+    if (st != COSLAM_OK) {
+        return st;
     }
     memcpy(u->pend_cmd, cmd, n);
     u->pend_len = (uint8_t)n;
