@@ -75,11 +75,21 @@ struct Rig {
     robot_dev_status_t &slot() { return dev.dev[ROBOT_DEV_CAMERA]; }
     sighting_source_t *src() { return &dev.sightings; }
     robot_camera_counters_t ctr() const { return robot_camera_counters(&dev.camera); }
-    // one robot step's worth: the node asks for a frame, then the slot is serviced
+    // one robot step's worth: the node asks for a frame, then the slot is
+    // serviced. A reopen the service hands to the camera's opener thread is
+    // waited for (the fake driver's clock stands still meanwhile) and taken
+    // by a second service, so that the step sees its outcome as one step.
     hal_status_t step(sighting_frame_t *f)
     {
         const hal_status_t st = sighting_source_next_frame(src(), f, 0);
         robot_devices_service(&dev, now());
+        if (robot_devices_opening(&dev) > 0) {
+            if (robot_devices_wait_opens(&dev, 5000) != 0u) {
+                std::fprintf(stderr, "robot_camera_rig: the camera's open attempt did not return in 5 s\n");
+                std::abort();
+            }
+            robot_devices_service(&dev, now());
+        }
         return st;
     }
     void advance(uint64_t us) { fake_v4l2.now_us += us; }

@@ -100,63 +100,92 @@ static hal_status_t make_detector(robot_camera_t *c, char *msg, size_t msg_cap)
     return HAL_OK;
 }
 
-hal_status_t robot_camera_open(robot_camera_t *c, char *msg, size_t msg_cap)
+hal_status_t robot_camera_open_prepare(robot_camera_t *c, char *msg, size_t msg_cap)
 {
     put_text(msg, msg_cap, "%s", "");
     if (c == NULL || c->cfg == NULL) {
         return HAL_E_ARG;
     }
     robot_camera_close(c);
+    c->opened = NULL;
+    c->open_bad_format = 0;
+    return c->det == NULL ? make_detector(c, msg, msg_cap) : HAL_OK;
+}
+
+hal_status_t robot_camera_open_device(robot_camera_t *c, char *msg, size_t msg_cap)
+{
     const robot_config_t *cfg = c->cfg;
-    hal_status_t st = HAL_OK;
-    if (c->det == NULL) {
-        st = make_detector(c, msg, msg_cap);
+    hal_camera_v4l2_config_t vc;
+    memset(&vc, 0, sizeof vc);
+    vc.device = cfg->camera_device;
+    vc.width_px = cfg->camera_width_px;
+    vc.height_px = cfg->camera_height_px;
+    vc.inputs[0] = cfg->camera_mjpeg_first ? HAL_CAMERA_V4L2_IN_MJPEG : HAL_CAMERA_V4L2_IN_YUYV;
+    vc.inputs[1] = cfg->camera_mjpeg_first ? HAL_CAMERA_V4L2_IN_YUYV : HAL_CAMERA_V4L2_IN_MJPEG;
+    vc.output = HAL_CAMERA_PIX_RGB24;
+    /* a lost camera is closed and reopened by the device slot every
+     * retry period; the backend's own reopen would say the same period */
+    vc.reopen_period_us = (uint32_t)(cfg->retry_period_s * 1e6);
+    vc.log = v4l2_log;
+    vc.log_ctx = c;
+    hal_camera_t *cam = hal_camera_v4l2_open(&vc, &c->v4l2);
+    if (cam == NULL) {
+        const hal_status_t st = c->v4l2.open_status;
+        put_text(msg, msg_cap, "V4L2 open: %s", hal_status_str(st));
+        return st;
+    }
+    hal_camera_format_t fmt;
+    hal_status_t st = hal_camera_get_format(cam, &fmt);
+    if (st == HAL_OK && (fmt.width_px != cfg->camera_width_px || fmt.height_px != cfg->camera_height_px)) {
+        c->open_bad_format = 1;
+        put_text(msg, msg_cap, "the camera gives %ux%u, configured %ux%u ([camera] width_px, height_px)",
+                 (unsigned)fmt.width_px, (unsigned)fmt.height_px, (unsigned)cfg->camera_width_px,
+                 (unsigned)cfg->camera_height_px);
+        st = HAL_E_ARG;
     }
     if (st == HAL_OK) {
-        hal_camera_v4l2_config_t vc;
-        memset(&vc, 0, sizeof vc);
-        vc.device = cfg->camera_device;
-        vc.width_px = cfg->camera_width_px;
-        vc.height_px = cfg->camera_height_px;
-        vc.inputs[0] = cfg->camera_mjpeg_first ? HAL_CAMERA_V4L2_IN_MJPEG : HAL_CAMERA_V4L2_IN_YUYV;
-        vc.inputs[1] = cfg->camera_mjpeg_first ? HAL_CAMERA_V4L2_IN_YUYV : HAL_CAMERA_V4L2_IN_MJPEG;
-        vc.output = HAL_CAMERA_PIX_RGB24;
-        /* a lost camera is closed and reopened by the device slot every
-         * retry period; the backend's own reopen would say the same period */
-        vc.reopen_period_us = (uint32_t)(cfg->retry_period_s * 1e6);
-        vc.log = v4l2_log;
-        vc.log_ctx = c;
-        c->camera = hal_camera_v4l2_open(&vc, &c->v4l2);
-        if (c->camera == NULL) {
-            st = c->v4l2.open_status;
-            put_text(msg, msg_cap, "V4L2 open: %s", hal_status_str(st));
-        }
-    }
-    if (st == HAL_OK) {
-        hal_camera_format_t fmt;
-        st = hal_camera_get_format(c->camera, &fmt);
-        if (st == HAL_OK && (fmt.width_px != cfg->camera_width_px || fmt.height_px != cfg->camera_height_px)) {
-            c->ctr.bad_format++;
-            put_text(msg, msg_cap, "the camera gives %ux%u, configured %ux%u ([camera] width_px, height_px)",
-                     (unsigned)fmt.width_px, (unsigned)fmt.height_px, (unsigned)cfg->camera_width_px,
-                     (unsigned)cfg->camera_height_px);
-            st = HAL_E_ARG;
-        }
-    }
-    if (st == HAL_OK) {
-        st = vision_source_init(&c->vs, c->camera, c->det, c->buf, c->cap);
+        st = vision_source_init(&c->vs, cam, c->det, c->buf, c->cap);
         if (st != HAL_OK) {
             put_text(msg, msg_cap, "start streaming: %s", hal_status_str(st));
         }
     }
     if (st != HAL_OK) {
-        robot_camera_close(c);
-        c->ctr.open_failures++;
+        (void)hal_camera_stop(cam);
+        hal_camera_close(cam);
         return st;
     }
+    c->opened = cam;
+    return HAL_OK;
+}
+
+hal_status_t robot_camera_open_finish(robot_camera_t *c, hal_status_t st)
+{
+    if (c->open_bad_format) {
+        c->ctr.bad_format++;
+        c->open_bad_format = 0;
+    }
+    if (st != HAL_OK || c->opened == NULL) {
+        c->ctr.open_failures++;
+        c->opened = NULL;
+        return st != HAL_OK ? st : HAL_E_IO;
+    }
+    c->camera = c->opened;
+    c->opened = NULL;
     (void)hal_clock_now_us(c->clock, &c->last_frame_us);
     c->ctr.opens++;
     return HAL_OK;
+}
+
+hal_status_t robot_camera_open(robot_camera_t *c, char *msg, size_t msg_cap)
+{
+    hal_status_t st = robot_camera_open_prepare(c, msg, msg_cap);
+    if (st == HAL_E_ARG && (c == NULL || c->cfg == NULL)) {
+        return st;
+    }
+    if (st == HAL_OK) {
+        st = robot_camera_open_device(c, msg, msg_cap);
+    }
+    return robot_camera_open_finish(c, st);
 }
 
 /* The open session's source counters into the totals (at close). */

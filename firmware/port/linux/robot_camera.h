@@ -35,7 +35,8 @@
  * size (webcams have a fixed list of sizes) is refused: `bad_format`, the
  * slot reports "gives WxH, configured WxH" and retries.
  *
- * One instance, one thread. Not async-signal-safe.
+ * One instance; one thread but for robot_camera_open_device (below). Not
+ * async-signal-safe.
  */
 #ifndef COSLAM_PORT_ROBOT_CAMERA_H
 #define COSLAM_PORT_ROBOT_CAMERA_H
@@ -78,6 +79,9 @@ typedef struct {
     vision_source_t vs;               /**< camera + detector -> sighting frames */
     uint64_t last_frame_us;           /**< last frame, or the open [us] */
     robot_camera_counters_t ctr;      /**< frames, landmarks, robots: of closed opens only */
+    /* an open's device part hands over in these (read by _open_finish) */
+    hal_camera_t *opened;             /**< the device opened and streaming, not yet taken */
+    int open_bad_format;              /**< that open was refused for its frame size */
 } robot_camera_t;
 
 /** Set up *c (closed, nothing allocated). */
@@ -89,6 +93,25 @@ void robot_camera_init(robot_camera_t *c, const robot_config_t *cfg, hal_clock_t
  *  backend's open status; HAL_E_IO. msg gets the reason of a failure with
  *  the file or device named. Nothing stays open after a failure. */
 hal_status_t robot_camera_open(robot_camera_t *c, char *msg, size_t msg_cap);
+
+/**
+ * robot_camera_open in three parts, so that the device part, which blocks
+ * (a UVC camera takes 0.1-0.5 s to start streaming), can run on a thread
+ * of its own while the control loop goes on (robot_devices.c's openers):
+ *   _prepare   (the loop) closes, and at the first call loads the colour
+ *              table and the range model and makes the detector; an error
+ *              here skips the other two parts but _finish;
+ *   _device    (any one thread, while the camera is closed: nothing else
+ *              reads what it writes then: v4l2, vs, opened,
+ *              open_bad_format) opens the V4L2 device, checks the size,
+ *              starts streaming; closes it again on any failure;
+ *   _finish    (the loop) with the status of the parts before: counts it,
+ *              and on success makes the camera the open one.
+ * Each returns the status robot_camera_open would; msg as there.
+ */
+hal_status_t robot_camera_open_prepare(robot_camera_t *c, char *msg, size_t msg_cap);
+hal_status_t robot_camera_open_device(robot_camera_t *c, char *msg, size_t msg_cap);
+hal_status_t robot_camera_open_finish(robot_camera_t *c, hal_status_t st);
 
 /** Stop and close the device (no-op when closed). */
 void robot_camera_close(robot_camera_t *c);

@@ -1,9 +1,12 @@
 /* Device slots, backends and proxies of coslam-robot (robot_devices.h). */
 #include "robot_devices.h"
 
+#include <errno.h>
+#include <signal.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <string.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "hal_can_socketcan_internal.h" /* --can-fd: e2e tests only */
@@ -301,14 +304,32 @@ static void set_down(robot_devices_t *d, robot_dev_t id, hal_status_t why, const
     put_text(st->reason, sizeof st->reason, "%s", reason);
 }
 
-/* Try to open device id; returns 1 if up. */
-static int try_open(robot_devices_t *d, robot_dev_t id, uint64_t now_us)
+/* The loop's part before an open attempt: the camera's detector (made at
+ * the first call that gets this far, with the colour table and the range
+ * model). Anything else but HAL_OK ends the attempt (open_finish). */
+static hal_status_t open_prepare(robot_devices_t *d, robot_dev_t id, char *reason, size_t reason_cap)
+{
+#if COSLAM_HAVE_CAMERA
+    if (id == ROBOT_DEV_CAMERA && d->camera_kind == ROBOT_SIGHTINGS_CAMERA) {
+        return robot_camera_open_prepare(&d->camera, reason, reason_cap);
+    }
+#else
+    (void)d;
+    (void)id;
+    (void)reason;
+    (void)reason_cap;
+#endif
+    return HAL_OK;
+}
+
+/* The part of an open attempt that blocks. It writes only device id's
+ * backend state, which no proxy and no status read touches while the slot
+ * is not up: so it runs on the slot's opener thread while the loop goes
+ * on (or in the loop, at start-up). */
+static hal_status_t open_backend(robot_devices_t *d, robot_dev_t id, char *reason, size_t reason_cap)
 {
     const robot_config_t *c = d->cfg;
-    robot_dev_status_t *st = &d->dev[id];
     hal_status_t s = HAL_E_UNSUPPORTED;
-    char reason[160];
-    reason[0] = '\0';
     switch (id) {
     case ROBOT_DEV_LASER:
         s = hal_serial_linux_open(&d->laser_dev, &d->laser_state, c->laser_device, c->laser_baud);
@@ -323,13 +344,6 @@ static int try_open(robot_devices_t *d, robot_dev_t id, uint64_t now_us)
         } else {
             s = hal_can_socketcan_open(&d->can_state, c->can_interface);
         }
-        if (s == HAL_OK && d->can_filter_count > 0U) {
-            const hal_status_t fs = hal_can_set_filters(&d->can_state.can, d->can_filters, d->can_filter_count);
-            if (fs != HAL_OK && fs != HAL_E_UNSUPPORTED) {
-                hal_can_close(&d->can_state.can);
-                s = fs;
-            }
-        }
         break;
     case ROBOT_DEV_GPIO:
         if (c->gpio_fd >= 0) {
@@ -342,12 +356,12 @@ static int try_open(robot_devices_t *d, robot_dev_t id, uint64_t now_us)
         break;
     case ROBOT_DEV_CAMERA:
         if (d->camera_kind == ROBOT_SIGHTINGS_REPLAY || d->camera_kind == ROBOT_SIGHTINGS_LIVE) {
-            robot_sightings_kind_t k = robot_open_sightings(&d->replay, c, d->clock, &s, reason, sizeof reason);
+            robot_sightings_kind_t k = robot_open_sightings(&d->replay, c, d->clock, &s, reason, reason_cap);
             (void)k;
         }
 #if COSLAM_HAVE_CAMERA
         if (d->camera_kind == ROBOT_SIGHTINGS_CAMERA) {
-            s = robot_camera_open(&d->camera, reason, sizeof reason);
+            s = robot_camera_open_device(&d->camera, reason, reason_cap);
         }
 #endif
         break;
@@ -355,10 +369,37 @@ static int try_open(robot_devices_t *d, robot_dev_t id, uint64_t now_us)
         s = hal_storage_linux_open(&d->storage_state, c->storage_dir);
         break;
     case ROBOT_DEV_LINK:
-        s = robot_link_backend_open(&d->link, reason, sizeof reason);
+        s = robot_link_backend_open_device(&d->link, reason, reason_cap);
         break;
     default:
         break;
+    }
+    return s;
+}
+
+/* The loop's part after an open attempt whose parts before gave s (and
+ * `why`): the device's own counters, the CAN filters, the slot's state.
+ * Returns 1 if up. */
+static int open_finish(robot_devices_t *d, robot_dev_t id, hal_status_t s, const char *why, uint64_t now_us)
+{
+    robot_dev_status_t *st = &d->dev[id];
+    char reason[160];
+    put_text(reason, sizeof reason, "%s", why != NULL ? why : "");
+#if COSLAM_HAVE_CAMERA
+    if (id == ROBOT_DEV_CAMERA && d->camera_kind == ROBOT_SIGHTINGS_CAMERA) {
+        s = robot_camera_open_finish(&d->camera, s);
+    }
+#endif
+    if (id == ROBOT_DEV_LINK && s == HAL_OK) {
+        robot_link_backend_opened(&d->link);
+    }
+    if (id == ROBOT_DEV_CAN && s == HAL_OK && d->can_filter_count > 0U) {
+        /* the filters the drive driver set (kept while the bus was down) */
+        const hal_status_t fs = hal_can_set_filters(&d->can_state.can, d->can_filters, d->can_filter_count);
+        if (fs != HAL_OK && fs != HAL_E_UNSUPPORTED) {
+            hal_can_close(&d->can_state.can);
+            s = fs;
+        }
     }
     if (s == HAL_OK) {
         st->state = ROBOT_DEV_UP;
@@ -374,6 +415,222 @@ static int try_open(robot_devices_t *d, robot_dev_t id, uint64_t now_us)
     }
     set_down(d, id, s, reason, now_us);
     return 0;
+}
+
+/* Open device id in the calling thread; returns 1 if up. */
+static int try_open(robot_devices_t *d, robot_dev_t id, uint64_t now_us)
+{
+    char reason[160];
+    reason[0] = '\0';
+    hal_status_t s = open_prepare(d, id, reason, sizeof reason);
+    if (s == HAL_OK) {
+        s = open_backend(d, id, reason, sizeof reason);
+    }
+    return open_finish(d, id, s, reason, now_us);
+}
+
+/* ---- openers: the blocking part of the loop's retries on a thread -------- */
+
+enum { OPENER_IDLE = 0, OPENER_BUSY = 1, OPENER_DONE = 2 };
+
+static uint64_t mono_us(void)
+{
+    struct timespec ts;
+    (void)clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (uint64_t)ts.tv_sec * 1000000U + (uint64_t)ts.tv_nsec / 1000U;
+}
+
+static void *opener_main(void *arg)
+{
+    robot_dev_opener_t *o = (robot_dev_opener_t *)arg;
+    (void)pthread_mutex_lock(&o->mu);
+    for (;;) {
+        while (!o->quit && o->state != OPENER_BUSY) {
+            (void)pthread_cond_wait(&o->job_cv, &o->mu);
+        }
+        if (o->state != OPENER_BUSY) {
+            break; /* quit, nothing handed over */
+        }
+        /* the device's backend is this thread's until OPENER_DONE */
+        (void)pthread_mutex_unlock(&o->mu);
+        char reason[sizeof o->reason];
+        reason[0] = '\0';
+        const uint64_t t0 = mono_us();
+        const hal_status_t r = open_backend(o->d, o->id, reason, sizeof reason);
+        const uint64_t t1 = mono_us();
+        (void)pthread_mutex_lock(&o->mu);
+        o->result = r;
+        memcpy(o->reason, reason, sizeof reason);
+        o->took_us = t1 - t0;
+        o->state = OPENER_DONE;
+        (void)pthread_cond_broadcast(&o->done_cv);
+    }
+    (void)pthread_mutex_unlock(&o->mu);
+    return NULL;
+}
+
+/* Start slot id's opener; on failure the slot's retries open in the loop. */
+static void opener_start(robot_devices_t *d, robot_dev_t id)
+{
+    robot_dev_opener_t *o = &d->opener[id];
+    if (o->started) {
+        return;
+    }
+    o->d = d;
+    o->id = id;
+    o->state = OPENER_IDLE;
+    o->quit = 0;
+    pthread_condattr_t ca;
+    int made = 0; /* the mutex, job_cv, done_cv made so far */
+    int e = pthread_condattr_init(&ca);
+    if (e == 0) {
+        e = pthread_condattr_setclock(&ca, CLOCK_MONOTONIC);
+        if (e == 0 && (e = pthread_mutex_init(&o->mu, NULL)) == 0) {
+            made = 1;
+        }
+        if (e == 0 && (e = pthread_cond_init(&o->job_cv, &ca)) == 0) {
+            made = 2;
+        }
+        if (e == 0 && (e = pthread_cond_init(&o->done_cv, &ca)) == 0) {
+            made = 3;
+        }
+        (void)pthread_condattr_destroy(&ca);
+    }
+    if (e == 0) {
+        /* signals go to the control loop, never to an opener */
+        sigset_t all;
+        sigset_t old;
+        (void)sigfillset(&all);
+        (void)pthread_sigmask(SIG_SETMASK, &all, &old);
+        e = pthread_create(&o->thread, NULL, opener_main, o);
+        (void)pthread_sigmask(SIG_SETMASK, &old, NULL);
+    }
+    if (e == 0) {
+        o->started = 1;
+        return;
+    }
+    if (made >= 3) {
+        (void)pthread_cond_destroy(&o->done_cv);
+    }
+    if (made >= 2) {
+        (void)pthread_cond_destroy(&o->job_cv);
+    }
+    if (made >= 1) {
+        (void)pthread_mutex_destroy(&o->mu);
+    }
+    char text[320];
+    put_text(text, sizeof text,
+             "no opener thread (%s): its reopen attempts will hold the control loop while they block",
+             strerror(e));
+    say(d, d->dev[id].name, &d->dev[id], text);
+}
+
+static void opener_submit(robot_dev_opener_t *o)
+{
+    (void)pthread_mutex_lock(&o->mu);
+    o->state = OPENER_BUSY;
+    o->reason[0] = '\0';
+    (void)pthread_cond_signal(&o->job_cv);
+    (void)pthread_mutex_unlock(&o->mu);
+}
+
+/* 1 with the outcome when the attempt has returned (the opener is idle
+ * again), 0 while it runs. */
+static int opener_take(robot_dev_opener_t *o, hal_status_t *result, char *reason, size_t reason_cap, uint64_t *took_us)
+{
+    (void)pthread_mutex_lock(&o->mu);
+    const int done = o->state == OPENER_DONE;
+    if (done) {
+        *result = o->result;
+        put_text(reason, reason_cap, "%s", o->reason);
+        *took_us = o->took_us;
+        o->state = OPENER_IDLE;
+    }
+    (void)pthread_mutex_unlock(&o->mu);
+    return done;
+}
+
+/* Under o->mu: wait until the attempt has returned or wait_ms passed. */
+static void opener_wait(robot_dev_opener_t *o, uint32_t wait_ms)
+{
+    struct timespec end;
+    (void)clock_gettime(CLOCK_MONOTONIC, &end);
+    end.tv_sec += (time_t)(wait_ms / 1000U);
+    end.tv_nsec += (long)(wait_ms % 1000U) * 1000000L;
+    if (end.tv_nsec >= 1000000000L) {
+        end.tv_sec++;
+        end.tv_nsec -= 1000000000L;
+    }
+    while (o->state == OPENER_BUSY) {
+        if (pthread_cond_timedwait(&o->done_cv, &o->mu, &end) == ETIMEDOUT) {
+            break;
+        }
+    }
+}
+
+/* Stop slot id's opener (close_all). An attempt that returns in time is
+ * finished as the loop would (and closed with the rest); one that does not
+ * is said and left: the thread owns its device until the process exits. */
+static void opener_stop(robot_devices_t *d, robot_dev_t id)
+{
+    robot_dev_opener_t *o = &d->opener[id];
+    if (!o->started) {
+        return;
+    }
+    (void)pthread_mutex_lock(&o->mu);
+    o->quit = 1;
+    (void)pthread_cond_signal(&o->job_cv);
+    opener_wait(o, ROBOT_DEVICES_CLOSE_WAIT_MS);
+    const int stuck = o->state == OPENER_BUSY;
+    (void)pthread_mutex_unlock(&o->mu);
+    o->started = 0;
+    if (stuck) {
+        o->stuck = 1;
+        (void)pthread_detach(o->thread);
+        char text[320];
+        put_text(text, sizeof text,
+                 "an open attempt has not returned %u ms after the stop; left to the process's exit (the device is "
+                 "not released)",
+                 ROBOT_DEVICES_CLOSE_WAIT_MS);
+        say(d, d->dev[id].name, &d->dev[id], text);
+        return;
+    }
+    (void)pthread_join(o->thread, NULL);
+    (void)pthread_cond_destroy(&o->done_cv);
+    (void)pthread_cond_destroy(&o->job_cv);
+    (void)pthread_mutex_destroy(&o->mu);
+    if (d->dev[id].opening) {
+        d->dev[id].opening = 0;
+        if (o->state == OPENER_DONE) {
+            (void)open_finish(d, id, o->result, o->reason, 0U); /* up: closed with the rest */
+        }
+    }
+    o->state = OPENER_IDLE;
+}
+
+unsigned robot_devices_opening(const robot_devices_t *d)
+{
+    unsigned n = 0U;
+    for (int i = 0; i < ROBOT_DEV_COUNT; ++i) {
+        n += d->dev[i].opening ? 1U : 0U;
+    }
+    return n;
+}
+
+unsigned robot_devices_wait_opens(robot_devices_t *d, uint32_t wait_ms)
+{
+    unsigned running = 0U;
+    for (int i = 0; i < ROBOT_DEV_COUNT; ++i) {
+        robot_dev_opener_t *o = &d->opener[i];
+        if (!d->dev[i].opening || !o->started) {
+            continue;
+        }
+        (void)pthread_mutex_lock(&o->mu);
+        opener_wait(o, wait_ms);
+        running += o->state == OPENER_BUSY ? 1U : 0U;
+        (void)pthread_mutex_unlock(&o->mu);
+    }
+    return running;
 }
 
 static void close_dev(robot_devices_t *d, robot_dev_t id)
@@ -531,6 +788,11 @@ void robot_devices_open_all(robot_devices_t *d, uint64_t now_us)
             say(d, dev_names[i], &st[i], text);
         }
     }
+    for (int i = 0; i < ROBOT_DEV_COUNT; ++i) {
+        if (st[i].state != ROBOT_DEV_ABSENT) {
+            opener_start(d, (robot_dev_t)i);
+        }
+    }
 }
 
 void robot_devices_fail(robot_devices_t *d, robot_dev_t id, hal_status_t why, const char *reason, uint64_t now_us)
@@ -544,6 +806,41 @@ void robot_devices_fail(robot_devices_t *d, robot_dev_t id, hal_status_t why, co
     char text[320];
     put_text(text, sizeof text, "down: %s; retrying every %.0f s", reason, d->cfg->retry_period_s);
     say(d, st->name, st, text);
+}
+
+/* An open attempt of the loop's retries took took_ms: kept, and said when
+ * slow (on_thread: on the slot's opener, the loop went on; else the loop
+ * waited for it, and the drives may have stopped the base meanwhile). */
+static void note_open_time(robot_devices_t *d, robot_dev_t id, uint64_t took_ms, int on_thread)
+{
+    robot_dev_status_t *st = &d->dev[id];
+    if (took_ms > st->open_max_ms) {
+        st->open_max_ms = took_ms > UINT32_MAX ? UINT32_MAX : (uint32_t)took_ms;
+    }
+    if (took_ms < ROBOT_DEVICES_SLOW_OPEN_MS) {
+        return;
+    }
+    st->slow_opens++;
+    char text[320];
+    if (on_thread) {
+        put_text(text, sizeof text,
+                 "this open attempt took %llu ms (on the device's opener thread: the control loop went on)",
+                 (unsigned long long)took_ms);
+    } else {
+        put_text(text, sizeof text,
+                 "this open attempt held the control loop for %llu ms (no opener thread; docs/robot.md "
+                 "\"Known trips\")",
+                 (unsigned long long)took_ms);
+    }
+    say(d, st->name, st, text);
+}
+
+static void say_back_up(robot_devices_t *d, robot_dev_t id, uint32_t failures)
+{
+    char text[320];
+    put_text(text, sizeof text, "back up after %lu failed attempt%s", (unsigned long)failures,
+             failures == 1U ? "" : "s");
+    say(d, d->dev[id].name, &d->dev[id], text);
 }
 
 unsigned robot_devices_service(robot_devices_t *d, uint64_t now_us)
@@ -565,33 +862,59 @@ unsigned robot_devices_service(robot_devices_t *d, uint64_t now_us)
             changed |= 1U << i;
             continue;
         }
+        robot_dev_opener_t *o = &d->opener[i];
+        if (st->opening) {
+            hal_status_t r = HAL_E_IO;
+            char why[160];
+            uint64_t took_us = 0U;
+            if (opener_take(o, &r, why, sizeof why, &took_us)) {
+                st->opening = 0;
+                const uint32_t failures = st->open_failures;
+                note_open_time(d, id, took_us / 1000U, 1);
+                if (open_finish(d, id, r, why, now_us)) {
+                    say_back_up(d, id, failures);
+                    changed |= 1U << i;
+                } else if (d->verbose) {
+                    put_text(text, sizeof text, "still down (%s)", st->reason);
+                    say(d, st->name, st, text);
+                }
+            } else if (!st->hung_said && now_us - st->open_began_us >= ROBOT_DEVICES_HUNG_OPEN_MS * 1000ULL) {
+                /* limits are loud: the device stays down until it returns */
+                st->hung_said = 1;
+                st->hung_opens++;
+                put_text(text, sizeof text,
+                         "an open attempt has run for %u s and not returned (a hung device?); the device stays down "
+                         "until it does; the control loop goes on",
+                         ROBOT_DEVICES_HUNG_OPEN_MS / 1000U);
+                say(d, st->name, st, text);
+            }
+            continue;
+        }
         if (st->state != ROBOT_DEV_DOWN || now_us < st->next_try_us) {
             continue;
         }
         const uint32_t failures = st->open_failures;
+        char why[160];
+        why[0] = '\0';
+        hal_status_t s = open_prepare(d, id, why, sizeof why);
+        if (s == HAL_OK && o->started) {
+            st->opening = 1;
+            st->hung_said = 0;
+            st->open_began_us = now_us;
+            opener_submit(o);
+            continue;
+        }
+        /* no opener thread: the attempt holds the loop, timed and said */
         uint64_t t0 = now_us;
         (void)hal_clock_now_us(d->clock, &t0);
-        const int up = try_open(d, id, now_us);
+        if (s == HAL_OK) {
+            s = open_backend(d, id, why, sizeof why);
+        }
         uint64_t t1 = t0;
         (void)hal_clock_now_us(d->clock, &t1);
-        const uint64_t took_ms = t1 > t0 ? (t1 - t0) / 1000U : 0U;
-        if (took_ms > st->open_max_ms) {
-            st->open_max_ms = took_ms > UINT32_MAX ? UINT32_MAX : (uint32_t)took_ms;
-        }
-        if (took_ms >= ROBOT_DEVICES_SLOW_OPEN_MS) {
-            /* limits are loud: the loop waited, and the drives may have
-             * stopped the base meanwhile (the stall line says so) */
-            st->slow_opens++;
-            put_text(text, sizeof text,
-                     "this open attempt held the control loop for %llu ms (device opens block; docs/robot.md "
-                     "\"Known trips\")",
-                     (unsigned long long)took_ms);
-            say(d, st->name, st, text);
-        }
-        if (up) {
-            put_text(text, sizeof text, "back up after %lu failed attempt%s", (unsigned long)failures,
-                           failures == 1U ? "" : "s");
-            say(d, st->name, st, text);
+        note_open_time(d, id, t1 > t0 ? (t1 - t0) / 1000U : 0U, 0);
+        if (open_finish(d, id, s, why, now_us)) {
+            say_back_up(d, id, failures);
             changed |= 1U << i;
         } else if (d->verbose) {
             put_text(text, sizeof text, "still down (%s)", st->reason);
@@ -604,6 +927,9 @@ unsigned robot_devices_service(robot_devices_t *d, uint64_t now_us)
 void robot_devices_close_all(robot_devices_t *d)
 {
     for (int i = 0; i < ROBOT_DEV_COUNT; ++i) {
+        opener_stop(d, (robot_dev_t)i);
+    }
+    for (int i = 0; i < ROBOT_DEV_COUNT; ++i) {
         if (d->dev[i].state == ROBOT_DEV_UP) {
             close_dev(d, (robot_dev_t)i);
             d->dev[i].state = ROBOT_DEV_DOWN;
@@ -611,7 +937,9 @@ void robot_devices_close_all(robot_devices_t *d)
     }
     robot_close_link(&d->link); /* the decorator too: wipes the key */
 #if COSLAM_HAVE_CAMERA
-    robot_camera_free(&d->camera);
+    if (!d->opener[ROBOT_DEV_CAMERA].stuck) {
+        robot_camera_free(&d->camera); /* else the opener may still use the detector */
+    }
 #endif
 }
 

@@ -33,12 +33,19 @@
  * when it opens. Unconfigured devices (empty name) are reported once as
  * "not configured" and never tried.
  *
- * No heap beyond what the backends hold (libgpiod's chip object). One
- * thread.
+ * Opens in the loop's retries run on a thread per device (the opener) so
+ * that a slow or hung open never holds the control loop: while the slot is
+ * not up no proxy touches the device's backend, so the opener owns it for
+ * the attempt; the loop takes the outcome at a later service and does the
+ * bookkeeping (docs/robot.md "Devices").
+ *
+ * No heap beyond what the backends hold (libgpiod's chip object) and the
+ * opener threads' stacks. The API is for one thread (the loop).
  */
 #ifndef COSLAM_PORT_ROBOT_DEVICES_H
 #define COSLAM_PORT_ROBOT_DEVICES_H
 
+#include <pthread.h>
 #include <stdint.h>
 #include <stdio.h>
 
@@ -76,6 +83,14 @@ extern "C" {
  *  trips"). */
 #define ROBOT_DEVICES_SLOW_OPEN_MS 50u
 
+/** An open attempt still running after this long [ms] is said once: a hung
+ *  device (a driver stuck in an ioctl, a FIFO with no writer) keeps its own
+ *  slot down until the attempt returns, never the loop or another slot. */
+#define ROBOT_DEVICES_HUNG_OPEN_MS 5000u
+
+/** robot_devices_close_all waits this long [ms] for a running open attempt. */
+#define ROBOT_DEVICES_CLOSE_WAIT_MS 1000u
+
 typedef enum {
     ROBOT_DEV_LASER = 0,
     ROBOT_DEV_CAN = 1,
@@ -104,12 +119,36 @@ typedef struct {
     uint32_t opens;              /**< successful opens */
     uint32_t open_failures;
     uint32_t losses;             /**< went away while up */
-    uint32_t open_max_ms;        /**< the longest open attempt in the loop's service [ms] */
-    uint32_t slow_opens;         /**< attempts there of ROBOT_DEVICES_SLOW_OPEN_MS or more (reported) */
+    uint32_t open_max_ms;        /**< the longest open attempt of the loop's retries [ms] */
+    uint32_t slow_opens;         /**< those of ROBOT_DEVICES_SLOW_OPEN_MS or more (reported) */
+    uint32_t hung_opens;         /**< attempts still running after ROBOT_DEVICES_HUNG_OPEN_MS (reported) */
+    int opening;                 /**< an attempt runs on the slot's opener thread (the slot is DOWN) */
+    int hung_said;               /**< ... and has been said to hang */
+    uint64_t open_began_us;      /**< when it was handed over */
     uint64_t next_try_us;        /**< next open attempt (DOWN) */
 } robot_dev_status_t;
 
+struct robot_devices;
+
+/** A slot's opener: a thread that runs the blocking part of the loop's
+ *  open attempts (robot_devices.c), one at a time. */
 typedef struct {
+    struct robot_devices *d;
+    robot_dev_t id;
+    pthread_t thread;
+    pthread_mutex_t mu;
+    pthread_cond_t job_cv;       /**< an attempt handed over, or quit */
+    pthread_cond_t done_cv;      /**< an attempt returned */
+    int started;                 /**< the thread runs (else the loop opens itself, as before) */
+    int stuck;                   /**< left running at close_all: its device is not released */
+    int state;                   /**< idle, busy (the thread owns the device's backend), done */
+    int quit;
+    hal_status_t result;
+    char reason[160];
+    uint64_t took_us;
+} robot_dev_opener_t;
+
+typedef struct robot_devices {
     const robot_config_t *cfg;
     hal_clock_t *clock;
     FILE *log;
@@ -139,6 +178,7 @@ typedef struct {
     hal_link_t link_slot;            /**< the link proxy (below the decorator) */
     robot_link_t link;               /**< policy, DDS instance, decorator */
     hal_storage_linux_t storage_state;
+    robot_dev_opener_t opener[ROBOT_DEV_COUNT];
 } robot_devices_t;
 
 /** Set up the slots and proxies and apply the link policy (robot_open_link:
@@ -149,23 +189,40 @@ typedef struct {
 coslam_status_t robot_devices_init(robot_devices_t *d, const robot_config_t *cfg, hal_clock_t *clock, FILE *log,
                                    int verbose, char *msg, size_t msg_cap);
 
-/** First attempt at every device; each one is reported by name (up, down
- *  with the reason, not configured). */
+/** First attempt at every device, in the caller's thread (start-up: the
+ *  loop does not run yet); each one is reported by name (up, down with the
+ *  reason, not configured). Then starts an opener thread for every
+ *  configured device (one that cannot be started is said; that device's
+ *  retries then open in the loop, as before). */
 void robot_devices_open_all(robot_devices_t *d, uint64_t now_us);
 
 /**
  * Close and report lost devices; retry the down ones whose time has come
- * (a return is reported). Returns a bit mask (1 << robot_dev_t) of the
- * devices whose state changed in this call.
+ * (a return is reported). A retry runs on the device's opener thread: this
+ * call hands it over and a later call takes its outcome, so the loop never
+ * waits for an open (the camera's detector is made in the loop, at its
+ * first successful preparation only). Returns a bit mask (1 << robot_dev_t)
+ * of the devices whose state changed in this call.
  */
 unsigned robot_devices_service(robot_devices_t *d, uint64_t now_us);
+
+/** Open attempts running on opener threads now. */
+unsigned robot_devices_opening(const robot_devices_t *d);
+
+/** Wait at most wait_ms until every running open attempt has returned (its
+ *  outcome is taken by the next robot_devices_service). Tests and benches
+ *  on a fake clock; never the control loop. Returns how many still run. */
+unsigned robot_devices_wait_opens(robot_devices_t *d, uint32_t wait_ms);
 
 /** Mark device `id` down with `why` (e.g. the GPIO lines could not be
  *  claimed although the chip opened): closed, reported, retried later. */
 void robot_devices_fail(robot_devices_t *d, robot_dev_t id, hal_status_t why, const char *reason, uint64_t now_us);
 
-/** Close everything (the proxies answer HAL_E_CLOSED afterwards) and
- *  release what the camera allocated at its first open. */
+/** Stop the opener threads (an attempt still running is waited for up to
+ *  ROBOT_DEVICES_CLOSE_WAIT_MS; one that does not return is said and left
+ *  to the process's exit, its device not released), close everything (the
+ *  proxies answer HAL_E_CLOSED afterwards) and release what the camera
+ *  allocated at its first open. */
 void robot_devices_close_all(robot_devices_t *d);
 
 /** The handles for robot_node_init (proxies, the link, the clock). */

@@ -241,7 +241,7 @@ hal_link_t *robot_link_handle(robot_link_t *l)
     return l->node_link;
 }
 
-hal_status_t robot_link_backend_open(robot_link_t *l, char *reason, size_t reason_cap)
+hal_status_t robot_link_backend_open_device(robot_link_t *l, char *reason, size_t reason_cap)
 {
     if (reason != NULL && reason_cap > 0U) {
         reason[0] = '\0';
@@ -255,7 +255,6 @@ hal_status_t robot_link_backend_open(robot_link_t *l, char *reason, size_t reaso
     }
     const hal_status_t s = hal_link_dds_open(&l->dds, &l->dds_cfg);
     if (s == HAL_OK) {
-        l->backend_open = 1;
         return HAL_OK;
     }
     if (reason != NULL) {
@@ -270,6 +269,24 @@ hal_status_t robot_link_backend_open(robot_link_t *l, char *reason, size_t reaso
 #else
     return HAL_E_UNSUPPORTED;
 #endif
+}
+
+void robot_link_backend_opened(robot_link_t *l)
+{
+#if COSLAM_HAVE_DDS
+    l->backend_open = 1;
+#else
+    (void)l;
+#endif
+}
+
+hal_status_t robot_link_backend_open(robot_link_t *l, char *reason, size_t reason_cap)
+{
+    const hal_status_t s = robot_link_backend_open_device(l, reason, reason_cap);
+    if (s == HAL_OK) {
+        robot_link_backend_opened(l);
+    }
+    return s;
 }
 
 hal_link_t *robot_link_backend(robot_link_t *l)

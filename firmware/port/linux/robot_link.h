@@ -127,6 +127,16 @@ hal_link_t *robot_link_handle(robot_link_t *l);
  */
 hal_status_t robot_link_backend_open(robot_link_t *l, char *reason, size_t reason_cap);
 
+/** robot_link_backend_open in two parts, so that the DDS open (which
+ *  blocks: Cyclone starts its threads and sockets) can run on a thread of
+ *  its own while the control loop goes on (robot_devices.c's openers):
+ *  _open_device (any one thread, while the backend is closed: it writes
+ *  only the DDS instance, which nothing reads until _opened) returns what
+ *  robot_link_backend_open would; on HAL_OK the loop then calls
+ *  _opened, which makes the instance the open one. */
+hal_status_t robot_link_backend_open_device(robot_link_t *l, char *reason, size_t reason_cap);
+void robot_link_backend_opened(robot_link_t *l);
+
 /** The open DDS instance's handle, or NULL (closed, or no DDS). */
 hal_link_t *robot_link_backend(robot_link_t *l);
 
