@@ -83,7 +83,7 @@ struct Rig {
     {
         const hal_status_t st = sighting_source_next_frame(src(), f, 0);
         robot_devices_service(&dev, now());
-        if (robot_devices_opening(&dev) > 0) {
+        if (slot().opening) {  // handed over, not yet taken (it may have returned already)
             if (robot_devices_wait_opens(&dev, 5000) != 0u) {
                 std::fprintf(stderr, "robot_camera_rig: the camera's open attempt did not return in 5 s\n");
                 std::abort();

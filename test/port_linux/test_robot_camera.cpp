@@ -260,6 +260,39 @@ TEST(RobotCamera, UnplugAndReplugAreReopenedBySlot)
     EXPECT_EQ(r.ctr().frames, 2u);
 }
 
+// A reopen that meets another frame size (the webcam replugged into a
+// driver that forces 640x480): refused on the opener thread, counted by the
+// loop (bad_format, open_failures), nothing left open, retried; back up once
+// the camera gives the configured size again.
+TEST(RobotCamera, ReopenAtAnotherSizeIsRefused)
+{
+    Rig r;
+    sighting_frame_t f;
+    ASSERT_EQ(r.slot().state, ROBOT_DEV_UP) << r.log_so_far();
+    fake_v4l2_unplug();
+    r.advance(kFrameUs);
+    EXPECT_EQ(r.step(&f), HAL_E_CLOSED);
+    ASSERT_EQ(r.slot().state, ROBOT_DEV_DOWN);
+    fake_v4l2.force_width = 640;
+    fake_v4l2.force_height = 480;
+    fake_v4l2_replug();
+    r.advance(5000000);
+    EXPECT_EQ(r.step(&f), HAL_E_TIMEOUT);
+    EXPECT_EQ(r.slot().state, ROBOT_DEV_DOWN);
+    EXPECT_EQ(r.ctr().bad_format, 1u);
+    EXPECT_EQ(r.ctr().open_failures, 1u);
+    EXPECT_EQ(fake_v4l2.live_fd, -1);  // nothing stays open
+    EXPECT_NE(r.log_so_far().find("the camera gives 640x480, configured 320x240"), std::string::npos)
+        << r.log_so_far();
+    fake_v4l2.force_width = 0;
+    fake_v4l2.force_height = 0;
+    r.advance(5000000);
+    EXPECT_EQ(r.step(&f), HAL_E_TIMEOUT);
+    EXPECT_EQ(r.slot().state, ROBOT_DEV_UP) << r.log_so_far();
+    EXPECT_EQ(r.ctr().opens, 2u);
+    EXPECT_EQ(r.ctr().bad_format, 1u);
+}
+
 TEST(RobotCamera, StalledCameraIsReopened)
 {
     {

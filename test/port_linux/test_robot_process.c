@@ -944,7 +944,7 @@ static void slow_open_said(void **state)
     if (said == NULL) {
         fprintf(stderr, "%s\n", log);
     }
-    assert_int_equal(opening, 1);
+    assert_true(opening >= 1); /* the camera's (the laser, CAN and GPIO are retried too) */
     assert_true(steps_waiting >= 20);                 /* the loop stepped on while the open waited */
     assert_non_null(said);
     assert_non_null(strstr(said, "on the device's opener thread: the control loop went on"));
@@ -986,10 +986,73 @@ static void hung_open_left(void **state)
             last_value(log, "dev_opening"), last_value(log, "late_max_us"), (unsigned long long)stop_ms);
     assert_int_equal(hung, 1);
     assert_non_null(strstr(log, "an open attempt has run for 5 s and not returned"));
-    assert_int_equal(last_value(log, "dev_opening"), 1);
+    assert_true(last_value(log, "dev_opening") >= 1); /* the camera's, still running (others may be) */
     assert_true(last_value(log, "late_max_us") < 500000);
     assert_non_null(strstr(log, "left to the process's exit"));
     assert_true(stop_ms < 4000);
+    remove_dir(dir);
+}
+
+/* ---- a storage that comes back slow to read -------------------------------- */
+
+/* The storage comes back (its directory appears) while its newest
+ * generation cannot be read at once: snapshot.a is a FIFO, whose open waits
+ * for a writer, as a medium that has just returned may be slow. The read
+ * runs on the writer thread: the loop goes on, the status shows the read in
+ * flight (snap_writing_ms), a periodic snapshot meanwhile is skipped and
+ * said; once the read returns, the damaged generation is said and this
+ * run's snapshots are saved. (Before, the read ran in the loop: the step
+ * waited as long as the FIFO had no writer.) */
+static void storage_back_read(void **state)
+{
+    (void)state;
+    char dir[64];
+    char err[300];
+    make_dir(dir, sizeof dir);
+    char mnt[200];
+    char store[300];
+    snprintf(mnt, sizeof mnt, "%s/mnt", dir);
+    snprintf(store, sizeof store, "%s/store", mnt); /* no mnt/: the storage is down (not made) */
+    config(dir, "no-laser", "0.2", "1", "", store, "fastslam2");
+    snprintf(err, sizeof err, "%s/err", dir);
+    const pid_t pid = spawn_robot(dir, err, NULL, NULL);
+    assert_true(wait_value(err, "steps", 20, 10000) >= 20); /* the loop runs, the storage down */
+    char fifo[400];
+    snprintf(fifo, sizeof fifo, "%s/snapshot.a", store);
+    assert_int_equal(mkdir(mnt, 0700), 0);
+    assert_int_equal(mkdir(store, 0700), 0);
+    assert_int_equal(mkfifo(fifo, 0600), 0);
+    const long reading = wait_value(err, "snap_writing_ms", 1500, 6000); /* the read waits in the FIFO's open */
+    const long skips = wait_value(err, "snap_busy_skips", 1, 3000);
+    int w = -1;
+    for (int i = 0; i < 40 && w < 0; ++i) { /* ENXIO until the read waits in it */
+        w = open(fifo, O_WRONLY | O_NONBLOCK);
+        if (w < 0) {
+            sleep_ms(100);
+        }
+    }
+    assert_true(w >= 0); /* that releases the read's open (nothing written: it may already be closed) */
+    close(w);
+    const long saves = wait_value(err, "snap_saves", 1, 5000);
+    const char *log = stop_robot(pid, err);
+    const char *key = "storage back; none on disk (read in ";
+    const char *said = strstr(log, key);
+    const long read_ms = said != NULL ? strtol(said + strlen(key), NULL, 10) : -1;
+    fprintf(stderr,
+            "storage_back_read: snap_writing_ms %ld while the read waited, snap_busy_skips %ld, read said %ld ms, "
+            "snap_saves %ld, late_max_us %ld\n",
+            reading, skips, read_ms, saves, last_value(log, "late_max_us"));
+    if (said == NULL) {
+        fprintf(stderr, "%s\n", log);
+    }
+    assert_true(reading >= 1500);
+    assert_true(skips >= 1);
+    assert_non_null(strstr(log, "the read of the storage that came back has run for"));
+    assert_non_null(strstr(log, "snapshot.a unreadable (HAL_E_CORRUPT): damaged, not used"));
+    assert_non_null(said);
+    assert_true(read_ms >= 1500);
+    assert_true(saves >= 1);
+    assert_true(last_value(log, "late_max_us") < 500000); /* no step waited for the read */
     remove_dir(dir);
 }
 
@@ -1106,6 +1169,7 @@ int main(int argc, char **argv)
         cmocka_unit_test(diverged_warning),
         cmocka_unit_test(slow_open_said),
         cmocka_unit_test(hung_open_left),
+        cmocka_unit_test(storage_back_read),
         cmocka_unit_test(slow_storage),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -54,7 +54,8 @@ static hal_status_t from_vision(vision_status_t v)
 }
 
 /* Colour table, range model, detector and frame buffer: once per process
- * (the first open that gets this far). */
+ * (the first open that gets this far; on the opener thread, which owns
+ * det, buf and cap while the camera is closed). */
 static hal_status_t make_detector(robot_camera_t *c, char *msg, size_t msg_cap)
 {
     const robot_config_t *cfg = c->cfg;
@@ -109,12 +110,18 @@ hal_status_t robot_camera_open_prepare(robot_camera_t *c, char *msg, size_t msg_
     robot_camera_close(c);
     c->opened = NULL;
     c->open_bad_format = 0;
-    return c->det == NULL ? make_detector(c, msg, msg_cap) : HAL_OK;
+    return HAL_OK;
 }
 
 hal_status_t robot_camera_open_device(robot_camera_t *c, char *msg, size_t msg_cap)
 {
     const robot_config_t *cfg = c->cfg;
+    if (c->det == NULL) {
+        const hal_status_t st = make_detector(c, msg, msg_cap);
+        if (st != HAL_OK) {
+            return st;
+        }
+    }
     hal_camera_v4l2_config_t vc;
     memset(&vc, 0, sizeof vc);
     vc.device = cfg->camera_device;
@@ -174,18 +181,6 @@ hal_status_t robot_camera_open_finish(robot_camera_t *c, hal_status_t st)
     (void)hal_clock_now_us(c->clock, &c->last_frame_us);
     c->ctr.opens++;
     return HAL_OK;
-}
-
-hal_status_t robot_camera_open(robot_camera_t *c, char *msg, size_t msg_cap)
-{
-    hal_status_t st = robot_camera_open_prepare(c, msg, msg_cap);
-    if (st == HAL_E_ARG && (c == NULL || c->cfg == NULL)) {
-        return st;
-    }
-    if (st == HAL_OK) {
-        st = robot_camera_open_device(c, msg, msg_cap);
-    }
-    return robot_camera_open_finish(c, st);
 }
 
 /* The open session's source counters into the totals (at close). */

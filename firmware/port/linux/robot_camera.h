@@ -8,10 +8,10 @@
  * slot is robot_devices.c's ROBOT_DEV_CAMERA.
  *
  * Life cycle:
- *   robot_camera_open   (every open attempt of the slot) the first time:
- *                       loads the colour table and the range model and
- *                       creates the detector and the frame buffer (the only
- *                       allocations, once per process); then opens the
+ *   robot_camera_open_* (every open attempt of the slot, below) the first
+ *                       time: loads the colour table and the range model
+ *                       and creates the detector and the frame buffer (the
+ *                       only allocations, once per process); then opens the
  *                       V4L2 device, checks its size and starts streaming.
  *   next_frame          (the node, every step) grab + detect; never
  *                       allocates. Losses are answered HAL_E_CLOSED so the
@@ -56,7 +56,7 @@ extern "C" {
 
 /** Counters of the robot's camera since start (never reset). */
 typedef struct {
-    uint32_t opens;          /**< successful robot_camera_open */
+    uint32_t opens;          /**< successful opens */
     uint32_t open_failures;  /**< failed ones (device, size, files) */
     uint32_t bad_format;     /**< the camera opened at another size than configured */
     uint32_t disconnects;    /**< the device went away while streaming */
@@ -87,27 +87,24 @@ typedef struct {
 /** Set up *c (closed, nothing allocated). */
 void robot_camera_init(robot_camera_t *c, const robot_config_t *cfg, hal_clock_t *clock);
 
-/** Open (see the file comment). Returns HAL_OK; HAL_E_ARG (a frame size
- *  other than configured, NULL); HAL_E_NOT_FOUND (no device, no colour
- *  table); HAL_E_CORRUPT (a bad colour table or range model); the V4L2
- *  backend's open status; HAL_E_IO. msg gets the reason of a failure with
- *  the file or device named. Nothing stays open after a failure. */
-hal_status_t robot_camera_open(robot_camera_t *c, char *msg, size_t msg_cap);
-
 /**
- * robot_camera_open in three parts, so that the device part, which blocks
- * (a UVC camera takes 0.1-0.5 s to start streaming), can run on a thread
- * of its own while the control loop goes on (robot_devices.c's openers):
- *   _prepare   (the loop) closes, and at the first call loads the colour
- *              table and the range model and makes the detector; an error
- *              here skips the other two parts but _finish;
+ * Open (see the file comment), in three parts, so that the part that blocks
+ * (a UVC camera takes 0.1-0.5 s to start streaming; the first open also
+ * loads the colour table and the range model) can run on a thread of its
+ * own while the control loop goes on (robot_devices.c's openers):
+ *   _prepare   (the loop) closes the camera; HAL_E_ARG for NULL;
  *   _device    (any one thread, while the camera is closed: nothing else
- *              reads what it writes then: v4l2, vs, opened,
- *              open_bad_format) opens the V4L2 device, checks the size,
- *              starts streaming; closes it again on any failure;
+ *              touches what it writes then: det, buf, cap, v4l2, vs,
+ *              opened, open_bad_format) makes the detector at the first
+ *              call that gets this far, opens the V4L2 device, checks the
+ *              size, starts streaming; closes the device again on any
+ *              failure. HAL_E_NOT_FOUND (no device, no colour table),
+ *              HAL_E_CORRUPT (a bad colour table or range model), HAL_E_ARG
+ *              (a frame size other than configured), the V4L2 backend's open
+ *              status, HAL_E_IO; msg names the file or device;
  *   _finish    (the loop) with the status of the parts before: counts it,
- *              and on success makes the camera the open one.
- * Each returns the status robot_camera_open would; msg as there.
+ *              and on success makes the camera the open one. Returns that
+ *              status. Nothing stays open after a failure.
  */
 hal_status_t robot_camera_open_prepare(robot_camera_t *c, char *msg, size_t msg_cap);
 hal_status_t robot_camera_open_device(robot_camera_t *c, char *msg, size_t msg_cap);

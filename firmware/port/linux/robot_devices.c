@@ -550,8 +550,8 @@ static int opener_take(robot_dev_opener_t *o, hal_status_t *result, char *reason
     return done;
 }
 
-/* Under o->mu: wait until the attempt has returned or wait_ms passed. */
-static void opener_wait(robot_dev_opener_t *o, uint32_t wait_ms)
+/* wait_ms from now on CLOCK_MONOTONIC (the condition variables' clock). */
+static struct timespec deadline_in(uint32_t wait_ms)
 {
     struct timespec end;
     (void)clock_gettime(CLOCK_MONOTONIC, &end);
@@ -561,58 +561,85 @@ static void opener_wait(robot_dev_opener_t *o, uint32_t wait_ms)
         end.tv_sec++;
         end.tv_nsec -= 1000000000L;
     }
+    return end;
+}
+
+/* Under o->mu: wait until the attempt has returned or `end` has come. */
+static void opener_wait(robot_dev_opener_t *o, const struct timespec *end)
+{
     while (o->state == OPENER_BUSY) {
-        if (pthread_cond_timedwait(&o->done_cv, &o->mu, &end) == ETIMEDOUT) {
+        if (pthread_cond_timedwait(&o->done_cv, &o->mu, end) == ETIMEDOUT) {
             break;
         }
     }
 }
 
-/* Stop slot id's opener (close_all). An attempt that returns in time is
- * finished as the loop would (and closed with the rest); one that does not
- * is said and left: the thread owns its device until the process exits. */
-static void opener_stop(robot_devices_t *d, robot_dev_t id)
+/* Stop every opener (close_all): all are told to quit first, then each is
+ * waited for until one shared deadline, so that several hung devices do not
+ * add up their waits. An attempt that returns in time is finished as the
+ * loop would (and closed with the rest); one that does not is said and
+ * left: the thread owns its device until the process exits. */
+static void openers_stop(robot_devices_t *d)
 {
-    robot_dev_opener_t *o = &d->opener[id];
-    if (!o->started) {
-        return;
-    }
-    (void)pthread_mutex_lock(&o->mu);
-    o->quit = 1;
-    (void)pthread_cond_signal(&o->job_cv);
-    opener_wait(o, ROBOT_DEVICES_CLOSE_WAIT_MS);
-    const int stuck = o->state == OPENER_BUSY;
-    (void)pthread_mutex_unlock(&o->mu);
-    o->started = 0;
-    if (stuck) {
-        o->stuck = 1;
-        (void)pthread_detach(o->thread);
-        char text[320];
-        put_text(text, sizeof text,
-                 "an open attempt has not returned %u ms after the stop; left to the process's exit (the device is "
-                 "not released)",
-                 ROBOT_DEVICES_CLOSE_WAIT_MS);
-        say(d, d->dev[id].name, &d->dev[id], text);
-        return;
-    }
-    (void)pthread_join(o->thread, NULL);
-    (void)pthread_cond_destroy(&o->done_cv);
-    (void)pthread_cond_destroy(&o->job_cv);
-    (void)pthread_mutex_destroy(&o->mu);
-    if (d->dev[id].opening) {
-        d->dev[id].opening = 0;
-        if (o->state == OPENER_DONE) {
-            (void)open_finish(d, id, o->result, o->reason, 0U); /* up: closed with the rest */
+    for (int i = 0; i < ROBOT_DEV_COUNT; ++i) {
+        robot_dev_opener_t *o = &d->opener[i];
+        if (o->started) {
+            (void)pthread_mutex_lock(&o->mu);
+            o->quit = 1;
+            (void)pthread_cond_signal(&o->job_cv);
+            (void)pthread_mutex_unlock(&o->mu);
         }
     }
-    o->state = OPENER_IDLE;
+    const struct timespec end = deadline_in(ROBOT_DEVICES_CLOSE_WAIT_MS);
+    for (int i = 0; i < ROBOT_DEV_COUNT; ++i) {
+        const robot_dev_t id = (robot_dev_t)i;
+        robot_dev_opener_t *o = &d->opener[i];
+        if (!o->started) {
+            continue;
+        }
+        (void)pthread_mutex_lock(&o->mu);
+        opener_wait(o, &end);
+        const int stuck = o->state == OPENER_BUSY;
+        (void)pthread_mutex_unlock(&o->mu);
+        o->started = 0;
+        if (stuck) {
+            o->stuck = 1;
+            (void)pthread_detach(o->thread);
+            char text[320];
+            put_text(text, sizeof text,
+                     "an open attempt has not returned %u ms after the stop; left to the process's exit (the device "
+                     "is not released)",
+                     ROBOT_DEVICES_CLOSE_WAIT_MS);
+            say(d, d->dev[id].name, &d->dev[id], text);
+            continue;
+        }
+        (void)pthread_join(o->thread, NULL);
+        (void)pthread_cond_destroy(&o->done_cv);
+        (void)pthread_cond_destroy(&o->job_cv);
+        (void)pthread_mutex_destroy(&o->mu);
+        if (d->dev[id].opening) {
+            d->dev[id].opening = 0;
+            if (o->state == OPENER_DONE) {
+                (void)open_finish(d, id, o->result, o->reason, 0U); /* up: closed with the rest */
+            }
+        }
+        o->state = OPENER_IDLE;
+    }
 }
 
 unsigned robot_devices_opening(const robot_devices_t *d)
 {
     unsigned n = 0U;
     for (int i = 0; i < ROBOT_DEV_COUNT; ++i) {
-        n += d->dev[i].opening ? 1U : 0U;
+        /* the mutex is the only thing written here: the opener is the
+         * caller's, const for the status reader */
+        robot_dev_opener_t *o = (robot_dev_opener_t *)&d->opener[i];
+        if (!d->dev[i].opening || !o->started) {
+            continue;
+        }
+        (void)pthread_mutex_lock(&o->mu);
+        n += o->state == OPENER_BUSY ? 1U : 0U;
+        (void)pthread_mutex_unlock(&o->mu);
     }
     return n;
 }
@@ -625,8 +652,9 @@ unsigned robot_devices_wait_opens(robot_devices_t *d, uint32_t wait_ms)
         if (!d->dev[i].opening || !o->started) {
             continue;
         }
+        const struct timespec end = deadline_in(wait_ms);
         (void)pthread_mutex_lock(&o->mu);
-        opener_wait(o, wait_ms);
+        opener_wait(o, &end);
         running += o->state == OPENER_BUSY ? 1U : 0U;
         (void)pthread_mutex_unlock(&o->mu);
     }
@@ -904,7 +932,8 @@ unsigned robot_devices_service(robot_devices_t *d, uint64_t now_us)
             opener_submit(o);
             continue;
         }
-        /* no opener thread: the attempt holds the loop, timed and said */
+        /* no opener thread (or the preparation failed: nothing left to do):
+         * the attempt runs here, timed, and said if it held the loop */
         uint64_t t0 = now_us;
         (void)hal_clock_now_us(d->clock, &t0);
         if (s == HAL_OK) {
@@ -926,9 +955,7 @@ unsigned robot_devices_service(robot_devices_t *d, uint64_t now_us)
 
 void robot_devices_close_all(robot_devices_t *d)
 {
-    for (int i = 0; i < ROBOT_DEV_COUNT; ++i) {
-        opener_stop(d, (robot_dev_t)i);
-    }
+    openers_stop(d);
     for (int i = 0; i < ROBOT_DEV_COUNT; ++i) {
         if (d->dev[i].state == ROBOT_DEV_UP) {
             close_dev(d, (robot_dev_t)i);

@@ -200,13 +200,13 @@ void robot_devices_open_all(robot_devices_t *d, uint64_t now_us);
  * Close and report lost devices; retry the down ones whose time has come
  * (a return is reported). A retry runs on the device's opener thread: this
  * call hands it over and a later call takes its outcome, so the loop never
- * waits for an open (the camera's detector is made in the loop, at its
- * first successful preparation only). Returns a bit mask (1 << robot_dev_t)
+ * waits for an open. Returns a bit mask (1 << robot_dev_t)
  * of the devices whose state changed in this call.
  */
 unsigned robot_devices_service(robot_devices_t *d, uint64_t now_us);
 
-/** Open attempts running on opener threads now. */
+/** Open attempts running on opener threads now (not those that have
+ *  returned and wait for the next service to take them). */
 unsigned robot_devices_opening(const robot_devices_t *d);
 
 /** Wait at most wait_ms until every running open attempt has returned (its

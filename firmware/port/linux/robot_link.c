@@ -280,15 +280,6 @@ void robot_link_backend_opened(robot_link_t *l)
 #endif
 }
 
-hal_status_t robot_link_backend_open(robot_link_t *l, char *reason, size_t reason_cap)
-{
-    const hal_status_t s = robot_link_backend_open_device(l, reason, reason_cap);
-    if (s == HAL_OK) {
-        robot_link_backend_opened(l);
-    }
-    return s;
-}
-
 hal_link_t *robot_link_backend(robot_link_t *l)
 {
 #if COSLAM_HAVE_DDS

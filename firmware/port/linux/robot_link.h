@@ -27,7 +27,7 @@
  *
  * "slot" is the device proxy of robot_devices.c (it answers "down" while
  * the DDS instance is closed), so DDS can fail to open, be retried and come
- * back (robot_link_backend_open / _close, called by the device slot) while
+ * back (robot_link_backend_open_device / _close, called by the device slot) while
  * the decorator - its key, its send counter and the per-sender replay
  * state - stays open from start to exit. In insecure mode the node gets the
  * slot itself; with the link off it gets hal_link_null().
@@ -103,8 +103,8 @@ typedef struct {
  * Apply the link policy of cfg (header comment) for robot cfg->robot_id:
  * read and check the fleet key, open the authentication decorator over
  * `slot` (the device proxy: its self_id must answer cfg->robot_id at once),
- * fill l->what. Does NOT open DDS (robot_link_backend_open does, so that a
- * failure there is a device retried like the others).
+ * fill l->what. Does NOT open DDS (robot_link_backend_open_device does, so
+ * that a failure there is a device retried like the others).
  * Returns COSLAM_OK (l->mode says what was chosen; for ROBOT_LINK_OFF,
  * l->off_reason why); COSLAM_E_ARG with msg: the robot must not start (a
  * key file is configured but missing, unreadable, too open or invalid;
@@ -120,20 +120,17 @@ coslam_status_t robot_open_link(robot_link_t *l, const robot_config_t *cfg, hal_
 hal_link_t *robot_link_handle(robot_link_t *l);
 
 /**
- * Open the DDS instance (first attempt and retries by the device slot).
- * Returns HAL_OK; HAL_E_UNSUPPORTED (link off: nothing to open); or the
- * code of hal_link_dds_open (HAL_E_ARG bad setting, HAL_E_BUSY, HAL_E_IO
- * Cyclone refused), with a reason in words in `reason`.
+ * Open the DDS instance (first attempt and retries by the device slot), in
+ * two parts, so that the DDS open (which blocks: Cyclone starts its threads
+ * and sockets) can run on a thread of its own while the control loop goes
+ * on (robot_devices.c's openers): _open_device (any one thread, while the
+ * backend is closed: it writes only the DDS instance, which nothing reads
+ * until _opened) returns HAL_OK; HAL_E_UNSUPPORTED (link off: nothing to
+ * open); or the code of hal_link_dds_open (HAL_E_ARG bad setting,
+ * HAL_E_BUSY, HAL_E_IO Cyclone refused), with a reason in words in
+ * `reason`. On HAL_OK the loop then calls _opened, which makes the
+ * instance the open one.
  */
-hal_status_t robot_link_backend_open(robot_link_t *l, char *reason, size_t reason_cap);
-
-/** robot_link_backend_open in two parts, so that the DDS open (which
- *  blocks: Cyclone starts its threads and sockets) can run on a thread of
- *  its own while the control loop goes on (robot_devices.c's openers):
- *  _open_device (any one thread, while the backend is closed: it writes
- *  only the DDS instance, which nothing reads until _opened) returns what
- *  robot_link_backend_open would; on HAL_OK the loop then calls
- *  _opened, which makes the instance the open one. */
 hal_status_t robot_link_backend_open_device(robot_link_t *l, char *reason, size_t reason_cap);
 void robot_link_backend_opened(robot_link_t *l);
 

@@ -166,7 +166,8 @@ static robot_snapshot_t snap;
  * started) the loop writes them itself, as the final one always is. */
 static robot_snapshot_writer_t writer;
 typedef struct {
-    int active;                /* a write handed over, outcome not taken */
+    int active;                /* a write (or the read below) handed over, outcome not taken */
+    int is_read;               /* ... the read of the newest generation when the storage came back */
     robot_snapshot_job_t job;
     uint16_t landmarks;
     uint64_t since_us;         /* handed over at (monotonic) */
@@ -254,6 +255,16 @@ static int commit_snapshot(int verbose, const char *why, const robot_snapshot_jo
  * saved. */
 static int save_snapshot_map(int verbose, const char *why, uint64_t now_us, int to_writer)
 {
+    if (writing.active) {
+        /* the writer owns snaps' buffer until its outcome is taken (the
+         * read of a storage that came back, begun after this snapshot's
+         * export): the snapshot is skipped, as one behind a slow write */
+        snaps.busy_skips++;
+        fprintf(stderr, "coslam-robot: snapshot: the storage is still being read (for %.1f s): %s snapshot skipped "
+                        "(snap_busy_skips=%lu)\n",
+                (double)(now_us - writing.since_us) * 1e-6, why, (unsigned long)snaps.busy_skips);
+        return -1;
+    }
     hal_storage_t *st = robot_devices_storage(&dev);
     robot_snapshots_set_storage(&snaps, st);
     if (st == NULL) {
@@ -295,6 +306,52 @@ static int save_snapshot_map(int verbose, const char *why, uint64_t now_us, int 
     return 0;
 }
 
+/* The storage came back: what the read of its newest generation gave
+ * (robot_snapshots_read_newest's return, what it found, read_us) becomes
+ * the generation bookkeeping, so that this run's saves come after the
+ * snapshots on disk; reported. */
+static void newest_read(coslam_status_t rs, const robot_snapshot_found_t *found, uint64_t read_us)
+{
+    const char *name = robot_snapshots_found(&snaps, found);
+    char took[64] = "";
+    if (read_us >= 50000U) {
+        /* a medium that slow is said (on the writer thread: the loop went on) */
+        (void)snprintf(took, sizeof took, " (read in %.0f ms on the writer thread)", (double)read_us * 1e-3);
+    }
+    if (rs == COSLAM_OK && name != NULL) {
+        fprintf(stderr, "coslam-robot: snapshot: storage back; newest on disk %s seq=%llu kept, this run's map "
+                        "is saved after it%s\n",
+                name, (unsigned long long)found->seq, took);
+    } else if (rs == COSLAM_E_EMPTY) {
+        fprintf(stderr, "coslam-robot: snapshot: storage back; none on disk%s\n", took);
+    } else {
+        fprintf(stderr, "coslam-robot: snapshot: storage back; cannot read (%s)%s\n", coslam_status_str(rs), took);
+    }
+}
+
+/* The storage came back (to_writer: the writer thread runs): its newest
+ * generation is read on the writer thread, which owns snaps' buffer until
+ * the outcome is taken (finish_snapshot_write); else here, as at start. */
+static void storage_back(uint64_t now_us, int to_writer)
+{
+    static robot_snapshot_t newest;
+    robot_snapshots_set_storage(&snaps, robot_devices_storage(&dev));
+    if (to_writer && !writing.active && robot_snapshot_writer_submit_read(&writer, &snaps, &newest) == 0) {
+        writing.active = 1;
+        writing.is_read = 1;
+        writing.since_us = now_us;
+        writing.why = "read";
+        return;
+    }
+    robot_snapshot_found_t found;
+    uint64_t t0 = now_us;
+    (void)hal_clock_now_us(dev.clock, &t0);
+    const coslam_status_t rs = robot_snapshots_read_newest(&snaps, &newest, &found, stderr);
+    uint64_t t1 = t0;
+    (void)hal_clock_now_us(dev.clock, &t1);
+    newest_read(rs, &found, t1 - t0);
+}
+
 /* The periodic write in flight: its outcome, if it is there (waiting at
  * most wait_ms), committed and reported. Returns 1 when no write is in
  * flight any more. */
@@ -309,6 +366,11 @@ static int finish_snapshot_write(int verbose, uint32_t wait_ms, uint64_t now_us)
         return 0;
     }
     writing.active = 0;
+    if (writing.is_read) {
+        writing.is_read = 0;
+        newest_read(writer.read_result, &writer.read_found, write_us);
+        return 1;
+    }
     (void)commit_snapshot(verbose, writing.why, &writing.job, writing.landmarks, ws, write_us, now_us);
     return 1;
 }
@@ -740,7 +802,7 @@ int main(int argc, char **argv)
         }
         const int storage_up = robot_devices_storage(&dev) != NULL;
         if (storage_up && !storage_was_up) {
-            load_snapshot(0);
+            storage_back(now, werr == 0);
         }
         storage_was_up = storage_up;
 
@@ -762,8 +824,9 @@ int main(int argc, char **argv)
                  * reported, not queued behind */
                 snaps.busy_skips++;
                 fprintf(stderr,
-                        "coslam-robot: snapshot: the last snapshot's write has run for %.1f s (slow or stuck "
-                        "storage): periodic snapshot skipped (snap_busy_skips=%lu)\n",
+                        "coslam-robot: snapshot: the %s has run for %.1f s (slow or stuck storage): periodic "
+                        "snapshot skipped (snap_busy_skips=%lu)\n",
+                        writing.is_read ? "read of the storage that came back" : "last snapshot's write",
                         (double)(now - writing.since_us) * 1e-6, (unsigned long)snaps.busy_skips);
             } else {
                 observer.want_snap = 1;
@@ -876,9 +939,9 @@ int main(int argc, char **argv)
     if (!finish_snapshot_write(1, FINAL_SNAPSHOT_WAIT_MS, now)) {
         (void)hal_clock_now_us(clock, &now);
         fprintf(stderr,
-                "coslam-robot: snapshot: a snapshot write has run for %.1f s and does not return (storage stuck): "
+                "coslam-robot: snapshot: a snapshot %s has run for %.1f s and does not return (storage stuck): "
                 "no final snapshot\n",
-                (double)(now - writing.since_us) * 1e-6);
+                writing.is_read ? "read" : "write", (double)(now - writing.since_us) * 1e-6);
         (void)robot_snapshot_writer_stop(&writer, 0U);
         /* the thread still uses the storage: left open to it until exit */
         dev.dev[ROBOT_DEV_STORAGE].state = ROBOT_DEV_DOWN;

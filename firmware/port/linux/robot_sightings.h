@@ -129,7 +129,7 @@ typedef enum {
  * the kind (cfg->camera_live_fd >= 0 first: the live stream); for
  * ROBOT_SIGHTINGS_REPLAY and ROBOT_SIGHTINGS_LIVE *st is the open status of the
  * replay (HAL_OK or its error, with msg), else HAL_E_UNSUPPORTED (the
- * camera is opened by the caller: robot_camera_open).
+ * camera is opened by the caller: robot_camera_open_*).
  */
 robot_sightings_kind_t robot_open_sightings(robot_replay_t *r, const robot_config_t *cfg, hal_clock_t *clock,
                                             hal_status_t *st, char *msg, size_t msg_cap);

@@ -239,16 +239,19 @@ void robot_snapshots_set_storage(robot_snapshots_t *s, hal_storage_t *storage)
     s->storage = storage;
 }
 
-coslam_status_t robot_snapshots_load(robot_snapshots_t *s, robot_snapshot_t *out, const char **name, FILE *log)
+coslam_status_t robot_snapshots_read_newest(robot_snapshots_t *s, robot_snapshot_t *out, robot_snapshot_found_t *found,
+                                            FILE *log)
 {
-    if (s == NULL || out == NULL) {
+    if (s == NULL || out == NULL || found == NULL) {
         return COSLAM_E_ARG;
     }
+    found->slot = -1;
+    found->seq = 0U;
+    found->corrupt = 0U;
     if (s->storage == NULL) {
         return COSLAM_E_UNSUPPORTED;
     }
-    static robot_snapshot_t cand; /* one thread */
-    int best = -1;
+    static robot_snapshot_t cand; /* one thread at a time: the loop, or the writer for it */
     for (int k = 0; k < 2; ++k) {
         size_t len = 0;
         const hal_status_t hs = hal_storage_read(s->storage, slot_names[k], s->buf, sizeof s->buf, &len);
@@ -256,7 +259,7 @@ coslam_status_t robot_snapshots_load(robot_snapshots_t *s, robot_snapshot_t *out
             continue;
         }
         if (hs != HAL_OK) {
-            s->corrupt_found++;
+            found->corrupt++;
             if (log != NULL) {
                 fprintf(log, "coslam-robot: snapshot: %s unreadable (%s)%s\n", slot_names[k], hal_status_str(hs),
                         hs == HAL_E_CORRUPT ? ": damaged, not used" : "");
@@ -265,30 +268,47 @@ coslam_status_t robot_snapshots_load(robot_snapshots_t *s, robot_snapshot_t *out
         }
         const coslam_status_t cs = robot_snapshot_decode(s->buf, len, &cand);
         if (cs != COSLAM_OK) {
-            s->corrupt_found++;
+            found->corrupt++;
             if (log != NULL) {
                 fprintf(log, "coslam-robot: snapshot: %s corrupt (%s): not used\n", slot_names[k],
                         coslam_status_str(cs));
             }
             continue;
         }
-        if (best < 0 || cand.seq > out->seq) {
+        if (found->slot < 0 || cand.seq > out->seq) {
             *out = cand;
-            best = k;
+            found->slot = k;
+            found->seq = cand.seq;
         }
     }
     if (log != NULL) {
         fflush(log);
     }
-    if (best < 0) {
-        return COSLAM_E_EMPTY;
+    return found->slot < 0 ? COSLAM_E_EMPTY : COSLAM_OK;
+}
+
+const char *robot_snapshots_found(robot_snapshots_t *s, const robot_snapshot_found_t *found)
+{
+    s->corrupt_found += found->corrupt;
+    if (found->slot < 0) {
+        return NULL;
     }
-    s->newest = best;
-    s->newest_seq = out->seq;
-    if (name != NULL) {
-        *name = slot_names[best];
+    s->newest = found->slot;
+    s->newest_seq = found->seq;
+    return slot_names[found->slot];
+}
+
+coslam_status_t robot_snapshots_load(robot_snapshots_t *s, robot_snapshot_t *out, const char **name, FILE *log)
+{
+    robot_snapshot_found_t found;
+    const coslam_status_t st = robot_snapshots_read_newest(s, out, &found, log);
+    if (st == COSLAM_OK || st == COSLAM_E_EMPTY) {
+        const char *n = robot_snapshots_found(s, &found);
+        if (name != NULL && n != NULL) {
+            *name = n;
+        }
     }
-    return COSLAM_OK;
+    return st;
 }
 
 coslam_status_t robot_snapshots_prepare(robot_snapshots_t *s, robot_snapshot_t *snap, robot_snapshot_job_t *job)

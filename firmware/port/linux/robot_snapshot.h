@@ -152,6 +152,27 @@ void robot_snapshots_set_storage(robot_snapshots_t *s, hal_storage_t *storage);
  */
 coslam_status_t robot_snapshots_load(robot_snapshots_t *s, robot_snapshot_t *out, const char **name, FILE *log);
 
+/** What robot_snapshots_read_newest found (its bookkeeping, not yet in s). */
+typedef struct {
+    int slot;              /**< 0 (a), 1 (b): the newest valid generation; -1 none */
+    uint64_t seq;          /**< its sequence number */
+    uint32_t corrupt;      /**< generations that exist but could not be used (reported) */
+} robot_snapshot_found_t;
+
+/**
+ * robot_snapshots_load in two halves, so that the reads can run on the
+ * writer thread (robot_snapshot_writer.h) when the storage comes back:
+ * _read_newest does the storage reads and checks; it uses s->buf and reads
+ * s->storage, and writes nothing else of s (the status line reads the
+ * rest meanwhile); its return and *out as robot_snapshots_load's, *found
+ * what it found. _found (the loop, afterwards) makes that the generation
+ * bookkeeping (newest, newest_seq, corrupt_found) and returns the newest
+ * blob's name (NULL: none).
+ */
+coslam_status_t robot_snapshots_read_newest(robot_snapshots_t *s, robot_snapshot_t *out, robot_snapshot_found_t *found,
+                                            FILE *log);
+const char *robot_snapshots_found(robot_snapshots_t *s, const robot_snapshot_found_t *found);
+
 /** A save in two halves, for a write that runs elsewhere (a writer
  *  thread, robot_snapshot_writer.h): which blob, which sequence number,
  *  how many bytes of robot_snapshots_t.buf. */

@@ -3,6 +3,7 @@
 
 #include <errno.h>
 #include <signal.h>
+#include <stdio.h>
 #include <string.h>
 #include <time.h>
 
@@ -57,7 +58,12 @@ static void *writer_main(void *arg)
         /* the job's fields are the control loop's again only after W_DONE */
         (void)pthread_mutex_unlock(&w->mu);
         const uint64_t t0 = mono_us();
-        const hal_status_t r = hal_storage_write(w->storage, w->name, w->buf, w->len);
+        hal_status_t r = HAL_OK;
+        if (w->is_read) {
+            w->read_result = robot_snapshots_read_newest(w->snaps, w->read_out, &w->read_found, stderr);
+        } else {
+            r = hal_storage_write(w->storage, w->name, w->buf, w->len);
+        }
         const uint64_t t1 = mono_us();
         (void)pthread_mutex_lock(&w->mu);
         w->result = r;
@@ -147,12 +153,36 @@ int robot_snapshot_writer_submit(robot_snapshot_writer_t *w, hal_storage_t *stor
         (void)pthread_mutex_unlock(&w->mu);
         return EBUSY;
     }
+    w->is_read = 0;
     w->storage = storage;
     memcpy(w->name, name, strlen(name) + 1U);
     if (len > 0U) {
         memcpy(w->buf, data, len);
     }
     w->len = len;
+    w->state = W_BUSY;
+    (void)pthread_cond_signal(&w->job_cv);
+    (void)pthread_mutex_unlock(&w->mu);
+    return 0;
+}
+
+int robot_snapshot_writer_submit_read(robot_snapshot_writer_t *w, robot_snapshots_t *snaps, robot_snapshot_t *out)
+{
+    if (w == NULL || snaps == NULL || out == NULL) {
+        return EINVAL;
+    }
+    if (!w->started) {
+        return ESRCH;
+    }
+    (void)pthread_mutex_lock(&w->mu);
+    if (w->state != W_IDLE) {
+        (void)pthread_mutex_unlock(&w->mu);
+        return EBUSY;
+    }
+    w->is_read = 1;
+    w->snaps = snaps;
+    w->read_out = out;
+    w->read_result = COSLAM_E_EMPTY;
     w->state = W_BUSY;
     (void)pthread_cond_signal(&w->job_cv);
     (void)pthread_mutex_unlock(&w->mu);

@@ -21,7 +21,8 @@
  * No heap of its own: the copy lives in the struct (static in robot_main.c);
  * the thread's stack is the C library's. Thread-safety: every function is
  * called from one thread (the control loop); the writer thread touches only
- * the job it was given.
+ * the job it was given. It also does the reads of the newest generation
+ * when the storage comes back (robot_snapshot_writer_submit_read).
  */
 #ifndef COSLAM_PORT_ROBOT_SNAPSHOT_WRITER_H
 #define COSLAM_PORT_ROBOT_SNAPSHOT_WRITER_H
@@ -50,6 +51,12 @@ typedef struct {
     size_t len;
     hal_status_t result;     /**< the job's storage write status (state 2) */
     uint64_t write_us;       /**< how long the storage call took (state 2) */
+    /* a read job instead (robot_snapshot_writer_submit_read) */
+    int is_read;
+    robot_snapshots_t *snaps;
+    robot_snapshot_t *read_out;
+    robot_snapshot_found_t read_found; /**< its outcome (state 2) */
+    coslam_status_t read_result;       /**< robot_snapshots_read_newest's return (state 2) */
     uint8_t buf[ROBOT_SNAPSHOT_MAX_BYTES];
 } robot_snapshot_writer_t;
 
@@ -65,6 +72,17 @@ int robot_snapshot_writer_start(robot_snapshot_writer_t *w);
  */
 int robot_snapshot_writer_submit(robot_snapshot_writer_t *w, hal_storage_t *storage, const char *name,
                                  const uint8_t *data, size_t len);
+
+/**
+ * Hand a read over instead: robot_snapshots_read_newest(snaps, out, ...,
+ * stderr) on the thread (when the storage comes back: the reads of a medium
+ * that has just returned may be as slow as its writes). Until the outcome
+ * is taken the caller must not touch snaps->buf, snaps->storage or *out.
+ * The outcome comes through robot_snapshot_writer_take (*result HAL_OK,
+ * *write_us how long the reads took), then in w->read_result and
+ * w->read_found. Returns as robot_snapshot_writer_submit (EINVAL: NULL).
+ */
+int robot_snapshot_writer_submit_read(robot_snapshot_writer_t *w, robot_snapshots_t *snaps, robot_snapshot_t *out);
 
 /**
  * The outcome of the write handed over, waiting for it at most wait_ms
