@@ -576,6 +576,32 @@ static void test_fastslam_merge_in_parts(void **state)
     assert_int_equal(g_a.merges_forced, 1U);
     take_outcome_ok();
 
+    /* the same in the robot node's order (prepare, the health monitor's
+     * look, apply): the update that forces the merge finishes it in
+     * prepare, so the look reads the merged map (B's landmarks beyond x = 2
+     * are in A's particles), and prepare is not an update, so the count the
+     * monitor records there is the one apply moves by one */
+    setup_pair(SLAM_FILTER_FASTSLAM2, SLAM_FILTER_EKF);
+    const uint16_t own = g_a.u.fs.particles[0].n_lm;
+    assert_true(own < N_WORLD);
+    assert_int_equal(merge_b_into(&g_a, 1U), COSLAM_E_MERGE_PENDING);
+    for (unsigned k = 0; k < SLAM_FILTER_MERGE_MAX_UPDATES; ++k) {
+        assert_int_equal(slam_filter_update_prepare(&g_a, 0), 0);
+        assert_non_null(g_a.merge_due);
+        (void)slam_filter_update_apply(&g_a, NULL, 0);
+    }
+    const uint32_t updates = g_a.u.fs.ctr.updates;
+    assert_int_equal(slam_filter_update_prepare(&g_a, 0), 0);
+    assert_null(g_a.merge_due);
+    assert_int_equal(g_a.merges_forced, 1U);
+    assert_int_equal(g_a.u.fs.ctr.updates, updates);
+    for (int k = 0; k < g_a.u.fs.cfg.n_particles; ++k) {
+        assert_int_equal(g_a.u.fs.particles[k].n_lm, N_WORLD);
+    }
+    (void)slam_filter_update_apply(&g_a, NULL, 0);
+    assert_int_equal(g_a.u.fs.ctr.updates, updates + 1U);
+    take_outcome_ok();
+
     /* a budget the export fits in: decided in the call, the fusion in parts */
     setup_pair(SLAM_FILTER_FASTSLAM2, SLAM_FILTER_EKF);
     assert_int_equal(merge_b_into(&g_a, 2U * n * (FASTSLAM_EXPORT_UNITS_PARTICLE + N_WORLD * FASTSLAM_EXPORT_UNITS_PASS2)),
