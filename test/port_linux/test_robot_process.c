@@ -885,6 +885,25 @@ static void laser_silent(void **state)
 
 /* ---- a device open that blocks holds its own slot, not the loop ----------- */
 
+/* The robot with the camera's landmark log at dir/lm.fifo: spawned while
+ * it is missing (the camera down, retried every 0.3 s), and once the loop
+ * runs, made a FIFO, so that the next retry's open waits for a writer. */
+static pid_t spawn_fifo_camera_robot(char dir[64], char err[300], char fifo[300])
+{
+    make_dir(dir, 64);
+    char camera[400];
+    snprintf(fifo, 300, "%s/lm.fifo", dir);
+    snprintf(camera, sizeof camera, "replay_log = %s\nreplay_loop = true", fifo);
+    char store[300];
+    snprintf(store, sizeof store, "%s/store", dir);
+    config(dir, "no-laser", "0.2", "30", camera, store, "fastslam2");
+    snprintf(err, 300, "%s/err", dir);
+    const pid_t pid = spawn_robot(dir, err, NULL, NULL);
+    assert_true(wait_value(err, "steps", 20, 10000) >= 20); /* the loop runs, the camera down */
+    assert_int_equal(mkfifo(fifo, 0600), 0);
+    return pid;
+}
+
 /* Device opens in the loop's retries run on the device's opener thread
  * (robot_devices.h): one that takes long is said with its length, and the
  * control loop goes on meanwhile. The camera's landmark log is first
@@ -899,18 +918,8 @@ static void slow_open_said(void **state)
     (void)state;
     char dir[64];
     char err[300];
-    make_dir(dir, sizeof dir);
-    char camera[400];
     char fifo[300];
-    snprintf(fifo, sizeof fifo, "%s/lm.fifo", dir);
-    snprintf(camera, sizeof camera, "replay_log = %s\nreplay_loop = true", fifo);
-    char store[300];
-    snprintf(store, sizeof store, "%s/store", dir);
-    config(dir, "no-laser", "0.2", "30", camera, store, "fastslam2");
-    snprintf(err, sizeof err, "%s/err", dir);
-    const pid_t pid = spawn_robot(dir, err, NULL, NULL);
-    assert_true(wait_value(err, "steps", 20, 10000) >= 20); /* the loop runs, the camera down */
-    assert_int_equal(mkfifo(fifo, 0600), 0);
+    const pid_t pid = spawn_fifo_camera_robot(dir, err, fifo);
     const long opening = wait_value(err, "dev_opening", 1, 3000); /* a retry waits in the FIFO's open */
     const long steps_open = wait_value(err, "steps", 0, 0);
     sleep_ms(1000);
@@ -967,18 +976,8 @@ static void hung_open_left(void **state)
     (void)state;
     char dir[64];
     char err[300];
-    make_dir(dir, sizeof dir);
-    char camera[400];
     char fifo[300];
-    snprintf(fifo, sizeof fifo, "%s/lm.fifo", dir);
-    snprintf(camera, sizeof camera, "replay_log = %s\nreplay_loop = true", fifo);
-    char store[300];
-    snprintf(store, sizeof store, "%s/store", dir);
-    config(dir, "no-laser", "0.2", "30", camera, store, "fastslam2");
-    snprintf(err, sizeof err, "%s/err", dir);
-    const pid_t pid = spawn_robot(dir, err, NULL, NULL);
-    assert_true(wait_value(err, "steps", 20, 10000) >= 20);
-    assert_int_equal(mkfifo(fifo, 0600), 0);
+    const pid_t pid = spawn_fifo_camera_robot(dir, err, fifo);
     const long hung = wait_value(err, "dev_hung_opens", 1, 10000);
     uint64_t stop_ms = 0U;
     const char *log = stop_robot_within(pid, err, 5000, &stop_ms);

@@ -1,12 +1,9 @@
 /* Device slots, backends and proxies of coslam-robot (robot_devices.h). */
 #include "robot_devices.h"
 
-#include <errno.h>
-#include <signal.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <string.h>
-#include <time.h>
 #include <unistd.h>
 
 #include "hal_can_socketcan_internal.h" /* --can-fd: e2e tests only */
@@ -431,146 +428,26 @@ static int try_open(robot_devices_t *d, robot_dev_t id, uint64_t now_us)
 
 /* ---- openers: the blocking part of the loop's retries on a thread -------- */
 
-enum { OPENER_IDLE = 0, OPENER_BUSY = 1, OPENER_DONE = 2 };
-
-static uint64_t mono_us(void)
+/* The attempt, on the slot's opener thread. */
+static void opener_run(void *ctx)
 {
-    struct timespec ts;
-    (void)clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (uint64_t)ts.tv_sec * 1000000U + (uint64_t)ts.tv_nsec / 1000U;
-}
-
-static void *opener_main(void *arg)
-{
-    robot_dev_opener_t *o = (robot_dev_opener_t *)arg;
-    (void)pthread_mutex_lock(&o->mu);
-    for (;;) {
-        while (!o->quit && o->state != OPENER_BUSY) {
-            (void)pthread_cond_wait(&o->job_cv, &o->mu);
-        }
-        if (o->state != OPENER_BUSY) {
-            break; /* quit, nothing handed over */
-        }
-        /* the device's backend is this thread's until OPENER_DONE */
-        (void)pthread_mutex_unlock(&o->mu);
-        char reason[sizeof o->reason];
-        reason[0] = '\0';
-        const uint64_t t0 = mono_us();
-        const hal_status_t r = open_backend(o->d, o->id, reason, sizeof reason);
-        const uint64_t t1 = mono_us();
-        (void)pthread_mutex_lock(&o->mu);
-        o->result = r;
-        memcpy(o->reason, reason, sizeof reason);
-        o->took_us = t1 - t0;
-        o->state = OPENER_DONE;
-        (void)pthread_cond_broadcast(&o->done_cv);
-    }
-    (void)pthread_mutex_unlock(&o->mu);
-    return NULL;
+    robot_dev_opener_t *o = (robot_dev_opener_t *)ctx;
+    o->result = open_backend(o->d, o->id, o->reason, sizeof o->reason);
 }
 
 /* Start slot id's opener; on failure the slot's retries open in the loop. */
 static void opener_start(robot_devices_t *d, robot_dev_t id)
 {
     robot_dev_opener_t *o = &d->opener[id];
-    if (o->started) {
-        return;
-    }
     o->d = d;
     o->id = id;
-    o->state = OPENER_IDLE;
-    o->quit = 0;
-    pthread_condattr_t ca;
-    int made = 0; /* the mutex, job_cv, done_cv made so far */
-    int e = pthread_condattr_init(&ca);
-    if (e == 0) {
-        e = pthread_condattr_setclock(&ca, CLOCK_MONOTONIC);
-        if (e == 0 && (e = pthread_mutex_init(&o->mu, NULL)) == 0) {
-            made = 1;
-        }
-        if (e == 0 && (e = pthread_cond_init(&o->job_cv, &ca)) == 0) {
-            made = 2;
-        }
-        if (e == 0 && (e = pthread_cond_init(&o->done_cv, &ca)) == 0) {
-            made = 3;
-        }
-        (void)pthread_condattr_destroy(&ca);
-    }
-    if (e == 0) {
-        /* signals go to the control loop, never to an opener */
-        sigset_t all;
-        sigset_t old;
-        (void)sigfillset(&all);
-        (void)pthread_sigmask(SIG_SETMASK, &all, &old);
-        e = pthread_create(&o->thread, NULL, opener_main, o);
-        (void)pthread_sigmask(SIG_SETMASK, &old, NULL);
-    }
-    if (e == 0) {
-        o->started = 1;
-        return;
-    }
-    if (made >= 3) {
-        (void)pthread_cond_destroy(&o->done_cv);
-    }
-    if (made >= 2) {
-        (void)pthread_cond_destroy(&o->job_cv);
-    }
-    if (made >= 1) {
-        (void)pthread_mutex_destroy(&o->mu);
-    }
-    char text[320];
-    put_text(text, sizeof text,
-             "no opener thread (%s): its reopen attempts will hold the control loop while they block",
-             strerror(e));
-    say(d, d->dev[id].name, &d->dev[id], text);
-}
-
-static void opener_submit(robot_dev_opener_t *o)
-{
-    (void)pthread_mutex_lock(&o->mu);
-    o->state = OPENER_BUSY;
-    o->reason[0] = '\0';
-    (void)pthread_cond_signal(&o->job_cv);
-    (void)pthread_mutex_unlock(&o->mu);
-}
-
-/* 1 with the outcome when the attempt has returned (the opener is idle
- * again), 0 while it runs. */
-static int opener_take(robot_dev_opener_t *o, hal_status_t *result, char *reason, size_t reason_cap, uint64_t *took_us)
-{
-    (void)pthread_mutex_lock(&o->mu);
-    const int done = o->state == OPENER_DONE;
-    if (done) {
-        *result = o->result;
-        put_text(reason, reason_cap, "%s", o->reason);
-        *took_us = o->took_us;
-        o->state = OPENER_IDLE;
-    }
-    (void)pthread_mutex_unlock(&o->mu);
-    return done;
-}
-
-/* wait_ms from now on CLOCK_MONOTONIC (the condition variables' clock). */
-static struct timespec deadline_in(uint32_t wait_ms)
-{
-    struct timespec end;
-    (void)clock_gettime(CLOCK_MONOTONIC, &end);
-    end.tv_sec += (time_t)(wait_ms / 1000U);
-    end.tv_nsec += (long)(wait_ms % 1000U) * 1000000L;
-    if (end.tv_nsec >= 1000000000L) {
-        end.tv_sec++;
-        end.tv_nsec -= 1000000000L;
-    }
-    return end;
-}
-
-/* Under o->mu: wait until the attempt has returned or `end` has come. */
-static void opener_wait(robot_dev_opener_t *o, const struct timespec *end)
-{
-    while (o->state == OPENER_BUSY) {
-        if (pthread_cond_timedwait(&o->done_cv, &o->mu, end) == ETIMEDOUT) {
-            break;
-        }
+    const int e = robot_worker_start(&o->worker, opener_run, o);
+    if (e != 0) {
+        char text[320];
+        put_text(text, sizeof text,
+                 "no opener thread (%s): its reopen attempts will hold the control loop while they block",
+                 strerror(e));
+        say(d, d->dev[id].name, &d->dev[id], text);
     }
 }
 
@@ -582,29 +459,16 @@ static void opener_wait(robot_dev_opener_t *o, const struct timespec *end)
 static void openers_stop(robot_devices_t *d)
 {
     for (int i = 0; i < ROBOT_DEV_COUNT; ++i) {
-        robot_dev_opener_t *o = &d->opener[i];
-        if (o->started) {
-            (void)pthread_mutex_lock(&o->mu);
-            o->quit = 1;
-            (void)pthread_cond_signal(&o->job_cv);
-            (void)pthread_mutex_unlock(&o->mu);
-        }
+        robot_worker_quit(&d->opener[i].worker);
     }
-    const struct timespec end = deadline_in(ROBOT_DEVICES_CLOSE_WAIT_MS);
+    const struct timespec end = robot_worker_deadline(ROBOT_DEVICES_CLOSE_WAIT_MS);
     for (int i = 0; i < ROBOT_DEV_COUNT; ++i) {
         const robot_dev_t id = (robot_dev_t)i;
         robot_dev_opener_t *o = &d->opener[i];
-        if (!o->started) {
+        if (!o->worker.started) {
             continue;
         }
-        (void)pthread_mutex_lock(&o->mu);
-        opener_wait(o, &end);
-        const int stuck = o->state == OPENER_BUSY;
-        (void)pthread_mutex_unlock(&o->mu);
-        o->started = 0;
-        if (stuck) {
-            o->stuck = 1;
-            (void)pthread_detach(o->thread);
+        if (robot_worker_join(&o->worker, &end) != 0) {
             char text[320];
             put_text(text, sizeof text,
                      "an open attempt has not returned %u ms after the stop; left to the process's exit (the device "
@@ -613,17 +477,12 @@ static void openers_stop(robot_devices_t *d)
             say(d, d->dev[id].name, &d->dev[id], text);
             continue;
         }
-        (void)pthread_join(o->thread, NULL);
-        (void)pthread_cond_destroy(&o->done_cv);
-        (void)pthread_cond_destroy(&o->job_cv);
-        (void)pthread_mutex_destroy(&o->mu);
         if (d->dev[id].opening) {
             d->dev[id].opening = 0;
-            if (o->state == OPENER_DONE) {
+            if (o->worker.state == 2) { /* ended, not taken (robot_worker.h) */
                 (void)open_finish(d, id, o->result, o->reason, 0U); /* up: closed with the rest */
             }
         }
-        o->state = OPENER_IDLE;
     }
 }
 
@@ -631,15 +490,10 @@ unsigned robot_devices_opening(const robot_devices_t *d)
 {
     unsigned n = 0U;
     for (int i = 0; i < ROBOT_DEV_COUNT; ++i) {
-        /* the mutex is the only thing written here: the opener is the
+        /* only the worker's mutex is written here: the opener is the
          * caller's, const for the status reader */
-        robot_dev_opener_t *o = (robot_dev_opener_t *)&d->opener[i];
-        if (!d->dev[i].opening || !o->started) {
-            continue;
-        }
-        (void)pthread_mutex_lock(&o->mu);
-        n += o->state == OPENER_BUSY ? 1U : 0U;
-        (void)pthread_mutex_unlock(&o->mu);
+        robot_worker_t *w = (robot_worker_t *)&d->opener[i].worker;
+        n += d->dev[i].opening && robot_worker_running(w) ? 1U : 0U;
     }
     return n;
 }
@@ -647,16 +501,11 @@ unsigned robot_devices_opening(const robot_devices_t *d)
 unsigned robot_devices_wait_opens(robot_devices_t *d, uint32_t wait_ms)
 {
     unsigned running = 0U;
+    const struct timespec end = robot_worker_deadline(wait_ms);
     for (int i = 0; i < ROBOT_DEV_COUNT; ++i) {
-        robot_dev_opener_t *o = &d->opener[i];
-        if (!d->dev[i].opening || !o->started) {
-            continue;
+        if (d->dev[i].opening) {
+            running += robot_worker_wait(&d->opener[i].worker, &end) ? 1U : 0U;
         }
-        const struct timespec end = deadline_in(wait_ms);
-        (void)pthread_mutex_lock(&o->mu);
-        opener_wait(o, &end);
-        running += o->state == OPENER_BUSY ? 1U : 0U;
-        (void)pthread_mutex_unlock(&o->mu);
     }
     return running;
 }
@@ -863,12 +712,24 @@ static void note_open_time(robot_devices_t *d, robot_dev_t id, uint64_t took_ms,
     say(d, st->name, st, text);
 }
 
-static void say_back_up(robot_devices_t *d, robot_dev_t id, uint32_t failures)
+/* A retry's parts before ended with s (and why): finished and reported
+ * (a return always, a failure with -v). Returns the changed-mask bit. */
+static unsigned open_outcome(robot_devices_t *d, robot_dev_t id, hal_status_t s, const char *why, uint64_t now_us)
 {
+    robot_dev_status_t *st = &d->dev[id];
+    const uint32_t failures = st->open_failures;
     char text[320];
-    put_text(text, sizeof text, "back up after %lu failed attempt%s", (unsigned long)failures,
-             failures == 1U ? "" : "s");
-    say(d, d->dev[id].name, &d->dev[id], text);
+    if (open_finish(d, id, s, why, now_us)) {
+        put_text(text, sizeof text, "back up after %lu failed attempt%s", (unsigned long)failures,
+                 failures == 1U ? "" : "s");
+        say(d, st->name, st, text);
+        return 1U << id;
+    }
+    if (d->verbose) {
+        put_text(text, sizeof text, "still down (%s)", st->reason);
+        say(d, st->name, st, text);
+    }
+    return 0U;
 }
 
 unsigned robot_devices_service(robot_devices_t *d, uint64_t now_us)
@@ -892,20 +753,11 @@ unsigned robot_devices_service(robot_devices_t *d, uint64_t now_us)
         }
         robot_dev_opener_t *o = &d->opener[i];
         if (st->opening) {
-            hal_status_t r = HAL_E_IO;
-            char why[160];
             uint64_t took_us = 0U;
-            if (opener_take(o, &r, why, sizeof why, &took_us)) {
+            if (robot_worker_take(&o->worker, 0U, &took_us) == 1) {
                 st->opening = 0;
-                const uint32_t failures = st->open_failures;
                 note_open_time(d, id, took_us / 1000U, 1);
-                if (open_finish(d, id, r, why, now_us)) {
-                    say_back_up(d, id, failures);
-                    changed |= 1U << i;
-                } else if (d->verbose) {
-                    put_text(text, sizeof text, "still down (%s)", st->reason);
-                    say(d, st->name, st, text);
-                }
+                changed |= open_outcome(d, id, o->result, o->reason, now_us);
             } else if (!st->hung_said && now_us - st->open_began_us >= ROBOT_DEVICES_HUNG_OPEN_MS * 1000ULL) {
                 /* limits are loud: the device stays down until it returns */
                 st->hung_said = 1;
@@ -921,16 +773,17 @@ unsigned robot_devices_service(robot_devices_t *d, uint64_t now_us)
         if (st->state != ROBOT_DEV_DOWN || now_us < st->next_try_us) {
             continue;
         }
-        const uint32_t failures = st->open_failures;
         char why[160];
         why[0] = '\0';
         hal_status_t s = open_prepare(d, id, why, sizeof why);
-        if (s == HAL_OK && o->started) {
-            st->opening = 1;
-            st->hung_said = 0;
-            st->open_began_us = now_us;
-            opener_submit(o);
-            continue;
+        if (s == HAL_OK && o->worker.started) {
+            o->reason[0] = '\0';
+            if (robot_worker_submit(&o->worker) == 0) {
+                st->opening = 1;
+                st->hung_said = 0;
+                st->open_began_us = now_us;
+                continue;
+            }
         }
         /* no opener thread (or the preparation failed: nothing left to do):
          * the attempt runs here, timed, and said if it held the loop */
@@ -942,13 +795,7 @@ unsigned robot_devices_service(robot_devices_t *d, uint64_t now_us)
         uint64_t t1 = t0;
         (void)hal_clock_now_us(d->clock, &t1);
         note_open_time(d, id, t1 > t0 ? (t1 - t0) / 1000U : 0U, 0);
-        if (open_finish(d, id, s, why, now_us)) {
-            say_back_up(d, id, failures);
-            changed |= 1U << i;
-        } else if (d->verbose) {
-            put_text(text, sizeof text, "still down (%s)", st->reason);
-            say(d, st->name, st, text);
-        }
+        changed |= open_outcome(d, id, s, why, now_us);
     }
     return changed;
 }
@@ -964,7 +811,7 @@ void robot_devices_close_all(robot_devices_t *d)
     }
     robot_close_link(&d->link); /* the decorator too: wipes the key */
 #if COSLAM_HAVE_CAMERA
-    if (!d->opener[ROBOT_DEV_CAMERA].stuck) {
+    if (!d->opener[ROBOT_DEV_CAMERA].worker.stuck) {
         robot_camera_free(&d->camera); /* else the opener may still use the detector */
     }
 #endif

@@ -45,7 +45,6 @@
 #ifndef COSLAM_PORT_ROBOT_DEVICES_H
 #define COSLAM_PORT_ROBOT_DEVICES_H
 
-#include <pthread.h>
 #include <stdint.h>
 #include <stdio.h>
 
@@ -62,6 +61,7 @@
 #include "robot_gpio_fd.h"
 #include "robot_link.h"
 #include "robot_sightings.h"
+#include "robot_worker.h"
 
 #if COSLAM_HAVE_GPIOD
 #include "hal/hal_gpio_linux.h"
@@ -130,22 +130,14 @@ typedef struct {
 
 struct robot_devices;
 
-/** A slot's opener: a thread that runs the blocking part of the loop's
- *  open attempts (robot_devices.c), one at a time. */
+/** A slot's opener: a thread (robot_worker.h) that runs the blocking part
+ *  of the loop's open attempts (robot_devices.c), one at a time. */
 typedef struct {
+    robot_worker_t worker;
     struct robot_devices *d;
     robot_dev_t id;
-    pthread_t thread;
-    pthread_mutex_t mu;
-    pthread_cond_t job_cv;       /**< an attempt handed over, or quit */
-    pthread_cond_t done_cv;      /**< an attempt returned */
-    int started;                 /**< the thread runs (else the loop opens itself, as before) */
-    int stuck;                   /**< left running at close_all: its device is not released */
-    int state;                   /**< idle, busy (the thread owns the device's backend), done */
-    int quit;
-    hal_status_t result;
-    char reason[160];
-    uint64_t took_us;
+    hal_status_t result;         /**< the attempt's outcome (once ended) */
+    char reason[160];            /**< and in words */
 } robot_dev_opener_t;
 
 typedef struct robot_devices {

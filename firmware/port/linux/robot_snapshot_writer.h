@@ -27,36 +27,29 @@
 #ifndef COSLAM_PORT_ROBOT_SNAPSHOT_WRITER_H
 #define COSLAM_PORT_ROBOT_SNAPSHOT_WRITER_H
 
-#include <pthread.h>
 #include <stddef.h>
 #include <stdint.h>
 
 #include "hal/hal_storage.h"
 #include "robot_snapshot.h"
+#include "robot_worker.h"
 
 #ifdef __cplusplus
 extern "C" {
 #endif
 
 typedef struct {
-    pthread_t thread;
-    pthread_mutex_t mu;
-    pthread_cond_t job_cv;   /**< the thread waits here for a job or quit */
-    pthread_cond_t done_cv;  /**< take / stop wait here for the end of a write */
-    int started;             /**< the thread runs (robot_snapshot_writer_start) */
-    int quit;
-    int state;               /**< 0 idle, 1 a job handed over (queued or writing), 2 written, outcome not taken */
+    robot_worker_t worker;   /**< the thread (robot_worker.h) */
     hal_storage_t *storage;  /**< the job's */
     char name[HAL_STORAGE_NAME_MAX + 1u];
     size_t len;
-    hal_status_t result;     /**< the job's storage write status (state 2) */
-    uint64_t write_us;       /**< how long the storage call took (state 2) */
+    hal_status_t result;     /**< the job's storage write status (once ended) */
     /* a read job instead (robot_snapshot_writer_submit_read) */
     int is_read;
     robot_snapshots_t *snaps;
     robot_snapshot_t *read_out;
-    robot_snapshot_found_t read_found; /**< its outcome (state 2) */
-    coslam_status_t read_result;       /**< robot_snapshots_read_newest's return (state 2) */
+    robot_snapshot_found_t read_found; /**< its outcome (once ended) */
+    coslam_status_t read_result;       /**< robot_snapshots_read_newest's return (once ended) */
     uint8_t buf[ROBOT_SNAPSHOT_MAX_BYTES];
 } robot_snapshot_writer_t;
 
