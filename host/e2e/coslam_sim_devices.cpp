@@ -786,7 +786,7 @@ int main(int argc, char **argv)
         // the final map: the shutdown snapshot
         hal_storage_linux_t stor{};
         auto snap = std::make_unique<robot_snapshot_t>();
-        if (hal_storage_linux_open(&stor, (out + "/store" + std::to_string(k)).c_str()) == HAL_OK) {
+        if (hal_storage_linux_open_reader(&stor, (out + "/store" + std::to_string(k)).c_str()) == HAL_OK) {
             auto snaps = std::make_unique<robot_snapshots_t>();
             robot_snapshots_init(snaps.get(), &stor.dev);
             const char *name = nullptr;

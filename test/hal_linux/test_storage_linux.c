@@ -183,6 +183,13 @@ static void test_open_errors_and_closed(void **state)
     assert_int_equal(hal_storage_linux_open(&other, "/nonexistent_coslam_dir/a/b"), HAL_E_NOT_FOUND);
     assert_int_equal(hal_storage_linux_open(NULL, dir), HAL_E_ARG);
     assert_int_equal(hal_storage_linux_open(&other, ""), HAL_E_ARG);
+    /* one writer per directory: a second open is refused until the first
+     * closes; a reader opens beside it, and cannot write */
+    assert_int_equal(hal_storage_linux_open(&other, dir), HAL_E_BUSY);
+    assert_int_equal(hal_storage_linux_open_reader(&other, dir), HAL_OK);
+    const uint8_t y = 2;
+    assert_int_equal(hal_storage_write(&other.dev, "y", &y, 1), HAL_E_UNSUPPORTED);
+    hal_storage_close(&other.dev);
     /* a directory blob is not a blob */
     char sub[400];
     snprintf(sub, sizeof sub, "%s/adir", dir);
@@ -192,7 +199,7 @@ static void test_open_errors_and_closed(void **state)
     const uint8_t x = 1;
     assert_int_equal(hal_storage_write(&st.dev, "x", &x, 1), HAL_E_CLOSED);
     expect_read("x", HAL_E_CLOSED);
-    assert_int_equal(hal_storage_linux_open(&st, dir), HAL_OK); /* for teardown */
+    assert_int_equal(hal_storage_linux_open(&st, dir), HAL_OK); /* for teardown: the lock went with the close */
 }
 
 int main(void)

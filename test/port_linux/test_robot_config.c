@@ -307,15 +307,26 @@ static void bad_files_name_file_and_line(void **state)
     refused("[laser]\nlost_timeout_s = 0.0000001\n",
             "bad.ini:2: [laser] lost_timeout_s: 0.0000001 is below the microsecond these durations are kept in");
     refused("[merge]\nwindow_s = 1e-7\n", "bad.ini:2: [merge] window_s: 1e-7 is below the microsecond");
+    /* the camera and the test source both: refused at the later key */
+    refused("[camera]\ndevice = /dev/video0\nreplay_log = lm.log\n",
+            "bad.ini:3: [camera] replay_log: device and replay_log are both set");
     /* the first error wins */
     refused("[robot]\nid = x\n[laser]\nfoo = 1\n", "bad.ini:2:");
     char msg[600];
     robot_config_default(&cfg);
     assert_int_equal(robot_config_load(&cfg, "/nonexistent/robot.ini", msg, sizeof msg), COSLAM_E_ARG);
-    assert_non_null(strstr(msg, "/nonexistent/robot.ini: cannot open"));
+    assert_non_null(strstr(msg, "/nonexistent/robot.ini: cannot open the configuration file: No such file"));
     /* a directory opens and reads as an empty file: refused, not defaults */
     assert_int_equal(robot_config_load(&cfg, "/tmp", msg, sizeof msg), COSLAM_E_ARG);
     assert_non_null(strstr(msg, "/tmp: not a regular file"));
+    /* a FIFO: refused at once (it used to wait for a writer for ever) */
+    char fifo[64];
+    snprintf(fifo, sizeof fifo, "/tmp/coslam-cfg-fifo-%d", (int)getpid());
+    (void)unlink(fifo);
+    assert_int_equal(mkfifo(fifo, 0600), 0);
+    assert_int_equal(robot_config_load(&cfg, fifo, msg, sizeof msg), COSLAM_E_ARG);
+    assert_non_null(strstr(msg, "not a regular file"));
+    assert_int_equal(unlink(fifo), 0);
     /* a read error ends the parse like the end of the file: refused and
      * named, never taken for a shorter file with defaults after it.
      * /proc/self/mem is a regular file whose read at offset 0 fails (EIO:

@@ -201,7 +201,7 @@ static disk_t scan_disk(const char *dir)
         return d;
     }
     hal_storage_linux_t st;
-    assert_int_equal(hal_storage_linux_open(&st, store_dir), HAL_OK);
+    assert_int_equal(hal_storage_linux_open_reader(&st, store_dir), HAL_OK); /* the robot may hold it */
     static uint8_t buf[ROBOT_SNAPSHOT_MAX_BYTES];
     const char *names[2] = {ROBOT_SNAPSHOT_NAME_A, ROBOT_SNAPSHOT_NAME_B};
     for (int k = 0; k < 2; ++k) {
@@ -497,6 +497,7 @@ static void sighup_sigpipe(void **state)
     const pid_t pid = spawn_robot(dir, err, NULL, NULL);
     sleep_ms(1500);
     kill(pid, SIGPIPE);
+    kill(pid, SIGXFSZ);
     sleep_ms(300);
     int st = 0;
     assert_int_equal(waitpid(pid, &st, WNOHANG), 0); /* still running */
@@ -513,6 +514,17 @@ static void sighup_sigpipe(void **state)
     const disk_t d = scan_disk(dir);
     assert_int_equal(d.invalid, 0);
     assert_true(d.newest >= 1);
+    /* a stray SIGUSR1 (default: the process ends on the spot, wheels
+     * turning) stops it cleanly too */
+    const pid_t pid2 = spawn_robot(dir, err, NULL, NULL);
+    sleep_ms(800);
+    kill(pid2, SIGUSR1);
+    st = wait_exit(pid2, 5000);
+    log = slurp(err);
+    assert_true(WIFEXITED(st));
+    assert_int_equal(WEXITSTATUS(st), 0);
+    assert_non_null(strstr(log, "SIGUSR1: stopping"));
+    assert_non_null(strstr(log, "(final)"));
     remove_dir(dir);
 }
 
@@ -1055,6 +1067,105 @@ static void storage_back_read(void **state)
     remove_dir(dir);
 }
 
+/* ---- a storage down at the stop; a storage another robot holds ------------- */
+
+/* dir/robot.ini with its retry period replaced (the base's is 0.3 s). */
+static void set_retry_period(const char *dir, const char *period)
+{
+    char path[300];
+    snprintf(path, sizeof path, "%s/robot.ini", dir);
+    const char *text = slurp(path);
+    const char *at = strstr(text, "retry_period_s = 0.3\n");
+    assert_non_null(at);
+    char body[4096];
+    snprintf(body, sizeof body, "%.*sretry_period_s = %s\n%s", (int)(at - text), text, period,
+             at + strlen("retry_period_s = 0.3\n"));
+    write_config(dir, body);
+}
+
+/* Both generations unwritable (directories where the blobs go): the first
+ * periodic write fails and the storage is down until its retry, 30 s
+ * later. The medium is mended before the stop: the stop tries the storage
+ * again at once and writes the final snapshot. (Before: "storage down,
+ * final snapshot not written".) */
+static void final_snapshot_reopens_storage(void **state)
+{
+    (void)state;
+    char dir[64];
+    char err[300];
+    make_dir(dir, sizeof dir);
+    char store[300];
+    snprintf(store, sizeof store, "%s/store", dir);
+    char blob_a[400];
+    char blob_b[400];
+    snprintf(blob_a, sizeof blob_a, "%s/snapshot.a", store);
+    snprintf(blob_b, sizeof blob_b, "%s/snapshot.b", store);
+    assert_int_equal(mkdir(store, 0700), 0);
+    assert_int_equal(mkdir(blob_a, 0700), 0);
+    assert_int_equal(mkdir(blob_b, 0700), 0);
+    config(dir, "no-laser", "0.2", "0.5", "", store, "fastslam2");
+    set_retry_period(dir, "30");
+    snprintf(err, sizeof err, "%s/err", dir);
+    const pid_t pid = spawn_robot(dir, err, NULL, NULL);
+    const long failures = wait_value(err, "snap_failures", 1, 10000);
+    assert_true(failures >= 1);
+    assert_int_equal(rmdir(blob_a), 0);
+    assert_int_equal(rmdir(blob_b), 0);
+    const char *log = stop_robot(pid, err);
+    fprintf(stderr, "final_reopen: snap_failures %ld before the stop\n", failures);
+    if (strstr(log, "storage back for the final snapshot") == NULL) {
+        fprintf(stderr, "%s\n", log);
+    }
+    assert_non_null(strstr(log, "storage back for the final snapshot"));
+    assert_non_null(strstr(log, "(final)"));
+    assert_null(strstr(log, "(no final snapshot)"));
+    const disk_t d = scan_disk(dir);
+    assert_int_equal(d.invalid, 0);
+    assert_true(d.newest >= 1);
+    remove_dir(dir);
+}
+
+/* Two robots on one storage directory would replace each other's
+ * temporaries and interleave their generations: the second is refused the
+ * directory (its storage down, said with the reason), the first keeps it. */
+static void storage_held_by_another_robot(void **state)
+{
+    (void)state;
+    char dir_a[64];
+    char dir_b[64];
+    char err_a[300];
+    char err_b[300];
+    make_dir(dir_a, sizeof dir_a);
+    make_dir(dir_b, sizeof dir_b);
+    char store[300];
+    snprintf(store, sizeof store, "%s/store", dir_a);
+    config(dir_a, "no-laser", "0.2", "0.5", "", store, "fastslam2");
+    config(dir_b, "no-laser", "0.2", "0.5", "", store, "fastslam2");
+    snprintf(err_a, sizeof err_a, "%s/err", dir_a);
+    snprintf(err_b, sizeof err_b, "%s/err", dir_b);
+    const pid_t a = spawn_robot(dir_a, err_a, NULL, NULL);
+    assert_true(wait_value(err_a, "snap_saves", 1, 10000) >= 1);
+    const pid_t b = spawn_robot(dir_b, err_b, NULL, NULL);
+    assert_true(wait_value(err_b, "steps", 20, 10000) >= 20);
+    char *log_b = strdup(stop_robot(b, err_b)); /* stop_robot's text is overwritten by the next */
+    assert_non_null(log_b);
+    const char *log_a = stop_robot(a, err_a);
+    if (strstr(log_b, "locked by another process") == NULL) {
+        fprintf(stderr, "%s\n", log_b);
+    }
+    assert_non_null(strstr(log_b, "locked by another process"));
+    assert_int_equal(last_value(log_b, "snap_saves"), 0);
+    assert_non_null(strstr(log_b, "(no final snapshot)"));
+    assert_null(strstr(log_a, "locked by another process"));
+    assert_non_null(strstr(log_a, "(final)"));
+    const disk_t d = scan_disk(dir_a);
+    assert_int_equal(d.invalid, 0);
+    assert_true(d.newest >= 2);
+    free(log_b);
+    remove_dir(dir_b);
+    remove_dir(dir_a);
+}
+
 /* ---- a storage that blocks ------------------------------------------------- */
 
 static void touch(const char *path)
@@ -1169,6 +1280,8 @@ int main(int argc, char **argv)
         cmocka_unit_test(slow_open_said),
         cmocka_unit_test(hung_open_left),
         cmocka_unit_test(storage_back_read),
+        cmocka_unit_test(final_snapshot_reopens_storage),
+        cmocka_unit_test(storage_held_by_another_robot),
         cmocka_unit_test(slow_storage),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

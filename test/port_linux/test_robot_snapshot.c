@@ -20,6 +20,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cmocka.h>
@@ -284,6 +285,56 @@ static void generations_fall_back_to_the_older(void **state)
     assert_int_equal(robot_snapshots_save(&gens, &snap_in, &name), COSLAM_E_UNSUPPORTED);
     assert_int_equal(gens.save_failures, 1);
 
+    hal_storage_close(&store.dev);
+    char cmd[128];
+    snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
+    assert_int_equal(system(cmd), 0);
+}
+
+/* One generation that cannot be written (snapshot.a a directory): the
+ * saves go to the other one, and the broken one is tried again every
+ * ROBOT_SNAPSHOT_RETRY_FAILED_SLOT saves; once it is writable again the
+ * generations alternate as before. (Before, every save went to the broken
+ * slot, the older generation, and failed: none was ever saved.) */
+static void an_unwritable_generation_is_passed_over(void **state)
+{
+    (void)state;
+    snprintf(dir, sizeof dir, "/tmp/coslam-snap-XXXXXX");
+    assert_non_null(mkdtemp(dir));
+    char sub[300];
+    snprintf(sub, sizeof sub, "%s/%s", dir, ROBOT_SNAPSHOT_NAME_A);
+    assert_int_equal(mkdir(sub, 0700), 0);
+    assert_int_equal(hal_storage_linux_open(&store, dir), HAL_OK);
+    robot_snapshots_init(&gens, &store.dev);
+    const char *name = NULL;
+    assert_int_equal(robot_snapshots_save(&gens, &snap_in, &name), COSLAM_E_UNSUPPORTED); /* a: fails */
+    int saved = 0;
+    int tried_a = 0;
+    for (int k = 0; k < 20; ++k) {
+        name = NULL;
+        const coslam_status_t st = robot_snapshots_save(&gens, &snap_in, &name);
+        if (st == COSLAM_OK) {
+            assert_string_equal(name, ROBOT_SNAPSHOT_NAME_B);
+            saved++;
+        } else {
+            tried_a++;
+        }
+    }
+    assert_int_equal(tried_a, 2);   /* every 8th save tries a again */
+    assert_int_equal(saved, 18);
+    robot_snapshots_init(&gens, &store.dev);
+    assert_int_equal(load_logged(&snap_out, &name), COSLAM_OK);
+    assert_string_equal(name, ROBOT_SNAPSHOT_NAME_B);
+    assert_true(snap_out.seq == 18);
+    /* a writable again: the generations alternate */
+    assert_int_equal(rmdir(sub), 0);
+    gens.failed_slot = 0;
+    gens.failed_slot_skips = ROBOT_SNAPSHOT_RETRY_FAILED_SLOT - 1U;
+    assert_int_equal(robot_snapshots_save(&gens, &snap_in, &name), COSLAM_OK);
+    assert_string_equal(name, ROBOT_SNAPSHOT_NAME_A);
+    assert_int_equal(gens.failed_slot, -1);
+    assert_int_equal(robot_snapshots_save(&gens, &snap_in, &name), COSLAM_OK);
+    assert_string_equal(name, ROBOT_SNAPSHOT_NAME_B);
     hal_storage_close(&store.dev);
     char cmd[128];
     snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
@@ -659,6 +710,7 @@ int main(int argc, char **argv)
         cmocka_unit_test(codec_round_trip_is_byte_exact),
         cmocka_unit_test(every_damage_is_caught),
         cmocka_unit_test(generations_fall_back_to_the_older),
+        cmocka_unit_test(an_unwritable_generation_is_passed_over),
         cmocka_unit_test(writer_does_not_hold_the_caller),
         cmocka_unit_test(seed_ekf),
         cmocka_unit_test(seed_fastslam2),

@@ -1,6 +1,8 @@
 /* coslam-robot settings: key table, INI reader (libinih), printer (robot_config.h). */
 #include "robot_config.h"
 
+#include <errno.h>
+#include <fcntl.h>
 #include <ini.h>
 #include <math.h>
 #include <stdarg.h>
@@ -8,6 +10,7 @@
 #include <stdio.h>
 #include <sys/stat.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "app/slam_params_ini.h"
 
@@ -885,6 +888,16 @@ static void finish(load_t *st)
         fail(st, "robot", a > b ? "id" : "fleet_size", msg);
         return;
     }
+    /* a camera and the replay log both: the replay log (a test source)
+     * would silently replace the camera (robot_open_sightings), and a
+     * robot left with a bench line in its file would map a canned log */
+    if (c->camera_device[0] != '\0' && c->camera_replay_log[0] != '\0') {
+        put_text(msg, sizeof msg,
+                 "device and replay_log are both set: the replay log (a test source) would replace the camera; "
+                 "set one of them");
+        fail_pair(st, "camera", "device", "camera", "replay_log", msg);
+        return;
+    }
     /* a GPIO line in two roles: the gpio_roles driver would refuse it at
      * start with no file and line (robot_node_init: E_ARG) */
     uint32_t line;
@@ -978,17 +991,26 @@ coslam_status_t robot_config_load(robot_config_t *cfg, const char *path, char *m
     memset(&st, 0, sizeof st);
     st.cfg = cfg;
     st.name = path;
-    st.file = fopen(path, "r");
-    if (st.file == NULL) {
-        return report(&st, -1, msg, msg_cap);
+    /* O_NONBLOCK: a FIFO at the path would otherwise wait for a writer
+     * before anything could be said (and before the signal handlers) */
+    const int fd = open(path, O_RDONLY | O_NONBLOCK);
+    if (fd < 0) {
+        const int e = errno;
+        put_text(msg, msg_cap, "%s: cannot open the configuration file: %s", path, strerror(e));
+        return COSLAM_E_ARG;
     }
     /* a directory opens (and reads as an empty file): refused, as is any
-     * other file that is not a regular one */
+     * other file that is not a regular one (a FIFO, a device) */
     struct stat sb;
-    if (fstat(fileno(st.file), &sb) != 0 || !S_ISREG(sb.st_mode)) {
-        (void)fclose(st.file);
-        put_text(msg, msg_cap, "%s: not a regular file (a directory?)", path);
+    if (fstat(fd, &sb) != 0 || !S_ISREG(sb.st_mode)) {
+        (void)close(fd);
+        put_text(msg, msg_cap, "%s: not a regular file (a directory, a FIFO or a device?)", path);
         return COSLAM_E_ARG;
+    }
+    st.file = fdopen(fd, "r");
+    if (st.file == NULL) {
+        (void)close(fd);
+        return report(&st, -1, msg, msg_cap);
     }
     const int rc = ini_parse_stream(read_file_line, &st, on_ini, &st);
     /* a read error ends fgets like the end of the file: the keys after it

@@ -364,6 +364,11 @@ static hal_status_t open_backend(robot_devices_t *d, robot_dev_t id, char *reaso
         break;
     case ROBOT_DEV_STORAGE:
         s = hal_storage_linux_open(&d->storage_state, c->storage_dir);
+        if (s == HAL_E_BUSY) {
+            put_text(reason, reason_cap,
+                     "the directory is locked by another process (another coslam-robot on the same storage?) "
+                     "(HAL_E_BUSY)");
+        }
         break;
     case ROBOT_DEV_LINK:
         s = robot_link_backend_open_device(&d->link, reason, reason_cap);
@@ -603,7 +608,7 @@ void robot_devices_open_all(robot_devices_t *d, uint64_t now_us)
                 if (try_open(d, id, now_us)) {
                     say(d, "camera", &st[id], "up");
                 } else {
-                    put_text(text, sizeof text, "down: %s; localisation on odometry only; retrying every %.0f s",
+                    put_text(text, sizeof text, "down: %s; localisation on odometry only; retrying every %g s",
                              st[id].reason, c->retry_period_s);
                     say(d, "camera", &st[id], text);
                 }
@@ -621,7 +626,7 @@ void robot_devices_open_all(robot_devices_t *d, uint64_t now_us)
                     say(d, "camera", &st[id], "up");
                 } else {
                     set_down(d, id, s, msg, now_us);
-                    put_text(text, sizeof text, "down: %s; retrying every %.0f s", msg, c->retry_period_s);
+                    put_text(text, sizeof text, "down: %s; retrying every %g s", msg, c->retry_period_s);
                     say(d, "camera", &st[id], text);
                 }
             }
@@ -638,7 +643,7 @@ void robot_devices_open_all(robot_devices_t *d, uint64_t now_us)
             if (try_open(d, id, now_us)) {
                 say(d, "link", &st[id], "up");
             } else {
-                put_text(text, sizeof text, "down: %s; retrying every %.0f s", st[id].reason, c->retry_period_s);
+                put_text(text, sizeof text, "down: %s; retrying every %g s", st[id].reason, c->retry_period_s);
                 say(d, "link", &st[id], text);
             }
             if (warn != NULL) {
@@ -661,7 +666,7 @@ void robot_devices_open_all(robot_devices_t *d, uint64_t now_us)
         if (try_open(d, id, now_us)) {
             say(d, dev_names[i], &st[i], "up");
         } else {
-            put_text(text, sizeof text, "down: %s; retrying every %.0f s", st[i].reason, c->retry_period_s);
+            put_text(text, sizeof text, "down: %s; retrying every %g s", st[i].reason, c->retry_period_s);
             say(d, dev_names[i], &st[i], text);
         }
     }
@@ -681,7 +686,7 @@ void robot_devices_fail(robot_devices_t *d, robot_dev_t id, hal_status_t why, co
     close_dev(d, id);
     set_down(d, id, why, reason, now_us);
     char text[320];
-    put_text(text, sizeof text, "down: %s; retrying every %.0f s", reason, d->cfg->retry_period_s);
+    put_text(text, sizeof text, "down: %s; retrying every %g s", reason, d->cfg->retry_period_s);
     say(d, st->name, st, text);
 }
 
@@ -746,7 +751,7 @@ unsigned robot_devices_service(robot_devices_t *d, uint64_t now_us)
             st->next_try_us = now_us + d->retry_us;
             put_text(st->reason, sizeof st->reason, "lost: %s (%s)", hal_reason(st->last_error),
                            hal_status_str(st->last_error));
-            put_text(text, sizeof text, "%s; retrying every %.0f s", st->reason, d->cfg->retry_period_s);
+            put_text(text, sizeof text, "%s; retrying every %g s", st->reason, d->cfg->retry_period_s);
             say(d, st->name, st, text);
             changed |= 1U << i;
             continue;
@@ -798,6 +803,23 @@ unsigned robot_devices_service(robot_devices_t *d, uint64_t now_us)
         changed |= open_outcome(d, id, s, why, now_us);
     }
     return changed;
+}
+
+int robot_devices_reopen_now(robot_devices_t *d, robot_dev_t id, uint64_t now_us, uint32_t wait_ms)
+{
+    robot_dev_status_t *st = &d->dev[id];
+    if (st->state != ROBOT_DEV_DOWN) {
+        return st->state == ROBOT_DEV_UP && !st->lost;
+    }
+    if (!st->opening) {
+        st->next_try_us = now_us; /* due now: handed over (or opened here) by the service */
+    }
+    (void)robot_devices_service(d, now_us);
+    if (st->opening) {
+        (void)robot_devices_wait_opens(d, wait_ms);
+        (void)robot_devices_service(d, now_us);
+    }
+    return st->state == ROBOT_DEV_UP;
 }
 
 void robot_devices_close_all(robot_devices_t *d)

@@ -197,6 +197,12 @@ void robot_devices_open_all(robot_devices_t *d, uint64_t now_us);
  */
 unsigned robot_devices_service(robot_devices_t *d, uint64_t now_us);
 
+/** Try device id again now, not at its next retry, and wait at most
+ *  wait_ms for the attempt (the stop's final snapshot: the storage down
+ *  since a failed write). Other devices whose retry is due are serviced
+ *  too. Returns 1 if the device is up. */
+int robot_devices_reopen_now(robot_devices_t *d, robot_dev_t id, uint64_t now_us, uint32_t wait_ms);
+
 /** Open attempts running on opener threads now (not those that have
  *  returned and wait for the next service to take them). */
 unsigned robot_devices_opening(const robot_devices_t *d);

@@ -16,7 +16,8 @@
  * (robot_gpio_fd.h).
  *
  * Exit status: 0 after a clean stop (SIGTERM, SIGINT, SIGHUP, SIGQUIT,
- * --once, --dry-run; SIGPIPE is ignored); 2 for a bad command line or
+ * SIGUSR1, SIGUSR2, SIGALRM, --once, --dry-run; SIGPIPE and SIGXFSZ are
+ * ignored); 2 for a bad command line or
  * configuration (including a configured fleet key file that is missing,
  * unreadable, too open or invalid); 1 when the node cannot start, or when
  * the clock failed while it ran (after the same clean stop).
@@ -176,6 +177,8 @@ typedef struct {
 static snapshot_write_t writing;
 /* How long the final snapshot waits for a periodic one still being written. */
 #define FINAL_SNAPSHOT_WAIT_MS 5000U
+/* How long the stop waits for the storage to reopen for the final snapshot. */
+#define FINAL_REOPEN_WAIT_MS 1000U
 static robot_status_t status;
 
 /* Map-message sequence numbers across restarts. A snapshot carries the
@@ -417,9 +420,8 @@ static int observe_map(coslam_status_t *es)
     return *es != COSLAM_E_MERGE_BUSY; /* busy: the export table is taken, try next step */
 }
 
-/* At start (or when the storage comes back): the newest generation. With
- * `restore` the node starts from it; else it only sets the sequence
- * numbers, so that this run's saves come after the ones on disk. */
+/* At start: the newest generation. With `restore` the node starts from it;
+ * else (a dry run) it is only named. */
 static void load_snapshot(int restore)
 {
     hal_storage_t *st = robot_devices_storage(&dev);
@@ -440,9 +442,8 @@ static void load_snapshot(int restore)
         return;
     }
     if (!restore) {
-        fprintf(stderr, "coslam-robot: snapshot: storage back; newest on disk %s seq=%llu kept, this run's map "
-                        "is saved after it\n",
-                name, (unsigned long long)loaded.seq);
+        fprintf(stderr, "coslam-robot: snapshot: newest on disk %s seq=%llu (dry run: not loaded)\n", name,
+                (unsigned long long)loaded.seq);
         return;
     }
     if (loaded.robot_id != cfg.robot_id) {
@@ -669,13 +670,15 @@ int main(int argc, char **argv)
     /* every signal that would end the process stops it cleanly instead:
      * drives stopped, final snapshot. SIGHUP comes when the terminal of a
      * hand-started robot goes (a dropped SSH session), SIGQUIT from Ctrl-\;
+     * SIGUSR1, SIGUSR2 and SIGALRM (a stray kill -USR1, a script's alarm)
+     * would end it without a word by default;
      * SIGPIPE (stderr piped into a reader that died) is ignored: a lost
      * log line is no reason to leave the wheels turning */
     struct sigaction sa;
     memset(&sa, 0, sizeof sa);
     sa.sa_handler = on_signal;
     (void)sigemptyset(&sa.sa_mask);
-    static const int stop_signals[] = {SIGTERM, SIGINT, SIGHUP, SIGQUIT};
+    static const int stop_signals[] = {SIGTERM, SIGINT, SIGHUP, SIGQUIT, SIGUSR1, SIGUSR2, SIGALRM};
     for (size_t i = 0; i < sizeof stop_signals / sizeof stop_signals[0]; ++i) {
         (void)sigaction(stop_signals[i], &sa, NULL);
     }
@@ -684,6 +687,7 @@ int main(int argc, char **argv)
     ign.sa_handler = SIG_IGN;
     (void)sigemptyset(&ign.sa_mask);
     (void)sigaction(SIGPIPE, &ign, NULL);
+    (void)sigaction(SIGXFSZ, &ign, NULL); /* a file size limit: the write fails (EFBIG), said as any */
 
     hal_clock_t *clock = hal_clock_linux();
     int clock_failed = 0; /* the loop ended because the clock failed: exit 1 */
@@ -917,6 +921,9 @@ int main(int argc, char **argv)
                            : sig == SIGINT ? "SIGINT"
                            : sig == SIGHUP ? "SIGHUP"
                            : sig == SIGQUIT ? "SIGQUIT"
+                           : sig == SIGUSR1 ? "SIGUSR1"
+                           : sig == SIGUSR2 ? "SIGUSR2"
+                           : sig == SIGALRM ? "SIGALRM"
                                             : "signal";
         fprintf(stderr, "coslam-robot: %s: stopping\n", name);
     }
@@ -947,6 +954,16 @@ int main(int argc, char **argv)
         dev.dev[ROBOT_DEV_STORAGE].state = ROBOT_DEV_DOWN;
     } else {
         (void)robot_snapshot_writer_stop(&writer, FINAL_SNAPSHOT_WAIT_MS);
+        (void)hal_clock_now_us(clock, &now);
+        if (robot_devices_storage(&dev) == NULL &&
+            robot_devices_reopen_now(&dev, ROBOT_DEV_STORAGE, now, FINAL_REOPEN_WAIT_MS)) {
+            /* down since a failed write or a lost medium, and back: the
+             * final snapshot is not skipped for a retry not yet due; the
+             * generations on disk first, so that it comes after them */
+            fprintf(stderr, "coslam-robot: snapshot: storage back for the final snapshot\n");
+            (void)hal_clock_now_us(clock, &now);
+            storage_back(now, 0);
+        }
         (void)hal_clock_now_us(clock, &now);
         saved = save_snapshot(1, "final", now);
     }

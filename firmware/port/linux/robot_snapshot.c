@@ -231,6 +231,7 @@ void robot_snapshots_init(robot_snapshots_t *s, hal_storage_t *storage)
     memset(s, 0, sizeof *s);
     s->storage = storage;
     s->newest = -1;
+    s->failed_slot = -1;
     s->last_write = HAL_OK;
 }
 
@@ -321,6 +322,17 @@ coslam_status_t robot_snapshots_prepare(robot_snapshots_t *s, robot_snapshot_t *
         return COSLAM_E_UNSUPPORTED;
     }
     job->slot = s->newest == 0 ? 1 : 0; /* over the older generation */
+    if (job->slot == s->failed_slot) {
+        /* its last write failed (a directory, a file that cannot be
+         * replaced there): over the newest instead (an atomic replace:
+         * the newest is then the one written, or stays as it was), and
+         * the failed one again now and then */
+        if (++s->failed_slot_skips < ROBOT_SNAPSHOT_RETRY_FAILED_SLOT) {
+            job->slot = 1 - job->slot;
+        } else {
+            s->failed_slot_skips = 0U;
+        }
+    }
     job->name = slot_names[job->slot];
     job->seq = s->newest_seq + 1U;
     snap->seq = job->seq;
@@ -340,7 +352,14 @@ coslam_status_t robot_snapshots_commit(robot_snapshots_t *s, const robot_snapsho
     s->last_write = written;
     if (written != HAL_OK) {
         s->save_failures++;
+        if (s->failed_slot != job->slot) {
+            s->failed_slot = job->slot;
+            s->failed_slot_skips = 0U;
+        }
         return written == HAL_E_OVERFLOW ? COSLAM_E_CAPACITY : COSLAM_E_UNSUPPORTED;
+    }
+    if (job->slot == s->failed_slot) {
+        s->failed_slot = -1; /* writable again */
     }
     s->newest = job->slot;
     s->newest_seq = job->seq;

@@ -94,6 +94,10 @@ extern "C" {
 #define ROBOT_SNAPSHOT_NAME_A "snapshot.a"
 #define ROBOT_SNAPSHOT_NAME_B "snapshot.b"
 
+/** A generation whose write failed is tried again after this many saves
+ *  into the other one (robot_snapshots_prepare). */
+#define ROBOT_SNAPSHOT_RETRY_FAILED_SLOT 8u
+
 typedef struct {
     uint64_t seq;            /**< sequence number (set by robot_snapshots_save) */
     uint8_t robot_id;
@@ -124,6 +128,10 @@ coslam_status_t robot_snapshot_decode(const uint8_t *buf, size_t len, robot_snap
 typedef struct {
     hal_storage_t *storage;   /**< NULL: no storage (saves fail with COSLAM_E_UNSUPPORTED) */
     int newest;               /**< slot of the newest valid snapshot: 0 (a), 1 (b), -1 none */
+    int failed_slot;          /**< the slot whose last write failed (-1 none): saves go to the
+                                   other one, so one unwritable blob never stops every save */
+    uint32_t failed_slot_skips; /**< saves since that failure: the failed slot is tried again
+                                   every ROBOT_SNAPSHOT_RETRY_FAILED_SLOT saves */
     uint64_t newest_seq;      /**< its sequence number */
     uint32_t saves;
     uint32_t save_failures;

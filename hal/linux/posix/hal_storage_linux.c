@@ -5,6 +5,7 @@
 #include <fcntl.h>
 #include <stdio.h>
 #include <string.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -84,6 +85,7 @@ static hal_status_t linux_write(hal_storage_t *dev, const char *name, const uint
 {
     hal_storage_linux_t *st = self_of(dev);
     if (st->dir_fd < 0) return HAL_E_CLOSED;
+    if (st->reader) return HAL_E_UNSUPPORTED;
     if (len > st->max_blob_bytes || len > UINT32_MAX) return HAL_E_OVERFLOW;
     char tmp[TMP_NAME_MAX];
     (void)snprintf(tmp, sizeof tmp, ".%s.tmp", name);
@@ -152,6 +154,7 @@ static hal_status_t linux_remove(hal_storage_t *dev, const char *name)
 {
     hal_storage_linux_t *st = self_of(dev);
     if (st->dir_fd < 0) return HAL_E_CLOSED;
+    if (st->reader) return HAL_E_UNSUPPORTED;
     if (unlinkat(st->dir_fd, name, 0) != 0) return errno == ENOENT ? HAL_E_NOT_FOUND : HAL_E_IO;
     if (fsync(st->dir_fd) != 0) return HAL_E_IO;
     return HAL_OK;
@@ -183,16 +186,36 @@ static void linux_close(hal_storage_t *dev)
 static const hal_storage_ops_t linux_storage_ops = {linux_write, linux_read, linux_remove, linux_exists,
                                                      linux_close};
 
-hal_status_t hal_storage_linux_open(hal_storage_linux_t *st, const char *dir)
+/* Open dir; `lock`: take the one-writer lock. */
+static hal_status_t open_dir(hal_storage_linux_t *st, const char *dir, int lock)
 {
     if (st == NULL || dir == NULL || dir[0] == '\0') return HAL_E_ARG;
     st->dev.ops = &linux_storage_ops;
     st->dev.backend = st;
     st->dir_fd = -1;
+    st->reader = !lock;
     st->max_blob_bytes = HAL_STORAGE_LINUX_MAX_BLOB;
-    if (mkdir(dir, 0755) != 0 && errno != EEXIST) return errno == ENOENT ? HAL_E_NOT_FOUND : HAL_E_IO;
+    if (lock && mkdir(dir, 0755) != 0 && errno != EEXIST) return errno == ENOENT ? HAL_E_NOT_FOUND : HAL_E_IO;
     const int fd = open(dir, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
     if (fd < 0) return errno == ENOENT ? HAL_E_NOT_FOUND : HAL_E_IO;
+    /* one writer per directory: two processes on one store would replace
+     * each other's temporaries and interleave their generations. The lock
+     * goes with the descriptor (close, exit, a crash). */
+    if (lock && flock(fd, LOCK_EX | LOCK_NB) != 0) {
+        const int e = errno;
+        (void)close(fd);
+        return e == EWOULDBLOCK ? HAL_E_BUSY : HAL_E_IO;
+    }
     st->dir_fd = fd;
     return HAL_OK;
+}
+
+hal_status_t hal_storage_linux_open(hal_storage_linux_t *st, const char *dir)
+{
+    return open_dir(st, dir, 1);
+}
+
+hal_status_t hal_storage_linux_open_reader(hal_storage_linux_t *st, const char *dir)
+{
+    return open_dir(st, dir, 0);
 }

@@ -18,8 +18,11 @@
  *
  * After hal_storage_close every operation returns HAL_E_CLOSED.
  *
- * State is caller-owned (no heap); one instance per directory; not
- * thread-safe (one thread at a time, as every HAL instance).
+ * One writer per directory, enforced: the open takes an exclusive
+ * flock(2) on the directory, held until close (or the process ends), so a
+ * second open of the same directory, in this process or another, is
+ * HAL_E_BUSY (readers: hal_storage_linux_open_reader). State is caller-owned (no heap); not thread-safe (one thread
+ * at a time, as every HAL instance).
  */
 #ifndef HAL_STORAGE_LINUX_H
 #define HAL_STORAGE_LINUX_H
@@ -37,13 +40,21 @@ typedef struct {
     hal_storage_t dev;        /**< the handle to pass to hal_storage_* */
     int dir_fd;               /**< open directory, -1 when closed */
     size_t max_blob_bytes;    /**< writes above this are HAL_E_OVERFLOW */
+    int reader;               /**< opened by hal_storage_linux_open_reader: reads only */
 } hal_storage_linux_t;
 
 /** Open (creating it, one level, mode 0755, if missing) the directory
  *  `dir` as a blob store. Returns HAL_OK and a ready st->dev; HAL_E_ARG
- *  (NULL); HAL_E_NOT_FOUND (a parent directory is missing); HAL_E_IO.
+ *  (NULL); HAL_E_NOT_FOUND (a parent directory is missing); HAL_E_BUSY
+ *  (another instance holds the directory); HAL_E_IO.
  *  Release with hal_storage_close(&st->dev). */
 hal_status_t hal_storage_linux_open(hal_storage_linux_t *st, const char *dir);
+
+/** Open an existing directory for reading only, without the lock (tools
+ *  and tests that look at a store a writer may hold): writes and removes
+ *  are HAL_E_UNSUPPORTED. Returns HAL_OK; HAL_E_ARG; HAL_E_NOT_FOUND;
+ *  HAL_E_IO. */
+hal_status_t hal_storage_linux_open_reader(hal_storage_linux_t *st, const char *dir);
 
 #ifdef __cplusplus
 }
