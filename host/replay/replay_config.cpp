@@ -5,9 +5,13 @@
 
 #include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
+#include <cstring>
+#include <filesystem>
 #include <functional>
 #include <iomanip>
+#include <memory>
 #include <ostream>
 #include <sstream>
 #include <vector>
@@ -337,8 +341,34 @@ void check_result(const LoadState &st, int rc, const std::string &name)
 
 void replay_config_load(ReplayConfig &cfg, const std::string &path)
 {
+    // a directory opens and reads as an empty file (fgets fails, which the
+    // INI reader takes for the end): refused, as is a read error
+    std::error_code ec;
+    const std::filesystem::file_status fst = std::filesystem::status(path, ec);
+    if (fst.type() == std::filesystem::file_type::not_found) {
+        throw ReplayError(path, 0, "cannot open the config file: no such file");
+    }
+    if (fst.type() == std::filesystem::file_type::directory) {
+        throw ReplayError(path, 0, "is a directory, not a config file");
+    }
+    if (fst.type() != std::filesystem::file_type::regular) {
+        throw ReplayError(path, 0, ec ? "cannot stat: " + ec.message() : std::string("not a regular file"));
+    }
+    struct Closer {
+        void operator()(std::FILE *f) const { std::fclose(f); }
+    };
+    const std::unique_ptr<std::FILE, Closer> f(std::fopen(path.c_str(), "r"));
+    if (!f) {
+        throw ReplayError(path, 0, std::string("cannot open the config file: ") + std::strerror(errno));
+    }
     LoadState st{&cfg, keys_of(cfg), {}};
-    check_result(st, ini_parse(path.c_str(), on_ini, &st), path);
+    errno = 0;
+    const int rc = ini_parse_file(f.get(), on_ini, &st);
+    if (std::ferror(f.get()) != 0) {
+        const int err = errno;
+        throw ReplayError(path, 0, std::string("read error: ") + (err != 0 ? std::strerror(err) : "I/O error"));
+    }
+    check_result(st, rc, path);
     replay_config_validate(cfg);
 }
 
@@ -406,8 +436,12 @@ void replay_config_validate(const ReplayConfig &c)
     if (!(c.filter.nis_inflate >= 0.0 && c.filter.nis_inflate < 1e6)) {
         bad("[filter] nis_inflate must be in [0, 1e6) (0: off)");
     }
-    if (!(c.filter.predict_period_s > 0.0)) {
-        bad("[filter] predict_period_s must be > 0");
+    // the periods bound the replay's loops: a period too small for its
+    // clock (1e-300 s added to 100 s) stopped the run from advancing, and
+    // the map series (one score per map_period_s) grew without bound
+    if (!(c.filter.predict_period_s >= kMinPredictPeriodS && c.filter.predict_period_s <= kMaxPredictPeriodS)) {
+        bad("[filter] predict_period_s = " + fmt_value(c.filter.predict_period_s) + " outside [" +
+            fmt_value(kMinPredictPeriodS) + ", " + fmt_value(kMaxPredictPeriodS) + "] s");
     }
     if (!(c.input.min_range_m >= 0.0 && c.input.max_range_m > c.input.min_range_m)) {
         bad("[input] need 0 <= min_range_m < max_range_m");
@@ -440,8 +474,16 @@ void replay_config_validate(const ReplayConfig &c)
         bad("[merge] agree_z must be finite, 0 <= max_contradict_fraction <= 1, ambiguous_chi2 >= 0, "
             "unresolved_chi2 >= 0, refute_sd_factor finite and >= 0");
     }
-    if (!(c.eval.gate_m > 0.0 && c.eval.map_period_s > 0.0 && c.eval.pose_period_s > 0.0)) {
-        bad("[eval] gate_m, map_period_s and pose_period_s must be > 0");
+    if (!(c.eval.gate_m > 0.0)) {
+        bad("[eval] gate_m must be > 0");
+    }
+    if (!(c.eval.map_period_s >= kMinMapPeriodS && c.eval.map_period_s <= kMaxEvalPeriodS)) {
+        bad("[eval] map_period_s = " + fmt_value(c.eval.map_period_s) + " outside [" + fmt_value(kMinMapPeriodS) +
+            ", " + fmt_value(kMaxEvalPeriodS) + "] s");
+    }
+    if (!(c.eval.pose_period_s >= kMinPosePeriodS && c.eval.pose_period_s <= kMaxEvalPeriodS)) {
+        bad("[eval] pose_period_s = " + fmt_value(c.eval.pose_period_s) + " outside [" + fmt_value(kMinPosePeriodS) +
+            ", " + fmt_value(kMaxEvalPeriodS) + "] s");
     }
 }
 

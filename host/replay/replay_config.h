@@ -155,6 +155,16 @@ void replay_config_load_string(ReplayConfig &cfg, const std::string &text, const
 /// Write `cfg` as an INI file that replay_config_load reads back exactly.
 void replay_config_write(const ReplayConfig &cfg, std::ostream &out);
 
+/// The periods' ranges [s] (docs/replay.md, Limits): a period too small for
+/// the replay's clock stopped it from advancing (1e-300 s), and the map
+/// series keeps one score per map_period_s (not thinned like the path), so
+/// over the kMaxSpanS span it holds at most 10^7 scores.
+inline constexpr double kMinPredictPeriodS = 1e-3;
+inline constexpr double kMaxPredictPeriodS = 10.0;
+inline constexpr double kMinPosePeriodS = 1e-3;
+inline constexpr double kMinMapPeriodS = 0.1;
+inline constexpr double kMaxEvalPeriodS = 3600.0;
+
 /// Validate the whole configuration (slam_params_validate and the rest);
 /// throws ReplayError naming the offending key.
 void replay_config_validate(const ReplayConfig &cfg);
