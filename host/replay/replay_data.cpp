@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -92,8 +93,16 @@ struct LineReader {
         std::string line;
         char buf[kMaxLineBytes + 2];
         while (true) {
+            errno = 0;
             in.getline(buf, sizeof buf);
-            if (in.bad() || (in.eof() && in.gcount() == 0)) {
+            if (in.bad()) {
+                // not the end of the file: a read error (EIO, a directory)
+                const int err = errno;
+                throw ReplayError(name, 0,
+                                  "read error" + (line_no > 0 ? " after line " + std::to_string(line_no) : "") +
+                                      ": " + (err != 0 ? std::strerror(err) : "I/O error"));
+            }
+            if (in.eof() && in.gcount() == 0) {
                 return false;
             }
             ++line_no;
@@ -103,7 +112,12 @@ struct LineReader {
                 }
                 return false;
             }
-            line.assign(buf);
+            // gcount includes the newline getline consumed (not stored)
+            const auto n = static_cast<size_t>(in.gcount()) - (in.eof() ? 0U : 1U);
+            if (std::memchr(buf, '\0', n) != nullptr) {
+                fail("NUL byte in the line (not a text data file?)");
+            }
+            line.assign(buf, n);
             const auto hash = line.find('#');
             if (hash != std::string::npos) {
                 line.erase(hash);
@@ -183,6 +197,30 @@ struct MonotonicTime {
     }
 };
 
+// Gaps between consecutive odometry records: counted above kOdoGapWarnS,
+// refused above kMaxOdoGapS (the filter would hold the last command across it).
+struct OdoGapCheck {
+    double last = std::numeric_limits<double>::quiet_NaN();
+    void check(const LineReader &r, double t, ParseReport &report, int robot_id)
+    {
+        const double gap = t - last;
+        last = t;
+        if (!(gap > kOdoGapWarnS)) {
+            return; // also the first record (NaN)
+        }
+        if (gap > kMaxOdoGapS) {
+            r.fail("odometry gap of " + fmt_value(gap) + " s since the previous odometry record, more than the " +
+                   fmt_value(kMaxOdoGapS) + " s limit (docs/replay.md, Limits)");
+        }
+        OdoGaps &g = report.odo_gaps[robot_id];
+        g.count++;
+        if (gap > g.max_s) {
+            g.max_s = gap;
+            g.where = r.name + ":" + std::to_string(r.line_no);
+        }
+    }
+};
+
 void check_range(const LineReader &r, double range_m)
 {
     if (!(range_m > 0.0)) {
@@ -234,20 +272,62 @@ void finish_dataset(Dataset &ds, const std::vector<int> &folder_ids)
     }
 }
 
-std::ifstream open_or_throw(const fs::path &p)
+// Refuses what is not a regular file (a directory opens as an empty stream
+// and used to read as an empty file) and a file beyond the size limit.
+// false: the path does not exist (the caller says whether that is an error).
+bool check_input_file(const fs::path &p)
 {
     std::error_code ec;
+    const fs::file_status st = fs::status(p, ec);
+    if (st.type() == fs::file_type::not_found) {
+        return false;
+    }
+    if (ec) {
+        throw ReplayError(p.string(), 0, "cannot stat: " + ec.message());
+    }
+    if (st.type() == fs::file_type::directory) {
+        throw ReplayError(p.string(), 0, "is a directory, not a data file");
+    }
+    if (st.type() != fs::file_type::regular) {
+        throw ReplayError(p.string(), 0, "not a regular file");
+    }
     const auto size = fs::file_size(p, ec);
-    if (!ec && size > kMaxInputFileBytes) {
+    if (ec) {
+        throw ReplayError(p.string(), 0, "cannot read its size: " + ec.message());
+    }
+    if (size > kMaxInputFileBytes) {
         throw ReplayError(p.string(), 0,
                           "file of " + std::to_string(size) + " bytes, more than the " +
                               std::to_string(kMaxInputFileBytes >> 20) + " MiB limit (docs/replay.md, Limits)");
     }
+    return true;
+}
+
+std::ifstream open_checked(const fs::path &p)
+{
     std::ifstream f(p);
     if (!f) {
-        throw ReplayError(p.string(), 0, "missing file (or not readable)");
+        throw ReplayError(p.string(), 0, std::string("cannot open: ") + std::strerror(errno));
     }
     return f;
+}
+
+std::ifstream open_or_throw(const fs::path &p)
+{
+    if (!check_input_file(p)) {
+        throw ReplayError(p.string(), 0, "missing file");
+    }
+    return open_checked(p);
+}
+
+// An optional file (ground truth, t0.txt): nullopt if it does not exist; if
+// it exists it must be a readable regular file.
+std::optional<std::ifstream> open_optional(const fs::path &p)
+{
+    if (!check_input_file(p)) {
+        return std::nullopt;
+    }
+    return open_checked(p);
 }
 
 // The robots of a folder to read: all, or those of `only`, each of which
@@ -291,12 +371,12 @@ void note_unread(ParseReport &report, const std::vector<int> &ids, const std::se
 std::optional<double> first_stamp(const fs::path &p, ParseReport &report,
                                   const std::function<bool(int barcode)> *keep = nullptr)
 {
-    std::ifstream f(p);
-    if (!f) {
-        return std::nullopt; // missing: what a full read would say is its own business
-    }
-    LineReader r{f, p.string()};
     try {
+        auto f = open_optional(p);
+        if (!f) {
+            return std::nullopt; // missing: what a full read would say is its own business
+        }
+        LineReader r{*f, p.string()};
         while (r.next()) {
             if (keep == nullptr || (r.fields.size() >= 2 && (*keep)(r.integer(1, "barcode")))) {
                 return r.num(0, "t");
@@ -324,6 +404,7 @@ void parse_landmark_log(std::istream &in, const std::string &name, RobotLog &out
 {
     LineReader r{in, name};
     MonotonicTime mono(true);
+    OdoGapCheck gaps;
     while (r.next()) {
         report.lines_read++;
         const std::string &tag = r.fields[0];
@@ -332,6 +413,7 @@ void parse_landmark_log(std::istream &in, const std::string &name, RobotLog &out
             OdoRecord o;
             o.t_s = r.num(1, "t");
             mono.check(r, o.t_s);
+            gaps.check(r, o.t_s, report, out.id);
             o.kind = OdoRecord::Kind::Increment;
             o.a = r.num(2, "dx");
             o.b = r.num(3, "dy");
@@ -342,6 +424,7 @@ void parse_landmark_log(std::istream &in, const std::string &name, RobotLog &out
             OdoRecord o;
             o.t_s = r.num(1, "t");
             mono.check(r, o.t_s);
+            gaps.check(r, o.t_s, report, out.id);
             o.kind = OdoRecord::Kind::Velocity;
             o.a = r.num(2, "v");
             o.b = r.num(3, "w");
@@ -437,11 +520,19 @@ Dataset load_mrclam(const std::string &dir, const std::vector<int> &only)
                 r.fail("barcode " + std::to_string(barcode) + " listed twice");
             }
         }
+        if (barcode_to_subject.empty()) {
+            // every sighting would be skipped as an unknown barcode
+            throw ReplayError(p.string(), 0, "no records (empty file?): the barcodes identify every sighting");
+        }
     }
     {
         const fs::path p = d / "Landmark_Groundtruth.dat";
         auto f = open_or_throw(p);
         ds.landmarks = parse_truth_landmarks(f, p.string());
+        if (ds.landmarks.empty()) {
+            // every landmark sighting would be skipped as of an unknown subject
+            throw ReplayError(p.string(), 0, "no records (empty file?): it tells landmarks from robots");
+        }
     }
     std::set<int> landmark_subjects;
     for (const auto &l : ds.landmarks) {
@@ -490,11 +581,13 @@ Dataset load_mrclam(const std::string &dir, const std::vector<int> &only)
             auto f = open_or_throw(p);
             LineReader r{f, p.string()};
             MonotonicTime mono;
+            OdoGapCheck gaps;
             while (r.next()) {
                 ds.report.lines_read++;
                 r.expect_fields(3, 3, "t v w");
                 const double t = r.num(0, "t");
                 mono.check(r, t);
+                gaps.check(r, t, ds.report, id);
                 rr.odo.push_back({t, r.num(1, "v"), r.num(2, "w")});
             }
             rr.source = p.string();
@@ -528,9 +621,9 @@ Dataset load_mrclam(const std::string &dir, const std::vector<int> &only)
         }
         {
             const fs::path p = d / (base + "Groundtruth.dat");
-            std::ifstream f(p);
+            auto f = open_optional(p);
             if (f) {
-                LineReader r{f, p.string()};
+                LineReader r{*f, p.string()};
                 MonotonicTime mono;
                 while (r.next()) {
                     ds.report.lines_read++;
@@ -671,9 +764,9 @@ Dataset load_landmark_log(const std::string &dir, const std::vector<int> &only)
         rl.source = p.string();
         parse_landmark_log(f, p.string(), rl, ds.report);
         const fs::path tp = d / ("robot" + std::to_string(id) + "_truth.txt");
-        std::ifstream tf(tp);
+        auto tf = open_optional(tp);
         if (tf) {
-            rl.truth = parse_truth_path(tf, tp.string());
+            rl.truth = parse_truth_path(*tf, tp.string());
         } else {
             ds.report.notes.push_back("robot " + std::to_string(id) + ": no " + tp.filename().string() +
                                       ", replayed without evaluation");
@@ -681,17 +774,17 @@ Dataset load_landmark_log(const std::string &dir, const std::vector<int> &only)
         ds.robots.push_back(std::move(rl));
     }
     const fs::path lp = d / "landmarks_truth.txt";
-    std::ifstream lf(lp);
+    auto lf = open_optional(lp);
     if (lf) {
-        ds.landmarks = parse_truth_landmarks(lf, lp.string());
+        ds.landmarks = parse_truth_landmarks(*lf, lp.string());
     } else {
         ds.report.notes.push_back("no landmarks_truth.txt: map errors are not evaluated");
     }
     // t0 of the source is kept if the writer recorded it
     const fs::path mp = d / "t0.txt";
-    std::ifstream mf(mp);
+    auto mf = open_optional(mp);
     if (mf) {
-        LineReader r{mf, mp.string()};
+        LineReader r{*mf, mp.string()};
         if (r.next()) {
             ds.t0_s = r.num(0, "t0");
         }

@@ -49,6 +49,12 @@ inline constexpr unsigned long long kMaxInputFileBytes = 256ULL << 20;
 inline constexpr std::size_t kMaxLineBytes = 4096;
 inline constexpr double kMaxSpanS = 1e6;
 inline constexpr int kMaxRobotId = COSLAM_MAX_ROBOTS;
+/// Consecutive odometry records further apart than kOdoGapWarnS are counted
+/// and warned about (the last command is held across the gap; MRCLAM
+/// Datasets 1 and 6 have gaps of up to 1.33 s, nothing longer); a gap longer
+/// than kMaxOdoGapS is refused at its line (a stray record days later).
+inline constexpr double kOdoGapWarnS = 2.0;
+inline constexpr double kMaxOdoGapS = 3600.0;
 
 /// A value for a message: %.6g, so 1e308 is not 309 digits.
 std::string fmt_value(double v);
@@ -118,6 +124,13 @@ struct LandmarkTruth {
     point2_t pos{}; ///< world frame [m]
 };
 
+/// Gaps of more than kOdoGapWarnS between one robot's odometry records.
+struct OdoGaps {
+    long count = 0;
+    double max_s = 0.0;  ///< the largest
+    std::string where;   ///< file:line of the record after the largest
+};
+
 /// What a reader skipped or noticed, for the log and metrics.json.
 struct ParseReport {
     long unknown_barcode_rows = 0;          ///< MRCLAM rows whose barcode is not in Barcodes.dat
@@ -127,6 +140,7 @@ struct ParseReport {
     long unknown_robot_sightings = 0;       ///< R records naming a robot the dataset does not have
     long unknown_subject_rows = 0;          ///< MRCLAM sightings of a subject neither robot nor true landmark
     std::vector<std::string> notes;         ///< human-readable remarks (missing truth, ...)
+    std::map<int, OdoGaps> odo_gaps;        ///< robot id -> its odometry gaps (robots with any)
 };
 
 struct Dataset {

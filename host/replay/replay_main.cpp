@@ -272,6 +272,11 @@ int main(int argc, char **argv)
         for (const auto &n : ds.report.notes) {
             std::cerr << "note: " << n << "\n";
         }
+        for (const auto &[id, g] : ds.report.odo_gaps) {
+            std::cerr << "warning: robot " << id << ": " << g.count << " gap(s) of more than " << kOdoGapWarnS
+                      << " s between odometry records, the largest " << fmt_value(g.max_s) << " s (before "
+                      << g.where << "): the last command is held across them (odometry_gaps)\n";
+        }
 
         if (*conv) {
             write_landmark_log(ds, conv_out);

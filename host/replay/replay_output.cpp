@@ -199,6 +199,12 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
     rep["unknown_robot_sightings"] = ds.report.unknown_robot_sightings;
     rep["unknown_subject_rows"] = ds.report.unknown_subject_rows;
     rep["notes"] = ds.report.notes;
+    json gaps = json::object();
+    for (const auto &[id, g] : ds.report.odo_gaps) {
+        gaps[std::to_string(id)] = {{"count", g.count}, {"max_s", g.max_s}, {"where", g.where}};
+    }
+    rep["odometry_gaps"] = gaps; // gaps of more than kOdoGapWarnS, by robot
+    rep["odometry_gap_warn_s"] = kOdoGapWarnS;
     j["dataset"] = {{"source", ds.source},
                     {"format", ds.format},
                     {"t0_s", ds.t0_s},
