@@ -65,9 +65,9 @@ json score_json(const MapScore &s)
                 {"n_matched", or_null(k, s.n_matched)},
                 {"n_spurious", or_null(k, s.n_spurious)},
                 {"n_missed", or_null(k, s.n_missed)},
-                {"rmse_m", or_null(k, s.rmse_m)},
-                {"max_err_m", or_null(k, s.max_err_m)},
-                {"nees_mean", or_null(k, s.nees_mean)}};
+                {"rmse_m", or_null(s.measured(), s.rmse_m)},
+                {"max_err_m", or_null(s.measured(), s.max_err_m)},
+                {"nees_mean", or_null(s.measured(), s.nees_mean)}};
 }
 
 // rigid-fit score (stats.h eval_map_rigid): needs the true landmarks only
@@ -80,10 +80,10 @@ json fit_json(const MapScore &s)
                 {"n_matched", or_null(k, f.n_matched)},
                 {"n_spurious", or_null(k, f.n_spurious)},
                 {"n_missed", or_null(k, f.n_missed)},
-                {"rmse_m", or_null(k && f.n_matched > 0, f.rmse_m)},
-                {"max_err_m", or_null(k && f.n_matched > 0, f.max_err_m)},
-                {"nees_mean", or_null(k && f.n_matched > 0, f.nees_mean)},
-                {"transform", or_null(k, pose_json(f.transform))}};
+                {"rmse_m", or_null(f.measured(), f.rmse_m)},
+                {"max_err_m", or_null(f.measured(), f.max_err_m)},
+                {"nees_mean", or_null(f.measured(), f.nees_mean)},
+                {"transform", or_null(f.measured(), pose_json(f.transform))}};
 }
 
 // a CSV field: the value, or nan where there is no ground truth
@@ -163,7 +163,7 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
             const bool k = m.score.valid;
             map_errors << m.t_s << ',' << r.id << ',' << m.score.n_estimated << ',' << csv_or_nan(k, m.score.n_matched)
                        << ',' << csv_or_nan(k, m.score.n_spurious) << ',' << csv_or_nan(k, m.score.n_missed) << ','
-                       << csv_or_nan(k, m.score.rmse_m) << '\n';
+                       << csv_or_nan(m.score.measured(), m.score.rmse_m) << '\n';
         }
     }
     {
@@ -176,9 +176,9 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
               << (e.has_truth ? e.t_err_m : -1.0) << ',' << (e.has_truth ? e.t_err_rad : -1.0) << ','
               << (e.has_truth ? e.t_nees : -1.0) << ',' << e.stats.fused << ',' << e.stats.fused_ci << ','
               << e.stats.added << ',' << e.stats.capacity_drops << ',' << e.before.n_estimated << ','
-              << csv_or_nan(e.before.valid, e.before.rmse_m) << ',' << csv_or_nan(e.before.valid, e.before.n_spurious)
+              << csv_or_nan(e.before.measured(), e.before.rmse_m) << ',' << csv_or_nan(e.before.valid, e.before.n_spurious)
               << ',' << csv_or_nan(e.before.valid, e.before.n_missed) << ',' << e.after.n_estimated << ','
-              << csv_or_nan(e.after.valid, e.after.rmse_m) << ',' << csv_or_nan(e.after.valid, e.after.n_spurious)
+              << csv_or_nan(e.after.measured(), e.after.rmse_m) << ',' << csv_or_nan(e.after.valid, e.after.n_spurious)
               << ',' << csv_or_nan(e.after.valid, e.after.n_missed) << ',' << e.merge_us << '\n';
         }
     }
@@ -230,7 +230,7 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
     json robots = json::array();
     double sum_pose = 0.0, sum_head = 0.0, sum_lm = 0.0, sum_step = 0.0, max_step = 0.0, sum_fit = 0.0;
     int n_pose = 0, n_lm = 0, sum_spur = 0, sum_miss = 0, sum_est = 0;
-    int n_fit = 0, n_fit_rmse = 0, sum_fit_spur = 0, sum_fit_miss = 0;
+    int n_fit = 0, n_fit_rmse = 0, sum_fit_spur = 0, sum_fit_miss = 0, n_lm_rmse = 0;
     for (const auto &r : res.robots) {
         json rj;
         rj["id"] = r.id;
@@ -275,8 +275,11 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
             sum_head += r.heading_rmse_rad;
             n_pose++;
         }
+        if (r.final_score.measured()) {
+            sum_lm += r.final_score.rmse_m; // 0 when nothing matched: not averaged in
+            n_lm_rmse++;
+        }
         if (r.final_score.valid) {
-            sum_lm += r.final_score.rmse_m;
             sum_spur += r.final_score.n_spurious;
             sum_miss += r.final_score.n_missed;
             sum_est += r.final_score.n_estimated;
@@ -298,7 +301,7 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
     const double nr = res.robots.empty() ? 1.0 : static_cast<double>(res.robots.size());
     j["mean"] = {{"pose_rmse_m", or_null(n_pose > 0, n_pose ? sum_pose / n_pose : 0.0)},
                  {"heading_rmse_rad", or_null(n_pose > 0, n_pose ? sum_head / n_pose : 0.0)},
-                 {"landmark_rmse_m", or_null(n_lm > 0, n_lm ? sum_lm / n_lm : 0.0)},
+                 {"landmark_rmse_m", or_null(n_lm_rmse > 0, n_lm_rmse ? sum_lm / n_lm_rmse : 0.0)},
                  {"n_estimated", or_null(n_lm > 0, n_lm ? static_cast<double>(sum_est) / n_lm : 0.0)},
                  {"spurious", or_null(n_lm > 0, n_lm ? static_cast<double>(sum_spur) / n_lm : 0.0)},
                  {"missed", or_null(n_lm > 0, n_lm ? static_cast<double>(sum_miss) / n_lm : 0.0)},
@@ -329,8 +332,8 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
                    {"skipped", e.stats.skipped},
                    {"check",
                     {{"pairs", e.stats.pairs},
-                     {"nis", e.stats.nis},
-                     {"nis_bound", e.stats.nis_bound},
+                     {"nis", or_null(e.stats.pairs > 0, e.stats.nis)}, // no pairs: nothing measured
+                     {"nis_bound", or_null(e.stats.pairs > 0, e.stats.nis_bound)},
                      {"vetoed_negative_info", e.stats.vetoed},
                      {"echoes", e.stats.echoes},
                      {"ambiguous", e.stats.ambiguous},
@@ -439,11 +442,11 @@ void print_summary(std::ostream &out, const ReplayResult &res, const ReplayOptio
         cell(13, pk, r.pose_rmse_m);
         cell(13, pk, r.heading_rmse_rad * 180.0 / M_PI);
         cell(11, pk, r.pose_nees_mean);
-        cell(11, m.valid, m.rmse_m);
+        cell(11, m.measured(), m.rmse_m);
         out << std::setw(11) << m.n_estimated;
         cell(10, m.valid, m.n_spurious);
         cell(8, m.valid, m.n_missed);
-        cell(12, m.fit.valid && m.fit.n_matched > 0, m.fit.rmse_m);
+        cell(12, m.fit.measured(), m.fit.rmse_m);
         cell(14, m.fit.valid, m.fit.n_spurious);
         cell(12, m.fit.valid, m.fit.n_missed);
         out << "  " << std::setprecision(0) << r.step_us_mean << "/" << r.step_us_max << std::setprecision(3) << "\n";
@@ -456,9 +459,11 @@ void print_summary(std::ostream &out, const ReplayResult &res, const ReplayOptio
         out << "rigid fit (map frame in the world: x y [m] theta [deg]):";
         for (const auto &r : res.robots) {
             const FitScore &f = r.final_score.fit;
-            if (f.valid) {
+            if (f.measured()) {
                 out << "  " << r.id << ": " << std::setprecision(2) << f.transform.x << " " << f.transform.y << " "
                     << std::setprecision(1) << f.transform.theta * 180.0 / M_PI << std::setprecision(3);
+            } else if (f.valid) {
+                out << "  " << r.id << ": n/a"; // no landmark matched: no transform
             }
         }
         out << "\n";
@@ -478,15 +483,20 @@ void print_summary(std::ostream &out, const ReplayResult &res, const ReplayOptio
         if (e.has_truth) {
             out << "  T err " << e.t_err_m << " m " << e.t_err_rad * 180.0 / M_PI << " deg, NEES " << e.t_nees;
         }
-        out << "  pairs " << e.stats.pairs << " NIS " << std::setprecision(1) << e.stats.nis << "/" << e.stats.nis_bound
-            << std::setprecision(3) << " refused " << e.stats.vetoed << "+" << e.stats.echoes << "+"
+        out << "  pairs " << e.stats.pairs << " NIS ";
+        if (e.stats.pairs > 0) {
+            out << std::setprecision(1) << e.stats.nis << "/" << e.stats.nis_bound << std::setprecision(3);
+        } else {
+            out << "n/a"; // no pairs: nothing measured
+        }
+        out << " refused " << e.stats.vetoed << "+" << e.stats.echoes << "+"
             << e.stats.ambiguous << "+" << e.stats.unrefutable << "  fused " << e.stats.fused << " added " << e.stats.added;
         if (e.particles_due > 0U) {
             out << " (first part; " << e.particles_due << " particles in idle time)";
         }
         out << "  map rmse ";
-        cell(0, e.before.valid, e.before.rmse_m) << " -> ";
-        cell(0, e.after.valid, e.after.rmse_m) << " (" << e.before.n_estimated << " -> " << e.after.n_estimated
+        cell(0, e.before.measured(), e.before.rmse_m) << " -> ";
+        cell(0, e.after.measured(), e.after.rmse_m) << " (" << e.before.n_estimated << " -> " << e.after.n_estimated
                                                 << " landmarks)\n";
     }
     out << "wall time " << std::setprecision(2) << res.wall_s << " s for " << (res.t_end_s - res.t_begin_s)

@@ -129,6 +129,7 @@ template <typename Score> Score fill_score(Score s, const map_eval_t &ev, map_ev
     s.rmse_m = ev.rmse_m;
     s.max_err_m = ev.max_err_m;
     s.nees_mean = ev.nees_mean;
+    // evaluated: the counts hold; the errors only if n_matched > 0 (measured())
     s.valid = true;
     if (detail != nullptr) {
         *detail = ev;

@@ -67,6 +67,9 @@ struct FitScore {
     double nees_mean = 0.0; ///< landmark NEES over matched pairs after the fit (covariances
                             ///< rotated with the map); the fit removes the map's common
                             ///< offset, which the covariances still hold: a lower bound
+    /// the errors and the transform were measured: evaluated, and at least
+    /// one landmark matched (with none they are 0, printed n/a / null)
+    bool measured() const { return valid && n_matched > 0; }
 };
 
 /// A map estimate evaluated against the true landmarks (stats.h eval_map).
@@ -80,6 +83,9 @@ struct MapScore {
     double nees_mean = 0.0;
     bool valid = false; ///< false when the truth is unknown (no robot ground truth: no map frame)
     FitScore fit;       ///< rigid-fit score; computed for the final maps only (RobotResult::final_score)
+    /// rmse_m, max_err_m, nees_mean were measured (valid, >= 1 landmark matched;
+    /// with none they are 0, printed n/a / null); the counts need only valid
+    bool measured() const { return valid && n_matched > 0; }
 };
 
 struct PoseSample {
