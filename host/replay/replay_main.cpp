@@ -332,10 +332,15 @@ int main(int argc, char **argv)
                 dl += f.model.delay_s;
                 n++;
             }
-            if (n > 0) {
-                std::cout << std::setprecision(3) << "mean: scale_v " << sv / n << " scale_w " << sw / n
-                          << " delay_s " << std::setprecision(2) << dl / n << "\n";
+            if (n == 0) {
+                // as fit-noise: a fit of nothing is not a success
+                throw ReplayError(ds.source, 0,
+                                  "nothing fitted: no robot has ground truth overlapping its odometry in at least " +
+                                      std::to_string(kMinOdoFitWindows) + " windows (RobotN_Groundtruth.dat or "
+                                      "robot<k>_truth.txt)");
             }
+            std::cout << std::setprecision(3) << "mean: scale_v " << sv / n << " scale_w " << sw / n << " delay_s "
+                      << std::setprecision(2) << dl / n << "\n";
             return 0;
         }
 
@@ -376,6 +381,20 @@ int main(int argc, char **argv)
             throw ReplayError("at most " + std::to_string(COSLAM_MAX_PARTICLES) + " particles");
         }
         replay_config_validate(cfg);
+        {
+            // per-robot settings ([robotN], --robot-filter) of a robot that is
+            // not replayed were dropped without a word
+            std::string unused;
+            for (const auto &[id, o] : cfg.robot) {
+                if (ds.robot(id) == nullptr) {
+                    unused += (unused.empty() ? "" : ", ") + std::to_string(id);
+                }
+            }
+            if (!unused.empty()) {
+                std::cerr << "note: settings for robot(s) " << unused << " ([robotN] or --robot-filter) not used: "
+                          << "not in the dataset" << (robots.empty() ? "" : " or not selected with -r") << "\n";
+            }
+        }
         ReplayOptions opt;
         opt.robots = robots;
         opt.known_ids = known_ids;
