@@ -27,6 +27,20 @@ std::ofstream open_out(const std::string &dir, const std::string &name)
     return f;
 }
 
+// Closes a file of open_out / write_grid: a write that failed (a full disk)
+// is an error naming the file, never a silently short file.
+void close_out(std::ofstream &f, const std::string &dir, const std::string &name)
+{
+    f.close();
+    if (!f) throw std::runtime_error("cannot write " + dir + "/" + name + " (write failed)");
+}
+
+// JSON null where nothing was measured
+nlohmann::json measured(bool valid, double v)
+{
+    return valid ? nlohmann::json(v) : nlohmann::json(nullptr);
+}
+
 void write_tum(const std::string &dir, const std::string &name, const std::vector<std::pair<double, pose2_t>> &path,
                const pose2_t *frame)
 {
@@ -37,6 +51,7 @@ void write_tum(const std::string &dir, const std::string &name, const std::vecto
         f << s.first << ' ' << p.x << ' ' << p.y << " 0 0 0 " << std::sin(0.5 * p.theta) << ' '
           << std::cos(0.5 * p.theta) << '\n';
     }
+    close_out(f, dir, name);
 }
 
 map_landmark_t to_world(const pose2_t &start, const map_landmark_t &l)
@@ -59,6 +74,7 @@ void write_map(const std::string &dir, const std::string &name, const pose2_t &s
           << static_cast<int>(w.signature) << ',' << w.n_obs << ',' << w.src_mask << ','
           << (i < static_cast<size_t>(COSLAM_MAX_MSG_LANDMARKS) ? m.eval.match[i] : -1) << '\n';
     }
+    close_out(f, dir, name);
 }
 
 // Occupancy grid as an 8-bit PGM: white free, black occupied, grey unknown;
@@ -74,6 +90,7 @@ void write_grid(const std::string &dir, const std::string &name, const occ_grid_
             f.put(static_cast<char>(static_cast<unsigned char>(std::lround(255.0 * (1.0 - p)))));
         }
     }
+    close_out(f, dir, name);
 }
 
 nlohmann::json eval_json(const MapSnapshot &m)
@@ -84,8 +101,8 @@ nlohmann::json eval_json(const MapSnapshot &m)
             {"n_matched", m.eval.n_matched},
             {"n_missed", m.eval.n_missed},
             {"n_spurious", m.eval.n_spurious},
-            {"rmse_m", m.eval.n_matched > 0 ? m.eval.rmse_m : 0.0},
-            {"max_err_m", m.eval.n_matched > 0 ? m.eval.max_err_m : 0.0},
+            {"rmse_m", measured(m.eval.n_matched > 0, m.eval.rmse_m)},
+            {"max_err_m", measured(m.eval.n_matched > 0, m.eval.max_err_m)},
             {"nees_mean", std::isfinite(m.eval.nees_mean) ? nlohmann::json(m.eval.nees_mean) : nlohmann::json(nullptr)}};
 }
 
@@ -168,7 +185,7 @@ nlohmann::json run_metrics(const Simulation &sim)
             {"start", {rr.start.x, rr.start.y, rr.start.theta}},
             {"distance_m", rr.distance_m},
             {"pose_rmse_m", {{"all", rr.pose_rmse_m}, {"before_merge", rr.pose_rmse_before_merge_m},
-                             {"after_merge", rr.pose_rmse_after_merge_m}}},
+                             {"after_merge", measured(rr.first_merge_s >= 0.0, rr.pose_rmse_after_merge_m)}}},
             {"heading_rmse_deg", rr.heading_rmse_rad * kRad2Deg},
             {"first_merge_s", rr.first_merge_s},
             {"map", {{"pre_merge", eval_json(rr.pre_merge)}, {"post_merge", eval_json(rr.post_merge)},
@@ -221,9 +238,13 @@ nlohmann::json run_metrics(const Simulation &sim)
     if (!r.faults.empty()) {
         j["faults"] = nlohmann::json::array();
         for (const auto &f : r.faults) {
+            // a run shortened by --duration may end before a fault's start
+            // or end: null, and "reached" false when it never started
             j["faults"].push_back({{"robot", f.spec.robot}, {"kind", fault_kind_name(f.spec.kind)},
                                    {"at_s", f.spec.at_s}, {"duration_s", f.spec.duration_s},
-                                   {"start_s", f.start_s}, {"end_s", f.end_s}, {"applied", f.applied_ok}});
+                                   {"reached", f.start_s >= 0.0},
+                                   {"start_s", measured(f.start_s >= 0.0, f.start_s)},
+                                   {"end_s", measured(f.end_s >= 0.0, f.end_s)}, {"applied", f.applied_ok}});
         }
     }
     return j;
@@ -248,6 +269,7 @@ void write_run_outputs(const Simulation &sim, const std::string &dir)
               << s.map_max_err_m << ',' << s.n_est << ',' << s.n_matched << ',' << s.n_missed << ',' << s.n_spurious
               << '\n';
         }
+        close_out(e, dir, p + "_errors.csv");
         write_grid(dir, p + "_grid.pgm", *robot_node_grid(&sim.node(k)));
     }
     {
@@ -257,6 +279,7 @@ void write_run_outputs(const Simulation &sim, const std::string &dir)
             f << l.id << ',' << l.p.x() << ',' << l.p.y() << ',' << static_cast<int>(l.signature) << ','
               << r.team_detections[static_cast<size_t>(l.id)] << '\n';
         }
+        close_out(f, dir, "truth_map.csv");
     }
     {
         std::ofstream f = open_out(dir, "merge_events.csv");
@@ -266,6 +289,7 @@ void write_run_outputs(const Simulation &sim, const std::string &dir)
               << m.n_landmarks_in << ',' << m.stats.fused << ',' << m.stats.fused_ci << ',' << m.stats.added << ','
               << m.transform_err_m << ',' << m.transform_err_rad * kRad2Deg << ',' << m.dt_sightings_ms << '\n';
         }
+        close_out(f, dir, "merge_events.csv");
     }
     {
         nlohmann::json w;
@@ -282,9 +306,11 @@ void write_run_outputs(const Simulation &sim, const std::string &dir)
         }
         std::ofstream f = open_out(dir, "world.json");
         f << w.dump(1) << '\n';
+        close_out(f, dir, "world.json");
     }
     std::ofstream f = open_out(dir, "metrics.json");
     f << run_metrics(sim).dump(2) << '\n';
+    close_out(f, dir, "metrics.json");
 }
 
 std::string run_summary(const Simulation &sim, const std::string &out_dir)
@@ -337,17 +363,23 @@ std::string run_summary(const Simulation &sim, const std::string &out_dir)
         char c[64];
         if (!m.valid) {
             std::snprintf(c, sizeof c, "%-19s", "-");
+        } else if (m.eval.n_matched == 0) {
+            // no known landmark: no RMSE to show
+            std::snprintf(c, sizeof c, "%2d/%2d/%-2d %6s    ", m.eval.n_matched, m.eval.n_missed, m.eval.n_spurious,
+                          "n/a");
         } else {
             std::snprintf(c, sizeof c, "%2d/%2d/%-2d %6.3f m  ", m.eval.n_matched, m.eval.n_missed, m.eval.n_spurious,
-                          m.eval.n_matched > 0 ? m.eval.rmse_m : 0.0);
+                          m.eval.rmse_m);
         }
         return std::string(c);
     };
     for (const auto &rr : r.robots) {
         const std::string filt = std::string(slam_filter_kind_name(rr.filter)) +
                                  (rr.particles > 0 ? "/" + std::to_string(rr.particles) : std::string());
-        std::snprintf(line, sizeof line, "  %-8s %-14s %7.3f %7.3f   ", rr.name.c_str(), filt.c_str(),
-                      rr.pose_rmse_before_merge_m, rr.pose_rmse_after_merge_m);
+        char after[32] = "n/a"; // never merged: nothing after
+        if (rr.first_merge_s >= 0.0) std::snprintf(after, sizeof after, "%.3f", rr.pose_rmse_after_merge_m);
+        std::snprintf(line, sizeof line, "  %-8s %-14s %7.3f %7s   ", rr.name.c_str(), filt.c_str(),
+                      rr.pose_rmse_before_merge_m, after);
         s << line << mapcol(rr.pre_merge) << " " << mapcol(rr.post_merge) << " " << mapcol(rr.final_map);
         std::snprintf(line, sizeof line, " %4u %5u\n", rr.wall_collisions, rr.robot_collisions);
         s << line;
@@ -370,9 +402,18 @@ std::string run_summary(const Simulation &sim, const std::string &out_dir)
         s << "  refused messages: " << r.refusals.size() << " (see metrics.json)\n";
     }
     for (const auto &f : r.faults) {
+        // a run shortened by --duration may end before the fault starts or ends
+        char span[96];
+        if (f.start_s < 0.0) {
+            std::snprintf(span, sizeof span, "not reached (at %.1f s, the run ended at %.1f s)", f.spec.at_s, r.sim_s);
+        } else if (f.end_s < 0.0) {
+            std::snprintf(span, sizeof span, "%.1f s .. still on at the end (%.1f s)", f.start_s, r.sim_s);
+        } else {
+            std::snprintf(span, sizeof span, "%.1f s .. %.1f s", f.start_s, f.end_s);
+        }
         char fl[256];
-        std::snprintf(fl, sizeof fl, "  fault %s on %s: %.1f s .. %.1f s%s\n", fault_kind_name(f.spec.kind),
-                      r.robots[static_cast<size_t>(f.spec.robot)].name.c_str(), f.start_s, f.end_s,
+        std::snprintf(fl, sizeof fl, "  fault %s on %s: %s%s\n", fault_kind_name(f.spec.kind),
+                      r.robots[static_cast<size_t>(f.spec.robot)].name.c_str(), span,
                       f.applied_ok ? "" : " (NOT applied: target not free)");
         s << fl;
     }

@@ -286,6 +286,20 @@ TEST(Scenario, ErrorsNameTheKey)
     fails_with(scenario_text("", "[[robot]]\nstart = [0, 0, 0]\n[robot.noise]\nodo_xy = 1\n[[robot]]\nstart = [1, 0, 0]\n"),
                "robot[0].noise.odo_xy: unknown key");
     EXPECT_THROW(load_scenario_file("/nonexistent/x.toml"), ScenarioError);
+    // a fault that would never happen (duration_s = 5 in scenario_text)
+    fails_with(scenario_text("", "", "[[fault]]\nrobot = 1\nkind = \"laser_unplug\"\nat_s = 500\nduration_s = 2\n"),
+               "fault[0].at_s: at_s 500 is at or after the run's end (duration_s 5 s)");
+    fails_with(scenario_text("", "", "[[fault]]\nrobot = 1\nkind = \"kidnap\"\nat_s = 5\nto = [0, 1, 0]\n"),
+               "at or after the run's end");
+    EXPECT_NO_THROW(load_scenario_string(
+        scenario_text("", "", "[[fault]]\nrobot = 1\nkind = \"laser_unplug\"\nat_s = 4.9\nduration_s = 20\n")));
+    // a directory is not an empty scenario
+    try {
+        load_scenario_file(::testing::TempDir());
+        ADD_FAILURE() << "a directory loaded";
+    } catch (const ScenarioError &e) {
+        EXPECT_NE(std::string(e.what()).find("is a directory"), std::string::npos) << e.what();
+    }
 }
 
 TEST(Scenario, ValuesAndOverrides)
@@ -507,4 +521,77 @@ TEST(RunOutput, FilesAreWrittenAndParse)
     const std::string summary = run_summary(sim, dir);
     EXPECT_NE(summary.find("robot0"), std::string::npos);
     EXPECT_NE(summary.find("merges: none"), std::string::npos);
+    // no merge: nothing measured after one (n/a, null), not 0.000
+    for (size_t k = 0; k < 2; ++k) {
+        EXPECT_TRUE(m["robots"][k]["pose_rmse_m"]["after_merge"].is_null()) << k;
+        EXPECT_TRUE(m["robots"][k]["map"]["pre_merge"].is_null()) << k;
+        const nlohmann::json &fin = m["robots"][k]["map"]["final"];
+        if (fin["n_matched"].get<int>() == 0) {
+            EXPECT_TRUE(fin["rmse_m"].is_null()) << k;
+        }
+    }
+    std::istringstream ss(summary);
+    int rows_na = 0;
+    while (std::getline(ss, line)) {
+        if (line.rfind("  robot", 0) != 0) continue;
+        std::istringstream ls(line);
+        std::string name, filt, before, after;
+        ls >> name >> filt >> before >> after;
+        if (name == "robot") continue; // the header
+        EXPECT_EQ(after, "n/a") << line;
+        EXPECT_EQ(line.find("0.000 m"), std::string::npos) << "an RMSE of nothing: " << line; // 0 matched: n/a
+        rows_na++;
+    }
+    EXPECT_EQ(rows_na, 2);
+}
+
+TEST(RunOutput, FaultNotReachedInAShortenedRun)
+{
+    Scenario sc = load_scenario_file(kPaper);
+    FaultSpec f;
+    f.robot = 1;
+    f.kind = FaultKind::LaserUnplug;
+    f.at_s = 2.0;
+    f.duration_s = 5.0;
+    sc.faults.push_back(f);
+    f.at_s = 50.0; // after the end of the 3 s run below (as with --duration 3)
+    sc.faults.push_back(f);
+    Simulation sim(sc, SimulationOptions{std::nullopt, 3.0});
+    sim.run();
+    const std::string summary = run_summary(sim, "x");
+    EXPECT_EQ(summary.find("-1.0"), std::string::npos) << summary;
+    EXPECT_NE(summary.find("fault laser_unplug on robot1: 2.0 s .. still on at the end (3.0 s)"), std::string::npos)
+        << summary;
+    EXPECT_NE(summary.find("fault laser_unplug on robot1: not reached (at 50.0 s, the run ended at 3.0 s)"),
+              std::string::npos)
+        << summary;
+    const nlohmann::json m = run_metrics(sim);
+    ASSERT_EQ(m["faults"].size(), 2u);
+    EXPECT_TRUE(m["faults"][0]["reached"].get<bool>());
+    EXPECT_NEAR(m["faults"][0]["start_s"].get<double>(), 2.0, 1e-6);
+    EXPECT_TRUE(m["faults"][0]["end_s"].is_null());
+    EXPECT_FALSE(m["faults"][1]["reached"].get<bool>());
+    EXPECT_TRUE(m["faults"][1]["start_s"].is_null());
+    EXPECT_TRUE(m["faults"][1]["end_s"].is_null());
+}
+
+TEST(RunOutput, AFullDiskIsAnErrorNamingTheFile)
+{
+    if (!std::filesystem::exists("/dev/full")) GTEST_SKIP() << "no /dev/full";
+    Scenario sc = load_scenario_file(kPaper);
+    Simulation sim(sc, SimulationOptions{std::nullopt, 1.0});
+    sim.run();
+    for (const char *name : {"robot0_path.tum", "robot0_grid.pgm", "robot1_errors.csv", "merge_events.csv",
+                             "world.json", "metrics.json"}) {
+        const std::string dir = ::testing::TempDir() + "coslam_run_output_full";
+        std::filesystem::remove_all(dir);
+        std::filesystem::create_directories(dir);
+        std::filesystem::create_symlink("/dev/full", dir + "/" + name);
+        try {
+            write_run_outputs(sim, dir);
+            ADD_FAILURE() << name << ": no error";
+        } catch (const std::runtime_error &e) {
+            EXPECT_NE(std::string(e.what()).find(dir + "/" + name), std::string::npos) << e.what();
+        }
+    }
 }

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <fstream>
 #include <set>
 #include <sstream>
@@ -499,6 +500,13 @@ void read_fault(const toml::table &t, size_t i, const Scenario &sc, FaultSpec &f
                            "link_partition, kidnap, odometry_wild, controller_hang)");
     }
     r.num("at_s", f.at_s, 0.0, kMaxDurationS);
+    if (f.at_s >= sc.duration_s) {
+        // it would never happen (--duration can still shorten a run later:
+        // the summary then says "not reached")
+        std::ostringstream s;
+        s << "at_s " << f.at_s << " is at or after the run's end (duration_s " << sc.duration_s << " s)";
+        r.fail("at_s", s.str());
+    }
     if (f.kind != FaultKind::Kidnap) r.require("duration_s");
     r.num("duration_s", f.duration_s, 0.0, kMaxDurationS);
     // kind-specific keys: only the kind's own are read, so another kind's
@@ -651,12 +659,28 @@ Scenario load_scenario_string(const std::string &toml_text, const std::string &s
 
 Scenario load_scenario_file(const std::string &path)
 {
+    // a directory opens as an empty stream on Linux: said, not read as an
+    // empty scenario
+    std::error_code ec;
+    const std::filesystem::file_status st = std::filesystem::status(path, ec);
+    if (ec) {
+        throw ScenarioError(path + ": cannot open: " + ec.message());
+    }
+    if (std::filesystem::is_directory(st)) {
+        throw ScenarioError(path + ": is a directory, not a scenario file");
+    }
+    if (!std::filesystem::is_regular_file(st)) {
+        throw ScenarioError(path + ": not a regular file");
+    }
     std::ifstream f(path);
     if (!f) {
         throw ScenarioError(path + ": cannot open");
     }
     std::stringstream ss;
     ss << f.rdbuf();
+    if (f.bad()) {
+        throw ScenarioError(path + ": read error");
+    }
     return load_scenario_string(ss.str(), path);
 }
 
