@@ -17,6 +17,7 @@
 
 #include <array>
 #include <cstdint>
+#include <fstream>
 #include <functional>
 #include <memory>
 #include <string>
@@ -207,6 +208,14 @@ struct SearchOptions {
 
 SearchResult run_search(const SearchSpace &space, const Evaluator &ev, const std::vector<Episode> &train,
                         const SearchOptions &opt);
+
+/// Write `text` to `path` whole; std::runtime_error naming the file when it
+/// cannot be opened or a write fails (a full disk included).
+void write_text_file(const std::string &path, const std::string &text);
+
+/// Close `f`, opened on `path`; std::runtime_error naming the file when it
+/// did not open or a write to it failed.
+void close_checked(std::ofstream &f, const std::string &path);
 
 } // namespace coslam::calibrate
 

@@ -329,6 +329,18 @@ int run(int argc, char **argv)
         }
     }
 
+    // options of the other source would be ignored: refused
+    {
+        const char *const synth_only[] = {"--train-seeds", "--test-seeds", "--world"};
+        const char *const mrclam_only[] = {"--data", "--train-robots", "--test-robots", "--filter-seeds", "--duration"};
+        for (const char *o : source == "synth" ? std::vector<const char *>(std::begin(mrclam_only), std::end(mrclam_only))
+                                               : std::vector<const char *>(std::begin(synth_only), std::end(synth_only))) {
+            if (app.count(o) > 0) {
+                throw UsageError(std::string(o) + " does not apply to --source " + source + " (it would be ignored)");
+            }
+        }
+    }
+
     // ---- start parameters and episodes
     EpisodeContext ctx;
     ctx.stop_error_m = stop_error;
@@ -370,6 +382,21 @@ int run(int argc, char **argv)
             }
         }
         auto ds = std::make_shared<coslam::replay::Dataset>(coslam::replay::load_dataset(data_dir));
+        // the fitness is the position error against the robot's ground
+        // truth: a robot without it would score nothing (Dataset 1 has no
+        // robot truth; its maps are scored by --map-data)
+        for (const std::vector<int> *rs : {&train_robots, &test_robots}) {
+            for (int r : *rs) {
+                const coslam::replay::RobotLog *rl = ds->robot(r);
+                if (rl == nullptr) {
+                    throw UsageError("--data " + data_dir + ": robot " + std::to_string(r) + " is not in the dataset");
+                }
+                if (rl->truth.empty()) {
+                    throw UsageError("--data " + data_dir + ": robot " + std::to_string(r) +
+                                     " has no ground truth (Dataset 1: use --map-data)");
+                }
+            }
+        }
         for (int r : train_robots) {
             for (uint64_t s : fss) {
                 train.push_back({Episode::Mrclam, EVAL_WORLD_PAPER, s, r});
@@ -498,8 +525,8 @@ int run(int argc, char **argv)
             }
             j["start_fitness_m"] = Evaluator::fitness(sc[0]);
             std::cout << os.str();
-            std::ofstream(out_dir + "/profile.json") << j.dump(2) << "\n";
-            std::ofstream(out_dir + "/profile.txt") << os.str();
+            write_text_file(out_dir + "/profile.json", j.dump(2) + "\n");
+            write_text_file(out_dir + "/profile.txt", os.str());
         }
         return 0;
     }
@@ -646,8 +673,8 @@ int run(int argc, char **argv)
     if (compare) {
         j["compare"] = comp;
     }
-    std::ofstream(out_dir + "/report.json") << j.dump(2) << "\n";
-    std::ofstream(out_dir + "/report.txt") << rep.str();
+    write_text_file(out_dir + "/report.json", j.dump(2) + "\n");
+    write_text_file(out_dir + "/report.txt", rep.str());
 
     ReplayConfig out_cfg = cfg;
     slam_noise_from_array(&out_cfg.slam.noise, final_res.best.data());
@@ -656,10 +683,12 @@ int run(int argc, char **argv)
         ini << "; coslam-calibrate result (" << optimiser << ", " << source << "; report.txt). The [slam]\n"
             << "; section as coslam-robot and coslam-replay read it (app/slam_params_ini.h).\n";
         write_slam_ini(ini, out_cfg.slam);
+        close_checked(ini, out_dir + "/calibrated.ini");
     }
     if (source == "mrclam") {
         std::ofstream ini(out_dir + "/calibrated_replay.ini");
         coslam::replay::replay_config_write(out_cfg, ini);
+        close_checked(ini, out_dir + "/calibrated_replay.ini");
     }
     std::cout << "wrote " << out_dir << "/report.txt, report.json, calibrated.ini"
               << (source == "mrclam" ? ", calibrated_replay.ini" : "") << "\n";

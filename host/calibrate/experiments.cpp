@@ -126,9 +126,9 @@ void run_particle_sweep(const EpisodeContext &base, const std::vector<Episode> &
     }
     if (root) {
         std::cout << "\n" << txt.str();
-        std::ofstream(opt.out_dir + "/sweep.csv") << csv.str();
-        std::ofstream(opt.out_dir + "/sweep.json") << j.dump(2) << "\n";
-        std::ofstream(opt.out_dir + "/sweep.txt") << txt.str();
+        write_text_file(opt.out_dir + "/sweep.csv", csv.str());
+        write_text_file(opt.out_dir + "/sweep.json", j.dump(2) + "\n");
+        write_text_file(opt.out_dir + "/sweep.txt", txt.str());
         std::cout << "wrote " << opt.out_dir << "/sweep.csv, sweep.json, sweep.txt\n";
     }
 }
@@ -175,6 +175,7 @@ void run_figures(const EpisodeContext &ctx, const std::vector<Episode> &eps, con
                       matched[0] / n, matched[1] / n, spur[0] / n, spur[1] / n);
         ce << line;
     }
+    close_checked(ce, out_dir + "/figures_error.csv");
 
     // paths and maps of one episode
     size_t fe = 0;
@@ -239,7 +240,9 @@ void run_figures(const EpisodeContext &ctx, const std::vector<Episode> &eps, con
     std::printf("[figures] calibrated - hand, paired over %zu episodes: position %+.5f m (se %.5f), landmark RMSE "
                 "%+.5f m (se %.5f)\n",
                 ne, mean_of(dpos), se_of(dpos), mean_of(dlm), se_of(dlm));
-    std::ofstream(out_dir + "/figures.json") << j.dump(2) << "\n";
+    close_checked(cp, out_dir + "/figures_path.csv");
+    close_checked(cm, out_dir + "/figures_map.csv");
+    write_text_file(out_dir + "/figures.json", j.dump(2) + "\n");
     std::cout << "wrote " << out_dir << "/figures_error.csv, figures_path.csv, figures_map.csv, figures.json\n";
 }
 

@@ -5,6 +5,7 @@ set -u
 # an MPI build: no orted for each singleton start (Open MPI 4), faster
 export OMPI_MCA_ess_singleton_isolated=1
 BIN=$1
+DATA=${2:-}
 fail=0
 check() {
   out=$("$BIN" "$@" -o /tmp/coslam-cal-cli-never 2>&1); rc=$?
@@ -42,5 +43,40 @@ check --fixed w9
 check --source mrclam --train-robots 1,2 --test-robots 2
 check -c /nonexistent.ini
 check --no-such-option
+# options of the other source would be ignored: refused, the option named
+check_says() {
+  needle=$1
+  shift
+  out=$("$BIN" "$@" -o /tmp/coslam-cal-cli-never 2>&1); rc=$?
+  if [ $rc -ne 2 ] || ! echo "$out" | grep -qF -- "$needle"; then
+    echo "FAIL: '$*' gave exit $rc: $out"; fail=1
+  else
+    echo "ok: '$*' -> $(echo "$out" | grep -F -- "$needle" | head -1)"
+  fi
+}
+check_says "--train-robots does not apply to --source synth" --source synth --train-robots 1
+check_says "--data does not apply to --source synth" --source synth --data /tmp
+check_says "--duration does not apply to --source synth" --source synth --duration 10
+check_says "--train-seeds does not apply to --source mrclam" --source mrclam --train-seeds 1
+check_says "--world does not apply to --source mrclam" --source mrclam --world loop
+# Dataset 1 has no robot ground truth: nothing to score a robot's path by
+D1=$DATA/mrclam/MRCLAM_Dataset1
+if [ -n "$DATA" ] && [ -d "$D1" ]; then
+  check_says "robot 1 has no ground truth (Dataset 1: use --map-data)" --source mrclam --data "$D1"
+else
+  echo "skip: no $D1"
+fi
+# a full disk: the report is an error naming the file, not exit 0
+if [ -e /dev/full ]; then
+  W=$(mktemp -d)
+  ln -s /dev/full "$W/report.txt"
+  out=$("$BIN" --train-seeds 1 --test-seeds 101 --evals 5 --lambda 4 -j 2 -q -o "$W" 2>&1); rc=$?
+  if [ $rc -eq 0 ] || ! echo "$out" | grep -q "cannot write $W/report.txt"; then
+    echo "FAIL: a full disk gave exit $rc: $(echo "$out" | tail -2)"; fail=1
+  else
+    echo "ok: full disk -> $(echo "$out" | tail -1)"
+  fi
+  rm -rf "$W"
+fi
 [ ! -e /tmp/coslam-cal-cli-never ] || { echo "FAIL: an output folder was created"; fail=1; }
 exit $fail
