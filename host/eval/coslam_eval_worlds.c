@@ -16,6 +16,12 @@
  * map size (run_result_t.size_bin_us, bins of 2^k landmarks) goes to
  * stderr, one line per seed.
  *
+ * Numbers are read whole (a malformed or out-of-range value is refused with
+ * the option named, exit 2: -p 1..COSLAM_MAX_PARTICLES, --seeds 1..1000,
+ * --seed0 >= 0, --active-radius finite >= 0, --robots 1..9); --help prints
+ * the usage and exits 0. A write error on the .md table or the log files
+ * is said with the file's path, exit 1.
+ *
  * Worlds (eval_worlds.h): "paper" is the paper's scale (20 m loop among 64
  * landmarks of 4 classes), "loop" one large loop (radius 8 m, 160 landmarks
  * of 4 classes, 1.15 turns: the robot comes back to where it started after
@@ -25,6 +31,7 @@
  */
 #define _POSIX_C_SOURCE 200809L
 #include <errno.h>
+#include <limits.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -33,6 +40,25 @@
 
 #include "eval_worlds.h"
 #include "profile_print.h"
+
+/* Closes f (NULL: nothing to do); a write error or a failed close is said
+ * with the file's path. Returns 0, or 1 on an error. */
+static int close_checked(FILE *f, const char *path)
+{
+    if (f == NULL) {
+        return 0;
+    }
+    const int bad = ferror(f);
+    if (fclose(f) != 0) {
+        fprintf(stderr, "coslam-eval-worlds: error writing %s: %s\n", path, strerror(errno));
+        return 1;
+    }
+    if (bad) {
+        fprintf(stderr, "coslam-eval-worlds: error writing %s\n", path);
+        return 1;
+    }
+    return 0;
+}
 
 /* The world of `seed` as a landmark log (docs/replay.md: robot<k>.log with
  * O, Z and R records, robot<k>_truth.txt, landmarks_truth.txt, t0.txt), for
@@ -161,28 +187,64 @@ static int write_log(eval_world_t wk, uint64_t seed, const char *dir, int n_robo
                     "%d landmarks)\n", dir, n_robots, w[0].n_steps, n_z, n_rz, w[0].n_lm);
 out:
     for (int k = 0; k < MAX_TEAM; ++k) {
-        if (f_log[k] != NULL && fclose(f_log[k]) != 0) {
-            rc = 1;
-        }
-        if (f_truth[k] != NULL && fclose(f_truth[k]) != 0) {
-            rc = 1;
-        }
+        snprintf(path, sizeof path, "%s/robot%d.log", dir, k + 1);
+        rc |= close_checked(f_log[k], path);
+        snprintf(path, sizeof path, "%s/robot%d_truth.txt", dir, k + 1);
+        rc |= close_checked(f_truth[k], path);
     }
-    if (f_lm != NULL && fclose(f_lm) != 0) {
-        rc = 1;
-    }
-    if (f_t0 != NULL && fclose(f_t0) != 0) {
-        rc = 1;
-    }
+    snprintf(path, sizeof path, "%s/landmarks_truth.txt", dir);
+    rc |= close_checked(f_lm, path);
+    snprintf(path, sizeof path, "%s/t0.txt", dir);
+    rc |= close_checked(f_t0, path);
     free(w);
     free(st);
     return rc;
 }
 
-static void usage(void)
+static void usage(FILE *to)
 {
-    fprintf(stderr, "usage: coslam-eval-worlds [--world paper|loop|large|arena] [--filter ekf|fs1|fs2] [-p N] [--seeds N] "
-                    "[--seed0 S] [--out DIR] [--trace] [--active-radius R] [--write-log DIR [--robots N]]\n");
+    fprintf(to, "usage: coslam-eval-worlds [--world paper|loop|large|arena] [--filter ekf|fs1|fs2] [-p N] [--seeds N] "
+                "[--seed0 S] [--out DIR] [--trace] [--active-radius R] [--write-log DIR [--robots N]]\n");
+}
+
+/* The whole of `s` as a whole number in [lo, hi]; else says which option
+ * and returns -1. */
+static int parse_long(const char *opt, const char *s, long lo, long hi, long *out)
+{
+    char *end = NULL;
+    errno = 0;
+    const long v = strtol(s, &end, 10);
+    if (end == s || *end != '\0' || errno == ERANGE || v < lo || v > hi) {
+        fprintf(stderr, "coslam-eval-worlds: %s '%s': expected a whole number in [%ld, %ld]\n", opt, s, lo, hi);
+        return -1;
+    }
+    *out = v;
+    return 0;
+}
+
+static int parse_int(const char *opt, const char *s, int lo, int hi, int *out)
+{
+    long v = 0;
+    if (parse_long(opt, s, lo, hi, &v) != 0) {
+        return -1;
+    }
+    *out = (int)v;
+    return 0;
+}
+
+/* The whole of `s` as a finite number >= 0; else says which option and
+ * returns -1. */
+static int parse_nonneg(const char *opt, const char *s, double *out)
+{
+    char *end = NULL;
+    errno = 0;
+    const double v = strtod(s, &end);
+    if (end == s || *end != '\0' || errno == ERANGE || !isfinite(v) || v < 0.0) {
+        fprintf(stderr, "coslam-eval-worlds: %s '%s': expected a finite number >= 0\n", opt, s);
+        return -1;
+    }
+    *out = v;
+    return 0;
 }
 
 int main(int argc, char **argv)
@@ -199,17 +261,37 @@ int main(int argc, char **argv)
     double active_radius_m = -1.0;
     for (int i = 1; i < argc; ++i) {
         const int more = i + 1 < argc;
-        if (!strcmp(argv[i], "--world") && more) world = argv[++i];
+        int bad = 0;
+        if (!strcmp(argv[i], "--help") || !strcmp(argv[i], "-h")) { usage(stdout); return 0; }
+        else if (!strcmp(argv[i], "--world") && more) world = argv[++i];
         else if (!strcmp(argv[i], "--filter") && more) filter = argv[++i];
-        else if (!strcmp(argv[i], "-p") && more) particles = atoi(argv[++i]);
-        else if (!strcmp(argv[i], "--seeds") && more) seeds = atoi(argv[++i]);
-        else if (!strcmp(argv[i], "--seed0") && more) seed0 = atol(argv[++i]);
-        else if (!strcmp(argv[i], "--out") && more) out = argv[++i];
+        else if (!strcmp(argv[i], "-p") && more) {
+            bad = parse_int("-p", argv[i + 1], 1, COSLAM_MAX_PARTICLES, &particles);
+            ++i;
+        } else if (!strcmp(argv[i], "--seeds") && more) {
+            bad = parse_int("--seeds", argv[i + 1], 1, 1000, &seeds);
+            ++i;
+        } else if (!strcmp(argv[i], "--seed0") && more) {
+            bad = parse_long("--seed0", argv[i + 1], 0, LONG_MAX, &seed0);
+            ++i;
+        } else if (!strcmp(argv[i], "--out") && more) out = argv[++i];
         else if (!strcmp(argv[i], "--trace")) trace = 1;
         else if (!strcmp(argv[i], "--write-log") && more) log_dir = argv[++i];
-        else if (!strcmp(argv[i], "--robots") && more) n_robots = atoi(argv[++i]);
-        else if (!strcmp(argv[i], "--active-radius") && more) active_radius_m = atof(argv[++i]);
-        else { usage(); return 2; }
+        else if (!strcmp(argv[i], "--robots") && more) {
+            bad = parse_int("--robots", argv[i + 1], 1, 9, &n_robots);
+            ++i;
+        } else if (!strcmp(argv[i], "--active-radius") && more) {
+            bad = parse_nonneg("--active-radius", argv[i + 1], &active_radius_m);
+            ++i;
+        } else {
+            fprintf(stderr, "coslam-eval-worlds: %s: unknown option, or its value missing\n", argv[i]);
+            usage(stderr);
+            return 2;
+        }
+        if (bad) {
+            usage(stderr);
+            return 2;
+        }
     }
     profile_print(stderr, "coslam-eval-worlds");
     eval_world_t wk;
@@ -218,12 +300,12 @@ int main(int argc, char **argv)
         seed0 < 0 || particles < 1 || particles > COSLAM_MAX_PARTICLES) {
         fprintf(stderr, "coslam-eval-worlds: bad argument (world paper|loop|large|arena, filter ekf|fs1|fs2, 1 <= p <= %d, "
                         "1 <= seeds <= 1000, seed0 >= 0)\n", COSLAM_MAX_PARTICLES);
-        usage();
+        usage(stderr);
         return 2;
     }
     if (n_robots != 1 && log_dir == NULL) {
         fprintf(stderr, "coslam-eval-worlds: --robots is for --write-log (a team log); the runs here are one robot\n");
-        usage();
+        usage(stderr);
         return 2;
     }
     if (log_dir != NULL) {
@@ -231,16 +313,16 @@ int main(int argc, char **argv)
         return write_log(wk, (uint64_t)seed0, log_dir, n_robots);
     }
     FILE *md = NULL;
+    char md_path[4096] = "";
     if (out != NULL) {
         if (mkdir(out, 0775) != 0 && errno != EEXIST) {
             fprintf(stderr, "coslam-eval-worlds: cannot create %s: %s\n", out, strerror(errno));
             return 1;
         }
-        char path[4096];
-        snprintf(path, sizeof path, "%s/%s_%s_%d.md", out, world, filter, fk == RUN_EKFSLAM ? 0 : particles);
-        md = fopen(path, "w");
+        snprintf(md_path, sizeof md_path, "%s/%s_%s_%d.md", out, world, filter, fk == RUN_EKFSLAM ? 0 : particles);
+        md = fopen(md_path, "w");
         if (md == NULL) {
-            fprintf(stderr, "coslam-eval-worlds: cannot write %s: %s\n", path, strerror(errno));
+            fprintf(stderr, "coslam-eval-worlds: cannot write %s: %s\n", md_path, strerror(errno));
             return 1;
         }
     }
@@ -336,9 +418,9 @@ int main(int argc, char **argv)
         fputs(line, stdout);
         if (md) fputs(line, md);
     }
-    if (md) {
-        fclose(md);
-    }
     free(r);
+    if (md != NULL && close_checked(md, md_path) != 0) {
+        return 1;
+    }
     return 0;
 }
