@@ -21,7 +21,9 @@
 #include <cmocka.h>
 
 #include "app/slam_params_ini.h"
+#include "hal/hal_clock_linux.h"
 #include "robot_config.h"
+#include "robot_sightings.h"
 
 static robot_config_t cfg;
 
@@ -307,6 +309,9 @@ static void bad_files_name_file_and_line(void **state)
     refused("[laser]\nlost_timeout_s = 0.0000001\n",
             "bad.ini:2: [laser] lost_timeout_s: 0.0000001 is below the microsecond these durations are kept in");
     refused("[merge]\nwindow_s = 1e-7\n", "bad.ini:2: [merge] window_s: 1e-7 is below the microsecond");
+    /* a section header without its ']': said at its own line, not as the
+     * next line's key "outside any [section]" */
+    refused("[robot\nid = 1\n", "bad.ini:1: syntax error");
     /* the camera and the test source both: refused at the later key */
     refused("[camera]\ndevice = /dev/video0\nreplay_log = lm.log\n",
             "bad.ini:3: [camera] replay_log: device and replay_log are both set");
@@ -319,6 +324,16 @@ static void bad_files_name_file_and_line(void **state)
     /* a directory opens and reads as an empty file: refused, not defaults */
     assert_int_equal(robot_config_load(&cfg, "/tmp", msg, sizeof msg), COSLAM_E_ARG);
     assert_non_null(strstr(msg, "/tmp: not a regular file"));
+    /* a NUL byte: said as one (it was "line longer than 198 characters") */
+    char nulpath[64];
+    snprintf(nulpath, sizeof nulpath, "/tmp/coslam-cfg-nul-%d.ini", (int)getpid());
+    FILE *nf = fopen(nulpath, "w");
+    assert_non_null(nf);
+    fwrite("[robot]\nid = 1\0\n", 1, 17, nf);
+    fclose(nf);
+    assert_int_equal(robot_config_load(&cfg, nulpath, msg, sizeof msg), COSLAM_E_ARG);
+    assert_non_null(strstr(msg, ":2: a NUL byte in the line"));
+    assert_int_equal(unlink(nulpath), 0);
     /* a FIFO: refused at once (it used to wait for a writer for ever) */
     char fifo[64];
     snprintf(fifo, sizeof fifo, "/tmp/coslam-cfg-fifo-%d", (int)getpid());
@@ -531,6 +546,31 @@ static void binary_refuses_a_bad_fleet_key(void **state)
     assert_int_equal(system(cmd), 0);
 }
 
+/* The landmark-log replay source refuses, at open with FILE:LINE, a robot
+ * sighting of an id no robot of this build can have (it was dropped at
+ * play time and said as a frame's capacity LIMIT). */
+static void replay_log_refuses_a_foreign_robot_id(void **state)
+{
+    (void)state;
+    char path[64];
+    snprintf(path, sizeof path, "/tmp/coslam-lm-%d.log", (int)getpid());
+    FILE *f = fopen(path, "w");
+    assert_non_null(f);
+    fputs("Z 0.0 -1 2.0 0.1\nR 0.1 200 2.0 0.1\n", f);
+    fclose(f);
+    static robot_replay_t r;
+    char msg[300];
+    assert_int_equal(robot_replay_open(&r, path, 0, hal_clock_linux(), msg, sizeof msg), HAL_E_CORRUPT);
+    assert_non_null(strstr(msg, ":2: other_robot_id 200 is not a robot id of this build"));
+    f = fopen(path, "w");
+    assert_non_null(f);
+    fputs("Z 0.0 -1 2.0 0.1\nR 0.1 1 2.0 0.1\n", f);
+    fclose(f);
+    assert_int_equal(robot_replay_open(&r, path, 0, hal_clock_linux(), msg, sizeof msg), HAL_OK);
+    robot_replay_close(&r);
+    assert_int_equal(unlink(path), 0);
+}
+
 int main(int argc, char **argv)
 {
     unsetenv("CYCLONEDDS_URI"); /* the DDS configuration is the test's own */
@@ -548,6 +588,7 @@ int main(int argc, char **argv)
         cmocka_unit_test(binary_says_the_drive_watchdog),
         cmocka_unit_test(binary_exits_2_with_file_and_line),
         cmocka_unit_test(binary_refuses_a_bad_fleet_key),
+        cmocka_unit_test(replay_log_refuses_a_foreign_robot_id),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -797,19 +797,34 @@ static void line_too_long(load_t *st, char *str, int num)
 static char *read_file_line(char *str, int num, void *stream)
 {
     load_t *st = (load_t *)stream;
-    char *r = fgets(str, num, st->file);
-    if (r != NULL && strchr(r, '\n') != NULL) {
-        st->line++;
-    } else if (r != NULL && feof(st->file)) {
-        st->line++; /* last line without a newline */
-    } else if (r != NULL) {
-        int ch;
+    /* by hand, not fgets: a NUL byte in the line must be seen as one, not
+     * end the string there (it was then reported as a line too long) */
+    int n = 0;
+    int ch = EOF;
+    int nul = 0;
+    while (n < num - 1 && (ch = fgetc(st->file)) != EOF) {
+        if (ch == '\0') {
+            nul = 1;
+            ch = ' ';
+        }
+        str[n++] = (char)ch;
+        if (ch == '\n') {
+            break;
+        }
+    }
+    str[n] = '\0';
+    if (n == 0) {
+        return NULL; /* end of the file (or a read error: ferror, checked by the caller) */
+    }
+    st->line++;
+    if (str[n - 1] != '\n' && ch != EOF && n == num - 1) {
         while ((ch = fgetc(st->file)) != EOF && ch != '\n') {
         }
-        st->line++;
         line_too_long(st, str, num);
+    } else if (nul) {
+        fail(st, "", NULL, "a NUL byte in the line (a binary file?)");
     }
-    return r;
+    return str;
 }
 
 static char *read_text_line(char *str, int num, void *stream)
@@ -962,7 +977,10 @@ static coslam_status_t report(load_t *st, int rc, char *msg, size_t cap)
         put_text(msg, cap, "%s: out of memory while reading", st->name);
         return COSLAM_E_ARG;
     }
-    if (rc > 0 && st->err_line == 0) {
+    if (rc > 0 && (st->err_line == 0 || rc < st->err_line)) {
+        /* a syntax error before the first error the keys found is the one
+         * to say ("[robot" without "]" made the next line's key "outside
+         * any [section]") */
         st->err_line = rc;
         put_text(st->msg, sizeof st->msg, "syntax error (expected [section], key = value or a comment)");
     }

@@ -1,6 +1,7 @@
 /* Device slots, backends and proxies of coslam-robot (robot_devices.h). */
 #include "robot_devices.h"
 
+#include <errno.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <string.h>
@@ -363,11 +364,16 @@ static hal_status_t open_backend(robot_devices_t *d, robot_dev_t id, char *reaso
 #endif
         break;
     case ROBOT_DEV_STORAGE:
+        errno = 0;
         s = hal_storage_linux_open(&d->storage_state, c->storage_dir);
         if (s == HAL_E_BUSY) {
             put_text(reason, reason_cap,
                      "the directory is locked by another process (another coslam-robot on the same storage?) "
                      "(HAL_E_BUSY)");
+        } else if (s != HAL_OK && errno != 0) {
+            /* the OS's reason ("Not a directory", "No such file or
+             * directory" for a missing parent), not only the HAL's class */
+            put_text(reason, reason_cap, "%s (%s)", strerror(errno), hal_status_str(s));
         }
         break;
     case ROBOT_DEV_LINK:

@@ -80,6 +80,12 @@ static line_kind_t parse_line(char *text, robot_replay_record_t *rec, char *why,
                        tag == 'Z' ? "-1 or >= 0" : ">= 0", f[2]);
         return LINE_BAD;
     }
+    if (tag == 'R' && v[1] >= (double)COSLAM_MAX_ROBOTS) {
+        /* would be dropped at play time, said as a frame's capacity */
+        (void)snprintf(why, cap, "other_robot_id %s is not a robot id of this build (0 .. %u)", f[2],
+                       (unsigned)COSLAM_MAX_ROBOTS - 1U);
+        return LINE_BAD;
+    }
     if (!(v[2] > 0.0)) {
         (void)snprintf(why, cap, "range must be > 0, got '%s'", f[3]);
         return LINE_BAD;
