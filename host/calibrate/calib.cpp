@@ -589,21 +589,4 @@ SearchResult run_search(const SearchSpace &space, const Evaluator &ev, const std
     return res;
 }
 
-void close_checked(std::ofstream &f, const std::string &path)
-{
-    if (f.is_open()) {
-        f.close();
-    }
-    if (!f) {
-        throw std::runtime_error("cannot write " + path + " (open or write failed)");
-    }
-}
-
-void write_text_file(const std::string &path, const std::string &text)
-{
-    std::ofstream f(path);
-    f << text;
-    close_checked(f, path);
-}
-
 } // namespace coslam::calibrate

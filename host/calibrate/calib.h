@@ -15,6 +15,8 @@
 #ifndef COSLAM_CALIBRATE_CALIB_H
 #define COSLAM_CALIBRATE_CALIB_H
 
+#include "checked_file.hpp"
+
 #include <array>
 #include <cstdint>
 #include <fstream>
@@ -209,13 +211,9 @@ struct SearchOptions {
 SearchResult run_search(const SearchSpace &space, const Evaluator &ev, const std::vector<Episode> &train,
                         const SearchOptions &opt);
 
-/// Write `text` to `path` whole; std::runtime_error naming the file when it
-/// cannot be opened or a write fails (a full disk included).
-void write_text_file(const std::string &path, const std::string &text);
-
-/// Close `f`, opened on `path`; std::runtime_error naming the file when it
-/// did not open or a write to it failed.
-void close_checked(std::ofstream &f, const std::string &path);
+/// Output files checked after writing (host/cli/checked_file.hpp).
+using coslam::cli::close_checked;
+using coslam::cli::write_text_file;
 
 } // namespace coslam::calibrate
 

@@ -8,7 +8,6 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <filesystem>
 #include <functional>
 #include <iomanip>
 #include <memory>
@@ -343,16 +342,8 @@ void replay_config_load(ReplayConfig &cfg, const std::string &path)
 {
     // a directory opens and reads as an empty file (fgets fails, which the
     // INI reader takes for the end): refused, as is a read error
-    std::error_code ec;
-    const std::filesystem::file_status fst = std::filesystem::status(path, ec);
-    if (fst.type() == std::filesystem::file_type::not_found) {
+    if (!check_input_file(path, "config file")) {
         throw ReplayError(path, 0, "cannot open the config file: no such file");
-    }
-    if (fst.type() == std::filesystem::file_type::directory) {
-        throw ReplayError(path, 0, "is a directory, not a config file");
-    }
-    if (fst.type() != std::filesystem::file_type::regular) {
-        throw ReplayError(path, 0, ec ? "cannot stat: " + ec.message() : std::string("not a regular file"));
     }
     struct Closer {
         void operator()(std::FILE *f) const { std::fclose(f); }

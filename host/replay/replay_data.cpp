@@ -272,10 +272,9 @@ void finish_dataset(Dataset &ds, const std::vector<int> &folder_ids)
     }
 }
 
-// Refuses what is not a regular file (a directory opens as an empty stream
-// and used to read as an empty file) and a file beyond the size limit.
-// false: the path does not exist (the caller says whether that is an error).
-bool check_input_file(const fs::path &p)
+} // namespace
+
+bool check_input_file(const fs::path &p, const char *what)
 {
     std::error_code ec;
     const fs::file_status st = fs::status(p, ec);
@@ -286,7 +285,7 @@ bool check_input_file(const fs::path &p)
         throw ReplayError(p.string(), 0, "cannot stat: " + ec.message());
     }
     if (st.type() == fs::file_type::directory) {
-        throw ReplayError(p.string(), 0, "is a directory, not a data file");
+        throw ReplayError(p.string(), 0, std::string("is a directory, not a ") + what);
     }
     if (st.type() != fs::file_type::regular) {
         throw ReplayError(p.string(), 0, "not a regular file");
@@ -303,6 +302,8 @@ bool check_input_file(const fs::path &p)
     return true;
 }
 
+namespace {
+
 std::ifstream open_checked(const fs::path &p)
 {
     std::ifstream f(p);
@@ -314,7 +315,7 @@ std::ifstream open_checked(const fs::path &p)
 
 std::ifstream open_or_throw(const fs::path &p)
 {
-    if (!check_input_file(p)) {
+    if (!check_input_file(p, "data file")) {
         throw ReplayError(p.string(), 0, "missing file");
     }
     return open_checked(p);
@@ -324,7 +325,7 @@ std::ifstream open_or_throw(const fs::path &p)
 // it exists it must be a readable regular file.
 std::optional<std::ifstream> open_optional(const fs::path &p)
 {
-    if (!check_input_file(p)) {
+    if (!check_input_file(p, "data file")) {
         return std::nullopt;
     }
     return open_checked(p);

@@ -28,6 +28,7 @@
 #include <iosfwd>
 #include <map>
 #include <stdexcept>
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -46,6 +47,13 @@ namespace coslam::replay {
 /// COSLAM_MAX_ROBOTS slots); bearings must lie in [-2 pi, 2 pi] (wrapped
 /// to (-pi, pi] on reading).
 inline constexpr unsigned long long kMaxInputFileBytes = 256ULL << 20;
+
+/// Refuses what is not a regular file (a directory opens as an empty stream
+/// and used to read as an empty file: "is a directory, not a <what>") and a
+/// file beyond kMaxInputFileBytes, with ReplayError naming the path. Returns
+/// false when the path does not exist (the caller says whether that is an
+/// error).
+bool check_input_file(const std::filesystem::path &p, const char *what);
 inline constexpr std::size_t kMaxLineBytes = 4096;
 inline constexpr double kMaxSpanS = 1e6;
 inline constexpr int kMaxRobotId = COSLAM_MAX_ROBOTS;

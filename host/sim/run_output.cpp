@@ -1,4 +1,5 @@
 #include "run_output.hpp"
+#include "checked_file.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -31,8 +32,7 @@ std::ofstream open_out(const std::string &dir, const std::string &name)
 // is an error naming the file, never a silently short file.
 void close_out(std::ofstream &f, const std::string &dir, const std::string &name)
 {
-    f.close();
-    if (!f) throw std::runtime_error("cannot write " + dir + "/" + name + " (write failed)");
+    coslam::cli::close_checked(f, dir + "/" + name);
 }
 
 // JSON null where nothing was measured

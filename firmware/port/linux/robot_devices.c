@@ -479,7 +479,8 @@ static void openers_stop(robot_devices_t *d)
         if (!o->worker.started) {
             continue;
         }
-        if (robot_worker_join(&o->worker, &end) != 0) {
+        const int joined = robot_worker_join(&o->worker, &end);
+        if (joined < 0) {
             char text[320];
             put_text(text, sizeof text,
                      "an open attempt has not returned %u ms after the stop; left to the process's exit (the device "
@@ -490,7 +491,7 @@ static void openers_stop(robot_devices_t *d)
         }
         if (d->dev[id].opening) {
             d->dev[id].opening = 0;
-            if (o->worker.state == 2) { /* ended, not taken (robot_worker.h) */
+            if (joined > 0) { /* the attempt ended, its outcome not taken */
                 (void)open_finish(d, id, o->result, o->reason, 0U); /* up: closed with the rest */
             }
         }

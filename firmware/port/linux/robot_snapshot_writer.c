@@ -93,5 +93,9 @@ int robot_snapshot_writer_busy(robot_snapshot_writer_t *w)
 
 int robot_snapshot_writer_stop(robot_snapshot_writer_t *w, uint32_t wait_ms)
 {
-    return w == NULL ? 0 : robot_worker_stop(&w->worker, wait_ms);
+    if (w == NULL) {
+        return 0;
+    }
+    const int r = robot_worker_stop(&w->worker, wait_ms);
+    return r > 0 ? 0 : r; /* an outcome not taken is dropped */
 }

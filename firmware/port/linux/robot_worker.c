@@ -226,7 +226,7 @@ int robot_worker_join(robot_worker_t *w, const struct timespec *end)
     }
     (void)pthread_join(w->thread, NULL);
     destroy_sync(w, 3);
-    return 0;
+    return w->state == W_DONE ? 1 : 0;
 }
 
 int robot_worker_stop(robot_worker_t *w, uint32_t wait_ms)

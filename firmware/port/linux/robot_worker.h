@@ -75,12 +75,13 @@ struct timespec robot_worker_deadline(uint32_t wait_ms);
 void robot_worker_quit(robot_worker_t *w);
 
 /** The second half: wait until `end` for a running job, then join the
- *  thread. Returns 0 (joined: an outcome not taken is still there for
- *  robot_worker_take's caller to read, state 2); -1 (the job still runs:
- *  the thread is detached and left to it, `stuck` set). Idempotent. */
+ *  thread. Returns 1 (joined; a job ended whose outcome was not taken: its
+ *  outputs are the owner's to read), 0 (joined, nothing untaken); -1 (the
+ *  job still runs: the thread is detached and left to it, `stuck` set).
+ *  Idempotent (0 when not started). */
 int robot_worker_join(robot_worker_t *w, const struct timespec *end);
 
-/** quit + join with a deadline wait_ms from now. */
+/** quit + join with a deadline wait_ms from now; returns as join. */
 int robot_worker_stop(robot_worker_t *w, uint32_t wait_ms);
 
 #ifdef __cplusplus
