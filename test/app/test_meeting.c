@@ -714,7 +714,8 @@ static void test_implausible_refused(void **state)
     static map_estimate_t after;
     assert_int_equal(slam_filter_export(&g_filter, &before), COSLAM_OK);
     uint64_t t = 1000000;
-    for (int k = 0; k < 4; ++k, t += 1000000) {
+    enum { N_BAD = 8 };
+    for (int k = 0; k < N_BAD; ++k, t += 1000000) {
         meeting_on_sighting(&g_m, &g_filter, link, t, 1, 2.0, 0.0, t, kOrigin, 0.0);
         make_msg_from1((uint32_t)(10 + k), t, t, 2.0, 0.0, (point2_t){1.0, 0.0}, 1U << 1, 0);
         g_msg.sighting.range_var_m2 = 0.01;
@@ -725,8 +726,23 @@ static void test_implausible_refused(void **state)
             g_msg.map.lm[0].cov = cov2_make(1e-20, 0.0, 1e-20);
         } else if (k == 2) {
             g_msg.sighting.range_var_m2 = 1e-300;
-        } else {
+        } else if (k == 3) {
             g_msg.map.lm[0].cov_rel = cov2_make(1e9, 0.0, 1e9);
+        } else if (k == 4) {
+            /* a sighting so uncertain that it passes the range check (48 m
+             * against 2 m) and spreads the landmark over 1e6 m^2 */
+            g_msg.sighting.range_m = 50.0;
+            g_msg.sighting.range_var_m2 = 1e6;
+            g_msg.sighting.bearing_var_rad2 = 1e6;
+        } else if (k == 5) {
+            g_msg.sighting.bearing_var_rad2 = 1.0; /* sd 57 deg: no camera sighting */
+        } else if (k == 6) {
+            g_msg.sighting.range_var_m2 = 1e5; /* sd 316 m */
+        } else {
+            /* each bound passed, but a landmark 500 m out under a heading sd
+             * of 0.45 rad lands with a 5e4 m^2 axis in the body frame */
+            g_msg.sighting.bearing_var_rad2 = 0.2;
+            g_msg.map.lm[0].mean = pose2_apply(g_msg.map.pose, (point2_t){500.0, 0.0});
         }
         size_t len = 0;
         assert_int_equal(map_msg_encode(&g_msg, g_buf, sizeof g_buf, &len), COSLAM_OK);
@@ -736,7 +752,7 @@ static void test_implausible_refused(void **state)
         assert_int_equal(g_m.ctr.refused_implausible, (uint32_t)k + 1U);
     }
     assert_int_equal(g_m.ctr.merged, 0);
-    assert_int_equal(count_events(MEETING_EV_REFUSED, COSLAM_E_MERGE_IMPLAUSIBLE, NULL), 4);
+    assert_int_equal(count_events(MEETING_EV_REFUSED, COSLAM_E_MERGE_IMPLAUSIBLE, NULL), N_BAD);
     /* a genuine message from robot 1 delivered with another link sender id */
     meeting_on_sighting(&g_m, &g_filter, link, t, 1, 2.0, 0.0, t, kOrigin, 0.0);
     make_msg_from1(20, t, t, 2.0, 0.0, (point2_t){1.0, 0.0}, 1U << 1, 0);

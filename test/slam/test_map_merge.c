@@ -581,6 +581,125 @@ static void test_fastslam_pairing_brute_force(void **state)
     }
 }
 
+/* More candidate pairs than the pair table holds (COSLAM_MERGE_MAX_PAIRS):
+ * PT_N own landmarks of one class in a 0.3 m box, each with an exact twin in
+ * the incoming map, so PT_N^2 candidate pairs; and one incoming landmark
+ * 1.2 m off the box, inside the gate of the box's landmarks only at d2 >= 5.
+ * The table keeps the nearest pairs: every twin is paired with its own
+ * landmark (exactly as with the whole set), the pairs not kept are counted,
+ * and the off-box landmark, which lost every candidate, is neither fused
+ * nor added (a copy of a mapped landmark is worse than a landmark missed),
+ * counted, and the merge says E_CAPACITY. Before: the pairs beyond the
+ * table were those of the last own landmarks, whose twins then went in as
+ * new landmarks, and the merge returned OK. */
+#define PT_N 60
+static void pair_table_case(rng_t *r, uint16_t n_particles, int with_extra)
+{
+    fastslam_config_t c = fastslam_config_default();
+    c.n_particles = n_particles;
+    c.robot_id = 0;
+    assert_int_equal(fastslam_init(&g_fs, &c, (pose2_t){0.0, 0.0, 0.0}, 11U), COSLAM_OK);
+    memset(&g_bm, 0, sizeof g_bm);
+    for (int j = 0; j < PT_N; ++j) {
+        landmark_t lm;
+        memset(&lm, 0, sizeof lm);
+        lm.mean = (point2_t){3.0 + 0.3 * rng_uniform(r), 0.3 * rng_uniform(r)};
+        lm.cov = cov2_make(0.1, 0.0, 0.1);
+        lm.id = (uint32_t)(j + 1);
+        lm.exist = 6.0f;
+        lm.n_obs = 8;
+        lm.src_mask = 1;
+        lm.signature = 1;
+        for (uint16_t k = 0; k < n_particles; ++k) {
+            assert_int_equal(fastslam_particle_add(&g_fs, k, &lm), COSLAM_OK);
+        }
+        g_bm.mean[j] = lm.mean; /* the robot at the origin: body = world */
+        g_bm.cov[j] = lm.cov;
+        g_bm.rel[j] = lm.mean;
+        g_bm.rel_cov[j] = lm.cov;
+        g_bm.src_mask[j] = 0x2U;
+        g_bm.n_obs[j] = 7;
+        g_bm.signature[j] = 1;
+        g_bm.id[j] = 100U + (uint32_t)j;
+    }
+    g_bm.n = PT_N;
+    if (with_extra) {
+        const uint16_t i = g_bm.n++;
+        g_bm.mean[i] = (point2_t){4.5, 0.15};
+        g_bm.cov[i] = cov2_make(0.1, 0.0, 0.1);
+        g_bm.rel[i] = g_bm.mean[i];
+        g_bm.rel_cov[i] = g_bm.cov[i];
+        g_bm.src_mask[i] = 0x2U;
+        g_bm.n_obs[i] = 7;
+        g_bm.signature[i] = 1;
+        g_bm.id[i] = 999U;
+    }
+    g_bm.t_cov = cov3_zero();
+}
+
+static void test_pair_table_full(void **state)
+{
+    (void)state;
+    assert_true(PT_N * PT_N > COSLAM_MERGE_MAX_PAIRS);
+    assert_true(PT_N + 1 <= COSLAM_MAX_MSG_LANDMARKS && PT_N <= COSLAM_MAX_LANDMARKS);
+    rng_t r;
+    rng_seed(&r, 31U);
+    const merge_config_t mc = merge_config_default();
+    const uint16_t np = 3;
+    /* the twins alone: every one fused with its own landmark, status OK */
+    pair_table_case(&r, np, 0);
+    merge_stats_t st;
+    memset(&st, 0, sizeof st);
+    assert_int_equal(merge_into_fastslam(&g_fs, &g_bm, &mc, &g_sc, &st), COSLAM_OK);
+    assert_true(st.pair_drops > 0U);
+    assert_int_equal(st.pair_lost, 0);
+    assert_int_equal(st.fused, (uint32_t)PT_N * np);
+    assert_int_equal(st.added, 0);
+    assert_int_equal(g_fs.ctr.merge_pair_drops, 0);
+    for (uint16_t k = 0; k < np; ++k) {
+        assert_int_equal(g_fs.particles[k].n_lm, PT_N);
+        for (uint16_t j = 0; j < PT_N; ++j) { /* each with its twin: the mean stays, the covariance shrinks */
+            const landmark_t *lm = fastslam_particle_lm(&g_fs, k, j);
+            assert_true(fabs(lm->mean.x - g_bm.mean[j].x) < 1e-12 && fabs(lm->mean.y - g_bm.mean[j].y) < 1e-12);
+            assert_true(lm->cov.xx < 0.1 - 1e-6);
+        }
+    }
+    /* with the landmark whose candidates were all beyond the table */
+    pair_table_case(&r, np, 1);
+    memset(&st, 0, sizeof st);
+    assert_int_equal(merge_into_fastslam(&g_fs, &g_bm, &mc, &g_sc, &st), COSLAM_E_CAPACITY);
+    assert_int_equal(st.pair_lost, np);
+    assert_int_equal(st.fused, (uint32_t)PT_N * np);
+    assert_int_equal(st.added, 0);
+    assert_int_equal(g_fs.ctr.merge_pair_drops, np);
+    for (uint16_t k = 0; k < np; ++k) {
+        assert_int_equal(g_fs.particles[k].n_lm, PT_N);
+    }
+    /* the check: the same pairing, the lost landmark left out and counted */
+    static map_whole_t own;
+    memset(&own, 0, sizeof own);
+    own.n_landmarks = PT_N;
+    for (uint16_t j = 0; j < PT_N; ++j) {
+        own.lm[j].mean = g_bm.mean[j];
+        own.lm[j].cov = g_bm.cov[j];
+        own.lm[j].cov_rel = g_bm.cov[j];
+        own.lm[j].signature = 1;
+        own.lm[j].n_obs = 8;
+        own.lm[j].src_mask = 1;
+    }
+    g_bm.t_cov = cov3_diag(1e-4, 1e-4, 1e-6);
+    memset(&st, 0, sizeof st);
+    const slam_params_t sp = slam_params_default();
+    assert_int_equal(merge_check(&own, NULL, NULL, &sp, 0U, &mc, &g_bm, &g_sc, &st), COSLAM_OK);
+    assert_true(st.pair_drops > 0U);
+    assert_int_equal(st.pairs, PT_N);
+    assert_int_equal(st.pair_lost, 1);
+    assert_int_equal(g_bm.n, PT_N);
+    for (uint16_t i = 0; i < g_bm.n; ++i) {
+        assert_true(g_bm.id[i] != 999U);
+    }
+}
+
 /* A filter whose particles hold jittered copies of an own map, half of the
  * incoming landmarks among them (as the brute-force case), and g_bm. */
 static fastslam_t g_fs_parts;
@@ -862,6 +981,7 @@ int main(void)
         cmocka_unit_test(test_session_restarted_sender),
         cmocka_unit_test(test_merge_into_fastslam),
         cmocka_unit_test(test_fastslam_pairing_brute_force),
+        cmocka_unit_test(test_pair_table_full),
         cmocka_unit_test(test_fastslam_merge_in_parts),
         cmocka_unit_test(test_merge_into_ekfslam),
         cmocka_unit_test(test_relative_covariance),

@@ -548,7 +548,18 @@ static coslam_status_t merge_check_fuse(slam_filter_t *f, slam_merge_work_t *w, 
     if (st != COSLAM_OK) {
         return st;
     }
-    return merge_fuse(f, w, cfg, at, budget, stats);
+    const int check_lost = stats->pair_lost > 0U;
+    if (check_lost) {
+        /* the check's pairing: the landmarks it left out are counted in
+         * stats->pair_lost, the merge goes on with the rest */
+        if (f->kind == SLAM_FILTER_EKF) {
+            f->u.ekf.ctr.merge_pair_drops++;
+        } else {
+            f->u.fs.ctr.merge_pair_drops++;
+        }
+    }
+    const coslam_status_t fst = merge_fuse(f, w, cfg, at, budget, stats);
+    return fst == COSLAM_OK && check_lost ? COSLAM_E_CAPACITY : fst;
 }
 
 /* The next part of the merge that w holds (budget 0: all of it): the own
@@ -938,6 +949,7 @@ int slam_filter_limits(const slam_filter_t *f, slam_filter_limit_t out[SLAM_FILT
         (v)[3] = (c)->rejected_controls;                                                                                 \
         (v)[4] = (c)->rejected_sightings;                                                                                \
         (v)[5] = (c)->numeric_faults;                                                                                    \
+        (v)[6] = (c)->merge_pair_drops;                                                                                  \
     } while (0)
     uint32_t v[SLAM_FILTER_N_LIMITS];
     if (f->kind == SLAM_FILTER_EKF) {
@@ -959,6 +971,10 @@ int slam_filter_limits(const slam_filter_t *f, slam_filter_limit_t out[SLAM_FILT
         {"rejected_sightings", "sightings refused (non-finite, range beyond sighting_max_range_m, |bearing| > pi)",
          NULL, 0L, 0U},
         {"numeric_faults", "numeric faults (degenerate geometry skipped, weight collapse)", NULL, 0L, 0U},
+        {"merge_pair_drops",
+         "merge pairings with more candidate duplicate pairs than fit (the nearest kept; an incoming landmark that "
+         "lost one was neither fused nor added)",
+         "COSLAM_MERGE_MAX_PAIRS", COSLAM_MERGE_MAX_PAIRS, 0U},
     };
     int n = 0;
     for (int i = 0; i < SLAM_FILTER_N_LIMITS; ++i) {
@@ -985,11 +1001,16 @@ int slam_filter_merge_format(const merge_stats_t *s, uint32_t per, char *buf, si
     if (s->fused_ci != 0U) {
         (void)snprintf(ci, sizeof ci, ", %lu by CI", (unsigned long)(s->fused_ci / k));
     }
+    char lost[96] = "";
+    if (s->pair_lost != 0U) {
+        (void)snprintf(lost, sizeof lost, ", %lu with a candidate pair beyond COSLAM_MERGE_MAX_PAIRS",
+                       (unsigned long)(s->pair_lost / k));
+    }
     return snprintf(buf, cap,
                     "%lu fused, %lu added%s; not added: %lu where it looked and saw nothing, %lu echoes, %lu "
-                    "ambiguous, %lu too uncertain to refute",
+                    "ambiguous, %lu too uncertain to refute%s",
                     (unsigned long)(s->fused / k), (unsigned long)(s->added / k), ci, (unsigned long)s->vetoed,
-                    (unsigned long)s->echoes, (unsigned long)s->ambiguous, (unsigned long)s->unrefutable);
+                    (unsigned long)s->echoes, (unsigned long)s->ambiguous, (unsigned long)s->unrefutable, lost);
 }
 
 int slam_filter_limit_format(const slam_filter_limit_t *l, unsigned robot_id, char *buf, size_t cap)

@@ -19,6 +19,7 @@ merge_config_t merge_config_default(void)
     c.min_var_m2 = 1e-6;
     c.max_var_m2 = 1e4;
     c.min_bearing_var_rad2 = 1e-8;
+    c.max_bearing_var_rad2 = 0.25;
     c.check = 1U;
     c.refine_iters = 3U;
     c.refine_eff_pairs = 2.0;
@@ -165,6 +166,14 @@ static void body_landmark(pose2_t t, const cov3_t *t_cov, point2_t rel, cov2_t r
     }
 }
 
+/* Both axes of a 2x2 covariance inside [lo, hi]. */
+static int cov2_axes_within(cov2_t c, double lo, double hi)
+{
+    const double half_tr = 0.5 * (c.xx + c.yy);
+    const double d = sqrt(0.25 * (c.xx - c.yy) * (c.xx - c.yy) + c.xy * c.xy);
+    return half_tr - d >= lo && half_tr + d <= hi;
+}
+
 coslam_status_t merge_transform_map(const map_estimate_t *in, pose2_t t, const cov3_t *t_cov,
                                     const merge_config_t *cfg, merge_body_map_t *out, merge_stats_t *stats)
 {
@@ -204,6 +213,13 @@ coslam_status_t merge_transform_map(const map_estimate_t *in, pose2_t t, const c
         }
         if (!cov2_is_pd(cb)) {
             return COSLAM_E_MSG_COVARIANCE;
+        }
+        if (!cov2_axes_within(cb, 0.0, cfg->max_var_m2)) {
+            /* a transform wide enough to spread a landmark beyond what any
+             * map may carry (a sighting far less certain than a camera
+             * gives): the whole message is refused, nothing is applied */
+            out->n = 0;
+            return COSLAM_E_MERGE_IMPLAUSIBLE;
         }
         const uint16_t k = out->n++;
         out->mean[k] = mb;
@@ -494,36 +510,83 @@ static void grid_gated(merge_scratch_t *sc, const merge_body_map_t *bm, int32_t 
 
 typedef struct {
     int n_pairs;
-    merge_stats_t *stats;
+    uint32_t drops;
 } pair_ctx_t;
 
+/* Max-heap on d2 over pairs[0..n-1]: the entry at `at` moved down. */
+static void pair_heap_down(merge_pair_t *pairs, int n, int at)
+{
+    for (;;) {
+        int big = at;
+        const int l = 2 * at + 1;
+        const int r = l + 1;
+        if (l < n && pairs[l].d2 > pairs[big].d2) {
+            big = l;
+        }
+        if (r < n && pairs[r].d2 > pairs[big].d2) {
+            big = r;
+        }
+        if (big == at) {
+            return;
+        }
+        const merge_pair_t tmp = pairs[at];
+        pairs[at] = pairs[big];
+        pairs[big] = tmp;
+        at = big;
+    }
+}
+
+/* Appended while there is room; once full, the table becomes a max-heap on
+ * d2 and keeps the MERGE_MAX_PAIRS nearest pairs (the one-to-one selection
+ * takes pairs nearest first, so it is the same on them). Every pair not
+ * kept is counted and its incoming landmark marked. */
 static void collect_pair(merge_scratch_t *sc, int32_t j, int32_t i, double d2, void *ctx)
 {
     pair_ctx_t *pc = (pair_ctx_t *)ctx;
+    merge_pair_t *pairs = sc->pairs;
     if (pc->n_pairs < MERGE_MAX_PAIRS) {
-        sc->pairs[pc->n_pairs].own = j;
-        sc->pairs[pc->n_pairs].in = i;
-        sc->pairs[pc->n_pairs].d2 = d2;
+        pairs[pc->n_pairs].own = j;
+        pairs[pc->n_pairs].in = i;
+        pairs[pc->n_pairs].d2 = d2;
         pc->n_pairs++;
-    } else if (pc->stats != 0) {
-        pc->stats->skipped++;
+        if (pc->n_pairs == MERGE_MAX_PAIRS) {
+            for (int k = MERGE_MAX_PAIRS / 2 - 1; k >= 0; --k) {
+                pair_heap_down(pairs, MERGE_MAX_PAIRS, k);
+            }
+        }
+        return;
     }
+    pc->drops++;
+    if (!(d2 < pairs[0].d2)) {
+        sc->pair_lost[i] = 1U;
+        return;
+    }
+    sc->pair_lost[pairs[0].in] = 1U;
+    pairs[0].own = j;
+    pairs[0].in = i;
+    pairs[0].d2 = d2;
+    pair_heap_down(pairs, MERGE_MAX_PAIRS, 0);
 }
 
 /*
  * Duplicates between one own map (sc->own_body/own_cov/own_sig, n_own, in
  * the receiver's body frame) and the incoming map: candidates from the 3x3
  * grid cells around each own landmark, same signature, inside the gate;
- * then one-to-one by increasing distance into sc->match_of_in.
- * O(M_own + P log P) for P candidate pairs.
+ * then one-to-one by increasing distance into sc->match_of_in (an unpaired
+ * one that lost a candidate to the table's size: MERGE_PAIR_LOST).
+ * O(M_own + P log P) for P candidate pairs. Returns how many incoming
+ * landmarks are MERGE_PAIR_LOST. The pairing of every other one is the one
+ * the whole candidate set gives: the selection takes pairs nearest first,
+ * and the pairs it did not keep are farther than every kept one.
  */
-static void pair_and_select(merge_scratch_t *sc, const merge_body_map_t *bm, const merge_config_t *cfg, int n_own,
-                            merge_stats_t *stats)
+static uint32_t pair_and_select(merge_scratch_t *sc, const merge_body_map_t *bm, const merge_config_t *cfg, int n_own,
+                                merge_stats_t *stats)
 {
-    pair_ctx_t pc = {0, stats};
+    pair_ctx_t pc = {0, 0U};
     for (uint16_t i = 0; i < bm->n; ++i) {
         sc->match_of_in[i] = -1;
         sc->match_d2[i] = INFINITY;
+        sc->pair_lost[i] = 0U;
     }
     for (int j = 0; j < n_own; ++j) {
         sc->own_used[j] = 0;
@@ -541,6 +604,19 @@ static void pair_and_select(merge_scratch_t *sc, const merge_body_map_t *bm, con
         sc->match_d2[i] = sc->pairs[p].d2;
         sc->own_used[j] = 1;
     }
+    uint32_t lost = 0U;
+    if (pc.drops > 0U) {
+        for (uint16_t i = 0; i < bm->n; ++i) {
+            if (sc->match_of_in[i] < 0 && sc->pair_lost[i]) {
+                sc->match_of_in[i] = MERGE_PAIR_LOST;
+                lost++;
+            }
+        }
+        if (stats != 0) {
+            stats->pair_drops += pc.drops;
+        }
+    }
+    return lost;
 }
 
 static int config_ok(const merge_config_t *cfg)
@@ -646,9 +722,16 @@ static coslam_status_t merge_particle(fastslam_t *fs, uint16_t k, const merge_bo
         sc->own_idx[n_cand] = j;
         n_cand++;
     }
-    pair_and_select(sc, bm, cfg, n_cand, stats);
+    if (pair_and_select(sc, bm, cfg, n_cand, stats) > 0U) {
+        fs->ctr.merge_pair_drops++;
+        result = COSLAM_E_CAPACITY;
+    }
     const double dup_w = duplicate_weight(sc, bm, cfg);
     for (uint16_t i = 0; i < bm->n; ++i) {
+        if (sc->match_of_in[i] == MERGE_PAIR_LOST) {
+            stats->pair_lost++; /* an own landmark in its gate was not weighed: not added */
+            continue;
+        }
         const point2_t wm = pose2_apply_cs(pose, c, s, bm->mean[i]);
         const int32_t j = sc->match_of_in[i] >= 0 ? (int32_t)sc->own_idx[sc->match_of_in[i]] : -1;
         /* a duplicate's information scaled by dup_w: its covariance by 1 / dup_w */
@@ -854,13 +937,18 @@ coslam_status_t merge_ekfslam_begin(ekfslam_t *ekf, const merge_body_map_t *bm, 
         ekfslam_landmark_relative(ekf, j, &sc->own_body[j], &sc->own_cov[j]);
         sc->own_sig[j] = ekf->meta[j].signature;
     }
-    pair_and_select(sc, bm, cfg, n_own, stats);
+    const uint32_t lost = pair_and_select(sc, bm, cfg, n_own, stats);
     sc->ekf_dup_w = duplicate_weight(sc, bm, cfg);
     if (ekfslam_merge_begin(ekf, &bm->t_cov) != COSLAM_OK) {
         return COSLAM_E_ARG;
     }
     sc->ekf_next = 0U;
     sc->ekf_result = COSLAM_OK;
+    if (lost > 0U) {
+        ekf->ctr.merge_pair_drops++;
+        sc->ekf_result = COSLAM_E_CAPACITY;
+        stats->pair_lost += lost; /* neither fused nor added */
+    }
     return COSLAM_OK;
 }
 
@@ -891,7 +979,7 @@ coslam_status_t merge_ekfslam_run(ekfslam_t *ekf, const merge_body_map_t *bm, me
         const uint32_t k = sc->ekf_next;
         const int adding = k >= n; /* or every item done (k = 2n) */
         const uint16_t i = (uint16_t)(adding ? k - n : k);
-        if (k < 2U * n && adding == (sc->match_of_in[i] >= 0)) {
+        if (k < 2U * n && (adding == (sc->match_of_in[i] >= 0) || sc->match_of_in[i] == MERGE_PAIR_LOST)) {
             sc->ekf_next++; /* not this pass's */
             continue;
         }
@@ -931,14 +1019,6 @@ coslam_status_t merge_into_ekfslam(ekfslam_t *ekf, const merge_body_map_t *bm, c
 
 /* ---- one set-up for every caller ---------------------------------------- */
 
-/* Both axes of a 2x2 covariance inside [lo, hi]. */
-static int cov2_axes_within(cov2_t c, double lo, double hi)
-{
-    const double half_tr = 0.5 * (c.xx + c.yy);
-    const double d = sqrt(0.25 * (c.xx - c.yy) * (c.xx - c.yy) + c.xy * c.xy);
-    return half_tr - d >= lo && half_tr + d <= hi;
-}
-
 /* Step 0: values no robot of the team can produce. */
 static int message_plausible(const map_estimate_t *in, const merge_geometry_t *g, const merge_config_t *cfg)
 {
@@ -946,8 +1026,10 @@ static int message_plausible(const map_estimate_t *in, const merge_geometry_t *g
     if (!(in->pose.x * in->pose.x + in->pose.y * in->pose.y <= ext2)) {
         return 0;
     }
-    if (!(g->other_sees_self.range_var_m2 >= cfg->min_var_m2) ||
-        !(g->other_sees_self.bearing_var_rad2 >= cfg->min_bearing_var_rad2)) {
+    const robot_sighting_t *b = &g->other_sees_self;
+    if (!(b->range_var_m2 >= cfg->min_var_m2) || !(b->range_var_m2 <= cfg->max_var_m2) ||
+        !(b->bearing_var_rad2 >= cfg->min_bearing_var_rad2) || !(b->bearing_var_rad2 <= cfg->max_bearing_var_rad2) ||
+        !(b->range_m <= cfg->max_extent_m)) {
         return 0;
     }
     for (uint16_t i = 0; i < in->n_landmarks; ++i) {
@@ -974,7 +1056,7 @@ coslam_status_t merge_prepare(const map_estimate_t *in, const merge_geometry_t *
     }
     if (!(cfg->peer_speed_mps >= 0.0) || !(cfg->peer_turn_radps >= 0.0) || !(cfg->range_check_chi2 >= 0.0) ||
         !(cfg->max_extent_m > 0.0) || !(cfg->min_var_m2 > 0.0) || !(cfg->max_var_m2 > cfg->min_var_m2) ||
-        !(cfg->min_bearing_var_rad2 > 0.0)) {
+        !(cfg->min_bearing_var_rad2 > 0.0) || !(cfg->max_bearing_var_rad2 > cfg->min_bearing_var_rad2)) {
         return COSLAM_E_ARG;
     }
     if (!message_plausible(in, g, cfg)) {
@@ -1231,7 +1313,7 @@ coslam_status_t merge_check(const map_whole_t *own, const merge_coverage_t *cove
     /* no transform uncertainty (paper mode): nothing to refine */
     const int can_refine = cov3_inverse(c0, &c0_inv) == COSLAM_OK;
     pose2_t t = t0;
-    merge_stats_t tmp;
+    merge_stats_t tmp; /* each pairing's; the last one's pair drops are the check's */
     memset(&tmp, 0, sizeof tmp);
     check_pair(sc, bm, cfg, t, &c0, n_own, &tmp);
     for (uint8_t it = 0; can_refine && it < cfg->refine_iters; ++it) {
@@ -1272,8 +1354,10 @@ coslam_status_t merge_check(const map_whole_t *own, const merge_coverage_t *cove
         t.x += delta[0];
         t.y += delta[1];
         t.theta = angle_wrap(t.theta + delta[2]);
+        memset(&tmp, 0, sizeof tmp);
         check_pair(sc, bm, cfg, t, &c0, n_own, &tmp);
     }
+    stats->pair_drops = tmp.pair_drops;
     stats->t_shift = (pose2_t){t.x - t0.x, t.y - t0.y, angle_wrap(t.theta - t0.theta)};
 
     /* 2. joint agreement test over the pairs */
@@ -1299,6 +1383,7 @@ coslam_status_t merge_check(const map_whole_t *own, const merge_coverage_t *cove
     uint32_t echoes = 0;
     uint32_t ambiguous = 0;
     uint32_t unrefutable = 0;
+    uint32_t lost = 0;
     const double refute_sd = cfg->refute_sd_factor * merge_refute_sd_m(own_params);
     for (uint16_t i = 0; i < bm->n; ++i) {
         sc->drop[i] = 0U;
@@ -1306,6 +1391,11 @@ coslam_status_t merge_check(const map_whole_t *own, const merge_coverage_t *cove
     mark_ambiguous(sc, bm, cfg, n_own);
     for (uint16_t i = 0; i < bm->n; ++i) {
         if (sc->match_of_in[i] >= 0) {
+            continue;
+        }
+        if (sc->match_of_in[i] == MERGE_PAIR_LOST) {
+            lost++; /* an own landmark in its gate was not weighed */
+            sc->drop[i] = 1U;
             continue;
         }
         if ((bm->src_mask[i] & own_bit) != 0U) {
@@ -1339,6 +1429,7 @@ coslam_status_t merge_check(const map_whole_t *own, const merge_coverage_t *cove
     stats->echoes = echoes;
     stats->ambiguous = ambiguous;
     stats->unrefutable = unrefutable;
+    stats->pair_lost = lost;
     if (vetoed >= 2U && (double)vetoed > cfg->max_contradict_fraction * (double)(n_pairs + vetoed)) {
         return COSLAM_E_MERGE_DISAGREE;
     }

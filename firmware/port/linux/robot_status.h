@@ -16,7 +16,7 @@
  *   mt_* the meeting's counters (meeting_counters_t), mt_rebased;
  *   the filter's loss counters (slam_filter_limits: lm_capacity_drops,
  *     sighting_capacity_drops, export_capacity_drops, rejected_controls,
- *     rejected_sightings, numeric_faults), 0 when nothing was lost;
+ *     rejected_sightings, numeric_faults, merge_pair_drops), 0 when nothing was lost;
  *   urg_* the laser driver's (scans_ok, the err_ counters, resyncs,
  *     bytes_discarded, messages_skipped, fields_truncated, stamp_backwards);
  *   link_mode: auth | insecure | off(no_fleet_key) | off(no_dds_in_build)

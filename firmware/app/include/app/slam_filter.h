@@ -393,14 +393,15 @@ typedef struct {
 } slam_filter_limit_t;
 
 /** Number of entries slam_filter_limits can write. */
-#define SLAM_FILTER_N_LIMITS 6
+#define SLAM_FILTER_N_LIMITS 7
 
 /**
  * The filter's loss counters (every tool reports limits from this one
  * table: coslam-replay, coslam-sim, coslam-robot): map full
  * (COSLAM_MAX_LANDMARKS), sightings over COSLAM_MAX_SIGHTINGS in a frame,
  * exported map cut (COSLAM_MAX_EXPORT_IDS), refused controls, refused
- * sightings, numeric faults. Writes those with a non-zero value, in that
+ * sightings, numeric faults, merge pairings over COSLAM_MERGE_MAX_PAIRS.
+ * Writes those with a non-zero value, in that
  * order, to out (room for SLAM_FILTER_N_LIMITS); returns how many. O(1).
  */
 int slam_filter_limits(const slam_filter_t *f, slam_filter_limit_t out[SLAM_FILTER_N_LIMITS]);

@@ -145,6 +145,16 @@
 #define COSLAM_MAX_EXPORT_IDS (4 * COSLAM_MAX_LANDMARKS)
 #endif
 
+/** Candidate duplicate pairs one merge considers per map (map_merge.c): an
+ *  (own, incoming) pair of one marker class inside the duplicate gate.
+ *  Beyond it the nearest are kept (the pairing of the rest is then exact)
+ *  and an incoming landmark left unpaired that lost a candidate is neither
+ *  fused nor added, counted (merge_pair_drops, a LIMIT line). About 16
+ *  bytes each (merge_scratch_t). */
+#ifndef COSLAM_MERGE_MAX_PAIRS
+#define COSLAM_MERGE_MAX_PAIRS (4 * COSLAM_MAX_MSG_LANDMARKS)
+#endif
+
 /** Occupancy grid size in cells (x, y) and cell edge [mm] (log-odds grid). */
 #ifndef COSLAM_GRID_CELLS_X
 #define COSLAM_GRID_CELLS_X 200
@@ -209,6 +219,9 @@
 #endif
 #if COSLAM_MAX_MSG_LANDMARKS < 1 || COSLAM_MAX_MSG_LANDMARKS > 65535
 #error "COSLAM_MAX_MSG_LANDMARKS must be in [1, 65535]"
+#endif
+#if COSLAM_MERGE_MAX_PAIRS < COSLAM_MAX_MSG_LANDMARKS || COSLAM_MERGE_MAX_PAIRS > 16777216
+#error "COSLAM_MERGE_MAX_PAIRS must be in [COSLAM_MAX_MSG_LANDMARKS, 2^24]"
 #endif
 #if COSLAM_MAX_EXPORT_IDS < COSLAM_MAX_LANDMARKS
 #error "COSLAM_MAX_EXPORT_IDS must be at least COSLAM_MAX_LANDMARKS"

@@ -205,6 +205,8 @@ typedef struct {
     uint32_t rejected_sightings;
     uint32_t rejected_controls;
     uint32_t numeric_faults;          /**< update skipped: S not PD, degenerate geometry */
+    uint32_t merge_pair_drops;        /**< merge pairings (checks and fusions) that left an incoming
+                                           landmark out: candidate pairs beyond COSLAM_MERGE_MAX_PAIRS */
     uint32_t jcbb_budget_hits;        /**< JCBB searches cut at jcbb_max_nodes */
     uint32_t jcbb_ambiguous;          /**< frames whose best hypothesis was ambiguous */
     uint32_t jcbb_closures_held;      /**< frames with a loop closure of too few pairings */

@@ -134,6 +134,8 @@ typedef struct {
     uint32_t rejected_sightings;    /**< NaN/Inf, range <= 0 or beyond sighting_max_range_m, abs(bearing) > pi */
     uint32_t rejected_controls;     /**< NaN/Inf odometry, or beyond max_speed_mps / max_turn_radps (slam_filter_predict) */
     uint32_t numeric_faults;        /**< degenerate geometry skipped, weight collapse */
+    uint32_t merge_pair_drops;      /**< merge pairings (checks and fusions) that left an incoming
+                                         landmark out: candidate pairs beyond COSLAM_MERGE_MAX_PAIRS */
     uint32_t resamples_deferred;    /**< resampling held back while a merge or an export in
                                          parts was due (fastslam_reweighted) */
     uint32_t tree_capacity_drops;   /**< the landmark tree pool ran out (only if

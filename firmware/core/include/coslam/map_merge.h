@@ -37,7 +37,11 @@
  *     landmark farther than max_extent_m from the sender's origin, a
  *     landmark covariance (either one) with an axis outside
  *     [min_var_m2, max_var_m2], a sighting of the receiver with a variance
- *     below min_var_m2 (range) or min_bearing_var_rad2. The codec already
+ *     outside [min_var_m2, max_var_m2] (range) or [min_bearing_var_rad2,
+ *     max_bearing_var_rad2] or a range beyond max_extent_m, or a transform
+ *     so uncertain that a landmark's covariance in the receiver's body
+ *     frame gets an axis above max_var_m2 (merge_transform_map; 1e6 rad^2
+ *     of sighting variance gave 1.25e6 m^2 there). The codec already
  *     refused non-finite and non-positive-definite values; these bounds
  *     stop finite but absurd ones (a landmark at 1e6 m, a covariance of
  *     1e-20 m^2 that would override the receiver's map).
@@ -127,12 +131,18 @@ typedef struct {
     double range_check_chi2;
     /** Plausibility (step 0 above): largest distance of the sender's pose
      *  and landmarks from its map origin [m]; the bounds on every axis of a
-     *  landmark covariance [m^2]; the smallest bearing variance of the
-     *  sender's sighting [rad^2]. 0 < min_var_m2 < max_var_m2. */
+     *  landmark covariance [m^2] (the sender's, and each one's once in the
+     *  receiver's body frame); the range variance of the sender's sighting
+     *  within the same bounds, its range at most max_extent_m; its bearing
+     *  variance in [min_bearing_var_rad2, max_bearing_var_rad2] [rad^2]
+     *  (default 0.25: a standard deviation of 0.5 rad, wider than a
+     *  camera's half field of view, is no sighting). 0 < min_var_m2 <
+     *  max_var_m2, 0 < min_bearing_var_rad2 < max_bearing_var_rad2. */
     double max_extent_m;
     double min_var_m2;
     double max_var_m2;
     double min_bearing_var_rad2;
+    double max_bearing_var_rad2;
 
     /* ---- check before trust (merge_check) ---- */
     /** 1: merge_check runs (agreement test, transform refinement, negative
@@ -252,8 +262,17 @@ typedef struct {
  *  multiply-adds per second on the bench's machine (docs/scale.md). */
 #define MERGE_EKF_MADDS_PER_UNIT 24.0
 
-/** Candidate pairs kept per map (beyond: counted as skipped). */
-#define MERGE_MAX_PAIRS (4 * COSLAM_MAX_MSG_LANDMARKS)
+/** Candidate pairs kept per map (config.h COSLAM_MERGE_MAX_PAIRS): beyond
+ *  it the nearest are kept and the others counted (merge_stats_t.pair_drops).
+ *  The one-to-one selection takes pairs nearest first, so every incoming
+ *  landmark is paired as with the whole set, but one left unpaired that
+ *  lost a candidate: it is marked MERGE_PAIR_LOST, neither fused nor added
+ *  (an own landmark inside its gate was not weighed), counted in pair_lost,
+ *  and then the pairing bumps the filter's merge_pair_drops (a LIMIT line)
+ *  and the merge returns COSLAM_E_CAPACITY. */
+#define MERGE_MAX_PAIRS COSLAM_MERGE_MAX_PAIRS
+/** match_of_in of an unpaired incoming landmark that lost a candidate pair. */
+#define MERGE_PAIR_LOST (-2)
 
 /** Side of the occupancy bitmap over the incoming map's grid cells. */
 #define MERGE_OCC_BINS 64
@@ -265,7 +284,8 @@ typedef struct {
     int32_t cell_x[COSLAM_MAX_MSG_LANDMARKS];
     int32_t cell_y[COSLAM_MAX_MSG_LANDMARKS];
     /* per-particle / per-filter pairing */
-    int32_t match_of_in[COSLAM_MAX_MSG_LANDMARKS];     /**< own landmark index, -1 */
+    int32_t match_of_in[COSLAM_MAX_MSG_LANDMARKS];     /**< own landmark index, -1, MERGE_PAIR_LOST */
+    uint8_t pair_lost[COSLAM_MAX_MSG_LANDMARKS];       /**< a candidate pair of it was not kept */
     double match_d2[COSLAM_MAX_MSG_LANDMARKS];
     uint8_t drop[COSLAM_MAX_MSG_LANDMARKS];         /**< merge_check: unpaired and refused */
     point2_t world_mean[COSLAM_MAX_MSG_LANDMARKS];
@@ -299,6 +319,9 @@ typedef struct {
     uint32_t added;         /**< incoming landmarks added (summed over particles) */
     uint32_t capacity_drops;/**< landmarks that did not fit */
     uint32_t skipped;       /**< incoming landmarks below min_obs or numerically unusable */
+    uint32_t pair_drops;    /**< candidate pairs beyond MERGE_MAX_PAIRS (the farthest) */
+    uint32_t pair_lost;     /**< incoming landmarks neither fused nor added: unpaired, and
+                                 a candidate pair of theirs was beyond MERGE_MAX_PAIRS */
     /* merge_check */
     uint32_t pairs;         /**< incoming landmarks paired with own ones */
     uint32_t vetoed;        /**< unpaired, where the receiver looked and saw nothing */
@@ -388,7 +411,9 @@ void merge_compensate(pose2_t *other_in_self, cov3_t *cov, odo_increment_t u, co
  * and landmark means) is moved by other_in_self; its covariance is
  * R cov_rel R^T (+ J_T t_cov J_T^T when transform_uncertainty is set).
  * Landmarks below min_obs are skipped (counted in stats).
- * O(M). E_MSG_COVARIANCE if a resulting covariance is not PD.
+ * O(M). E_MSG_COVARIANCE if a resulting covariance is not PD,
+ * E_MERGE_IMPLAUSIBLE if one has an axis above cfg->max_var_m2 (out->n is
+ * then 0).
  */
 coslam_status_t merge_transform_map(const map_estimate_t *in, pose2_t other_in_self, const cov3_t *t_cov,
                                     const merge_config_t *cfg, merge_body_map_t *out, merge_stats_t *stats);
