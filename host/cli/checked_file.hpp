@@ -1,31 +1,64 @@
 // checked_file.hpp - output files of the host tools that are checked after
-// writing: a write that failed (a full disk) is an error naming the file,
-// never a silently short file. Header only (coslam_cli).
+// writing: a write that failed (a full disk) is an error naming the file and
+// the OS's reason, never a silently short file. Header only (coslam_cli).
 #ifndef COSLAM_HOST_CLI_CHECKED_FILE_HPP
 #define COSLAM_HOST_CLI_CHECKED_FILE_HPP
 
+#include <cerrno>
+#include <cstring>
 #include <fstream>
 #include <stdexcept>
 #include <string>
 
 namespace coslam::cli {
 
-/// Close f (if open) and throw "cannot write PATH (open or write failed)"
-/// if its open or any write failed.
+/// An output file that could not be opened or written whole. A distinct type
+/// so a tool can give it its own exit status (coslam-replay: 1).
+class WriteError : public std::runtime_error {
+public:
+    /// "cannot VERB PATH: REASON"; err is the errno of the failure (0: the
+    /// OS gave none, "open or write failed").
+    WriteError(const std::string &path, int err, const std::string &verb = "write")
+        : std::runtime_error("cannot " + verb + " " + path + ": " +
+                             (err != 0 ? std::string(std::strerror(err)) : std::string("open or write failed")))
+    {
+    }
+};
+
+/// Open path for writing; throw WriteError with the OS's reason if it cannot
+/// be opened. errno is cleared first, so a later close_checked names the
+/// reason of this file's failed write, not that of an older call.
+inline std::ofstream open_checked(const std::string &path)
+{
+    errno = 0;
+    std::ofstream f(path);
+    if (!f) {
+        throw WriteError(path, errno);
+    }
+    return f;
+}
+
+/// Close f (if open) and throw WriteError (path and the OS's reason, e.g.
+/// "No space left on device") if its open, any write or the final flush
+/// failed. A stream that failed before the close keeps the errno of its
+/// failed write (nothing between sets it on a failed stream).
 inline void close_checked(std::ofstream &f, const std::string &path)
 {
+    const bool failed_before = !f;
+    const int err_before = errno;
+    errno = 0;
     if (f.is_open()) {
         f.close();
     }
     if (!f) {
-        throw std::runtime_error("cannot write " + path + " (open or write failed)");
+        throw WriteError(path, errno != 0 ? errno : (failed_before ? err_before : 0));
     }
 }
 
 /// Write text to path, checked.
 inline void write_text_file(const std::string &path, const std::string &text)
 {
-    std::ofstream f(path);
+    std::ofstream f = open_checked(path);
     f << text;
     close_checked(f, path);
 }

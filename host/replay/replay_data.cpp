@@ -1,5 +1,6 @@
 // host/replay/replay_data.cpp - MRCLAM and landmark-log readers, log writer.
 #include "replay_data.h"
+#include "checked_file.hpp"
 
 #include <algorithm>
 #include <array>
@@ -821,18 +822,23 @@ Dataset load_dataset(const std::string &dir, DataFormat format, const std::vecto
 
 void write_landmark_log(const Dataset &ds, const std::string &dir)
 {
-    fs::create_directories(dir);
+    std::error_code ec;
+    fs::create_directories(dir, ec);
+    if (ec) {
+        throw coslam::cli::WriteError(dir, ec.value(), "create the output folder");
+    }
     const fs::path d(dir);
+    // checked (host/cli/checked_file.hpp): a failed open or write throws
+    // coslam::cli::WriteError naming the file and the OS's reason
     auto open = [](const fs::path &p) {
-        std::ofstream f(p);
-        if (!f) {
-            throw ReplayError(p.string(), 0, "cannot write");
-        }
+        std::ofstream f = coslam::cli::open_checked(p.string());
         f << std::setprecision(17);
         return f;
     };
+    auto close_file = [](std::ofstream &f, const fs::path &p) { coslam::cli::close_checked(f, p.string()); };
     for (const auto &r : ds.robots) {
-        auto f = open(d / ("robot" + std::to_string(r.id) + ".log"));
+        const fs::path log_path = d / ("robot" + std::to_string(r.id) + ".log");
+        auto f = open(log_path);
         f << "# robot " << r.id << " converted from " << ds.source << " (" << ds.format << ")\n"
           << "# O t dx dy dtheta | V t v w | Z t id range bearing | R t other_robot range bearing\n";
         // merge the three time-ordered streams; at equal times odometry first
@@ -857,23 +863,30 @@ void write_landmark_log(const Dataset &ds, const std::string &dir)
                 f << "R " << s.t_s << ' ' << s.other_robot << ' ' << s.range_m << ' ' << s.bearing_rad << '\n';
             }
         }
+        close_file(f, log_path);
         if (!r.truth.empty()) {
-            auto g = open(d / ("robot" + std::to_string(r.id) + "_truth.txt"));
+            const fs::path truth_path = d / ("robot" + std::to_string(r.id) + "_truth.txt");
+            auto g = open(truth_path);
             g << "# t x y theta (world frame)\n";
             for (const auto &p : r.truth) {
                 g << p.t_s << ' ' << p.pose.x << ' ' << p.pose.y << ' ' << p.pose.theta << '\n';
             }
+            close_file(g, truth_path);
         }
     }
     if (!ds.landmarks.empty()) {
-        auto f = open(d / "landmarks_truth.txt");
+        const fs::path lm_path = d / "landmarks_truth.txt";
+        auto f = open(lm_path);
         f << "# id x y (world frame)\n";
         for (const auto &l : ds.landmarks) {
             f << l.id << ' ' << l.pos.x << ' ' << l.pos.y << '\n';
         }
+        close_file(f, lm_path);
     }
-    auto f = open(d / "t0.txt");
+    const fs::path t0_path = d / "t0.txt";
+    auto f = open(t0_path);
     f << "# absolute time of t = 0 in the source\n" << ds.t0_s << '\n';
+    close_file(f, t0_path);
 }
 
 double dataset_begin_s(const Dataset &ds)

@@ -20,6 +20,7 @@
 #include <sstream>
 #include <unistd.h>
 
+#include "checked_file.hpp"
 #include "cli_checks.hpp"
 #include "replay_config.h"
 #include "replay_data.h"
@@ -290,11 +291,9 @@ int main(int argc, char **argv)
             const NoiseFit nf = fit_noise(ds, nopt);
             print_noise_fit(std::cout, nf, cfg);
             if (!noise_out.empty()) {
-                std::ofstream f(noise_out);
+                std::ofstream f = coslam::cli::open_checked(noise_out);
                 write_noise_ini(nf, ds, f, noise_inflate);
-                if (!f) {
-                    throw ReplayError(noise_out, 0, "cannot write");
-                }
+                coslam::cli::close_checked(f, noise_out);
                 std::cout << "wrote " << noise_out << "\n";
             }
             return 0;
@@ -426,6 +425,11 @@ int main(int argc, char **argv)
             return kExitCapacity;
         }
         return 0;
+    } catch (const coslam::cli::WriteError &e) {
+        // an output file not written whole (a full disk): the results are
+        // incomplete, whatever was printed
+        std::cerr << "coslam-replay: " << e.what() << "\n";
+        return kExitWrite;
     } catch (const ReplayError &e) {
         std::cerr << "coslam-replay: " << e.what() << "\n";
         return 2;

@@ -9,6 +9,7 @@
 #include <ostream>
 #include <sstream>
 
+#include "checked_file.hpp"
 #include "profile_json.hpp"
 
 namespace fs = std::filesystem;
@@ -18,14 +19,19 @@ namespace coslam::replay {
 
 namespace {
 
+// Every output file is opened and closed checked (host/cli/checked_file.hpp):
+// a failed open or write (a full disk) throws coslam::cli::WriteError with the
+// path and the OS's reason; coslam-replay exits kExitWrite.
 std::ofstream open_out(const fs::path &p)
 {
-    std::ofstream f(p);
-    if (!f) {
-        throw ReplayError(p.string(), 0, "cannot write");
-    }
+    std::ofstream f = coslam::cli::open_checked(p.string());
     f << std::setprecision(10);
     return f;
+}
+
+void close_out(std::ofstream &f, const fs::path &p)
+{
+    coslam::cli::close_checked(f, p.string());
 }
 
 void write_tum_row(std::ostream &f, double t, pose2_t p)
@@ -43,6 +49,7 @@ void write_map(const fs::path &p, const map_whole_t &m)
         f << l.id << ',' << l.mean.x << ',' << l.mean.y << ',' << l.cov.xx << ',' << l.cov.xy << ',' << l.cov.yy
           << ',' << unsigned(l.signature) << ',' << l.n_obs << ',' << l.src_mask << '\n';
     }
+    close_out(f, p);
 }
 
 json pose_json(pose2_t p)
@@ -113,35 +120,43 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
     std::error_code ec;
     fs::create_directories(dir, ec);
     if (ec) {
-        throw ReplayError(dir, 0, "cannot create the output folder: " + ec.message());
+        throw coslam::cli::WriteError(dir, ec.value(), "create the output folder");
     }
     const fs::path d(dir);
-    auto errors = open_out(d / "errors.csv");
+    const fs::path errors_path = d / "errors.csv";
+    const fs::path map_errors_path = d / "map_errors.csv";
+    auto errors = open_out(errors_path);
     errors << "t,robot,pos_err_m,heading_err_rad,nees\n";
-    auto map_errors = open_out(d / "map_errors.csv");
+    auto map_errors = open_out(map_errors_path);
     map_errors << "t,robot,n_estimated,n_matched,n_spurious,n_missed,rmse_m\n";
     for (const auto &r : res.robots) {
         const std::string base = "robot" + std::to_string(r.id);
         {
-            auto f = open_out(d / (base + "_path.tum"));
+            const fs::path p = d / (base + "_path.tum");
+            auto f = open_out(p);
             f << "# robot " << r.id << " " << filter_kind_name(r.filter) << " estimate, map frame\n";
             for (const auto &s : r.path) {
                 write_tum_row(f, s.t_s, s.est);
             }
+            close_out(f, p);
         }
         if (r.has_truth) {
-            auto f = open_out(d / (base + "_truth_path.tum"));
+            const fs::path p = d / (base + "_truth_path.tum");
+            const fs::path q = d / (base + "_truth_map.csv");
+            auto f = open_out(p);
             f << "# robot " << r.id << " ground truth in its map frame\n";
             for (const auto &s : r.path) {
                 if (s.has_truth) {
                     write_tum_row(f, s.t_s, s.truth);
                 }
             }
-            auto g = open_out(d / (base + "_truth_map.csv"));
+            close_out(f, p);
+            auto g = open_out(q);
             g << "id,x,y\n";
             for (size_t j = 0; j < r.truth_landmarks.size(); ++j) {
                 g << r.truth_ids[j] << ',' << r.truth_landmarks[j].x << ',' << r.truth_landmarks[j].y << '\n';
             }
+            close_out(g, q);
         }
         if (r.final_map) {
             write_map(d / (base + "_map.csv"), *r.final_map);
@@ -166,8 +181,11 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
                        << csv_or_nan(m.score.measured(), m.score.rmse_m) << '\n';
         }
     }
+    close_out(errors, errors_path);
+    close_out(map_errors, map_errors_path);
     {
-        auto f = open_out(d / "merge_events.csv");
+        const fs::path p = d / "merge_events.csv";
+        auto f = open_out(p);
         f << "t,robot,sender,status,t_err_m,t_err_rad,t_nees,fused,fused_ci,added,capacity_drops,"
              "n_before,rmse_before_m,spurious_before,missed_before,n_after,rmse_after_m,spurious_after,"
              "missed_after,merge_us\n";
@@ -181,6 +199,7 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
               << csv_or_nan(e.after.measured(), e.after.rmse_m) << ',' << csv_or_nan(e.after.valid, e.after.n_spurious)
               << ',' << csv_or_nan(e.after.valid, e.after.n_missed) << ',' << e.merge_us << '\n';
         }
+        close_out(f, p);
     }
 
     json j;
@@ -377,8 +396,10 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
                    {"replayed_s", replayed},
                    {"realtime_factor", res.wall_s > 0.0 ? replayed / res.wall_s : 0.0}};
     j["notes"] = res.notes;
-    auto f = open_out(d / "metrics.json");
+    const fs::path metrics_path = d / "metrics.json";
+    auto f = open_out(metrics_path);
     f << std::setw(2) << j << '\n';
+    close_out(f, metrics_path);
 }
 
 bool report_limits(std::ostream &err, const Dataset &ds, const ReplayResult &res)

@@ -44,6 +44,12 @@ void print_summary(std::ostream &out, const ReplayResult &res, const ReplayOptio
 /// --allow-capacity-limits).
 bool report_limits(std::ostream &err, const Dataset &ds, const ReplayResult &res);
 
+/// coslam-replay's exit codes: 0 done; 2 bad input or usage (a data or
+/// configuration file, an option); 3 (kExitCapacity) a capacity of the core
+/// was hit; 1 (kExitWrite) an output file could not be written whole (a full
+/// disk: coslam::cli::WriteError, the path and the OS's reason on stderr).
+/// CLI11's own parse errors keep CLI11's codes (105 a value out of range).
+inline constexpr int kExitWrite = 1;
 /// Exit code of a run that hit a capacity of the core.
 inline constexpr int kExitCapacity = 3;
 

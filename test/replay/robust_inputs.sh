@@ -159,6 +159,30 @@ check "NUL byte in a line" 2 "robot2.log:[0-9]+: NUL byte" $R "$d" -o "$WORK/r"
 # 8. settings for a robot not in the data
 check "--robot-filter 9=ekf" 0 "note: settings for robot\(s\) 9 .* not used" $R "$B" --robot-filter 9=ekf -o "$WORK/r"
 
+# 9. an output file that cannot be written whole (a full disk: /dev/full
+# fails every write with ENOSPC) is an error naming it and the OS's reason,
+# exit 1; it used to exit 0 with a short or empty file
+if [ -e /dev/full ]; then
+    for f in metrics.json errors.csv robot1_path.tum robot2_map.csv merge_events.csv; do
+        d="$WORK/full_$f"
+        mkdir -p "$d"
+        ln -s /dev/full "$d/$f"
+        check "full disk: run -o, $f" 1 "^coslam-replay: cannot write $d/$f: No space left on device" $R "$B" -o "$d"
+    done
+    d="$WORK/full_convert"
+    mkdir -p "$d"
+    ln -s /dev/full "$d/robot1.log"
+    check "full disk: convert, robot1.log" 1 "^coslam-replay: cannot write $d/robot1.log: No space left on device" \
+        "$REPLAY" convert "$M" "$d"
+    check "full disk: fit-noise -o" 1 "^coslam-replay: cannot write /dev/full: No space left on device" \
+        "$REPLAY" fit-noise "$M" -o /dev/full
+    : > "$WORK/plain_file"
+    check "output folder under a file" 1 "^coslam-replay: cannot create the output folder $WORK/plain_file/r: Not a directory" \
+        $R "$B" -o "$WORK/plain_file/r"
+else
+    echo "skip full disk: no /dev/full"
+fi
+
 if [ $fails -ne 0 ]; then
     echo "$fails case(s) failed"
     exit 1
