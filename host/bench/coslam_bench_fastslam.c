@@ -20,6 +20,7 @@
 
 #include "bench_fs.h"
 #include "profile_print.h"
+#include "bench_report.h"
 
 int bench_fs_cpu_clock = 0;
 
@@ -163,7 +164,8 @@ int main(int argc, char **argv)
         }
     }
     fprintf(js, "  ]\n}\n");
-    fclose(md);
-    fclose(js);
+    if (bench_report_close("coslam-bench-fastslam", out, "fastslam_scale", md, js) != 0) {
+        return 1;
+    }
     return 0;
 }

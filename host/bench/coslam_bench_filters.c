@@ -118,8 +118,9 @@ int main(int argc, char **argv)
                 lm_rmse[f][0], lm_rmse[f][1], lm_rmse[f][2], f + 1 < nf ? "," : "");
     }
     fprintf(js, "  ]\n}\n");
-    fclose(md);
-    fclose(js);
+    if (bench_report_close("coslam-bench-filters", out, "core_step_time", md, js) != 0) {
+        return 1;
+    }
     free(r);
     return 0;
 }

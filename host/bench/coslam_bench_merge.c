@@ -26,6 +26,7 @@
 
 #include "coslam/map_merge.h"
 #include "profile_print.h"
+#include "bench_report.h"
 
 static double now_us(void)
 {
@@ -464,7 +465,8 @@ int main(int argc, char **argv)
                 ekf_part_us[c]);
     }
     fprintf(js, "]}\n");
-    fclose(md);
-    fclose(js);
+    if (bench_report_close("coslam-bench-merge", out, "merge_time", md, js) != 0) {
+        return 1;
+    }
     return 0;
 }

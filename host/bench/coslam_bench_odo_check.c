@@ -17,6 +17,7 @@
 #include "app/odo_check.h"
 #include "room_scan.h"
 #include "profile_print.h"
+#include "bench_report.h"
 
 static double cpu_us(void)
 {
@@ -88,11 +89,13 @@ int main(int argc, char **argv)
              100.0 * (2.0 * mean + 8.0 * (n_keep > 0 ? t_keep / (double)n_keep : 0.0)) / 1e6, sizeof(odo_check_t),
              COSLAM_APP_ODO_CHECK_POINTS, c.disagreements + c.mismatches);
     printf("%s", table);
-    if (f != NULL) {
-        fputs(table, f);
-        fclose(f);
-    } else {
-        fprintf(stderr, "coslam-bench-odo-check: cannot write %s (the table is above)\n", path);
+    if (f == NULL) {
+        fprintf(stderr, "coslam-bench-odo-check: cannot write %s: %s (the table is above)\n", path, strerror(errno));
+        return 1;
+    }
+    fputs(table, f);
+    if (bench_file_close("coslam-bench-odo-check", f, path) != 0) {
+        return 1;
     }
     return c.disagreements + c.mismatches == 0U ? 0 : 1;
 }

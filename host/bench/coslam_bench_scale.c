@@ -158,8 +158,9 @@ int main(int argc, char **argv)
                 spurious[c], estimated[c], idle_ms[c], c + 1 < nc ? "," : "");
     }
     fprintf(js, "  ]\n}\n");
-    fclose(md);
-    fclose(js);
+    if (bench_report_close("coslam-bench-scale", out, "scale_step_time", md, js) != 0) {
+        return 1;
+    }
     free(r);
     return 0;
 }

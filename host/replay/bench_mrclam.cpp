@@ -42,6 +42,7 @@
 #include <sstream>
 
 #include "bench_slam.h"
+#include "checked_file.hpp"
 #include "replay_config.h"
 #include "replay_data.h"
 #include "coslam/pose2.h"
@@ -450,10 +451,16 @@ int main(int argc, char **argv)
         }
         std::cout << md.str();
         std::filesystem::create_directories(out);
-        std::ofstream(out + "/" + report + ".md") << md.str();
-        std::ofstream(out + "/" + report + ".json") << std::setw(2) << json{{"rows", jrows}, {"data", data}} << "\n";
+        std::ostringstream js;
+        js << std::setw(2) << json{{"rows", jrows}, {"data", data}} << "\n";
+        coslam::cli::write_text_file(out + "/" + report + ".md", md.str());
+        coslam::cli::write_text_file(out + "/" + report + ".json", js.str());
         std::cout << "report: " << out << "/" << report << ".md\n";
         return 0;
+    } catch (const coslam::cli::WriteError &e) {
+        // the report not written whole (a full disk): exit 1, as coslam-replay
+        std::cerr << "coslam-bench-mrclam: " << e.what() << "\n";
+        return 1;
     } catch (const std::exception &e) {
         std::cerr << "coslam-bench-mrclam: " << e.what() << "\n";
         return 2;
