@@ -24,6 +24,13 @@
 
 namespace {
 
+// Exit codes (docs/sim.md): 0 done; 1 an output file not written whole or
+// another failure of the run; 2 bad usage or configuration (an option, the
+// scenario file); 3 a capacity of the core was hit (--allow-capacity-limits).
+constexpr int kExitFailed = 1;
+constexpr int kExitUsage = 2;
+constexpr int kExitCapacity = 3;
+
 // A progress bar on stderr: redrawn in place on a terminal, a line every
 // 10 % otherwise (logs).
 class ProgressBar {
@@ -79,7 +86,12 @@ int main(int argc, char **argv)
         ->check(CLI::IsMember({"pixels", "oracle"}));
     app.add_flag("--allow-capacity-limits", allow_limits,
                  "exit 0 even when a capacity of the core was hit (LIMIT lines); without it such a run exits 3");
-    CLI11_PARSE(app, argc, argv);
+    try {
+        app.parse(argc, argv);
+    } catch (const CLI::ParseError &e) {
+        // --help exits 0; a bad option or value is a usage error (exit 2)
+        return app.exit(e) == 0 ? 0 : kExitUsage;
+    }
 
     try {
         coslam::sim::Scenario sc = coslam::sim::load_scenario_file(scenario_path);
@@ -117,12 +129,19 @@ int main(int argc, char **argv)
         }
         if (capacity && !allow_limits) {
             std::fprintf(stderr, "coslam-sim: a capacity of the core was hit (LIMIT lines above); the results are "
-                                 "not those of an unlimited run. Exit 3 (--allow-capacity-limits to accept)\n");
-            return 3;
+                                 "not those of an unlimited run. Exit %d (--allow-capacity-limits to accept)\n",
+                         kExitCapacity);
+            return kExitCapacity;
         }
-    } catch (const std::exception &e) {
+    } catch (const coslam::sim::ScenarioError &e) {
+        // the scenario file: unreadable, or a key outside its domain
         std::cerr << "coslam-sim: " << e.what() << std::endl;
-        return 1;
+        return kExitUsage;
+    } catch (const std::exception &e) {
+        // an output file not written whole (coslam::cli::WriteError), or a
+        // failure of the run itself
+        std::cerr << "coslam-sim: " << e.what() << std::endl;
+        return kExitFailed;
     }
     return 0;
 }

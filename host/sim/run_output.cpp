@@ -22,8 +22,7 @@ constexpr double kRad2Deg = 180.0 / COSLAM_PI;
 
 std::ofstream open_out(const std::string &dir, const std::string &name)
 {
-    std::ofstream f(dir + "/" + name);
-    if (!f) throw std::runtime_error("cannot write " + dir + "/" + name);
+    std::ofstream f = coslam::cli::open_checked(dir + "/" + name);
     f << std::setprecision(9);
     return f;
 }

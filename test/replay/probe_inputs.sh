@@ -226,13 +226,13 @@ fi
 probe "coslam-sim --duration 1e7" nz "outside" "$SIM" --scenario "$SCENARIO" --duration 1e7 --quiet --out "$WORK/s"
 probe "coslam-sim --duration nan" nz "not a finite number" "$SIM" --scenario "$SCENARIO" --duration nan --quiet --out "$WORK/s"
 sed 's/^start = \[1.0, 0.0, 0.0\].*/start = [2.0, 1.3, 0.0]/' "$SCENARIO" > "$WORK/in_box.toml"
-probe "scenario: robot started inside a box" 1 "overlaps box" "$SIM" --scenario "$WORK/in_box.toml" --quiet --out "$WORK/s"
+probe "scenario: robot started inside a box" 2 "overlaps box" "$SIM" --scenario "$WORK/in_box.toml" --quiet --out "$WORK/s"
 sed 's/^start = \[1.0, 0.0, 0.0\].*/start = [9.0, 0.0, 0.0]/' "$SCENARIO" > "$WORK/outside.toml"
-probe "scenario: robot started outside the arena" 1 "outside the arena" "$SIM" --scenario "$WORK/outside.toml" --quiet --out "$WORK/s"
+probe "scenario: robot started outside the arena" 2 "outside the arena" "$SIM" --scenario "$WORK/outside.toml" --quiet --out "$WORK/s"
 sed 's/^start = \[1.0, 0.0, 0.0\].*/start = [-1.1, 0.0, 0.0]/' "$SCENARIO" > "$WORK/overlap.toml"
-probe "scenario: robots on top of each other" 1 "overlaps robot" "$SIM" --scenario "$WORK/overlap.toml" --quiet --out "$WORK/s"
+probe "scenario: robots on top of each other" 2 "overlaps robot" "$SIM" --scenario "$WORK/overlap.toml" --quiet --out "$WORK/s"
 sed 's/^\[timing\]/[timing]\nbogus_key = 3/' "$SCENARIO" > "$WORK/badkey.toml"
-probe "scenario: unknown key (line number)" 1 "line [0-9]+: timing.bogus_key: unknown key" "$SIM" --scenario "$WORK/badkey.toml" --quiet --out "$WORK/s"
+probe "scenario: unknown key (line number)" 2 "line [0-9]+: timing.bogus_key: unknown key" "$SIM" --scenario "$WORK/badkey.toml" --quiet --out "$WORK/s"
 if [ "$profile" != host ]; then
 # a simulated map that cannot fit: a marker every 0.3 m over the arena
 # (about 700), far more than COSLAM_MAX_LANDMARKS in the default and large

@@ -1,7 +1,10 @@
 #!/bin/sh
 # coslam-sim on bad input: a clear error naming the file (and line, key),
-# a non-zero exit; a fault a shortened run does not reach is said so, not
-# printed as -1.0 s; a full disk is an error naming the file.
+# exit 2 for a bad option or scenario (an impossible world: a self-crossing
+# arena, a landmark outside it, a negative explore_s, a robot started in a
+# wall); a fault a shortened run does not reach is said so, not printed as
+# -1.0 s; a full disk is an error naming the file and the OS's reason,
+# exit 1.
 set -u
 BIN=$1
 PAPER=$2
@@ -9,24 +12,59 @@ WORK=$3
 fail=0
 rm -rf "$WORK"
 mkdir -p "$WORK"
+# expect_error WHAT RC NEEDLE ARGS...: exit status RC and a line with NEEDLE
 expect_error() {
   what=$1
-  needle=$2
-  shift 2
+  want=$2
+  needle=$3
+  shift 3
   out=$("$BIN" --quiet "$@" 2>&1); rc=$?
-  if [ $rc -eq 0 ] || ! echo "$out" | grep -qF -- "$needle"; then
-    echo "FAIL: $what: exit $rc: $(echo "$out" | tail -3)"; fail=1
+  if [ $rc -ne "$want" ] || ! echo "$out" | grep -qF -- "$needle"; then
+    echo "FAIL: $what: exit $rc (want $want): $(echo "$out" | tail -3)"; fail=1
   else
-    echo "ok: $what -> $(echo "$out" | grep -F -- "$needle" | head -1)"
+    echo "ok: $what -> exit $rc: $(echo "$out" | grep -F -- "$needle" | head -1)"
   fi
 }
-expect_error "a directory" "$WORK: is a directory, not a scenario file" --scenario "$WORK" --out "$WORK/never"
+# scenario KEY_LINE_SED NAME: a copy of the paper scenario edited with sed
+scenario() {
+  sed "$1" "$PAPER" > "$WORK/$2.toml"
+}
+expect_error "a directory" 2 "$WORK: is a directory, not a scenario file" --scenario "$WORK" --out "$WORK/never"
+expect_error "a bad option value" 2 "--seed" --seed -3 --out "$WORK/never"
 cp "$PAPER" "$WORK/late.toml"
 printf '\n[[fault]]\nrobot = 1\nkind = "laser_unplug"\nat_s = 500\nduration_s = 5\n' >> "$WORK/late.toml"
 line=$(grep -n '^at_s = 500' "$WORK/late.toml" | cut -d: -f1)
-expect_error "a fault after the end" \
+expect_error "a fault after the end" 2 \
   "$WORK/late.toml: line $line: fault[0].at_s: at_s 500 is at or after the run's end (duration_s 120 s)" \
   --scenario "$WORK/late.toml" --out "$WORK/never"
+# impossible worlds
+scenario 's/^arena = .*/arena = [[-4.5, -3.5], [4.5, 3.5], [4.5, -3.5], [-4.5, 3.5]]/' bowtie
+expect_error "a self-crossing arena" 2 \
+  "$WORK/bowtie.toml: line 24: world.arena: edge 0 (-4.5, -3.5)-(4.5, 3.5) and edge 2 (4.5, -3.5)-(-4.5, 3.5) cross" \
+  --scenario "$WORK/bowtie.toml" --out "$WORK/never"
+scenario 's/^arena = .*/arena = [[-4.5, -3.5], [4.5, -3.5], [4.5, -3.5], [4.5, 3.5], [-4.5, 3.5]]/' repeated
+expect_error "a repeated arena corner" 2 "world.arena: corners 1 and 2 are the same point (4.5, -3.5)" \
+  --scenario "$WORK/repeated.toml" --out "$WORK/never"
+scenario 's/{ pos = \[3.75, 3.48\], signature = 1 }/{ pos = [3.75, 9.0], signature = 1 }/' lm_out
+expect_error "a landmark outside the arena" 2 "world.landmarks[5].pos: (3.75, 9) is outside the arena" \
+  --scenario "$WORK/lm_out.toml" --out "$WORK/never"
+scenario 's/^explore_s = 50.0 .*/explore_s = -5/' explore_neg
+expect_error "a negative behaviour.explore_s" 2 "line 89: behaviour.explore_s: value -5 outside [0, 1e+06]" \
+  --scenario "$WORK/explore_neg.toml" --out "$WORK/never"
+scenario 's/^radius_m = 0.19$/radius_m = 0.19\nexplore_s = -1/' robot_explore_neg
+expect_error "a negative robot explore_s" 2 "robot[0].explore_s: value -1 outside [0, 1e+06]" \
+  --scenario "$WORK/robot_explore_neg.toml" --out "$WORK/never"
+scenario 's/^radius_m = 0.19$/radius_m = 0/' radius0
+expect_error "a zero robot radius" 2 "robot[0].radius_m: value 0 outside [0.01, 10]" \
+  --scenario "$WORK/radius0.toml" --out "$WORK/never"
+scenario 's/^duration_s = .*/duration_s = 0/' duration0
+expect_error "a zero duration_s" 2 "duration_s: value 0 outside" --scenario "$WORK/duration0.toml" --out "$WORK/never"
+scenario 's/^boxes = \[/walls = [ { from = [1.0, -1.0], to = [1.0, 1.0] } ]\nboxes = [/' in_wall
+expect_error "a robot started in a wall" 2 "robot[1].start (1, 0): the body overlaps wall 0 (1, -1)-(1, 1)" \
+  --scenario "$WORK/in_wall.toml" --out "$WORK/never"
+scenario 's/^start = \[1.0, 0.0, 0.0\] .*/start = [6.0, 0.0, 0.0]/' start_out
+expect_error "a robot started outside the arena" 2 "robot[1].start (6, 0): outside the arena" \
+  --scenario "$WORK/start_out.toml" --out "$WORK/never"
 [ ! -e "$WORK/never" ] || { echo "FAIL: an output folder was made"; fail=1; }
 # --duration shortens the run below the fault's start
 cp "$PAPER" "$WORK/fault.toml"
@@ -42,6 +80,7 @@ fi
 if [ -e /dev/full ]; then
   mkdir -p "$WORK/full"
   ln -s /dev/full "$WORK/full/metrics.json"
-  expect_error "a full disk" "cannot write $WORK/full/metrics.json" --camera oracle --duration 1 --out "$WORK/full"
+  expect_error "a full disk" 1 "cannot write $WORK/full/metrics.json: No space left on device" \
+    --camera oracle --duration 1 --out "$WORK/full"
 fi
 exit $fail

@@ -22,6 +22,13 @@ std::string fmt_xy(const Eigen::Vector2d &p)
     return buf;
 }
 
+std::string fmt_g(double v)
+{
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%g", v);
+    return buf;
+}
+
 double point_segment_distance(const Eigen::Vector2d &p, const Eigen::Vector2d &a, const Eigen::Vector2d &b)
 {
     const Eigen::Vector2d ab = b - a;
@@ -42,48 +49,74 @@ bool inside_polygon(const Eigen::Vector2d &p, const std::vector<Eigen::Vector2d>
     return in;
 }
 
-// A robot must start inside the arena, clear of walls, boxes, pillars and
-// the other robots (its body radius around its start position).
-void check_start_poses(const Scenario &sc)
+// Twice the signed area of a polygon (shoelace); 0 for a degenerate one.
+double polygon_area2(const std::vector<Eigen::Vector2d> &poly)
 {
-    const WorldSpec &w = sc.world;
-    for (size_t i = 0; i < sc.robots.size(); ++i) {
-        const RobotSpec &r = sc.robots[i];
-        const Eigen::Vector2d p(r.start.x, r.start.y);
-        const std::string who = "robot[" + std::to_string(i) + "].start " + fmt_xy(p);
-        if (w.arena.size() >= 3) {
-            if (!inside_polygon(p, w.arena)) {
-                throw ScenarioError(who + ": outside the arena");
-            }
-            for (size_t k = 0, j = w.arena.size() - 1; k < w.arena.size(); j = k++) {
-                if (point_segment_distance(p, w.arena[j], w.arena[k]) < r.radius_m) {
-                    throw ScenarioError(who + ": the body (radius " + std::to_string(r.radius_m) +
-                                        " m) overlaps the arena wall");
+    double a = 0.0;
+    for (size_t k = 0, j = poly.size() - 1; k < poly.size(); j = k++) {
+        a += poly[j].x() * poly[k].y() - poly[k].x() * poly[j].y();
+    }
+    return a;
+}
+
+double cross3(const Eigen::Vector2d &a, const Eigen::Vector2d &b, const Eigen::Vector2d &c)
+{
+    return (b - a).x() * (c - a).y() - (b - a).y() * (c - a).x();
+}
+
+// q on the segment a-b, given that a, b, q are collinear
+bool on_segment(const Eigen::Vector2d &a, const Eigen::Vector2d &b, const Eigen::Vector2d &q)
+{
+    return q.x() >= std::min(a.x(), b.x()) && q.x() <= std::max(a.x(), b.x()) && q.y() >= std::min(a.y(), b.y()) &&
+           q.y() <= std::max(a.y(), b.y());
+}
+
+// Segments a-b and c-d share a point (crossing, touching or overlapping).
+bool segments_meet(const Eigen::Vector2d &a, const Eigen::Vector2d &b, const Eigen::Vector2d &c, const Eigen::Vector2d &d)
+{
+    const double d1 = cross3(c, d, a), d2 = cross3(c, d, b), d3 = cross3(a, b, c), d4 = cross3(a, b, d);
+    if (((d1 > 0 && d2 < 0) || (d1 < 0 && d2 > 0)) && ((d3 > 0 && d4 < 0) || (d3 < 0 && d4 > 0))) {
+        return true;
+    }
+    return (d1 == 0 && on_segment(c, d, a)) || (d2 == 0 && on_segment(c, d, b)) || (d3 == 0 && on_segment(a, b, c)) ||
+           (d4 == 0 && on_segment(a, b, d));
+}
+
+// The arena must be a simple polygon: no repeated corner, no edge that
+// meets another (only neighbours share their corner, and do not fold back),
+// a non-zero area. inside_polygon's even-odd test on a self-intersecting
+// outline leaves holes and islands nobody drew. Empty string: simple.
+std::string arena_defect(const std::vector<Eigen::Vector2d> &poly)
+{
+    const size_t n = poly.size();
+    auto edge = [&](size_t i) { return "edge " + std::to_string(i) + " " + fmt_xy(poly[i]) + "-" + fmt_xy(poly[(i + 1) % n]); };
+    for (size_t i = 0; i < n; ++i) {
+        if (poly[i] == poly[(i + 1) % n]) {
+            return "corners " + std::to_string(i) + " and " + std::to_string((i + 1) % n) + " are the same point " +
+                   fmt_xy(poly[i]);
+        }
+    }
+    for (size_t i = 0; i < n; ++i) {
+        for (size_t j = i + 1; j < n; ++j) {
+            const Eigen::Vector2d &a = poly[i], &b = poly[(i + 1) % n], &c = poly[j], &d = poly[(j + 1) % n];
+            const bool next = j == i + 1, prev = i == 0 && j == n - 1;
+            if (next || prev) {
+                // neighbours share one corner; they must not run back over each other
+                const Eigen::Vector2d &shared = next ? b : a, &u = next ? a : b, &v = next ? d : c;
+                if (cross3(u, shared, v) == 0.0 && (u - shared).dot(v - shared) > 0.0) {
+                    return edge(i) + " and " + edge(j) + " fold back over each other";
                 }
+                continue;
             }
-        }
-        for (size_t b = 0; b < w.boxes.size(); ++b) {
-            const BoxSpec &bx = w.boxes[b];
-            const double a = -bx.angle_deg * kDeg;
-            const Eigen::Vector2d d = p - bx.center;
-            const Eigen::Vector2d q(std::cos(a) * d.x() - std::sin(a) * d.y(), std::sin(a) * d.x() + std::cos(a) * d.y());
-            if (std::fabs(q.x()) < 0.5 * bx.size.x() + r.radius_m && std::fabs(q.y()) < 0.5 * bx.size.y() + r.radius_m) {
-                throw ScenarioError(who + ": the body overlaps box " + std::to_string(b) + " at " + fmt_xy(bx.center));
-            }
-        }
-        for (size_t k = 0; k < w.pillars.size(); ++k) {
-            if ((p - w.pillars[k].center).norm() < w.pillars[k].radius_m + r.radius_m) {
-                throw ScenarioError(who + ": the body overlaps pillar " + std::to_string(k) + " at " +
-                                    fmt_xy(w.pillars[k].center));
-            }
-        }
-        for (size_t j = 0; j < i; ++j) {
-            const RobotSpec &o = sc.robots[j];
-            if ((p - Eigen::Vector2d(o.start.x, o.start.y)).norm() < r.radius_m + o.radius_m) {
-                throw ScenarioError(who + ": the body overlaps robot[" + std::to_string(j) + "]");
+            if (segments_meet(a, b, c, d)) {
+                return edge(i) + " and " + edge(j) + " cross";
             }
         }
     }
+    if (polygon_area2(poly) == 0.0) {
+        return "the corners enclose no area";
+    }
+    return std::string();
 }
 
 // Reads the keys of one table and rejects the ones nobody asked for.
@@ -244,6 +277,10 @@ void read_world(const toml::table &t, WorldSpec &w)
             w.arena.emplace_back(v[0], v[1]);
         }
         if (w.arena.size() < 3) r.fail("arena", "a polygon needs at least 3 corners");
+        const std::string defect = arena_defect(w.arena);
+        if (!defect.empty()) {
+            r.fail("arena", defect + ": the arena must be a simple polygon (corners in order around it)");
+        }
     }
     if (const toml::array *a = r.array("boxes")) {
         for (size_t i = 0; i < a->size(); ++i) {
@@ -294,6 +331,9 @@ void read_world(const toml::table &t, WorldSpec &w)
             b.vec2("pos", s.pos);
             b.integer("signature", s.signature, 0, 255);
             b.done();
+            if (w.arena.size() >= 3 && !inside_polygon(s.pos, w.arena)) {
+                b.fail("pos", fmt_xy(s.pos) + " is outside the arena (no robot can reach or see it there)");
+            }
             w.landmarks.push_back(s);
         }
     }
@@ -376,7 +416,9 @@ void read_filter_noise(const toml::table &t, FilterNoiseSpec &n, const std::stri
 void read_behaviour(const toml::table &t, BehaviourSpec &b)
 {
     Reader r(t, "behaviour");
-    r.num("explore_s", b.explore_s, -1.0, 1e6);
+    // the firmware's "< 0: never" is not offered here: a robot that never
+    // returns is explore_s beyond duration_s
+    r.num("explore_s", b.explore_s, 0.0, 1e6);
     r.num("cruise_mps", b.cruise_mps, 0.01, 2.0);
     r.num("max_turn_dps", b.max_turn_dps, 1.0, 720.0);
     r.num("seek_turn_dps", b.seek_turn_dps, -360.0, 360.0);
@@ -422,7 +464,7 @@ void read_robot(const toml::table &t, size_t i, const Scenario &sc, RobotSpec &r
     }
     r.integer("particles", rs.particles, 1, COSLAM_MAX_PARTICLES);
     r.num("radius_m", rs.radius_m, 0.01, 10.0);
-    r.num("explore_s", rs.explore_s, -1.0, 1e6);
+    r.num("explore_s", rs.explore_s, 0.0, 1e6);
     if (const toml::table *n = r.table("noise")) read_truth_noise(*n, rs.noise, p + ".noise");
     if (const toml::table *n = r.table("filter_noise")) read_filter_noise(*n, rs.filter_noise, p + ".filter_noise");
     r.done();
@@ -439,7 +481,7 @@ bool point_is_free(const Scenario &sc, const Eigen::Vector2d &p, double radius, 
         }
         for (size_t k = 0, j = w.arena.size() - 1; k < w.arena.size(); j = k++) {
             if (point_segment_distance(p, w.arena[j], w.arena[k]) < radius) {
-                why = "the body overlaps the arena wall";
+                why = "the body (radius " + fmt_g(radius) + " m) overlaps the arena wall";
                 return false;
             }
         }
@@ -450,23 +492,46 @@ bool point_is_free(const Scenario &sc, const Eigen::Vector2d &p, double radius, 
         const Eigen::Vector2d d = p - bx.center;
         const Eigen::Vector2d q(std::cos(a) * d.x() - std::sin(a) * d.y(), std::sin(a) * d.x() + std::cos(a) * d.y());
         if (std::fabs(q.x()) < 0.5 * bx.size.x() + radius && std::fabs(q.y()) < 0.5 * bx.size.y() + radius) {
-            why = "the body overlaps box " + std::to_string(b);
+            why = "the body overlaps box " + std::to_string(b) + " at " + fmt_xy(bx.center);
             return false;
         }
     }
     for (size_t k = 0; k < w.pillars.size(); ++k) {
         if ((p - w.pillars[k].center).norm() < w.pillars[k].radius_m + radius) {
-            why = "the body overlaps pillar " + std::to_string(k);
+            why = "the body overlaps pillar " + std::to_string(k) + " at " + fmt_xy(w.pillars[k].center);
             return false;
         }
     }
-    for (const WallSpec &ws : w.walls) {
+    for (size_t k = 0; k < w.walls.size(); ++k) {
+        const WallSpec &ws = w.walls[k];
         if (point_segment_distance(p, ws.from, ws.to) < radius) {
-            why = "the body overlaps a wall";
+            why = "the body overlaps wall " + std::to_string(k) + " " + fmt_xy(ws.from) + "-" + fmt_xy(ws.to);
             return false;
         }
     }
     return true;
+}
+
+// A robot must start inside the arena, clear of the arena's edge, walls,
+// boxes, pillars (point_is_free) and the other robots (its body radius
+// around its start position).
+void check_start_poses(const Scenario &sc)
+{
+    for (size_t i = 0; i < sc.robots.size(); ++i) {
+        const RobotSpec &r = sc.robots[i];
+        const Eigen::Vector2d p(r.start.x, r.start.y);
+        const std::string who = "robot[" + std::to_string(i) + "].start " + fmt_xy(p);
+        std::string why;
+        if (!point_is_free(sc, p, r.radius_m, why)) {
+            throw ScenarioError(who + ": " + why);
+        }
+        for (size_t j = 0; j < i; ++j) {
+            const RobotSpec &o = sc.robots[j];
+            if ((p - Eigen::Vector2d(o.start.x, o.start.y)).norm() < r.radius_m + o.radius_m) {
+                throw ScenarioError(who + ": the body overlaps robot[" + std::to_string(j) + "]");
+            }
+        }
+    }
 }
 
 void read_fault(const toml::table &t, size_t i, const Scenario &sc, FaultSpec &f)
