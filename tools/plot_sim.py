@@ -146,7 +146,7 @@ def main():
     fig, axs = plt.subplots(n, 2, figsize=(13, 5.2 * n), squeeze=False)
     for k in range(n):
         rm = metrics["robots"][k]
-        mt = rm["first_merge_s"] if rm["first_merge_s"] >= 0 else None
+        mt = rm["first_merge_s"]  # None (JSON null): the robot never merged
         name = "%s (%s%s)" % (rm["name"], rm["filter"], "/%d" % rm["particles"] if rm["particles"] else "")
         if mt is not None:
             map_panel(axs[k][0], run, world, metrics, k, "premerge", mt, None)

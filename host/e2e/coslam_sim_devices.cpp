@@ -723,7 +723,8 @@ int main(int argc, char **argv)
         rj["distance_m"] = robots[k]->distance_m();
         rj["wall_collisions"] = robots[k]->wall_collisions();
         rj["robot_collisions"] = robots[k]->robot_collisions();
-        rj["first_merge_s"] = first_merge[k];
+        // null: never merged (as coslam-sim's metrics.json)
+        rj["first_merge_s"] = first_merge[k] >= 0 ? nlohmann::json(first_merge[k]) : nlohmann::json(nullptr);
         rj["wire"] = {{"can_to_drives", p.can_to_rig},     {"can_to_robot", p.can_to_robot},
                       {"can_dropped", p.can_dropped},      {"frames_sent", p.frames_sent},
                       {"frames_dropped", p.frames_dropped}, {"urg_scans_ok", num(last_status[k], "urg_scans_ok")}};

@@ -186,7 +186,8 @@ nlohmann::json run_metrics(const Simulation &sim)
             {"pose_rmse_m", {{"all", rr.pose_rmse_m}, {"before_merge", rr.pose_rmse_before_merge_m},
                              {"after_merge", measured(rr.first_merge_s >= 0.0, rr.pose_rmse_after_merge_m)}}},
             {"heading_rmse_deg", rr.heading_rmse_rad * kRad2Deg},
-            {"first_merge_s", rr.first_merge_s},
+            // null: the robot never merged (a -1 here was plotted as a time)
+            {"first_merge_s", measured(rr.first_merge_s >= 0.0, rr.first_merge_s)},
             {"map", {{"pre_merge", eval_json(rr.pre_merge)}, {"post_merge", eval_json(rr.post_merge)},
                      {"final", eval_json(rr.final_map)}}},
             {"wall_collisions", rr.wall_collisions},
@@ -352,11 +353,11 @@ std::string run_summary(const Simulation &sim, const std::string &out_dir)
     s << "  per robot: pose RMSE before / after its first merge; maps as known/missed/spurious landmarks and\n"
          "  the RMSE of the known ones (missed = seen by the team, not in this map), from its own map frame\n";
     char line[256];
-    std::snprintf(line, sizeof line, "  %-8s %-14s %15s   %-19s %-19s %-19s%s\n", "robot", "filter", "pose RMSE [m]",
-                  "map before merge", "map after merge", "map at the end", "collisions");
+    std::snprintf(line, sizeof line, "  %-8s %-14s %-11s %15s   %-19s %-19s %-19s%s\n", "robot", "filter",
+                  "first merge", "pose RMSE [m]", "map before merge", "map after merge", "map at the end", "collisions");
     s << line;
-    std::snprintf(line, sizeof line, "  %-8s %-14s %7s %7s   %-19s %-19s %-19s%s\n", "", "", "before", "after", "", "",
-                  "", "wall robot");
+    std::snprintf(line, sizeof line, "  %-8s %-14s %-11s %7s %7s   %-19s %-19s %-19s%s\n", "", "", "", "before", "after",
+                  "", "", "", "wall robot");
     s << line;
     auto mapcol = [](const MapSnapshot &m) {
         char c[64];
@@ -376,8 +377,12 @@ std::string run_summary(const Simulation &sim, const std::string &out_dir)
         const std::string filt = std::string(slam_filter_kind_name(rr.filter)) +
                                  (rr.particles > 0 ? "/" + std::to_string(rr.particles) : std::string());
         char after[32] = "n/a"; // never merged: nothing after
-        if (rr.first_merge_s >= 0.0) std::snprintf(after, sizeof after, "%.3f", rr.pose_rmse_after_merge_m);
-        std::snprintf(line, sizeof line, "  %-8s %-14s %7.3f %7s   ", rr.name.c_str(), filt.c_str(),
+        char first[32] = "no merge";
+        if (rr.first_merge_s >= 0.0) {
+            std::snprintf(after, sizeof after, "%.3f", rr.pose_rmse_after_merge_m);
+            std::snprintf(first, sizeof first, "%.1f s", rr.first_merge_s);
+        }
+        std::snprintf(line, sizeof line, "  %-8s %-14s %-11s %7.3f %7s   ", rr.name.c_str(), filt.c_str(), first,
                       rr.pose_rmse_before_merge_m, after);
         s << line << mapcol(rr.pre_merge) << " " << mapcol(rr.post_merge) << " " << mapcol(rr.final_map);
         std::snprintf(line, sizeof line, " %4u %5u\n", rr.wall_collisions, rr.robot_collisions);

@@ -3,8 +3,9 @@
 # exit 2 for a bad option or scenario (an impossible world: a self-crossing
 # arena, a landmark outside it, a negative explore_s, a robot started in a
 # wall); a fault a shortened run does not reach is said so, not printed as
-# -1.0 s; a full disk is an error naming the file and the OS's reason,
-# exit 1.
+# -1.0 s; a run without a merge says "no merge" and writes first_merge_s
+# null, not -1; a full disk is an error naming the file and the OS's
+# reason, exit 1.
 set -u
 BIN=$1
 PAPER=$2
@@ -66,7 +67,7 @@ scenario 's/^start = \[1.0, 0.0, 0.0\] .*/start = [6.0, 0.0, 0.0]/' start_out
 expect_error "a robot started outside the arena" 2 "robot[1].start (6, 0): outside the arena" \
   --scenario "$WORK/start_out.toml" --out "$WORK/never"
 [ ! -e "$WORK/never" ] || { echo "FAIL: an output folder was made"; fail=1; }
-# --duration shortens the run below the fault's start
+# --duration shortens the run below the fault's start (and below any merge)
 cp "$PAPER" "$WORK/fault.toml"
 printf '\n[[fault]]\nrobot = 1\nkind = "laser_unplug"\nat_s = 100\nduration_s = 5\n' >> "$WORK/fault.toml"
 out=$("$BIN" --quiet --camera oracle --duration 2 --scenario "$WORK/fault.toml" --out "$WORK/short" 2>&1); rc=$?
@@ -75,6 +76,14 @@ if [ $rc -ne 0 ] || ! echo "$out" | grep -qF "fault laser_unplug on robot1: not 
   echo "FAIL: a fault not reached: exit $rc: $out"; fail=1
 else
   echo "ok: $(echo "$out" | grep 'fault laser_unplug')"
+fi
+# no merge in 2 s: null in metrics.json (never -1), "no merge" in the summary
+if [ "$(grep -c '"first_merge_s": null' "$WORK/short/metrics.json")" -ne 2 ] ||
+   grep -q '"first_merge_s": -' "$WORK/short/metrics.json" ||
+   [ "$(echo "$out" | grep -cE '^  robot[01] .* no merge ')" -ne 2 ]; then
+  echo "FAIL: no merge: $(grep first_merge_s "$WORK/short/metrics.json") / $(echo "$out" | grep -E '^  robot[01] ')"; fail=1
+else
+  echo "ok: no merge -> first_merge_s null; $(echo "$out" | grep -E '^  robot0 ')"
 fi
 # a full disk
 if [ -e /dev/full ]; then

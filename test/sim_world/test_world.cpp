@@ -524,6 +524,8 @@ TEST(RunOutput, FilesAreWrittenAndParse)
     // no merge: nothing measured after one (n/a, null), not 0.000
     for (size_t k = 0; k < 2; ++k) {
         EXPECT_TRUE(m["robots"][k]["pose_rmse_m"]["after_merge"].is_null()) << k;
+        EXPECT_TRUE(m["robots"][k]["first_merge_s"].is_null()) << k; // not a -1 time
+
         EXPECT_TRUE(m["robots"][k]["map"]["pre_merge"].is_null()) << k;
         const nlohmann::json &fin = m["robots"][k]["map"]["final"];
         if (fin["n_matched"].get<int>() == 0) {
@@ -535,9 +537,10 @@ TEST(RunOutput, FilesAreWrittenAndParse)
     while (std::getline(ss, line)) {
         if (line.rfind("  robot", 0) != 0) continue;
         std::istringstream ls(line);
-        std::string name, filt, before, after;
-        ls >> name >> filt >> before >> after;
+        std::string name, filt, first_a, first_b, before, after;
+        ls >> name >> filt >> first_a >> first_b >> before >> after;
         if (name == "robot") continue; // the header
+        EXPECT_EQ(first_a + " " + first_b, "no merge") << line;
         EXPECT_EQ(after, "n/a") << line;
         EXPECT_EQ(line.find("0.000 m"), std::string::npos) << "an RMSE of nothing: " << line; // 0 matched: n/a
         rows_na++;
