@@ -231,9 +231,9 @@ int run(int argc, char **argv)
                    "synthetic world (host/synth/eval_worlds.h): paper | loop, 4 marker classes; paper-unique | "
                    "loop-unique: unique markers (known association)")
         ->check(CLI::IsMember({"paper", "loop", "paper-unique", "loop-unique"}));
-    app.add_option("-f,--filter", filter, "filter of the synthetic episodes: ekf | fs1 | fs2 (mrclam: [filter] of the config)")
+    app.add_option("-f,--filter", filter, "filter of the synthetic episodes: ekf | fs1 | fs2 (refused with mrclam: [filter] type of -c)")
         ->check(CLI::IsMember({"ekf", "fs1", "fs2"}));
-    app.add_option("-p,--particles", particles, "Fast-SLAM particles (synth)")->check(CLI::Range(1, 1000));
+    app.add_option("-p,--particles", particles, "Fast-SLAM particles (synth; refused with mrclam: [filter] particles of -c)")->check(CLI::Range(1, 1000));
     app.add_option("--train-seeds", train_seeds, "synthetic training world seeds, e.g. 1-4 or 1,2,7");
     app.add_option("--test-seeds", test_seeds, "held-out synthetic world seeds (must not overlap the training ones)");
     app.add_option("--data", data_dir, "MRCLAM dataset folder (mrclam)");
@@ -331,12 +331,21 @@ int run(int argc, char **argv)
 
     // options of the other source would be ignored: refused
     {
-        const char *const synth_only[] = {"--train-seeds", "--test-seeds", "--world"};
+        // -f/-p: an MRCLAM episode's filter and particles are the replay
+        // configuration's ([filter] type, particles, [robotN] filter), the
+        // one written to calibrated_replay.ini: set them with -c
+        const char *const synth_only[] = {"--train-seeds", "--test-seeds", "--world", "--filter", "--particles"};
         const char *const mrclam_only[] = {"--data", "--train-robots", "--test-robots", "--filter-seeds", "--duration"};
         for (const char *o : source == "synth" ? std::vector<const char *>(std::begin(mrclam_only), std::end(mrclam_only))
                                                : std::vector<const char *>(std::begin(synth_only), std::end(synth_only))) {
             if (app.count(o) > 0) {
-                throw UsageError(std::string(o) + " does not apply to --source " + source + " (it would be ignored)");
+                const std::string name(o);
+                const bool filter_opt = name == "--filter" || name == "--particles";
+                throw UsageError(std::string(o) + " does not apply to --source " + source + " (it would be ignored)" +
+                                 (filter_opt ? "; the replay's filter and particles come from the configuration: "
+                                               "[filter] type = ekf | fastslam1 | fastslam2 and [filter] particles = N "
+                                               "in a -c INI"
+                                             : ""));
             }
         }
     }

@@ -59,6 +59,10 @@ check_says "--data does not apply to --source synth" --source synth --data /tmp
 check_says "--duration does not apply to --source synth" --source synth --duration 10
 check_says "--train-seeds does not apply to --source mrclam" --source mrclam --train-seeds 1
 check_says "--world does not apply to --source mrclam" --source mrclam --world loop
+# -f/-p with mrclam were silently ignored: the replay's [filter] decides
+check_says "--filter does not apply to --source mrclam (it would be ignored); the replay's filter and particles come from the configuration: [filter] type" \
+  --source mrclam -f fs2
+check_says "--particles does not apply to --source mrclam" --source mrclam -p 50
 # Dataset 1 has no robot ground truth: nothing to score a robot's path by
 D1=$DATA/mrclam/MRCLAM_Dataset1
 if [ -n "$DATA" ] && [ -d "$D1" ]; then
