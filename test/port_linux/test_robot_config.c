@@ -546,27 +546,44 @@ static void binary_refuses_a_bad_fleet_key(void **state)
     assert_int_equal(system(cmd), 0);
 }
 
+/* Write `text` to path. */
+static void write_text(const char *path, const char *text)
+{
+    FILE *f = fopen(path, "w");
+    assert_non_null(f);
+    fputs(text, f);
+    fclose(f);
+}
+
 /* The landmark-log replay source refuses, at open with FILE:LINE, a robot
  * sighting of an id no robot of this build can have (it was dropped at
- * play time and said as a frame's capacity LIMIT). */
+ * play time and said as a frame's capacity LIMIT), of this robot itself,
+ * or of an id outside the configured fleet (both were played to the
+ * meeting as a partner). Robot 0 of a fleet of 3 here. */
 static void replay_log_refuses_a_foreign_robot_id(void **state)
 {
     (void)state;
     char path[64];
     snprintf(path, sizeof path, "/tmp/coslam-lm-%d.log", (int)getpid());
-    FILE *f = fopen(path, "w");
-    assert_non_null(f);
-    fputs("Z 0.0 -1 2.0 0.1\nR 0.1 200 2.0 0.1\n", f);
-    fclose(f);
     static robot_replay_t r;
     char msg[300];
-    assert_int_equal(robot_replay_open(&r, path, 0, hal_clock_linux(), msg, sizeof msg), HAL_E_CORRUPT);
+    write_text(path, "Z 0.0 -1 2.0 0.1\nR 0.1 200 2.0 0.1\n");
+    assert_int_equal(robot_replay_open(&r, path, 0, 0, 3, hal_clock_linux(), msg, sizeof msg), HAL_E_CORRUPT);
     assert_non_null(strstr(msg, ":2: other_robot_id 200 is not a robot id of this build"));
-    f = fopen(path, "w");
-    assert_non_null(f);
-    fputs("Z 0.0 -1 2.0 0.1\nR 0.1 1 2.0 0.1\n", f);
-    fclose(f);
-    assert_int_equal(robot_replay_open(&r, path, 0, hal_clock_linux(), msg, sizeof msg), HAL_OK);
+    write_text(path, "Z 0.0 -1 2.0 0.1\n# robot 0 sees itself\nR 0.1 0 2.0 0.1\n");
+    assert_int_equal(robot_replay_open(&r, path, 0, 0, 3, hal_clock_linux(), msg, sizeof msg), HAL_E_CORRUPT);
+    assert_non_null(strstr(msg, path));
+    assert_non_null(strstr(msg, ":3: other_robot_id 0 is this robot's own id ([robot] id = 0)"));
+    write_text(path, "R 0.1 2 2.0 0.1\nR 0.2 3 2.0 0.1\n");
+    assert_int_equal(robot_replay_open(&r, path, 0, 0, 3, hal_clock_linux(), msg, sizeof msg), HAL_E_CORRUPT);
+    assert_non_null(strstr(msg, ":2: other_robot_id 3 is not in the fleet ([robot] fleet_size = 3: ids 0 .. 2)"));
+    /* the fleet's other robots are good */
+    write_text(path, "Z 0.0 -1 2.0 0.1\nR 0.1 1 2.0 0.1\nR 0.1 2 3.0 0.2\n");
+    assert_int_equal(robot_replay_open(&r, path, 0, 0, 3, hal_clock_linux(), msg, sizeof msg), HAL_OK);
+    robot_replay_close(&r);
+    /* robot 2 may see robot 0 */
+    write_text(path, "R 0.1 0 2.0 0.1\n");
+    assert_int_equal(robot_replay_open(&r, path, 0, 2, 3, hal_clock_linux(), msg, sizeof msg), HAL_OK);
     robot_replay_close(&r);
     assert_int_equal(unlink(path), 0);
 }

@@ -748,9 +748,9 @@ static long wait_value(const char *err, const char *key, long at_least, unsigned
 
 /* The six landmarks of write_log for 6 s, then the robot is carried off
  * (the wheels, absent here, report nothing) and faces a bare wall: the
- * camera's frames go on (each holds a sighting of another robot, id 7, not
- * of this team), the mapped landmarks, in plain view by the map, go
- * unseen. */
+ * camera's frames go on (each holds a sighting of the fleet's other robot,
+ * id 1: a replay log refuses ids outside the fleet), the mapped landmarks,
+ * in plain view by the map, go unseen. */
 static void write_carried_log(const char *path)
 {
     FILE *f = fopen(path, "w");
@@ -762,7 +762,7 @@ static void write_carried_log(const char *path)
     for (int k = 0; k < 100; ++k) {
         const double t = 0.2 * k;
         if (k >= 30) {
-            fprintf(f, "R %.3f 7 2.0000 0.10000\n", t);
+            fprintf(f, "R %.3f 1 2.0000 0.10000\n", t);
         }
         for (int i = 0; i < 6 && k < 30; ++i) {
             const double r = hypot(lm[i].x, lm[i].y) + rng_normal(&rng, 0.0, 0.02);

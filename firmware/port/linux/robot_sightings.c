@@ -314,8 +314,36 @@ static hal_status_t replay_next_frame(sighting_source_t *src, sighting_frame_t *
 
 static const sighting_source_ops_t replay_ops = {replay_next_frame};
 
-hal_status_t robot_replay_open(robot_replay_t *r, const char *path, int loop, hal_clock_t *clock, char *msg,
-                               size_t msg_cap)
+/* A parsed record against the log so far and the fleet: LINE_RECORD, or
+ * LINE_BAD with why. A robot sighting of this robot itself, or of an id
+ * outside the fleet, would go to the meeting as a partner no link can
+ * reach (and a robot never sees its own marker): a bad line, like an id
+ * no robot of the build can have. */
+static line_kind_t check_record(const robot_replay_record_t *rec, uint64_t last_t_us, uint8_t own_id,
+                                uint8_t fleet_size, char *why, size_t cap)
+{
+    if (rec->t_us < last_t_us) {
+        (void)snprintf(why, cap, "time goes backwards");
+        return LINE_BAD;
+    }
+    if (rec->tag != 'R') {
+        return LINE_RECORD;
+    }
+    if (rec->id == (int32_t)own_id) {
+        (void)snprintf(why, cap, "other_robot_id %ld is this robot's own id ([robot] id = %u): a robot does not "
+                       "see itself", (long)rec->id, (unsigned)own_id);
+        return LINE_BAD;
+    }
+    if (rec->id >= (int32_t)fleet_size) {
+        (void)snprintf(why, cap, "other_robot_id %ld is not in the fleet ([robot] fleet_size = %u: ids 0 .. %u)",
+                       (long)rec->id, (unsigned)fleet_size, (unsigned)fleet_size - 1U);
+        return LINE_BAD;
+    }
+    return LINE_RECORD;
+}
+
+hal_status_t robot_replay_open(robot_replay_t *r, const char *path, int loop, uint8_t own_id, uint8_t fleet_size,
+                               hal_clock_t *clock, char *msg, size_t msg_cap)
 {
     if (msg != NULL && msg_cap > 0U) {
         msg[0] = '\0';
@@ -348,18 +376,16 @@ hal_status_t robot_replay_open(robot_replay_t *r, const char *path, int loop, ha
         }
         robot_replay_record_t rec;
         char why[160];
-        const line_kind_t k = parse_line(buf, &rec, why, sizeof why);
+        line_kind_t k = parse_line(buf, &rec, why, sizeof why);
+        if (k == LINE_RECORD) {
+            k = check_record(&rec, last, own_id, fleet_size, why, sizeof why);
+        }
         if (k == LINE_BAD) {
             (void)snprintf(msg, msg_cap, "%s:%u: %s", path, line, why);
             (void)fclose(f);
             return HAL_E_CORRUPT;
         }
         if (k == LINE_RECORD) {
-            if (rec.t_us < last) {
-                (void)snprintf(msg, msg_cap, "%s:%u: time goes backwards", path, line);
-                (void)fclose(f);
-                return HAL_E_CORRUPT;
-            }
             last = rec.t_us;
         }
     }
@@ -427,7 +453,8 @@ robot_sightings_kind_t robot_open_sightings(robot_replay_t *r, const robot_confi
         return ROBOT_SIGHTINGS_LIVE;
     }
     if (cfg->camera_replay_log[0] != '\0') {
-        *st = robot_replay_open(r, cfg->camera_replay_log, cfg->camera_replay_loop, clock, msg, msg_cap);
+        *st = robot_replay_open(r, cfg->camera_replay_log, cfg->camera_replay_loop, cfg->robot_id, cfg->fleet_size,
+                                clock, msg, msg_cap);
         return ROBOT_SIGHTINGS_REPLAY;
     }
     if (cfg->camera_device[0] == '\0') {

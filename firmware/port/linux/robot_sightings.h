@@ -19,7 +19,8 @@
  *   Z t id range bearing            a landmark sighting (id: -1 unknown, else
  *                                   the true id; used for nothing here: the
  *                                   robot sees non-unique markers, signature 0)
- *   R t other_robot_id range bearing  a sighting of another robot
+ *   R t other_robot_id range bearing  a sighting of another robot of the
+ *                                   fleet (not this one: [robot] id, fleet_size)
  *   O t dx dy dth / V t v w         odometry: ignored (the drives give it)
  * t [s] counts from the moment the source was opened; records with the same
  * t form one frame, handed out when the clock reaches it (stamp = open time
@@ -87,13 +88,15 @@ typedef struct {
 } robot_replay_t;
 
 /**
- * Open and check the log at `path`; t = 0 is now (clock). Returns HAL_OK;
- * HAL_E_NOT_FOUND (no such file); HAL_E_IO (unreadable); HAL_E_CORRUPT (a
- * bad line: msg "PATH:LINE: reason"); HAL_E_ARG (NULL). msg receives the
- * reason of any failure.
+ * Open and check the log at `path` for robot `own_id` of a fleet of
+ * `fleet_size` ([robot] id, fleet_size); t = 0 is now (clock). Returns
+ * HAL_OK; HAL_E_NOT_FOUND (no such file); HAL_E_IO (unreadable);
+ * HAL_E_CORRUPT (a bad line: msg "PATH:LINE: reason"; an R record of
+ * own_id, or of an id not below fleet_size, is a bad line); HAL_E_ARG
+ * (NULL). msg receives the reason of any failure.
  */
-hal_status_t robot_replay_open(robot_replay_t *r, const char *path, int loop, hal_clock_t *clock, char *msg,
-                               size_t msg_cap);
+hal_status_t robot_replay_open(robot_replay_t *r, const char *path, int loop, uint8_t own_id, uint8_t fleet_size,
+                               hal_clock_t *clock, char *msg, size_t msg_cap);
 
 /**
  * The live sighting stream (END-TO-END TESTS ONLY: a stand-in for the camera
