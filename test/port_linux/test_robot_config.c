@@ -164,6 +164,11 @@ static void refused(const char *text, const char *want)
     }
     assert_int_equal(st, COSLAM_E_ARG);
     assert_non_null(strstr(msg, want));
+    /* text of the file is quoted escaped: nothing but printable ASCII
+     * reaches the operator's terminal */
+    for (const char *p = msg; *p != '\0'; ++p) {
+        assert_true(*p >= 0x20 && *p <= 0x7E);
+    }
 }
 
 /* The Fast-SLAM revisit keys and EKF-SLAM's innovation monitor: the core's
@@ -317,6 +322,12 @@ static void bad_files_name_file_and_line(void **state)
             "bad.ini:3: [camera] replay_log: device and replay_log are both set");
     /* the first error wins */
     refused("[robot]\nid = x\n[laser]\nfoo = 1\n", "bad.ini:2:");
+    /* control bytes in a key or a section name are quoted as \xNN (an
+     * escape sequence in the file used to reach the terminal raw) */
+    refused("[robot]\nid = 0\n[la\x1b[31mser]\nx = 1\n", "bad.ini:4: unknown section [la\\x1B[31mser] (key 'x')");
+    refused("[laser]\n\x1b]0;owned\x07 = 1\n", "bad.ini:2: unknown key '\\x1B]0;owned\\x07' in [laser]");
+    refused("[slam]\nrange\x9b" "2J = 1\n", "bad.ini:2: unknown key 'range\\x9B2J' in [slam]");
+    refused("\x1b[2Jid = 1\n", "bad.ini:1: key '\\x1B[2Jid' outside any [section]");
     char msg[600];
     robot_config_default(&cfg);
     assert_int_equal(robot_config_load(&cfg, "/nonexistent/robot.ini", msg, sizeof msg), COSLAM_E_ARG);

@@ -600,17 +600,43 @@ typedef struct {
     FILE *file;
 } load_t;
 
+/* src into dst with every byte outside printable ASCII as \xNN (cut to
+ * cap, terminated; an escape is never cut in half). */
+static void escape_text(char *dst, size_t cap, const char *src)
+{
+    size_t n = 0;
+    for (; *src != '\0' && n + 1U < cap; ++src) {
+        const unsigned char ch = (unsigned char)*src;
+        if (ch >= 0x20U && ch <= 0x7EU) {
+            dst[n++] = (char)ch;
+            continue;
+        }
+        if (n + 5U > cap) {
+            break;
+        }
+        put_text(dst + n, cap - n, "\\x%02X", (unsigned)ch);
+        n += 4U;
+    }
+    dst[n] = '\0';
+}
+
 static void fail(load_t *st, const char *sec, const char *key, const char *reason)
 {
     if (st->err_line != 0) {
         return; /* the first error wins */
     }
     st->err_line = st->line > 0 ? st->line : 1;
+    char raw[ROBOT_CONFIG_MSG_MAX + 1u];
     if (key != NULL) {
-        put_text(st->msg, sizeof st->msg, "[%s] %s: %s", sec, key, reason);
+        put_text(raw, sizeof raw, "[%s] %s: %s", sec, key, reason);
     } else {
-        put_text(st->msg, sizeof st->msg, "%s", reason);
+        put_text(raw, sizeof raw, "%s", reason);
     }
+    /* every message quotes text of the file (a key, a section name, a
+     * value): a control byte there (an escape sequence) must not reach the
+     * operator's terminal raw. Escaped here, the one way out of the file's
+     * text into a message. */
+    escape_text(st->msg, sizeof st->msg, raw);
 }
 
 static coslam_status_t set_number(robot_config_t *c, const cfg_key_t *k, const char *v, char *msg, size_t cap)

@@ -21,7 +21,9 @@
  * key accepts), a value outside its domain, or two keys that contradict
  * each other are reported as "FILE:LINE: [section] key: reason" (the line
  * of the later key for a contradiction); the first error
- * wins. The caller exits with status 2 (robot_main.c).
+ * wins. Text of the file quoted in a message (keys, section names, values)
+ * has every byte outside printable ASCII as \xNN. The caller exits with
+ * status 2 (robot_main.c).
  *
  * No heap: robot_config_t is caller-owned (about 3 KB plus
  * robot_node_config_t). Not thread-safe (one load at a time).
