@@ -328,6 +328,13 @@ static void bad_files_name_file_and_line(void **state)
     refused("[laser]\n\x1b]0;owned\x07 = 1\n", "bad.ini:2: unknown key '\\x1B]0;owned\\x07' in [laser]");
     refused("[slam]\nrange\x9b" "2J = 1\n", "bad.ini:2: unknown key 'range\\x9B2J' in [slam]");
     refused("\x1b[2Jid = 1\n", "bad.ini:1: key '\\x1B[2Jid' outside any [section]");
+    /* a repeated section: refused at its second header, with the first's
+     * line (libinih merged the two without a word) */
+    refused("[robot]\nid = 1\n\n[laser]\ndevice =\n[robot]\nfleet_size = 3\n",
+            "bad.ini:6: section [robot] again (it began on line 1): a repeated section is refused");
+    refused("[gpio]\n[gpio] ; again\n", "bad.ini:2: section [gpio] again (it began on line 1)");
+    refused("[slam]\ngate_chi2 = 9\n[slam]\n", "bad.ini:3: section [slam] again (it began on line 1)");
+    refused("[x\x1b]\n[x\x1b]\n", "bad.ini:2: section [x\\x1B] again (it began on line 1)");
     char msg[600];
     robot_config_default(&cfg);
     assert_int_equal(robot_config_load(&cfg, "/nonexistent/robot.ini", msg, sizeof msg), COSLAM_E_ARG);
@@ -440,6 +447,9 @@ static void binary_exits_2_with_file_and_line(void **state)
     assert_int_equal(WEXITSTATUS(st), 2);
     /* --print-config of a good file: exit 0 */
     assert_int_equal(run_robot("[robot]\nid = 1\n", "--print-config", err, sizeof err), 0);
+    /* a repeated section, read from a file */
+    assert_int_equal(run_robot("[robot]\nid = 1\n[laser]\n[robot]\nfleet_size = 3\n", "--dry-run", err, sizeof err), 2);
+    assert_non_null(strstr(err, "robot.ini:4: section [robot] again (it began on line 1)"));
     /* a bad DDS domain */
     assert_int_equal(run_robot("[link]\ndomain = 300\n", "--dry-run", err, sizeof err), 2);
     assert_non_null(strstr(err, "robot.ini:2: [link] domain: 300 is outside its domain [0, 232]"));

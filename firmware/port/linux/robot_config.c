@@ -588,6 +588,12 @@ void robot_config_default(robot_config_t *c)
 
 /* ---- loading ------------------------------------------------------------- */
 
+/* libinih keeps at most 49 characters of a section name (its MAX_SECTION) */
+#define SECTION_NAME_MAX 49u
+/* section headers a file may have (12 sections are known; an unknown one
+ * with a key in it is refused at the key) */
+#define SECTIONS_MAX 32
+
 typedef struct {
     robot_config_t *cfg;
     const char *name;
@@ -598,6 +604,13 @@ typedef struct {
     int key_line[96];         /* line each other key was read from (0: default) */
     const char *text;         /* load_string: the rest of the text */
     FILE *file;
+    /* the section headers read so far (a repeated one is refused) */
+    struct {
+        char name[SECTION_NAME_MAX + 1u];
+        int line;
+    } sections[SECTIONS_MAX];
+    int n_sections;
+    int key_since_section;    /* a key line since the last header (libinih's prev_name) */
 } load_t;
 
 /* src into dst with every byte outside printable ASCII as \xNN (cut to
@@ -700,6 +713,7 @@ _Static_assert(sizeof(((load_t *)0)->key_line) / sizeof(int) >= N_KEYS, "key_lin
 static int on_ini(void *user, const char *section, const char *name, const char *value)
 {
     load_t *st = (load_t *)user;
+    st->key_since_section = 1;
     if (st->err_line != 0) {
         return 1; /* keep only the first error */
     }
@@ -819,6 +833,61 @@ static void line_too_long(load_t *st, char *str, int num)
     str[1] = '\0';
 }
 
+/* A section header on this line, as libinih will read it: a section that
+ * began before is refused at its second header, with the first one's line.
+ * libinih merges the two without a word (a repeated section is almost
+ * always an edit mistake: the later one was meant to replace the first, or
+ * was pasted in; docs/robot.md "Configuration"). */
+static void note_section(load_t *st, const char *line)
+{
+    const char *p = line;
+    if (st->line == 1 && (unsigned char)p[0] == 0xEFU && (unsigned char)p[1] == 0xBBU &&
+        (unsigned char)p[2] == 0xBFU) {
+        p += 3; /* libinih skips a UTF-8 byte order mark on line 1 */
+    }
+    while (*p == ' ' || *p == '\t' || *p == '\r' || *p == '\n' || *p == '\v' || *p == '\f') {
+        ++p;
+    }
+    if (*p != '[' || (p > line && st->key_since_section)) {
+        return; /* not a header; an indented line after a key continues its value */
+    }
+    /* the name ends at ']'; a ';' after a blank starts a comment first */
+    const char *q = p + 1;
+    int blank = 0;
+    while (*q != '\0' && *q != ']' && !(blank && *q == ';')) {
+        blank = *q == ' ' || *q == '\t';
+        ++q;
+    }
+    if (*q != ']') {
+        return; /* a syntax error: libinih says it at this line */
+    }
+    st->key_since_section = 0;
+    size_t len = (size_t)(q - (p + 1));
+    if (len > SECTION_NAME_MAX) {
+        len = SECTION_NAME_MAX;
+    }
+    char msg[ROBOT_CONFIG_MSG_MAX + 1u];
+    for (int i = 0; i < st->n_sections; ++i) {
+        if (strlen(st->sections[i].name) == len && memcmp(st->sections[i].name, p + 1, len) == 0) {
+            put_text(msg, sizeof msg,
+                     "section [%s] again (it began on line %d): a repeated section is refused; put its keys in "
+                     "the first",
+                     st->sections[i].name, st->sections[i].line);
+            fail(st, "", NULL, msg);
+            return;
+        }
+    }
+    if (st->n_sections == SECTIONS_MAX) {
+        put_text(msg, sizeof msg, "LIMIT: more than %d section headers (robot_config.c SECTIONS_MAX)", SECTIONS_MAX);
+        fail(st, "", NULL, msg);
+        return;
+    }
+    memcpy(st->sections[st->n_sections].name, p + 1, len);
+    st->sections[st->n_sections].name[len] = '\0';
+    st->sections[st->n_sections].line = st->line;
+    st->n_sections++;
+}
+
 /* Readers that count lines, so the handler knows where it is. */
 static char *read_file_line(char *str, int num, void *stream)
 {
@@ -849,6 +918,8 @@ static char *read_file_line(char *str, int num, void *stream)
         line_too_long(st, str, num);
     } else if (nul) {
         fail(st, "", NULL, "a NUL byte in the line (a binary file?)");
+    } else {
+        note_section(st, str);
     }
     return str;
 }
@@ -875,6 +946,7 @@ static char *read_text_line(char *str, int num, void *stream)
     } else if (*st->text == '\0') {
         st->line++;
     }
+    note_section(st, str);
     return str;
 }
 
