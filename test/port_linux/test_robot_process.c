@@ -1262,6 +1262,67 @@ static void slow_storage(void **state)
     remove_dir(dir);
 }
 
+/* ---- the status file -------------------------------------------------------- */
+
+/* How often `needle` is in `text`. */
+static int count_of(const char *text, const char *needle)
+{
+    int n = 0;
+    for (const char *p = strstr(text, needle); p != NULL; p = strstr(p + 1, needle)) {
+        n++;
+    }
+    return n;
+}
+
+/* A --status-file that cannot be written (its directory is missing) is
+ * said once, with the path and the OS's reason, then counted
+ * (status_file_failures, in the status line and the file) instead of said
+ * every period, as it was; the write that works again is said once. */
+static void status_file_failures_counted(void **state)
+{
+    (void)state;
+    char dir[64];
+    char err[300];
+    make_dir(dir, sizeof dir);
+    char store[300];
+    snprintf(store, sizeof store, "%s/store", dir);
+    config(dir, "no-laser", "0.1", "30", "", store, "fastslam2");
+    char sub[300];
+    snprintf(sub, sizeof sub, "%s/monitor", dir);
+    char path[320];
+    snprintf(path, sizeof path, "%s/status.json", sub);
+    snprintf(err, sizeof err, "%s/err", dir);
+    const pid_t pid = spawn_robot(dir, err, "--status-file", path);
+    const long failing = wait_value(err, "status_file_failures", 5, 10000);
+    assert_true(failing >= 5);
+    assert_int_equal(mkdir(sub, 0755), 0);
+    struct stat sb;
+    for (int i = 0; i < 100 && stat(path, &sb) != 0; ++i) {
+        sleep_ms(50);
+    }
+    assert_int_equal(stat(path, &sb), 0);
+    sleep_ms(500); /* a few more periods, written */
+    char *log = strdup(stop_robot(pid, err));
+    assert_non_null(log);
+    char said[512];
+    snprintf(said, sizeof said, "coslam-robot: status file %s: cannot write: No such file or directory", path);
+    fprintf(stderr, "status_file: %ld failures before the directory came; %d lines about the file\n", failing,
+            count_of(log, "status file "));
+    if (count_of(log, said) != 1) {
+        fprintf(stderr, "%s\n", log);
+    }
+    assert_int_equal(count_of(log, said), 1);
+    assert_int_equal(count_of(log, " written again after "), 1);
+    assert_int_equal(count_of(log, "status file "), 2);
+    assert_true(last_value(log, "status_file_failures") >= failing);
+    const char *json = slurp(path);
+    const char *k = strstr(json, "\"status_file_failures\": ");
+    assert_non_null(k);
+    assert_true(strtol(k + strlen("\"status_file_failures\": "), NULL, 10) >= failing);
+    free(log);
+    remove_dir(dir);
+}
+
 int main(int argc, char **argv)
 {
     if (argc > 1) {
@@ -1283,6 +1344,7 @@ int main(int argc, char **argv)
         cmocka_unit_test(final_snapshot_reopens_storage),
         cmocka_unit_test(storage_held_by_another_robot),
         cmocka_unit_test(slow_storage),
+        cmocka_unit_test(status_file_failures_counted),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

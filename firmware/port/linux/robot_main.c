@@ -612,10 +612,44 @@ static void log_limits(void)
     }
 }
 
+/* --status-file: its writes that failed, in all and since the last one
+ * that succeeded. */
+static struct {
+    uint32_t failures;
+    uint32_t failing;
+} status_file;
+
+/* Write the JSON status to path. A file that cannot be written is said at
+ * its first failure with the path and the OS's reason; the failures after
+ * it are only counted (status_file_failures in the status), so that a
+ * monitor path gone bad does not fill the log every period; the first
+ * write that works again is said once. */
+static void write_status_file(const char *path)
+{
+    if (robot_status_write_json(&status, path) == 0) {
+        if (status_file.failing > 0U) {
+            fprintf(stderr, "coslam-robot: status file %s: written again after %lu failed write%s\n", path,
+                    (unsigned long)status_file.failing, status_file.failing == 1U ? "" : "s");
+            status_file.failing = 0U;
+        }
+        return;
+    }
+    const int e = errno;
+    status_file.failures++;
+    if (status_file.failing++ == 0U) {
+        fprintf(stderr,
+                "coslam-robot: status file %s: cannot write: %s; the robot runs on; later failures are counted "
+                "(status_file_failures), not said, until a write works again\n",
+                path, strerror(e));
+    }
+}
+
 static void report_status(const options_t *o, int to_stderr, const robot_loop_stats_t *loop)
 {
     log_limits();
-    robot_status_collect(&status, &node, &dev, &snaps, loop);
+    robot_loop_stats_t with_file = *loop;
+    with_file.status_file_failures = status_file.failures;
+    robot_status_collect(&status, &node, &dev, &snaps, &with_file);
     if (to_stderr) {
         static char line[8192];
         if (robot_status_line(&status, line, sizeof line) + 1U >= sizeof line) {
@@ -632,8 +666,8 @@ static void report_status(const options_t *o, int to_stderr, const robot_loop_st
                 warn != NULL ? warn : "");
         fflush(stderr);
     }
-    if (o->status_file != NULL && robot_status_write_json(&status, o->status_file) != 0) {
-        fprintf(stderr, "coslam-robot: status file %s: %s\n", o->status_file, strerror(errno));
+    if (o->status_file != NULL) {
+        write_status_file(o->status_file);
     }
 }
 

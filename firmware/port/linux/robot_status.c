@@ -232,6 +232,7 @@ void robot_status_collect(robot_status_t *s, robot_node_t *node, const robot_dev
     u64(s, "snap_writing_ms", loop->snap_writing_ms);
     u64(s, "snap_write_max_ms", (snaps->write_max_us + 999U) / 1000U);
     u64(s, "snap_busy_skips", snaps->busy_skips);
+    u64(s, "status_file_failures", loop->status_file_failures);
 #if COSLAM_HAVE_CAMERA
     /* the camera (robot_camera.h): only when one is configured */
     if (dev->camera_kind == ROBOT_SIGHTINGS_CAMERA) {
@@ -280,6 +281,7 @@ int robot_status_write_json(const robot_status_t *s, const char *path)
         errno = ENAMETOOLONG;
         return -1;
     }
+    errno = 0;
     FILE *f = fopen(tmp, "w");
     if (f == NULL) {
         return -1;
@@ -291,8 +293,12 @@ int robot_status_write_json(const robot_status_t *s, const char *path)
                 s->kv[i].value, s->kv[i].is_text ? "\"" : "");
     }
     fprintf(f, "}\n");
-    if (fclose(f) != 0) {
-        const int e = errno;
+    /* a write that failed before the last one (a full disk) leaves the
+     * stream's error flag set, which fclose alone does not report */
+    const int flushed = fflush(f) == 0 && !ferror(f);
+    const int e_write = errno != 0 ? errno : EIO;
+    if (fclose(f) != 0 || !flushed) {
+        const int e = flushed ? errno : e_write;
         (void)remove(tmp);
         errno = e;
         return -1;

@@ -31,6 +31,7 @@
  *     snapshot write in flight has taken so far, 0 if none),
  *     snap_write_max_ms, snap_busy_skips (periodic snapshots not taken
  *     because the last write still ran);
+ *   status_file_failures (--status-file writes that failed);
  *   cam_* the camera's counters (robot_camera_counters_t names) when a
  *     V4L2 camera is configured.
  */
@@ -78,6 +79,8 @@ typedef struct {
     uint16_t landmarks;                    /**< exported landmarks (the observers' last export) */
     uint64_t idle_calls;                   /**< robot_node_idle calls (several a step while parts remain) */
     uint32_t snap_writing_ms;              /**< age of the snapshot write in flight, 0 if none */
+    uint32_t status_file_failures;         /**< --status-file writes that failed (the first one of a run
+                                                of failures is said, the rest only counted) */
 } robot_loop_stats_t;
 
 /** Gather the report (the node's counters read as they are now). O(pairs). */
