@@ -567,6 +567,34 @@ static void binary_refuses_a_bad_fleet_key(void **state)
     assert_int_equal(system(cmd), 0);
 }
 
+/* A [link] config naming a file that cannot be read: the link is down
+ * (retried; the robot runs) and the reason names the key, the path and the
+ * OS's reason (it was Cyclone's generic "refused"). */
+static void binary_names_a_missing_link_config(void **state)
+{
+    (void)state;
+#if !COSLAM_HAVE_DDS
+    skip(); /* no DDS in this build: the link configuration is never read */
+#endif
+    const char *base = "[laser]\ndevice =\n[can]\ninterface =\n[gpio]\nchip =\n[fleet]\nkey_file =\n"
+                       "[storage]\ndir = /nonexistent-coslam/link-store\n[link]\ninsecure = true\ndomain = 178\n";
+    char text[600];
+    char err[8192];
+    snprintf(text, sizeof text, "%sconfig = file:///nonexistent-coslam/cyclonedds.xml\n", base);
+    assert_int_equal(run_robot(text, "--dry-run", err, sizeof err), 0);
+    if (strstr(err, "[link] config file:///nonexistent-coslam/cyclonedds.xml: cannot read "
+                    "/nonexistent-coslam/cyclonedds.xml: No such file or directory (HAL_E_NOT_FOUND)") == NULL) {
+        fprintf(stderr, "%s\n", err);
+    }
+    assert_non_null(strstr(err, "): down: [link] config file:///nonexistent-coslam/cyclonedds.xml: cannot read "
+                                "/nonexistent-coslam/cyclonedds.xml: No such file or directory (HAL_E_NOT_FOUND); "
+                                "retrying every"));
+    /* a directory, second in a list after inline XML */
+    snprintf(text, sizeof text, "%sconfig = <CycloneDDS/>, file:///tmp\n", base);
+    assert_int_equal(run_robot(text, "--dry-run", err, sizeof err), 0);
+    assert_non_null(strstr(err, "down: [link] config file:///tmp: cannot read /tmp: not a regular file (HAL_E_IO)"));
+}
+
 /* Write `text` to path. */
 static void write_text(const char *path, const char *text)
 {
@@ -626,6 +654,7 @@ int main(int argc, char **argv)
         cmocka_unit_test(binary_says_the_drive_watchdog),
         cmocka_unit_test(binary_exits_2_with_file_and_line),
         cmocka_unit_test(binary_refuses_a_bad_fleet_key),
+        cmocka_unit_test(binary_names_a_missing_link_config),
         cmocka_unit_test(replay_log_refuses_a_foreign_robot_id),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -391,7 +391,7 @@ static hal_status_t open_backend(robot_devices_t *d, robot_dev_t id, char *reaso
 static int open_finish(robot_devices_t *d, robot_dev_t id, hal_status_t s, const char *why, uint64_t now_us)
 {
     robot_dev_status_t *st = &d->dev[id];
-    char reason[160];
+    char reason[ROBOT_DEVICES_REASON_MAX];
     put_text(reason, sizeof reason, "%s", why != NULL ? why : "");
 #if COSLAM_HAVE_CAMERA
     if (id == ROBOT_DEV_CAMERA && d->camera_kind == ROBOT_SIGHTINGS_CAMERA) {
@@ -428,7 +428,7 @@ static int open_finish(robot_devices_t *d, robot_dev_t id, hal_status_t s, const
 /* Open device id in the calling thread; returns 1 if up. */
 static int try_open(robot_devices_t *d, robot_dev_t id, uint64_t now_us)
 {
-    char reason[160];
+    char reason[ROBOT_DEVICES_REASON_MAX];
     reason[0] = '\0';
     hal_status_t s = open_prepare(d, id, reason, sizeof reason);
     if (s == HAL_OK) {
@@ -785,7 +785,7 @@ unsigned robot_devices_service(robot_devices_t *d, uint64_t now_us)
         if (st->state != ROBOT_DEV_DOWN || now_us < st->next_try_us) {
             continue;
         }
-        char why[160];
+        char why[ROBOT_DEVICES_REASON_MAX];
         why[0] = '\0';
         hal_status_t s = open_prepare(d, id, why, sizeof why);
         if (s == HAL_OK && o->worker.started) {

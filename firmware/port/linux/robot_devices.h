@@ -102,6 +102,10 @@ typedef enum {
 } robot_dev_t;
 
 /** What a device slot is doing. */
+/** Longest reason of a failed open, in words [bytes with the NUL]: a
+ *  path of ROBOT_CONFIG_PATH_MAX and the OS's reason fit. */
+#define ROBOT_DEVICES_REASON_MAX 320u
+
 typedef enum {
     ROBOT_DEV_UP = 0,       /**< open and working */
     ROBOT_DEV_DOWN = 1,     /**< configured, not open: retried every retry period */
@@ -113,7 +117,7 @@ typedef struct {
     robot_dev_state_t state;
     int lost;                    /**< an operation saw it go away: closed at the next service */
     hal_status_t last_error;     /**< reason of the last failure (HAL_OK: none) */
-    char reason[320];            /**< and in words */
+    char reason[ROBOT_DEVICES_REASON_MAX]; /**< and in words */
     char what[320];              /**< what it is: path, interface, backend */
     uint32_t io_in_row;          /**< consecutive HAL_E_IO answers */
     uint32_t opens;              /**< successful opens */
@@ -137,7 +141,7 @@ typedef struct {
     struct robot_devices *d;
     robot_dev_t id;
     hal_status_t result;         /**< the attempt's outcome (once ended) */
-    char reason[160];            /**< and in words */
+    char reason[ROBOT_DEVICES_REASON_MAX]; /**< and in words */
 } robot_dev_opener_t;
 
 typedef struct robot_devices {

@@ -7,6 +7,7 @@
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -241,6 +242,46 @@ hal_link_t *robot_link_handle(robot_link_t *l)
     return l->node_link;
 }
 
+#if COSLAM_HAVE_DDS
+/* Every "file://" entry of a Cyclone configuration list (`text`, comma-
+ * separated, named `key` in messages) names a file that can be read:
+ * HAL_OK, or HAL_E_NOT_FOUND / HAL_E_IO with the key, the entry, the path
+ * and the OS's reason in `reason`. Cyclone itself only answers that the
+ * domain could not be made (HAL_E_IO), with no word about the file. */
+static hal_status_t config_files_readable(const char *text, const char *key, char *reason, size_t cap)
+{
+    for (const char *p = text; p != NULL && *p != '\0';) {
+        while (*p == ' ' || *p == '\t') {
+            ++p;
+        }
+        const char *end = strchr(p, ',');
+        size_t len = end != NULL ? (size_t)(end - p) : strlen(p);
+        while (len > 0U && (p[len - 1U] == ' ' || p[len - 1U] == '\t')) {
+            --len;
+        }
+        if (len > 7U && strncmp(p, "file://", 7U) == 0) {
+            char path[ROBOT_CONFIG_PATH_MAX + 1u];
+            put_text(path, sizeof path, "%.*s", (int)(len - 7U), p + 7);
+            /* O_NONBLOCK: a FIFO must not hold the opener here */
+            const int fd = open(path, O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+            struct stat sb;
+            const int e = fd < 0 ? errno : fstat(fd, &sb) != 0 ? errno : S_ISREG(sb.st_mode) ? 0 : -1;
+            if (fd >= 0) {
+                (void)close(fd);
+            }
+            if (e != 0) {
+                const hal_status_t s = e == ENOENT ? HAL_E_NOT_FOUND : HAL_E_IO;
+                put_text(reason, cap, "%s %.*s: cannot read %s: %s (%s)", key, (int)len, p, path,
+                         e > 0 ? strerror(e) : "not a regular file", hal_status_str(s));
+                return s;
+            }
+        }
+        p = end != NULL ? end + 1 : NULL;
+    }
+    return HAL_OK;
+}
+#endif
+
 hal_status_t robot_link_backend_open_device(robot_link_t *l, char *reason, size_t reason_cap)
 {
     if (reason != NULL && reason_cap > 0U) {
@@ -252,6 +293,18 @@ hal_status_t robot_link_backend_open_device(robot_link_t *l, char *reason, size_
 #if COSLAM_HAVE_DDS
     if (l->backend_open) {
         return HAL_OK;
+    }
+    /* the configuration files first, named (hal_link_dds.h: CYCLONEDDS_URI,
+     * then [link] config) */
+    char unused[1];
+    char *why = reason != NULL ? reason : unused;
+    const size_t why_cap = reason != NULL ? reason_cap : sizeof unused;
+    hal_status_t fs = config_files_readable(getenv("CYCLONEDDS_URI"), "CYCLONEDDS_URI (environment)", why, why_cap);
+    if (fs == HAL_OK) {
+        fs = config_files_readable(l->dds_cfg.config, "[link] config", why, why_cap);
+    }
+    if (fs != HAL_OK) {
+        return fs;
     }
     const hal_status_t s = hal_link_dds_open(&l->dds, &l->dds_cfg);
     if (s == HAL_OK) {
