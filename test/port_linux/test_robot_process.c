@@ -37,6 +37,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <grp.h>
 #include <sys/prctl.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
@@ -113,8 +114,10 @@ static void write_config(const char *dir, const char *body)
     fclose(f);
 }
 
-/* Start coslam-robot -c dir/robot.ini [args]; stderr into `err_path`. */
-static pid_t spawn_robot(const char *dir, const char *err_path, const char *a1, const char *a2)
+/* Start coslam-robot -c dir/robot.ini [-v] [args] as user `uid` ((uid_t)-1:
+ * this process's); stderr into `err_path`. */
+static pid_t spawn_robot_as(const char *dir, const char *err_path, const char *a1, const char *a2, int verbose,
+                            uid_t uid)
 {
     char cfg[300];
     snprintf(cfg, sizeof cfg, "%s/robot.ini", dir);
@@ -131,12 +134,16 @@ static pid_t spawn_robot(const char *dir, const char *err_path, const char *a1, 
         }
         dup2(fd, 2);
         dup2(nul, 1);
+        if (uid != (uid_t)-1 && (setgroups(0, NULL) != 0 || setgid((gid_t)uid) != 0 || setuid(uid) != 0 ||
+                                 prctl(PR_SET_PDEATHSIG, SIGKILL) != 0)) {
+            _exit(126); /* another user's credentials clear the death signal: set again */
+        }
         char *argv[8];
         int n = 0;
         argv[n++] = (char *)COSLAM_ROBOT_BIN;
         argv[n++] = (char *)"-c";
         argv[n++] = cfg;
-        argv[n++] = (char *)"-v";
+        if (verbose) argv[n++] = (char *)"-v";
         if (a1 != NULL) argv[n++] = (char *)a1;
         if (a2 != NULL) argv[n++] = (char *)a2;
         argv[n] = NULL;
@@ -144,6 +151,12 @@ static pid_t spawn_robot(const char *dir, const char *err_path, const char *a1, 
         _exit(127);
     }
     return pid;
+}
+
+/* Start coslam-robot -c dir/robot.ini -v [args]; stderr into `err_path`. */
+static pid_t spawn_robot(const char *dir, const char *err_path, const char *a1, const char *a2)
+{
+    return spawn_robot_as(dir, err_path, a1, a2, 1, (uid_t)-1);
 }
 
 /* Wait at most timeout_ms; returns the wait status, or -1 (then killed). */
@@ -1262,7 +1275,7 @@ static void slow_storage(void **state)
     remove_dir(dir);
 }
 
-/* ---- the status file -------------------------------------------------------- */
+/* ---- a storage directory that cannot be written ---------------------------- */
 
 /* How often `needle` is in `text`. */
 static int count_of(const char *text, const char *needle)
@@ -1273,6 +1286,62 @@ static int count_of(const char *text, const char *needle)
     }
     return n;
 }
+
+
+/* A storage directory that opens but takes no file (read-only; as root,
+ * whom a mode does not stop, the robot runs as nobody): down once, said
+ * with the OS's reason, and retried on the retry period without a word
+ * (it went up and down at every snapshot, said each time); writable
+ * again, it comes back once and the snapshots are saved. Without -v:
+ * what an operator sees. */
+static void storage_read_only_steady(void **state)
+{
+    (void)state;
+    char dir[64];
+    char err[300];
+    make_dir(dir, sizeof dir);
+    assert_int_equal(chmod(dir, 0755), 0); /* nobody reads the configuration */
+    char store[300];
+    snprintf(store, sizeof store, "%s/store", dir);
+    assert_int_equal(mkdir(store, 0755), 0);
+    assert_int_equal(chmod(store, 0555), 0);
+    config(dir, "no-laser", "0.2", "0.3", "", store, "fastslam2"); /* retry every 0.3 s, snapshot every 0.3 s */
+    snprintf(err, sizeof err, "%s/err", dir);
+    const pid_t pid = spawn_robot_as(dir, err, NULL, NULL, 0, geteuid() == 0 ? (uid_t)65534 : (uid_t)-1);
+    /* about ten retries and ten periodic snapshots while it cannot be written */
+    assert_true(wait_value(err, "snap_failures", 10, 15000) >= 10);
+    char down[400];
+    snprintf(down, sizeof down, "coslam-robot: storage (snapshots in %s): down: cannot write in the directory: "
+             "Permission denied", store);
+    char *ro = strdup(slurp(err));
+    assert_non_null(ro);
+    assert_int_equal(chmod(store, 0777), 0);
+    assert_true(wait_value(err, "snap_saves", 1, 10000) >= 1);
+    const char *log = stop_robot(pid, err);
+    char storage[400];
+    snprintf(storage, sizeof storage, "coslam-robot: storage (snapshots in %s): ", store);
+    fprintf(stderr, "storage_read_only: %d storage lines while read-only, %ld failed snapshots\n",
+            count_of(ro, storage), last_value(ro, "snap_failures"));
+    if (count_of(ro, down) != 1 || count_of(ro, storage) != 1) {
+        fprintf(stderr, "%s\n", ro);
+    }
+    assert_int_equal(count_of(ro, down), 1);
+    assert_int_equal(count_of(ro, storage), 1); /* nothing else about it: not up, not down again */
+    assert_null(strstr(ro, "storage back"));
+    assert_true(last_value(ro, "snap_failures") >= 10);
+    assert_non_null(strstr(ro, " storage=down "));
+    assert_null(strstr(ro, " storage=up "));
+    /* writable again: back once, saved, the final snapshot written */
+    assert_int_equal(count_of(log, "back up after "), 1);
+    assert_null(strstr(log, "(no final snapshot)"));
+    const disk_t d = scan_disk(dir);
+    assert_int_equal(d.invalid, 0);
+    assert_true(d.newest >= 1);
+    free(ro);
+    remove_dir(dir);
+}
+
+/* ---- the status file -------------------------------------------------------- */
 
 /* A --status-file that cannot be written (its directory is missing) is
  * said once, with the path and the OS's reason, then counted
@@ -1345,6 +1414,7 @@ int main(int argc, char **argv)
         cmocka_unit_test(storage_held_by_another_robot),
         cmocka_unit_test(slow_storage),
         cmocka_unit_test(status_file_failures_counted),
+        cmocka_unit_test(storage_read_only_steady),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

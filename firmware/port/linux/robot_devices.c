@@ -2,6 +2,7 @@
 #include "robot_devices.h"
 
 #include <errno.h>
+#include <fcntl.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <string.h>
@@ -320,6 +321,43 @@ static hal_status_t open_prepare(robot_devices_t *d, robot_dev_t id, char *reaso
     return HAL_OK;
 }
 
+/* A file the storage open writes and removes to see that the directory
+ * takes one. */
+#define STORAGE_PROBE ".coslam-write-probe"
+
+/* Whether the storage directory `dir` takes a file: HAL_OK, or the OS's
+ * reason in `reason`. A directory that opens and locks but cannot be
+ * written (read-only, a read-only mount, full) was up until the first
+ * snapshot's write failed, then down, then up again at the retry, then
+ * down at the next write: said four lines a snapshot period. With the
+ * probe its open fails: down once, said with the reason, retried on the
+ * retry period without a word until it works. Not fsync'ed: a medium
+ * whose fsync fails still goes down at the failed write. */
+static hal_status_t storage_writable(const char *dir, char *reason, size_t reason_cap)
+{
+    char path[ROBOT_CONFIG_PATH_MAX + sizeof STORAGE_PROBE + 2u];
+    put_text(path, sizeof path, "%s/%s", dir, STORAGE_PROBE);
+    /* O_NOFOLLOW: a link there is never written through */
+    const int fd = open(path, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC | O_NOFOLLOW, 0644);
+    int e = fd < 0 ? errno : 0;
+    if (fd >= 0) {
+        if (write(fd, "x", 1U) != 1) {
+            e = errno != 0 ? errno : EIO;
+        }
+        if (close(fd) != 0 && e == 0) {
+            e = errno;
+        }
+        (void)unlink(path);
+    }
+    if (e == 0) {
+        return HAL_OK;
+    }
+    const hal_status_t s = e == ENOSPC || e == EDQUOT ? HAL_E_OVERFLOW : HAL_E_IO;
+    put_text(reason, reason_cap, "cannot write in the directory: %s (the probe file %s) (%s)", strerror(e),
+             STORAGE_PROBE, hal_status_str(s));
+    return s;
+}
+
 /* The part of an open attempt that blocks. It writes only device id's
  * backend state, which no proxy and no status read touches while the slot
  * is not up: so it runs on the slot's opener thread while the loop goes
@@ -374,6 +412,11 @@ static hal_status_t open_backend(robot_devices_t *d, robot_dev_t id, char *reaso
             /* the OS's reason ("Not a directory", "No such file or
              * directory" for a missing parent), not only the HAL's class */
             put_text(reason, reason_cap, "%s (%s)", strerror(errno), hal_status_str(s));
+        } else if (s == HAL_OK) {
+            s = storage_writable(c->storage_dir, reason, reason_cap);
+            if (s != HAL_OK) {
+                hal_storage_close(&d->storage_state.dev);
+            }
         }
         break;
     case ROBOT_DEV_LINK:
@@ -730,14 +773,19 @@ static unsigned open_outcome(robot_devices_t *d, robot_dev_t id, hal_status_t s,
 {
     robot_dev_status_t *st = &d->dev[id];
     const uint32_t failures = st->open_failures;
-    char text[320];
+    char text[ROBOT_DEVICES_REASON_MAX + 16u];
+    char said[ROBOT_DEVICES_REASON_MAX];
+    put_text(said, sizeof said, "%s", st->reason);
     if (open_finish(d, id, s, why, now_us)) {
         put_text(text, sizeof text, "back up after %lu failed attempt%s", (unsigned long)failures,
                  failures == 1U ? "" : "s");
         say(d, st->name, st, text);
         return 1U << id;
     }
-    if (d->verbose) {
+    /* a retry that fails for a reason other than the one said last is
+     * said once (a storage down at a failed write: then why it cannot be
+     * written); the same reason again only with -v */
+    if (d->verbose || strcmp(st->reason, said) != 0) {
         put_text(text, sizeof text, "still down (%s)", st->reason);
         say(d, st->name, st, text);
     }

@@ -241,7 +241,9 @@ static int commit_snapshot(int verbose, const char *why, const robot_snapshot_jo
         fprintf(stderr, "coslam-robot: snapshot: %s snapshot not written (%s, storage %s)\n", why,
                 coslam_status_str(cs), hal_status_str(ws));
         if (ws == HAL_E_IO || ws == HAL_E_CLOSED) {
-            robot_devices_fail(&dev, ROBOT_DEV_STORAGE, ws, "write failed", now_us);
+            char reason[64];
+            (void)snprintf(reason, sizeof reason, "the snapshot write failed (%s)", hal_status_str(ws));
+            robot_devices_fail(&dev, ROBOT_DEV_STORAGE, ws, reason, now_us);
         }
         return -1;
     }
