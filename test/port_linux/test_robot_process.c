@@ -1277,6 +1277,17 @@ static void slow_storage(void **state)
 
 /* ---- a storage directory that cannot be written ---------------------------- */
 
+/* A fresh directory for a robot without laser or camera, its storage at
+ * dir/store (not made), Fast-SLAM 2.0 (status and snapshot periods), and
+ * the path its stderr goes to (dir/err). */
+static void store_robot_dir(char dir[64], char store[300], const char *status_s, const char *snap_s, char err[300])
+{
+    make_dir(dir, 64);
+    snprintf(store, 300, "%s/store", dir);
+    config(dir, "no-laser", status_s, snap_s, "", store, "fastslam2");
+    snprintf(err, 300, "%s/err", dir);
+}
+
 /* How often `needle` is in `text`. */
 static int count_of(const char *text, const char *needle)
 {
@@ -1286,7 +1297,6 @@ static int count_of(const char *text, const char *needle)
     }
     return n;
 }
-
 
 /* A storage directory that opens but takes no file (read-only; as root,
  * whom a mode does not stop, the robot runs as nobody): down once, said
@@ -1298,15 +1308,12 @@ static void storage_read_only_steady(void **state)
 {
     (void)state;
     char dir[64];
-    char err[300];
-    make_dir(dir, sizeof dir);
-    assert_int_equal(chmod(dir, 0755), 0); /* nobody reads the configuration */
     char store[300];
-    snprintf(store, sizeof store, "%s/store", dir);
+    char err[300];
+    store_robot_dir(dir, store, "0.2", "0.3", err); /* retry every 0.3 s, snapshot every 0.3 s */
+    assert_int_equal(chmod(dir, 0755), 0); /* nobody reads the configuration */
     assert_int_equal(mkdir(store, 0755), 0);
     assert_int_equal(chmod(store, 0555), 0);
-    config(dir, "no-laser", "0.2", "0.3", "", store, "fastslam2"); /* retry every 0.3 s, snapshot every 0.3 s */
-    snprintf(err, sizeof err, "%s/err", dir);
     const pid_t pid = spawn_robot_as(dir, err, NULL, NULL, 0, geteuid() == 0 ? (uid_t)65534 : (uid_t)-1);
     /* about ten retries and ten periodic snapshots while it cannot be written */
     assert_true(wait_value(err, "snap_failures", 10, 15000) >= 10);
@@ -1351,16 +1358,13 @@ static void status_file_failures_counted(void **state)
 {
     (void)state;
     char dir[64];
-    char err[300];
-    make_dir(dir, sizeof dir);
     char store[300];
-    snprintf(store, sizeof store, "%s/store", dir);
-    config(dir, "no-laser", "0.1", "30", "", store, "fastslam2");
+    char err[300];
+    store_robot_dir(dir, store, "0.1", "30", err);
     char sub[300];
     snprintf(sub, sizeof sub, "%s/monitor", dir);
     char path[320];
     snprintf(path, sizeof path, "%s/status.json", sub);
-    snprintf(err, sizeof err, "%s/err", dir);
     const pid_t pid = spawn_robot(dir, err, "--status-file", path);
     const long failing = wait_value(err, "status_file_failures", 5, 10000);
     assert_true(failing >= 5);
