@@ -111,6 +111,7 @@ std::map<std::string, long> RobotFilter::counters() const
         m["rejected_sightings"] = c.rejected_sightings;
         m["rejected_controls"] = c.rejected_controls;
         m["numeric_faults"] = c.numeric_faults;
+        m["merge_pair_drops"] = c.merge_pair_drops;
         m["jcbb_budget_hits"] = c.jcbb_budget_hits;
         m["jcbb_ambiguous"] = c.jcbb_ambiguous;
         m["jcbb_closures_held"] = c.jcbb_closures_held;
@@ -121,6 +122,7 @@ std::map<std::string, long> RobotFilter::counters() const
         m["nis_inflations"] = c.nis_inflations;
         m["landmarks_in_state"] = ekf->n_lm;
         m["merges_in_parts"] = f_->merges_in_parts;
+        m["merges_late_partial"] = f_->merges_late_partial;
         m["merges_forced"] = f_->merges_forced;
         m["inputs_held"] = f_->inputs_held;
         m["held_failures"] = f_->held_failures;
@@ -138,10 +140,12 @@ std::map<std::string, long> RobotFilter::counters() const
         m["rejected_sightings"] = c.rejected_sightings;
         m["rejected_controls"] = c.rejected_controls;
         m["numeric_faults"] = c.numeric_faults;
+        m["merge_pair_drops"] = c.merge_pair_drops;
         m["closures"] = c.closures;
         m["closure_moves"] = c.closure_moves;
         m["resamples_deferred"] = c.resamples_deferred;
         m["merges_in_parts"] = f_->merges_in_parts;
+        m["merges_late_partial"] = f_->merges_late_partial;
         m["checks_waited"] = f_->checks_waited;
         m["sends_in_parts"] = f_->sends_in_parts;
         m["sends_forced"] = f_->sends_forced;

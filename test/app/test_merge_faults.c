@@ -663,6 +663,54 @@ static int same_ekf(const ekfslam_t *a, const ekfslam_t *b)
     return 1;
 }
 
+/* A merge in parts whose later parts run out of room: particle 0 takes the
+ * merge in the call that reports it (status OK), the others' maps are full,
+ * so the parts in idle time drop landmarks. The LIMIT counter says it
+ * (lm_capacity_drops), and merges_late_partial says that a merge reported
+ * whole was not (before, the later parts' status was thrown away). */
+static void test_fastslam_late_part_capacity(void **state)
+{
+    (void)state;
+    setup_pair(SLAM_FILTER_FASTSLAM2, SLAM_FILTER_EKF);
+    assert_int_equal(slam_filter_export(&g_b, &g_msg), COSLAM_OK);
+    assert_int_equal(merge_b_into(&g_a, 1U), COSLAM_E_MERGE_PENDING);
+    while (g_a.merge_due != NULL) {
+        slam_filter_idle(&g_a);
+    }
+    take_outcome_ok();
+    assert_int_equal(g_a.merges_late_partial, 0U); /* room everywhere: nothing late */
+
+    setup_pair(SLAM_FILTER_FASTSLAM2, SLAM_FILTER_EKF);
+    fastslam_t *fs = &g_a.u.fs;
+    for (uint16_t k = 1; k < fs->cfg.n_particles; ++k) {
+        landmark_t lm;
+        memset(&lm, 0, sizeof lm);
+        lm.cov = cov2_make(0.01, 0.0, 0.01);
+        lm.exist = 6.0f;
+        lm.n_obs = 8;
+        lm.src_mask = 1;
+        for (uint32_t q = 0; fastslam_particle_add(fs, k, &lm) == COSLAM_OK; ++q) {
+            lm.mean = (point2_t){60.0 + 0.5 * (double)(q % 40), 60.0 + 0.5 * (double)(q / 40)};
+            lm.id = 5000U + q;
+        }
+    }
+    const uint32_t drops0 = fs->ctr.lm_capacity_drops;
+    assert_int_equal(merge_b_into(&g_a, 1U), COSLAM_E_MERGE_PENDING);
+    int idles = 0;
+    coslam_status_t st = COSLAM_E_ARG;
+    while (g_a.merge_due != NULL && idles < 1000) {
+        slam_filter_idle(&g_a);
+        idles++;
+        if (slam_merge_work_outcome(&g_work, &st, NULL, NULL, NULL)) {
+            assert_int_equal(st, COSLAM_OK); /* particle 0's part: room */
+            assert_non_null(g_a.merge_due);  /* the full ones follow */
+        }
+    }
+    assert_int_equal(st, COSLAM_OK);
+    assert_true(fs->ctr.lm_capacity_drops > drops0);
+    assert_int_equal(g_a.merges_late_partial, 1U);
+}
+
 /* EKF-SLAM's merge in parts through the robot's merge path: the check and
  * the fusion's first part in the call, the rest in idle calls, the
  * filter's inputs meanwhile held and applied after, in order. So the
@@ -819,6 +867,7 @@ int main(void)
         cmocka_unit_test(test_merge_line_format),
         cmocka_unit_test(test_chain_adds_nothing_twice),
         cmocka_unit_test(test_fastslam_merge_in_parts),
+        cmocka_unit_test(test_fastslam_late_part_capacity),
         cmocka_unit_test(test_ekfslam_merge_in_parts),
         cmocka_unit_test(test_ekfslam_held_queue_under_load),
     };

@@ -41,6 +41,7 @@ coslam_status_t slam_filter_init(slam_filter_t *f, const slam_filter_config_t *c
     f->merge_due = NULL;
     memset(&f->merge_late, 0, sizeof f->merge_late);
     f->merges_in_parts = 0U;
+    f->merges_late_partial = 0U;
     f->merges_forced = 0U;
     f->checks_waited = 0U;
     f->merge_due_updates = 0U;
@@ -562,6 +563,26 @@ static coslam_status_t merge_check_fuse(slam_filter_t *f, slam_merge_work_t *w, 
     return fst == COSLAM_OK && check_lost ? COSLAM_E_CAPACITY : fst;
 }
 
+/* A fusion continues in parts after the call that reported it (with
+ * `reported`): its later parts' status is followed from here. */
+static void merge_parts_began(slam_merge_work_t *w, coslam_status_t reported)
+{
+    w->reported = reported;
+    w->late_capacity = 0U;
+}
+
+/* A later part of a fusion in parts returned st; once done, a merge
+ * reported whole whose later parts left something out is counted. */
+static void merge_late_part(slam_filter_t *f, slam_merge_work_t *w, coslam_status_t st, int done)
+{
+    if (st == COSLAM_E_CAPACITY) {
+        w->late_capacity = 1U;
+    }
+    if (done && w->late_capacity && w->reported == COSLAM_OK) {
+        f->merges_late_partial++;
+    }
+}
+
 /* The next part of the merge that w holds (budget 0: all of it): the own
  * export, then the check and the fusion's first part (the outcome into w),
  * or the fusion's next part. */
@@ -591,10 +612,12 @@ static void merge_due_run(slam_merge_work_t *w, uint32_t budget)
             }
             w->outcome = st;
             w->outcome_ready = 1U;
+            merge_parts_began(w, st);
             return;
         }
         int done = 0;
-        (void)merge_ekfslam_run(&f->u.ekf, &w->body, &w->scratch, &f->merge_late, budget, &done);
+        const coslam_status_t st = merge_ekfslam_run(&f->u.ekf, &w->body, &w->scratch, &f->merge_late, budget, &done);
+        merge_late_part(f, w, st, done);
         if (done) {
             merge_work_release(w); /* its held inputs follow, from the next idle call */
         }
@@ -617,10 +640,12 @@ static void merge_due_run(slam_merge_work_t *w, uint32_t budget)
         }
         w->outcome = st;
         w->outcome_ready = 1U;
+        merge_parts_began(w, st);
         return;
     }
     uint16_t left = 0U;
-    (void)merge_fastslam_run(fs, &w->body, &w->due_cfg, &w->scratch, &f->merge_late, budget, &left);
+    const coslam_status_t st = merge_fastslam_run(fs, &w->body, &w->due_cfg, &w->scratch, &f->merge_late, budget, &left);
+    merge_late_part(f, w, st, left == 0U);
     if (left == 0U) {
         merge_work_release(w);
     }
@@ -893,6 +918,7 @@ coslam_status_t slam_filter_merge_map(slam_filter_t *f, const map_estimate_t *in
         st = merge_fuse(f, w, cfg, NULL, budget, stats);
         if (f->merge_due != NULL) {
             f->merges_in_parts++;
+            merge_parts_began(w, st);
         }
         return st;
     }
@@ -905,6 +931,7 @@ coslam_status_t slam_filter_merge_map(slam_filter_t *f, const map_estimate_t *in
         st = merge_check_fuse(f, w, cfg, grid, NULL, budget, stats);
         if (f->merge_due != NULL) {
             f->merges_in_parts++;
+            merge_parts_began(w, st);
         }
     } else {
         /* Fast-SLAM: the own export in parts of step_units, then the check
@@ -927,6 +954,7 @@ coslam_status_t slam_filter_merge_map(slam_filter_t *f, const map_estimate_t *in
                               stats);
         if (f->merge_due != NULL) {
             f->merges_in_parts++;
+            merge_parts_began(w, st);
         }
     }
     if (t_out != NULL) {

@@ -139,6 +139,7 @@ void robot_status_collect(robot_status_t *s, robot_node_t *node, const robot_dev
     const slam_filter_t *fl = &node->filter;
     u64(s, "idle_calls", loop->idle_calls);
     u64(s, "merges_in_parts", fl->merges_in_parts);
+    u64(s, "merges_late_partial", fl->merges_late_partial);
     u64(s, "merges_forced", fl->merges_forced);
     u64(s, "inputs_held", fl->inputs_held);
     u64(s, "held_failures", fl->held_failures);

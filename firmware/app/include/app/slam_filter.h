@@ -95,6 +95,9 @@ typedef struct slam_filter_s {
      *  fused, added and dropped (that call's stats hold its own part). */
     merge_stats_t merge_late;
     uint32_t merges_in_parts;    /**< merges that did not finish in the call that began them */
+    uint32_t merges_late_partial; /**< of which a later part left landmarks out (capacity: the
+                                      map full, merge_pair_drops) while the merge had been
+                                      reported whole (its event's status COSLAM_OK) */
     uint32_t checks_waited;      /**< of which the check waited for the own export in parts */
     uint32_t merges_forced;      /**< of which finished by an update, the idle time having
                                       not sufficed for SLAM_FILTER_MERGE_MAX_UPDATES updates,
@@ -269,6 +272,11 @@ typedef struct slam_merge_work_s {
     merge_stats_t outcome_stats; /**< its check and the fusion's first part; the
                                       transform it used stays in body (t, t_cov):
                                       no merge begins until the outcome is taken */
+    /** A fusion in parts: the status its merge was reported with (the
+     *  first part's), and whether a later part left something out
+     *  (COSLAM_E_CAPACITY, counted in the filter's merges_late_partial). */
+    coslam_status_t reported;
+    uint8_t late_capacity;
 } slam_merge_work_t;
 
 /** Empty working memory (no merge held). */
