@@ -420,6 +420,18 @@ static void accept_message(meeting_t *m, const hal_link_rx_info_t *info)
         push_event(m, MEETING_EV_REFUSED, info->stamp_us, from, msg->seq, st);
         return;
     }
+    /* values no robot of the team can produce (merge_prepare's step 0):
+     * refused before they act on anything here, the acknowledgement and
+     * the send budget included */
+    const robot_sighting_t seen_by_sender = {msg->sighting.range_m, msg->sighting.bearing_rad,
+                                             msg->sighting.range_var_m2, msg->sighting.bearing_var_rad2};
+    if (!merge_message_plausible(&msg->map, &seen_by_sender, &m->cfg.merge)) {
+        m->ctr.refused_implausible++;
+        meeting_event_t *ev =
+            push_event(m, MEETING_EV_REFUSED, info->stamp_us, from, msg->seq, COSLAM_E_MERGE_IMPLAUSIBLE);
+        ev->n_landmarks = msg->map.n_landmarks;
+        return;
+    }
     /* implicit acknowledgement: does the sender hold the map we last sent
      * it? It does if at least half as many of its landmarks carry our
      * provenance bit as that message had landmarks (ours fuse into its own

@@ -1020,13 +1020,15 @@ coslam_status_t merge_into_ekfslam(ekfslam_t *ekf, const merge_body_map_t *bm, c
 /* ---- one set-up for every caller ---------------------------------------- */
 
 /* Step 0: values no robot of the team can produce. */
-static int message_plausible(const map_estimate_t *in, const merge_geometry_t *g, const merge_config_t *cfg)
+int merge_message_plausible(const map_estimate_t *in, const robot_sighting_t *b, const merge_config_t *cfg)
 {
+    if (in == 0 || b == 0 || cfg == 0) {
+        return 0;
+    }
     const double ext2 = cfg->max_extent_m * cfg->max_extent_m;
     if (!(in->pose.x * in->pose.x + in->pose.y * in->pose.y <= ext2)) {
         return 0;
     }
-    const robot_sighting_t *b = &g->other_sees_self;
     if (!(b->range_var_m2 >= cfg->min_var_m2) || !(b->range_var_m2 <= cfg->max_var_m2) ||
         !(b->bearing_var_rad2 >= cfg->min_bearing_var_rad2) || !(b->bearing_var_rad2 <= cfg->max_bearing_var_rad2) ||
         !(b->range_m <= cfg->max_extent_m)) {
@@ -1059,7 +1061,7 @@ coslam_status_t merge_prepare(const map_estimate_t *in, const merge_geometry_t *
         !(cfg->min_bearing_var_rad2 > 0.0) || !(cfg->max_bearing_var_rad2 > cfg->min_bearing_var_rad2)) {
         return COSLAM_E_ARG;
     }
-    if (!message_plausible(in, g, cfg)) {
+    if (!merge_message_plausible(in, &g->other_sees_self, cfg)) {
         return COSLAM_E_MERGE_IMPLAUSIBLE;
     }
     const robot_sighting_t *a = &g->self_sees_other;

@@ -507,6 +507,17 @@ typedef struct {
 } merge_geometry_t;
 
 /**
+ * Step 0 alone: 1 if the message's map and the sender's sighting of the
+ * receiver (other_sees_self) pass the plausibility bounds of cfg (the
+ * header's step 0: extents, covariance axes, sighting variances and
+ * range), else 0 (also for a NULL argument). merge_prepare makes this
+ * test first; a receiver may make it on arrival, before the message
+ * changes anything (meeting.c). O(M).
+ */
+int merge_message_plausible(const map_estimate_t *in, const robot_sighting_t *other_sees_self,
+                            const merge_config_t *cfg);
+
+/**
  * Steps 0-2 in one call, the only set-up any caller uses: the plausibility
  * bounds (COSLAM_E_MERGE_IMPLAUSIBLE, nothing written), the range check
  * (range_check_chi2), merge_relative_pose, merge_compensate with the own
