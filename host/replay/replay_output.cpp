@@ -383,6 +383,7 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
                    {"refused_range_check", res.meetings_refused_range},
                    {"refused_replay", res.merges_refused_replay},
                    {"refused_disagree", res.merges_refused_disagree},
+                   {"refused_implausible", res.merges_refused_implausible},
                    {"stale", res.merges_stale},
                    {"failed", res.merges_failed},
                    {"t_err_rmse_m", or_null(n_truth > 0, n_truth ? std::sqrt(se_t / n_truth) : 0.0)},
@@ -496,7 +497,8 @@ void print_summary(std::ostream &out, const ReplayResult &res, const ReplayOptio
         }
     }
     out << "merges: " << n_ok << " (refused: " << res.meetings_refused_range << " range check, "
-        << res.merges_refused_disagree << " maps disagree, " << res.merges_refused_replay << " replay; "
+        << res.merges_refused_disagree << " maps disagree, " << res.merges_refused_implausible << " implausible, "
+        << res.merges_refused_replay << " replay; "
         << res.merges_stale << " stale; failed " << res.merges_failed << ")\n";
     for (const auto &e : res.merges) {
         out << "  t=" << std::setprecision(1) << e.t_s << std::setprecision(3) << "  " << e.sender << " -> "

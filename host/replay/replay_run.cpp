@@ -740,6 +740,9 @@ void Replay::record_event(Robot &recv, const meeting_event_t &e, const MapScore 
     case COSLAM_E_MERGE_DISAGREE:
         out_.merges_refused_disagree++;
         break;
+    case COSLAM_E_MERGE_IMPLAUSIBLE:
+        out_.merges_refused_implausible++;
+        break;
     case COSLAM_E_MERGE_STALE:
         out_.merges_stale++;
         return; // no own sighting came: nothing was evaluated
