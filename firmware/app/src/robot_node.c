@@ -400,11 +400,21 @@ static void read_sightings(robot_node_t *n)
     const unsigned nr = n->frame.n_robots <= COSLAM_MAX_ROBOTS ? n->frame.n_robots : COSLAM_MAX_ROBOTS;
     for (unsigned i = 0; i < nr; ++i) {
         const robot_seen_t *r = &n->frame.robots[i];
+        /* an id no partner has (outside the team, or this robot's own) and
+         * a sighting the meeting refuses are lost: counted, never silent */
         if (r->robot_id >= n->cfg.n_robots || r->robot_id == n->cfg.robot_id) {
+            n->ctr.robot_sightings_refused++;
             continue;
         }
-        (void)meeting_on_sighting(&n->meeting, &n->filter, n->io.link, n->now_us, r->robot_id, r->range_m,
-                                  r->bearing_rad, n->frame.stamp_us, n->odo_pose, n->travel_m);
+        /* COSLAM_E_ARG is also a failed send's export or encoding, which the
+         * meeting counts in send_failures: refused only if that did not grow */
+        const uint32_t send_failures = n->meeting.ctr.send_failures;
+        const coslam_status_t ms = meeting_on_sighting(&n->meeting, &n->filter, n->io.link, n->now_us, r->robot_id,
+                                                       r->range_m, r->bearing_rad, n->frame.stamp_us, n->odo_pose,
+                                                       n->travel_m);
+        if (ms == COSLAM_E_ARG && n->meeting.ctr.send_failures == send_failures) {
+            n->ctr.robot_sightings_refused++;
+        }
     }
 }
 

@@ -81,6 +81,7 @@ void robot_status_collect(robot_status_t *s, robot_node_t *node, const robot_dev
     u64(s, "frames", c->frames);
     u64(s, "frame_errors", c->frame_errors);
     u64(s, "sightings_dropped", c->sightings_dropped);
+    u64(s, "robot_sightings_refused", c->robot_sightings_refused);
     u64(s, "filter_errors", c->filter_errors);
     u64(s, "odometry_errors", c->odometry_errors);
     u64(s, "drive_faults", c->drive_faults);

@@ -167,6 +167,11 @@ typedef struct {
     uint32_t gpio_attach_failures;/**< robot_node_init (gpio_optional) / robot_node_gpio_attach failures */
     uint32_t diverged;            /**< health monitor: times the filter was judged diverged (app/health.h) */
     uint32_t can_errors;          /**< CAN frames the controller lost: HAL rx_overflow + rx_malformed counts */
+    uint32_t robot_sightings_refused; /**< robot sightings not given to the meeting: an id outside the team
+                                           (not below n_robots) or this robot's own (a robot does not see
+                                           its own marker: a misread, or another robot wearing it), or one
+                                           the meeting refused (COSLAM_E_ARG: range not finite and positive,
+                                           bearing not finite) */
 } robot_node_counters_t;
 
 typedef struct {
