@@ -14,6 +14,7 @@
 // frame.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -258,6 +259,57 @@ TEST(RobotCamera, UnplugAndReplugAreReopenedBySlot)
     EXPECT_EQ(r.step(&f), HAL_OK);
     EXPECT_EQ(r.ctr().opens, 2u);
     EXPECT_EQ(r.ctr().frames, 2u);
+}
+
+// A frame the detector can take only in part (more colour runs than
+// VISION_MAX_RUNS): still a frame, counted in detect_partial (the source
+// counted it before, but the robot's camera counters and status had no
+// field for it), said as a LIMIT line once per growth, and kept across a
+// reopen like the other counters; so is foreign_robots (set by hand: the
+// marker table has fewer robot ids than this build's COSLAM_MAX_ROBOTS).
+TEST(RobotCamera, DetectorCapacityLossIsCountedAndSaid)
+{
+    Rig r;
+    sighting_frame_t f;
+    // red and blue in runs of two pixels (a YUYV chroma pair each), shifted
+    // by a pair every row: 160 runs a row, 38 400 > VISION_MAX_RUNS
+    std::vector<uint8_t> rgb(static_cast<size_t>(W) * H * 3);
+    const uint8_t *red = vision_colour_srgb[VISION_COLOUR_RED], *blue = vision_colour_srgb[VISION_COLOUR_BLUE];
+    for (int y = 0; y < H; ++y) {
+        for (int x = 0; x < W; ++x) {
+            std::memcpy(&rgb[(static_cast<size_t>(y) * W + x) * 3], ((x / 2 + y) & 1) ? red : blue, 3);
+        }
+    }
+    static_assert(W / 2 * H > VISION_MAX_RUNS, "the pattern must overflow the runs");
+    ASSERT_TRUE(r.push_yuyv(rgb_to_yuyv(rgb.data(), W, H)));
+    ASSERT_EQ(r.step(&f), HAL_OK);  // the part processed is still a frame
+    EXPECT_EQ(r.ctr().detect_partial, 1u);
+    EXPECT_EQ(r.ctr().frames, 1u);
+    char *text = nullptr;
+    size_t len = 0;
+    FILE *out = open_memstream(&text, &len);
+    uint64_t seen = 0;
+    EXPECT_EQ(robot_camera_say_limits(&r.dev.camera, &seen, 2u, out), 1);
+    EXPECT_EQ(robot_camera_say_limits(&r.dev.camera, &seen, 2u, out), 0);  // said once per growth
+    std::fclose(out);
+    const std::string said(text, len);
+    std::free(text);
+    EXPECT_NE(said.find("coslam-robot: LIMIT robot 2: 1 camera frames detected only in part"), std::string::npos)
+        << said;
+    EXPECT_NE(said.find("(cam_detect_partial; VISION_MAX_RUNS = "), std::string::npos) << said;
+    EXPECT_EQ(std::count(said.begin(), said.end(), '\n'), 1);
+    // kept across a reopen (folded at the close)
+    r.dev.camera.vs.ctr.foreign_robots = 3;
+    EXPECT_EQ(r.ctr().foreign_robots, 3u);
+    fake_v4l2_unplug();
+    r.advance(kFrameUs);
+    EXPECT_EQ(r.step(&f), HAL_E_CLOSED);
+    fake_v4l2_replug();
+    r.advance(5000000);
+    EXPECT_EQ(r.step(&f), HAL_E_TIMEOUT);
+    ASSERT_EQ(r.slot().state, ROBOT_DEV_UP) << r.log_so_far();
+    EXPECT_EQ(r.ctr().detect_partial, 1u);
+    EXPECT_EQ(r.ctr().foreign_robots, 3u);
 }
 
 // A reopen that meets another frame size (the webcam replugged into a

@@ -20,6 +20,23 @@ __attribute__((format(printf, 3, 4))) static void put_text(char *dst, size_t cap
     va_end(ap);
 }
 
+int robot_camera_say_limits(const robot_camera_t *c, uint64_t *seen, unsigned robot_id, FILE *out)
+{
+    const robot_camera_counters_t cc = robot_camera_counters(c);
+    if (cc.detect_partial <= *seen) {
+        return 0;
+    }
+    *seen = cc.detect_partial;
+    fprintf(out,
+            "coslam-robot: LIMIT robot %u: %llu camera frames detected only in part: the marker detector's "
+            "capacity was reached and markers in the rest of the frame were lost (cam_detect_partial; "
+            "VISION_MAX_RUNS = %d, VISION_MAX_BLOBS = %d, VISION_MAX_PAIR_CANDIDATES = %d in this build, "
+            "vision/vision_config.h; a cluttered or noisy view)\n",
+            robot_id, (unsigned long long)cc.detect_partial, (int)VISION_MAX_RUNS, (int)VISION_MAX_BLOBS,
+            (int)VISION_MAX_PAIR_CANDIDATES);
+    return 1;
+}
+
 static hal_status_t rc_next_frame(sighting_source_t *s, sighting_frame_t *out, uint32_t timeout_us);
 static const sighting_source_ops_t rc_ops = {rc_next_frame};
 
@@ -189,6 +206,8 @@ static void fold(robot_camera_counters_t *t, const vision_source_counters_t *s)
     t->frames += s->frames;
     t->landmarks += s->landmarks;
     t->robots += s->robots;
+    t->detect_partial += s->detect_partial;
+    t->foreign_robots += s->foreign_robots;
 }
 
 void robot_camera_close(robot_camera_t *c)

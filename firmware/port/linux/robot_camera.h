@@ -43,6 +43,7 @@
 
 #include <stddef.h>
 #include <stdint.h>
+#include <stdio.h>
 
 #include "app/sighting_source.h"
 #include "hal/hal_camera_v4l2.h"
@@ -65,6 +66,11 @@ typedef struct {
     uint64_t landmarks;      /**< landmark sightings handed out (all opens) */
     uint64_t robots;         /**< robot sightings handed out (all opens) */
     uint64_t errors;         /**< next_frame answers other than OK / TIMEOUT */
+    uint64_t detect_partial; /**< frames the detector processed only in part: its capacity (runs,
+                                  blobs or candidate pairs, vision_config.h) was reached, markers in
+                                  the rest were lost (VISION_E_CAPACITY; all opens) */
+    uint64_t foreign_robots; /**< robot markers with an id no robot of this build can have
+                                  (>= COSLAM_MAX_ROBOTS), not handed out (all opens) */
 } robot_camera_counters_t;
 
 typedef struct {
@@ -78,7 +84,8 @@ typedef struct {
     size_t cap;
     vision_source_t vs;               /**< camera + detector -> sighting frames */
     uint64_t last_frame_us;           /**< last frame, or the open [us] */
-    robot_camera_counters_t ctr;      /**< frames, landmarks, robots: of closed opens only */
+    robot_camera_counters_t ctr;      /**< frames, landmarks, robots, detect_partial, foreign_robots: of
+                                           closed opens only */
     /* an open's device part hands over in these (read by _open_finish) */
     hal_camera_t *opened;             /**< the device opened and streaming, not yet taken */
     int open_bad_format;              /**< that open was refused for its frame size */
@@ -118,6 +125,13 @@ void robot_camera_free(robot_camera_t *c);
 
 /** The counters, with the current open's source counters folded in. */
 robot_camera_counters_t robot_camera_counters(const robot_camera_t *c);
+
+/** The camera's LIMIT line: when detect_partial has grown beyond *seen,
+ *  one line on `out` ("coslam-robot: LIMIT robot R: N camera frames
+ *  detected only in part: ..., with the detector's capacities of this
+ *  build), *seen updated; returns 1 if a line was said, else 0. A loss of
+ *  markers is said like the filter's capacity losses (robot_main.c). */
+int robot_camera_say_limits(const robot_camera_t *c, uint64_t *seen, unsigned robot_id, FILE *out);
 
 #ifdef __cplusplus
 }

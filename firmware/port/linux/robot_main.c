@@ -539,6 +539,13 @@ static void log_limits(void)
                 "(sightings_dropped; COSLAM_MAX_SIGHTINGS = %d in this build, profile %s)\n",
                 (unsigned)cfg.robot_id, (unsigned long)seen_dropped, (int)COSLAM_MAX_SIGHTINGS, COSLAM_PROFILE_NAME);
     }
+#if COSLAM_HAVE_CAMERA
+    /* the marker detector ran out of room in a frame: markers lost */
+    static uint64_t seen_partial;
+    if (dev.camera_kind == ROBOT_SIGHTINGS_CAMERA) {
+        (void)robot_camera_say_limits(&dev.camera, &seen_partial, (unsigned)cfg.robot_id, stderr);
+    }
+#endif
     /* the health monitor judged the filter diverged (reported, not acted on:
      * docs/robot-app.md) */
     static uint32_t seen_diverged;

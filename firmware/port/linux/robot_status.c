@@ -243,6 +243,8 @@ void robot_status_collect(robot_status_t *s, robot_node_t *node, const robot_dev
         u64(s, "cam_landmarks", cc.landmarks);
         u64(s, "cam_robots", cc.robots);
         u64(s, "cam_errors", cc.errors);
+        u64(s, "cam_detect_partial", cc.detect_partial);
+        u64(s, "cam_foreign_robots", cc.foreign_robots);
         u64(s, "cam_opens", cc.opens);
         u64(s, "cam_open_failures", cc.open_failures);
         u64(s, "cam_bad_format", cc.bad_format);
