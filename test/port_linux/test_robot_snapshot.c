@@ -27,6 +27,7 @@
 
 #include "app/robot_node.h"
 #include "app/slam_filter.h"
+#include "coslam/cov3.h"
 #include "coslam/rng.h"
 #include "hal/hal_clock_linux.h"
 #include "hal/hal_storage_linux.h"
@@ -285,6 +286,68 @@ static void generations_fall_back_to_the_older(void **state)
     assert_int_equal(robot_snapshots_save(&gens, &snap_in, &name), COSLAM_E_UNSUPPORTED);
     assert_int_equal(gens.save_failures, 1);
 
+    hal_storage_close(&store.dev);
+    char cmd[128];
+    snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
+    assert_int_equal(system(cmd), 0);
+}
+
+/* The pose covariance seeds the EKF's P and every particle's pose marginal:
+ * one that is not symmetric, or not positive semi-definite (xy = 1 with
+ * xx = yy = 0.01: a negative variance along x - y), is refused like other
+ * corrupt content (it was taken when finite with a non-negative diagonal),
+ * and the older generation is loaded, the refusal said and counted. */
+static void pose_covariance_must_be_psd(void **state)
+{
+    (void)state;
+    size_t len = 0;
+    robot_snapshot_t s = snap_in;
+    s.map.pose_cov = cov3_diag(0.01, 0.01, 0.001);
+    s.map.pose_cov.m[0][1] = s.map.pose_cov.m[1][0] = 1.0;
+    assert_int_equal(robot_snapshot_encode(&s, buf, sizeof buf, &len), COSLAM_OK);
+    assert_int_equal(robot_snapshot_decode(buf, len, &snap_out), COSLAM_E_MSG_COVARIANCE);
+    /* asymmetric, though each triangle alone would be fine */
+    s.map.pose_cov = cov3_diag(0.04, 0.04, 0.01);
+    s.map.pose_cov.m[0][2] = 0.001;
+    assert_int_equal(robot_snapshot_encode(&s, buf, sizeof buf, &len), COSLAM_OK);
+    assert_int_equal(robot_snapshot_decode(buf, len, &snap_out), COSLAM_E_MSG_COVARIANCE);
+    /* indefinite only in the heading block */
+    s.map.pose_cov = cov3_diag(0.04, 0.04, 0.01);
+    s.map.pose_cov.m[1][2] = s.map.pose_cov.m[2][1] = 0.03;
+    assert_int_equal(robot_snapshot_encode(&s, buf, sizeof buf, &len), COSLAM_OK);
+    assert_int_equal(robot_snapshot_decode(buf, len, &snap_out), COSLAM_E_MSG_COVARIANCE);
+    /* taken: zero (a robot that has not moved), and singular PSD v v^T
+     * with the rounding of its products */
+    s.map.pose_cov = cov3_zero();
+    assert_int_equal(robot_snapshot_encode(&s, buf, sizeof buf, &len), COSLAM_OK);
+    assert_int_equal(robot_snapshot_decode(buf, len, &snap_out), COSLAM_OK);
+    const double v[3] = {0.1, -0.3, 0.07};
+    for (int r = 0; r < 3; ++r) {
+        for (int c = 0; c < 3; ++c) {
+            s.map.pose_cov.m[r][c] = v[r] * v[c];
+        }
+    }
+    assert_int_equal(robot_snapshot_encode(&s, buf, sizeof buf, &len), COSLAM_OK);
+    assert_int_equal(robot_snapshot_decode(buf, len, &snap_out), COSLAM_OK);
+
+    /* the newest generation with an indefinite one: the older is loaded */
+    snprintf(dir, sizeof dir, "/tmp/coslam-snap-XXXXXX");
+    assert_non_null(mkdtemp(dir));
+    assert_int_equal(hal_storage_linux_open(&store, dir), HAL_OK);
+    robot_snapshots_init(&gens, &store.dev);
+    const char *name = NULL;
+    s.map.pose_cov = cov3_diag(0.01, 0.01, 0.001);
+    assert_int_equal(robot_snapshots_save(&gens, &s, &name), COSLAM_OK); /* a, seq 1 */
+    s.map.pose_cov.m[0][1] = s.map.pose_cov.m[1][0] = 1.0;
+    assert_int_equal(robot_snapshots_save(&gens, &s, &name), COSLAM_OK); /* b, seq 2: encoded as given */
+    assert_string_equal(name, ROBOT_SNAPSHOT_NAME_B);
+    robot_snapshots_init(&gens, &store.dev);
+    assert_int_equal(load_logged(&snap_out, &name), COSLAM_OK);
+    assert_string_equal(name, ROBOT_SNAPSHOT_NAME_A);
+    assert_true(snap_out.seq == 1);
+    assert_true(snap_out.map.pose_cov.m[0][1] == 0.0);
+    assert_non_null(strstr(log_text, "snapshot.b corrupt (E_MSG_COVARIANCE): not used"));
+    assert_int_equal(gens.corrupt_found, 1);
     hal_storage_close(&store.dev);
     char cmd[128];
     snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
@@ -710,6 +773,7 @@ int main(int argc, char **argv)
         cmocka_unit_test(codec_round_trip_is_byte_exact),
         cmocka_unit_test(every_damage_is_caught),
         cmocka_unit_test(generations_fall_back_to_the_older),
+        cmocka_unit_test(pose_covariance_must_be_psd),
         cmocka_unit_test(an_unwritable_generation_is_passed_over),
         cmocka_unit_test(writer_does_not_hold_the_caller),
         cmocka_unit_test(seed_ekf),

@@ -92,7 +92,8 @@ coslam_status_t cov3_cholesky(cov3_t a, double l[3][3])
     return COSLAM_OK;
 }
 
-int cov3_is_pd(cov3_t a)
+/* finite and symmetric to 1e-9 relative */
+static int finite_symmetric(cov3_t a)
 {
     if (!cov3_is_finite(a)) {
         return 0;
@@ -104,6 +105,32 @@ int cov3_is_pd(cov3_t a)
                 return 0;
             }
         }
+    }
+    return 1;
+}
+
+int cov3_is_pd(cov3_t a)
+{
+    double l[3][3];
+    return finite_symmetric(a) && cov3_cholesky(a, l) == COSLAM_OK;
+}
+
+int cov3_is_psd(cov3_t a)
+{
+    if (!finite_symmetric(a)) {
+        return 0;
+    }
+    /* a + eps I is positive definite for every eigenvalue of a above -eps:
+     * the rounding of a PSD matrix (a filter's pose covariance that has
+     * not grown yet is exactly 0) passes, a real negative direction does
+     * not. eps scales with the trace, so the test has no units. */
+    const double tr = a.m[0][0] + a.m[1][1] + a.m[2][2];
+    if (!(tr >= 0.0)) {
+        return 0;
+    }
+    const double eps = 1e-9 * tr + 1e-300;
+    for (int i = 0; i < 3; ++i) {
+        a.m[i][i] += eps;
     }
     double l[3][3];
     return cov3_cholesky(a, l) == COSLAM_OK;

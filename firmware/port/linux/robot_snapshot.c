@@ -5,6 +5,7 @@
 #include <string.h>
 
 #include "coslam/cov2.h"
+#include "coslam/cov3.h"
 #include "coslam/crc32.h"
 
 static const char *const slot_names[2] = {ROBOT_SNAPSHOT_NAME_A, ROBOT_SNAPSHOT_NAME_B};
@@ -189,10 +190,10 @@ coslam_status_t robot_snapshot_decode(const uint8_t *buf, size_t len, robot_snap
     if (!finite) {
         return COSLAM_E_MSG_NONFINITE;
     }
-    for (int r = 0; r < 3; ++r) {
-        if (tmp.map.pose_cov.m[r][r] < 0.0) {
-            return COSLAM_E_MSG_COVARIANCE;
-        }
+    /* the covariance seeds the EKF's P and every particle's pose marginal:
+     * an asymmetric or indefinite one would be taken as it is */
+    if (!cov3_is_psd(tmp.map.pose_cov)) {
+        return COSLAM_E_MSG_COVARIANCE;
     }
     tmp.map.n_landmarks = n;
     for (uint16_t i = 0; i < n; ++i) {

@@ -37,7 +37,8 @@
  * counters without a new version). Decoding checks, in order: length,
  * magic, version, header length, header CRC, payload length against the
  * buffer, payload CRC, n against this build's capacity and against P, then
- * the fields (every f64 finite, landmark covariances positive definite,
+ * the fields (every f64 finite, the pose covariance symmetric and positive
+ * semi-definite (cov3_is_psd), landmark covariances positive definite,
  * landmark id non-zero). The storage backend (hal/linux) adds its own
  * header and CRC and replaces the file atomically (temporary file, fsync,
  * rename, fsync of the directory); this format makes a snapshot checkable

@@ -28,6 +28,11 @@ double cov3_det(cov3_t a);
 int cov3_is_finite(cov3_t a);
 /** 1 if finite, symmetric to 1e-9 relative, and positive definite (Cholesky succeeds). */
 int cov3_is_pd(cov3_t a);
+/** 1 if finite, symmetric to 1e-9 relative, and positive semi-definite to
+ *  rounding: a + 1e-9 trace(a) I is positive definite (Cholesky succeeds),
+ *  so a zero matrix passes and an indefinite one (xx = yy = 0.01, xy = 1)
+ *  does not. */
+int cov3_is_psd(cov3_t a);
 
 /** Cholesky a = L L^T, L lower triangular (upper part zeroed). E_NOT_PD otherwise. */
 coslam_status_t cov3_cholesky(cov3_t a, double l[3][3]);
