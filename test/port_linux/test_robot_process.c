@@ -407,6 +407,9 @@ static void degraded(void **state)
     assert_non_null(strstr(log, "coslam-robot: laser (URG on "));
     assert_non_null(strstr(log, "no-laser at 115200 baud): down: "));
     assert_non_null(strstr(log, "coslam-robot: can (CiA 402 drives on SocketCAN nosuchcan0): down: "));
+    /* the missing bus is not a wheel's fault */
+    assert_non_null(strstr(log, "drive fault 1: no CAN bus (can down, see its line)"));
+    assert_null(strstr(log, "(CANopen node"));
     assert_non_null(strstr(log, "coslam-robot: gpio (bumper / e-stop / LED on "));
 #if COSLAM_HAVE_CAMERA
     assert_non_null(strstr(log, "coslam-robot: camera (V4L2 /dev/no-such-video9, 320x240, markers): down: V4L2 open: "
@@ -1396,6 +1399,42 @@ static void status_file_failures_counted(void **state)
     remove_dir(dir);
 }
 
+/* No CAN configured ([can] interface empty): the drives' bring-up fails
+ * on the missing bus, which the node counts once as a drive fault; it was
+ * printed as "drive fault 1: wheel 0 (CANopen node 1): BUS, EMCY code
+ * 0x0000 ...", a drive's fault on a robot that has no drives. Now the
+ * start-up says once that no CAN is configured, and no drive fault line
+ * comes, however many retry periods pass. */
+static void no_can_said_once(void **state)
+{
+    (void)state;
+    char dir[64];
+    make_dir(dir, sizeof dir);
+    char store[300];
+    snprintf(store, sizeof store, "%s/store", dir);
+    char body[4096];
+    snprintf(body, sizeof body, base_config, "0.2", "0", dir, "no-laser", dir, "", store, "fastslam2");
+    char *can = strstr(body, "interface = nosuchcan0\n");
+    assert_non_null(can);
+    memmove(can + strlen("interface ="), can + strlen("interface = nosuchcan0"),
+            strlen(can + strlen("interface = nosuchcan0")) + 1U);
+    write_config(dir, body);
+    char err[300];
+    snprintf(err, sizeof err, "%s/err", dir);
+    const pid_t pid = spawn_robot(dir, err, NULL, NULL);
+    assert_true(wait_value(err, "node_steps", 150, 10000) >= 150); /* several retry periods (0.3 s) */
+    const char *log = stop_robot(pid, err);
+    assert_int_equal(count_of(log, "coslam-robot: can: not configured\n"), 1);
+    assert_int_equal(count_of(log, "no CAN configured ([can] interface is empty): no drives: no motion, no "
+                                   "odometry (drive_faults counts the missing bus once)"),
+                     1);
+    assert_int_equal(count_of(log, "drive fault"), 0);
+    assert_null(strstr(log, "EMCY"));
+    assert_non_null(strstr(log, " can=absent "));
+    assert_int_equal(last_value(log, "drive_faults"), 1); /* the node's count, explained at start-up */
+    remove_dir(dir);
+}
+
 int main(int argc, char **argv)
 {
     if (argc > 1) {
@@ -1419,6 +1458,7 @@ int main(int argc, char **argv)
         cmocka_unit_test(slow_storage),
         cmocka_unit_test(status_file_failures_counted),
         cmocka_unit_test(storage_read_only_steady),
+        cmocka_unit_test(no_can_said_once),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

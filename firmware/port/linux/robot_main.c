@@ -575,7 +575,18 @@ static void log_limits(void)
         const int at_once = node.ctr.stall_resets > seen_stall_resets; /* right after a stall */
         seen_stall_resets = node.ctr.stall_resets;
         cia402_omni_fault_t df;
-        if (cia402_omni_get_fault(&node.drive, &df) == COSLAM_OK) {
+        const robot_dev_state_t can = dev.dev[ROBOT_DEV_CAN].state;
+        const int got = cia402_omni_get_fault(&node.drive, &df) == COSLAM_OK;
+        if (got && df.info.reason == CIA402_FAULT_BUS && can != ROBOT_DEV_UP) {
+            /* no bus, not a drive's fault: no wheel or EMCY to name. Absent
+             * (no [can] interface): said once at start-up; down: said here */
+            if (can == ROBOT_DEV_DOWN) {
+                fprintf(stderr,
+                        "coslam-robot: robot %u: drive fault %lu: no CAN bus (can down, see its line): the drives "
+                        "cannot be reached; no motion, no odometry until it is back (drive_faults)\n",
+                        (unsigned)cfg.robot_id, (unsigned long)seen_drive_faults);
+            }
+        } else if (got) {
             const char *hint = "";
             if (df.info.reason == CIA402_FAULT_EMCY && df.info.emcy_code == CANOPEN_EMCY_HEARTBEAT) {
                 hint = " (the drive's watchdog fired: it missed this process's heartbeat for "
@@ -778,7 +789,12 @@ int main(int argc, char **argv)
                         "(at most %.2f rad/s), no translation\n",
                 cfg.node.blind_max_turn_radps);
     }
-    if (dev.dev[ROBOT_DEV_CAN].state != ROBOT_DEV_UP) {
+    if (dev.dev[ROBOT_DEV_CAN].state == ROBOT_DEV_ABSENT) {
+        /* the bring-up then fails on the missing bus once, counted in
+         * drive_faults and not said as a drive's fault (log_limits) */
+        fprintf(stderr, "coslam-robot: can: no CAN configured ([can] interface is empty): no drives: no motion, no "
+                        "odometry (drive_faults counts the missing bus once)\n");
+    } else if (dev.dev[ROBOT_DEV_CAN].state != ROBOT_DEV_UP) {
         fprintf(stderr, "coslam-robot: can: no drives: no motion, no odometry\n");
     }
     if (cfg.can_interface[0] != '\0' || opt.can_fd >= 0) {
