@@ -1133,6 +1133,12 @@ static void final_snapshot_reopens_storage(void **state)
         fprintf(stderr, "%s\n", log);
     }
     assert_non_null(strstr(log, "storage back for the final snapshot"));
+    /* the failed write said with the storage's status and the OS's reason
+     * (it was "(E_UNSUPPORTED, storage HAL_E_IO)" for any failure) */
+    assert_non_null(strstr(log, "periodic snapshot not written to snapshot."));
+    assert_non_null(strstr(log, ": Is a directory (HAL_E_IO)\n"));
+    assert_non_null(strstr(log, "down: the snapshot write failed: Is a directory (HAL_E_IO)"));
+    assert_null(strstr(log, "(E_UNSUPPORTED, storage"));
     assert_non_null(strstr(log, "(final)"));
     assert_null(strstr(log, "(no final snapshot)"));
     const disk_t d = scan_disk(dir);

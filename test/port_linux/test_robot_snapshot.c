@@ -371,6 +371,10 @@ static void an_unwritable_generation_is_passed_over(void **state)
     robot_snapshots_init(&gens, &store.dev);
     const char *name = NULL;
     assert_int_equal(robot_snapshots_save(&gens, &snap_in, &name), COSLAM_E_UNSUPPORTED); /* a: fails */
+    /* the storage keeps the OS's reason (the robot says it): the rename
+     * over a directory */
+    assert_int_equal(gens.last_write, HAL_E_IO);
+    assert_int_equal(store.last_errno, EISDIR);
     int saved = 0;
     int tried_a = 0;
     for (int k = 0; k < 20; ++k) {
@@ -396,6 +400,7 @@ static void an_unwritable_generation_is_passed_over(void **state)
     assert_int_equal(robot_snapshots_save(&gens, &snap_in, &name), COSLAM_OK);
     assert_string_equal(name, ROBOT_SNAPSHOT_NAME_A);
     assert_int_equal(gens.failed_slot, -1);
+    assert_int_equal(store.last_errno, 0);
     assert_int_equal(robot_snapshots_save(&gens, &snap_in, &name), COSLAM_OK);
     assert_string_equal(name, ROBOT_SNAPSHOT_NAME_B);
     hal_storage_close(&store.dev);

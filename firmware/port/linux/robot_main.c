@@ -238,11 +238,16 @@ static int commit_snapshot(int verbose, const char *why, const robot_snapshot_jo
     }
     const coslam_status_t cs = robot_snapshots_commit(&snaps, job, ws);
     if (cs != COSLAM_OK) {
-        fprintf(stderr, "coslam-robot: snapshot: %s snapshot not written (%s, storage %s)\n", why,
-                coslam_status_str(cs), hal_status_str(ws));
+        /* the storage's own status and the OS's reason (the commit's
+         * COSLAM_E_UNSUPPORTED stood for any failed write) */
+        char os[128];
+        const int e = dev.storage_state.last_errno;
+        (void)snprintf(os, sizeof os, "%s%s%s%s", e != 0 ? strerror(e) : "", e != 0 ? " (" : "",
+                       hal_status_str(ws), e != 0 ? ")" : "");
+        fprintf(stderr, "coslam-robot: snapshot: %s snapshot not written to %s: %s\n", why, job->name, os);
         if (ws == HAL_E_IO || ws == HAL_E_CLOSED) {
-            char reason[64];
-            (void)snprintf(reason, sizeof reason, "the snapshot write failed (%s)", hal_status_str(ws));
+            char reason[160];
+            (void)snprintf(reason, sizeof reason, "the snapshot write failed: %s", os);
             robot_devices_fail(&dev, ROBOT_DEV_STORAGE, ws, reason, now_us);
         }
         return -1;

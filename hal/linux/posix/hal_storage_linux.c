@@ -46,13 +46,20 @@ static hal_status_t errno_status(int e)
     }
 }
 
-static hal_status_t write_all(int fd, const uint8_t *p, size_t n)
+/* A failed call of a write: its errno kept for the caller (last_errno). */
+static hal_status_t write_failed(hal_storage_linux_t *st, int e)
+{
+    st->last_errno = e;
+    return errno_status(e);
+}
+
+static hal_status_t write_all(hal_storage_linux_t *st, int fd, const uint8_t *p, size_t n)
 {
     while (n > 0) {
         const ssize_t w = write(fd, p, n);
         if (w < 0) {
             if (errno == EINTR) continue;
-            return errno_status(errno);
+            return write_failed(st, errno);
         }
         p += (size_t)w;
         n -= (size_t)w;
@@ -84,6 +91,7 @@ static hal_storage_linux_t *self_of(hal_storage_t *dev)
 static hal_status_t linux_write(hal_storage_t *dev, const char *name, const uint8_t *data, size_t len)
 {
     hal_storage_linux_t *st = self_of(dev);
+    st->last_errno = 0;
     if (st->dir_fd < 0) return HAL_E_CLOSED;
     if (st->reader) return HAL_E_UNSUPPORTED;
     if (len > st->max_blob_bytes || len > UINT32_MAX) return HAL_E_OVERFLOW;
@@ -97,18 +105,21 @@ static hal_status_t linux_write(hal_storage_t *dev, const char *name, const uint
     put_u32(hdr + 12, crc32_ieee(0, hdr, 12));
 
     const int fd = openat(st->dir_fd, tmp, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-    if (fd < 0) return errno_status(errno);
-    hal_status_t s = write_all(fd, hdr, sizeof hdr);
-    if (s == HAL_OK && len > 0) s = write_all(fd, data, len);
-    if (s == HAL_OK && fsync(fd) != 0) s = errno_status(errno);
-    if (close(fd) != 0 && s == HAL_OK) s = errno_status(errno);
-    if (s == HAL_OK && renameat(st->dir_fd, tmp, st->dir_fd, name) != 0) s = errno_status(errno);
+    if (fd < 0) return write_failed(st, errno);
+    hal_status_t s = write_all(st, fd, hdr, sizeof hdr);
+    if (s == HAL_OK && len > 0) s = write_all(st, fd, data, len);
+    if (s == HAL_OK && fsync(fd) != 0) s = write_failed(st, errno);
+    if (close(fd) != 0 && s == HAL_OK) s = write_failed(st, errno);
+    if (s == HAL_OK && renameat(st->dir_fd, tmp, st->dir_fd, name) != 0) s = write_failed(st, errno);
     if (s != HAL_OK) {
         (void)unlinkat(st->dir_fd, tmp, 0);
         return s == HAL_E_NOT_FOUND ? HAL_E_IO : s;
     }
     /* make the rename itself durable */
-    if (fsync(st->dir_fd) != 0) return HAL_E_IO;
+    if (fsync(st->dir_fd) != 0) {
+        st->last_errno = errno;
+        return HAL_E_IO;
+    }
     return HAL_OK;
 }
 
@@ -195,6 +206,7 @@ static hal_status_t open_dir(hal_storage_linux_t *st, const char *dir, int lock)
     st->dir_fd = -1;
     st->reader = !lock;
     st->max_blob_bytes = HAL_STORAGE_LINUX_MAX_BLOB;
+    st->last_errno = 0;
     if (lock && mkdir(dir, 0755) != 0 && errno != EEXIST) return errno == ENOENT ? HAL_E_NOT_FOUND : HAL_E_IO;
     const int fd = open(dir, O_RDONLY | O_DIRECTORY | O_CLOEXEC);
     if (fd < 0) return errno == ENOENT ? HAL_E_NOT_FOUND : HAL_E_IO;

@@ -14,7 +14,8 @@
  * stale temporary that the next write of that name overwrites.
  *
  * Errors: ENOSPC/EDQUOT/EFBIG -> HAL_E_OVERFLOW; a payload over
- * max_blob_bytes -> HAL_E_OVERFLOW; other OS errors -> HAL_E_IO.
+ * max_blob_bytes -> HAL_E_OVERFLOW; other OS errors -> HAL_E_IO. A write
+ * keeps the errno of its failed call in last_errno (the OS's reason).
  *
  * After hal_storage_close every operation returns HAL_E_CLOSED.
  *
@@ -41,6 +42,9 @@ typedef struct {
     int dir_fd;               /**< open directory, -1 when closed */
     size_t max_blob_bytes;    /**< writes above this are HAL_E_OVERFLOW */
     int reader;               /**< opened by hal_storage_linux_open_reader: reads only */
+    int last_errno;           /**< the OS's errno of the last write's failed call (0: the last
+                                   write succeeded, or failed without one: closed, a reader,
+                                   over max_blob_bytes), so a caller can say why (strerror) */
 } hal_storage_linux_t;
 
 /** Open (creating it, one level, mode 0755, if missing) the directory
