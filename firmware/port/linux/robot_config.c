@@ -591,7 +591,7 @@ void robot_config_default(robot_config_t *c)
 /* libinih keeps at most 49 characters of a section name (its MAX_SECTION) */
 #define SECTION_NAME_MAX 49u
 /* section headers a file may have (12 sections are known; an unknown one
- * with a key in it is refused at the key) */
+ * is refused at its header) */
 #define SECTIONS_MAX 32
 
 typedef struct {
@@ -876,6 +876,26 @@ static void note_section(load_t *st, const char *line)
             fail(st, "", NULL, msg);
             return;
         }
+    }
+    /* an unknown section is refused at its header, with or without keys:
+     * an empty [bogus] (a misspelt section whose keys were moved, a
+     * header pasted from another tool's file) was taken without a word */
+    int known = len == strlen("slam") && memcmp(p + 1, "slam", len) == 0;
+    char list[160] = "slam";
+    for (size_t i = 0; i < N_KEYS; ++i) {
+        known = known || (strlen(keys[i].section) == len && memcmp(keys[i].section, p + 1, len) == 0);
+        if (i == 0 || strcmp(keys[i].section, keys[i - 1U].section) != 0) { /* the table is grouped */
+            const size_t n = strlen(list);
+            put_text(list + n, sizeof list - n, ", %s", keys[i].section);
+        }
+    }
+    if (!known) {
+        char name[SECTION_NAME_MAX + 1u];
+        memcpy(name, p + 1, len);
+        name[len] = '\0';
+        put_text(msg, sizeof msg, "unknown section [%s] (the sections: %s)", name, list);
+        fail(st, "", NULL, msg);
+        return;
     }
     if (st->n_sections == SECTIONS_MAX) {
         put_text(msg, sizeof msg, "LIMIT: more than %d section headers (robot_config.c SECTIONS_MAX)", SECTIONS_MAX);

@@ -12,7 +12,8 @@
  * there is one settings source for the noise. [filter] and [merge] use
  * coslam-replay's key names where the two tools share a setting.
  *
- * Errors: an unknown section or key, a section header repeated (refused
+ * Errors: an unknown section (refused at its header, keys in it or not) or
+ * key, a section header repeated (refused
  * at the second, naming the first's line), a key given twice (libinih also reads
  * an indented line as a continuation of the key above: that is a second
  * value, refused), a line longer than 198 characters, a value with a byte
