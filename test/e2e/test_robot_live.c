@@ -10,6 +10,7 @@
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <stdio.h>
 #include <string.h>
 #include <sys/socket.h>
 #include <unistd.h>
@@ -40,8 +41,9 @@ static void test_live(void **state)
     assert_int_equal(socketpair(AF_UNIX, SOCK_SEQPACKET, 0, sv), 0);
     static robot_replay_t r;
     char msg[256];
-    assert_int_equal(robot_live_open(&r, -1, &clock, msg, sizeof msg), HAL_E_ARG);
-    assert_int_equal(robot_live_open(&r, sv[1], &clock, msg, sizeof msg), HAL_OK);
+    /* robot 0 of a fleet of 3 */
+    assert_int_equal(robot_live_open(&r, -1, 0, 3, &clock, msg, sizeof msg), HAL_E_ARG);
+    assert_int_equal(robot_live_open(&r, sv[1], 0, 3, &clock, msg, sizeof msg), HAL_OK);
     sighting_frame_t f;
     assert_int_equal(sighting_source_next_frame(&r.src, &f, 0), HAL_E_TIMEOUT);
 
@@ -73,6 +75,31 @@ static void test_live(void **state)
     assert_int_equal(f.n_landmarks, 0);
     assert_int_equal(f.sequence, seq1 + 2u);
     assert_int_equal(r.frames_skipped, 1u);
+
+    /* robot sightings of this robot itself or outside the fleet are refused
+     * as the landmark log refuses them at open (they were handed to the
+     * node): the record, not the frame; counted, the first said once */
+    assert_int_equal(robot_live_say_refusals(&r, stderr), 0);
+    send_text(sv[0], "T 300\nS 1.5 2 1.0 0.0\nR 1.5 0 2.0 0.1\nR 1.5 3 2.0 0.1\nR 1.5 2 2.5 -0.1\n");
+    assert_int_equal(sighting_source_next_frame(&r.src, &f, 0), HAL_OK);
+    assert_int_equal(f.n_landmarks, 1);
+    assert_int_equal(f.n_robots, 1);
+    assert_int_equal(f.robots[0].robot_id, 2);
+    assert_int_equal(r.live_robots_refused, 2u);
+    assert_int_equal(r.live_bad, 3u); /* not a bad datagram */
+    char said[512] = "";
+    FILE *out = fmemopen(said, sizeof said, "w");
+    assert_non_null(out);
+    assert_int_equal(robot_live_say_refusals(&r, out), 1);
+    send_text(sv[0], "T 350\nR 1.6 7 2.0 0.1\n");
+    assert_int_equal(sighting_source_next_frame(&r.src, &f, 0), HAL_OK);
+    assert_int_equal(f.n_robots, 0);
+    assert_int_equal(r.live_robots_refused, 3u);
+    assert_int_equal(robot_live_say_refusals(&r, out), 0); /* once */
+    fclose(out);
+    assert_non_null(strstr(said, "coslam-robot: sightings fd "));
+    assert_non_null(strstr(said, "robot sightings refused: other_robot_id 0 is this robot's own id ([robot] id = 0)"));
+    assert_null(strchr(strchr(said, '\n') + 1, '\n')); /* one line */
 
     /* the server goes away */
     close(sv[0]);

@@ -544,6 +544,8 @@ static void log_limits(void)
                 "(sightings_dropped; COSLAM_MAX_SIGHTINGS = %d in this build, profile %s)\n",
                 (unsigned)cfg.robot_id, (unsigned long)seen_dropped, (int)COSLAM_MAX_SIGHTINGS, COSLAM_PROFILE_NAME);
     }
+    /* the e2e live stream's robot sightings outside the fleet: said once */
+    (void)robot_live_say_refusals(&dev.replay, stderr);
 #if COSLAM_HAVE_CAMERA
     /* the marker detector ran out of room in a frame: markers lost */
     static uint64_t seen_partial;

@@ -168,6 +168,41 @@ static void complete_frame(robot_replay_t *r)
     r->building_n = 0;
 }
 
+/* A parsed record against the fleet: LINE_RECORD, or LINE_BAD with why. A
+ * robot sighting of this robot itself, or of an id outside the fleet,
+ * would go to the meeting as a partner no link can reach (and a robot
+ * never sees its own marker): a bad line, like an id no robot of the
+ * build can have (the log refuses it at open, the live stream the record). */
+static line_kind_t check_robot_id(const robot_replay_record_t *rec, uint8_t own_id, uint8_t fleet_size, char *why,
+                                  size_t cap)
+{
+    if (rec->tag != 'R') {
+        return LINE_RECORD;
+    }
+    if (rec->id == (int32_t)own_id) {
+        (void)snprintf(why, cap, "other_robot_id %ld is this robot's own id ([robot] id = %u): a robot does not "
+                       "see itself", (long)rec->id, (unsigned)own_id);
+        return LINE_BAD;
+    }
+    if (rec->id >= (int32_t)fleet_size) {
+        (void)snprintf(why, cap, "other_robot_id %ld is not in the fleet ([robot] fleet_size = %u: ids 0 .. %u)",
+                       (long)rec->id, (unsigned)fleet_size, (unsigned)fleet_size - 1U);
+        return LINE_BAD;
+    }
+    return LINE_RECORD;
+}
+
+/* ... and against the log so far: t must not decrease. */
+static line_kind_t check_record(const robot_replay_record_t *rec, uint64_t last_t_us, uint8_t own_id,
+                                uint8_t fleet_size, char *why, size_t cap)
+{
+    if (rec->t_us < last_t_us) {
+        (void)snprintf(why, cap, "time goes backwards");
+        return LINE_BAD;
+    }
+    return check_robot_id(rec, own_id, fleet_size, why, cap);
+}
+
 /* One datagram of the live stream into r->building; 1 if it is a frame. */
 static int live_parse(robot_replay_t *r, char *text)
 {
@@ -213,6 +248,15 @@ static int live_parse(robot_replay_t *r, char *text)
         const line_kind_t k = parse_line(line, &rec, why, sizeof why);
         if (k == LINE_BAD) {
             return 0;
+        }
+        if (k == LINE_RECORD && rec.tag == 'R' &&
+            check_robot_id(&rec, r->own_id, r->fleet_size, why, sizeof why) != LINE_RECORD) {
+            /* as the log refuses it at open: the record, not the frame
+             * (its other sightings are good); counted, the first said */
+            if (r->live_robots_refused++ == 0U) {
+                (void)snprintf(r->live_refused_why, sizeof r->live_refused_why, "%s", why);
+            }
+            continue;
         }
         if (k == LINE_RECORD && (rec.tag == 'Z' || rec.tag == 'R')) {
             add_record(r, &rec);
@@ -314,34 +358,6 @@ static hal_status_t replay_next_frame(sighting_source_t *src, sighting_frame_t *
 
 static const sighting_source_ops_t replay_ops = {replay_next_frame};
 
-/* A parsed record against the log so far and the fleet: LINE_RECORD, or
- * LINE_BAD with why. A robot sighting of this robot itself, or of an id
- * outside the fleet, would go to the meeting as a partner no link can
- * reach (and a robot never sees its own marker): a bad line, like an id
- * no robot of the build can have. */
-static line_kind_t check_record(const robot_replay_record_t *rec, uint64_t last_t_us, uint8_t own_id,
-                                uint8_t fleet_size, char *why, size_t cap)
-{
-    if (rec->t_us < last_t_us) {
-        (void)snprintf(why, cap, "time goes backwards");
-        return LINE_BAD;
-    }
-    if (rec->tag != 'R') {
-        return LINE_RECORD;
-    }
-    if (rec->id == (int32_t)own_id) {
-        (void)snprintf(why, cap, "other_robot_id %ld is this robot's own id ([robot] id = %u): a robot does not "
-                       "see itself", (long)rec->id, (unsigned)own_id);
-        return LINE_BAD;
-    }
-    if (rec->id >= (int32_t)fleet_size) {
-        (void)snprintf(why, cap, "other_robot_id %ld is not in the fleet ([robot] fleet_size = %u: ids 0 .. %u)",
-                       (long)rec->id, (unsigned)fleet_size, (unsigned)fleet_size - 1U);
-        return LINE_BAD;
-    }
-    return LINE_RECORD;
-}
-
 hal_status_t robot_replay_open(robot_replay_t *r, const char *path, int loop, uint8_t own_id, uint8_t fleet_size,
                                hal_clock_t *clock, char *msg, size_t msg_cap)
 {
@@ -406,7 +422,8 @@ hal_status_t robot_replay_open(robot_replay_t *r, const char *path, int loop, ui
     return HAL_OK;
 }
 
-hal_status_t robot_live_open(robot_replay_t *r, int fd, hal_clock_t *clock, char *msg, size_t msg_cap)
+hal_status_t robot_live_open(robot_replay_t *r, int fd, uint8_t own_id, uint8_t fleet_size, hal_clock_t *clock,
+                             char *msg, size_t msg_cap)
 {
     if (msg != NULL && msg_cap > 0U) {
         msg[0] = '\0';
@@ -419,6 +436,8 @@ hal_status_t robot_live_open(robot_replay_t *r, int fd, hal_clock_t *clock, char
     r->src.backend = r;
     r->clock = clock;
     r->live = 1;
+    r->own_id = own_id;
+    r->fleet_size = fleet_size;
     (void)snprintf(r->path, sizeof r->path, "fd %d", fd);
     r->live_fd = dup(fd);
     if (r->live_fd < 0) {
@@ -449,7 +468,7 @@ robot_sightings_kind_t robot_open_sightings(robot_replay_t *r, const robot_confi
         msg[0] = '\0';
     }
     if (cfg->camera_live_fd >= 0) {
-        *st = robot_live_open(r, cfg->camera_live_fd, clock, msg, msg_cap);
+        *st = robot_live_open(r, cfg->camera_live_fd, cfg->robot_id, cfg->fleet_size, clock, msg, msg_cap);
         return ROBOT_SIGHTINGS_LIVE;
     }
     if (cfg->camera_replay_log[0] != '\0') {
@@ -461,4 +480,17 @@ robot_sightings_kind_t robot_open_sightings(robot_replay_t *r, const robot_confi
         return ROBOT_SIGHTINGS_NONE;
     }
     return COSLAM_HAVE_CAMERA ? ROBOT_SIGHTINGS_CAMERA : ROBOT_SIGHTINGS_NO_CAMERA;
+}
+
+int robot_live_say_refusals(robot_replay_t *r, FILE *out)
+{
+    if (r == NULL || !r->live || r->live_robots_refused == 0U || r->live_refusals_said) {
+        return 0;
+    }
+    r->live_refusals_said = 1;
+    fprintf(out,
+            "coslam-robot: sightings %s: robot sightings refused: %s (the first; live_robots_refused counts them, "
+            "the others are not said)\n",
+            r->path, r->live_refused_why);
+    return 1;
 }

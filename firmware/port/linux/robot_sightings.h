@@ -85,6 +85,11 @@ typedef struct {
     int live;                     /**< 1: this is the live source, f is unused */
     int live_fd;                  /**< our dup of the inherited socket */
     uint32_t live_bad;            /**< datagrams refused (bad text, no T line) */
+    uint8_t own_id;               /**< live: [robot] id (an R record of it is refused) */
+    uint8_t fleet_size;           /**< live: [robot] fleet_size (an R record of an id not below it is refused) */
+    uint32_t live_robots_refused; /**< R records refused: this robot's own id, or not in the fleet */
+    char live_refused_why[160];   /**< the first refusal's reason */
+    int live_refusals_said;       /**< robot_live_say_refusals has said it */
 } robot_replay_t;
 
 /**
@@ -108,12 +113,23 @@ hal_status_t robot_replay_open(robot_replay_t *r, const char *path, int loop, ui
  *   Z t id range bearing             the landmark-log records above (t is
  *   R t other_robot_id range bearing the sender's simulated time, ignored)
  * A datagram without its T line or with a bad line is refused and counted
- * (live_bad). next_frame never waits: it drains what is queued and hands
- * out the newest frame (older ones count in frames_skipped). The peer's
- * close answers HAL_E_CLOSED. Returns HAL_OK; HAL_E_ARG (NULL, fd < 0);
- * HAL_E_IO (dup failed: msg says why).
+ * (live_bad). An R record of own_id, or of an id not below fleet_size
+ * ([robot] id, fleet_size), is refused as the landmark log refuses it at
+ * open: the record only (the frame's other sightings are kept), counted
+ * in live_robots_refused, the first reason kept for
+ * robot_live_say_refusals. next_frame never waits: it drains what is
+ * queued and hands out the newest frame (older ones count in
+ * frames_skipped). The peer's close answers HAL_E_CLOSED. Returns HAL_OK;
+ * HAL_E_ARG (NULL, fd < 0); HAL_E_IO (dup failed: msg says why).
  */
-hal_status_t robot_live_open(robot_replay_t *r, int fd, hal_clock_t *clock, char *msg, size_t msg_cap);
+hal_status_t robot_live_open(robot_replay_t *r, int fd, uint8_t own_id, uint8_t fleet_size, hal_clock_t *clock,
+                             char *msg, size_t msg_cap);
+
+/** The live stream's refused robot sightings, said once on `out` (the
+ *  first one's reason; the rest are only counted): 1 if said now, else 0
+ *  (none refused, said already, or not the live source). A reopen of the
+ *  stream (robot_live_open) starts its counters and this again. */
+int robot_live_say_refusals(robot_replay_t *r, FILE *out);
 
 /** Close the file (the handle then answers HAL_E_CLOSED). */
 void robot_replay_close(robot_replay_t *r);

@@ -236,6 +236,11 @@ void robot_status_collect(robot_status_t *s, robot_node_t *node, const robot_dev
     u64(s, "snap_write_max_ms", (snaps->write_max_us + 999U) / 1000U);
     u64(s, "snap_busy_skips", snaps->busy_skips);
     u64(s, "status_file_failures", loop->status_file_failures);
+    if (dev->camera_kind == ROBOT_SIGHTINGS_LIVE) {
+        /* the e2e live stream (--sightings-fd): its refusals */
+        u64(s, "live_bad", dev->replay.live_bad);
+        u64(s, "live_robots_refused", dev->replay.live_robots_refused);
+    }
 #if COSLAM_HAVE_CAMERA
     /* the camera (robot_camera.h): only when one is configured */
     if (dev->camera_kind == ROBOT_SIGHTINGS_CAMERA) {
