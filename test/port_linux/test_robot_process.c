@@ -317,6 +317,23 @@ static void replay_robot_dir(char dir[64], const char *status_s, const char *sna
     snprintf(err, 300, "%s/err", dir);
 }
 
+/* A fresh directory and its configuration (status every 0.2 s, no
+ * camera, the store at dir/store) with the text `from` replaced by `to`. */
+static void edited_config(char dir[64], const char *snap_s, const char *laser, const char *filter, const char *from,
+                          const char *to)
+{
+    make_dir(dir, 64);
+    char store[300];
+    snprintf(store, sizeof store, "%s/store", dir);
+    char body[4096];
+    snprintf(body, sizeof body, base_config, "0.2", snap_s, dir, laser, dir, "", store, filter);
+    char *at = strstr(body, from);
+    assert_non_null(at);
+    char edited[4096];
+    snprintf(edited, sizeof edited, "%.*s%s%s", (int)(at - body), body, to, at + strlen(from));
+    write_config(dir, edited);
+}
+
 /* The URG emulator on a pty at dir/urg (urg_pty_bridge). */
 static pid_t spawn_bridge(const char *dir)
 {
@@ -859,15 +876,7 @@ static void laser_silent(void **state)
 {
     (void)state;
     char dir[64];
-    make_dir(dir, sizeof dir);
-    char store[300];
-    snprintf(store, sizeof store, "%s/store", dir);
-    char body[4096];
-    snprintf(body, sizeof body, base_config, "0.2", "30", dir, "urg", dir, "", store, "ekf");
-    char *rt = strstr(body, "reply_timeout_s = 0.1");
-    assert_non_null(rt);
-    memcpy(rt + strlen("reply_timeout_s = "), "1.0", 3);
-    write_config(dir, body);
+    edited_config(dir, "30", "urg", "ekf", "reply_timeout_s = 0.1", "reply_timeout_s = 1.0");
     const pid_t bridge = spawn_bridge(dir);
     char err[300];
     snprintf(err, sizeof err, "%s/err", dir);
@@ -1415,16 +1424,7 @@ static void no_can_said_once(void **state)
 {
     (void)state;
     char dir[64];
-    make_dir(dir, sizeof dir);
-    char store[300];
-    snprintf(store, sizeof store, "%s/store", dir);
-    char body[4096];
-    snprintf(body, sizeof body, base_config, "0.2", "0", dir, "no-laser", dir, "", store, "fastslam2");
-    char *can = strstr(body, "interface = nosuchcan0\n");
-    assert_non_null(can);
-    memmove(can + strlen("interface ="), can + strlen("interface = nosuchcan0"),
-            strlen(can + strlen("interface = nosuchcan0")) + 1U);
-    write_config(dir, body);
+    edited_config(dir, "0", "no-laser", "fastslam2", "interface = nosuchcan0\n", "interface =\n");
     char err[300];
     snprintf(err, sizeof err, "%s/err", dir);
     const pid_t pid = spawn_robot(dir, err, NULL, NULL);
