@@ -709,6 +709,15 @@ static void seed_refuses_bad_maps(void **state)
     map_b = map_a;
     map_b.lm[1].id = 0;
     assert_int_equal(slam_filter_seed(&filter_b, &c, &map_b), COSLAM_E_ARG);
+    /* a pose covariance that is not one: indefinite (|xy| > sqrt(xx yy)),
+     * and asymmetric; either would go into P or every particle's marginal */
+    for (int bad = 0; bad < 2; ++bad) {
+        map_b = map_a;
+        map_b.pose_cov = cov3_diag(0.01, 0.01, 0.001);
+        map_b.pose_cov.m[0][1] = bad == 0 ? 1.0 : 0.001;
+        map_b.pose_cov.m[1][0] = bad == 0 ? 1.0 : 0.0;
+        assert_int_equal(slam_filter_seed(&filter_b, &c, &map_b), COSLAM_E_ARG);
+    }
     map_b = map_a;
     map_b.pose.x = NAN;
     assert_int_equal(slam_filter_seed(&filter_b, &c, &map_b), COSLAM_E_ARG);

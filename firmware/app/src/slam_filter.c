@@ -195,7 +195,7 @@ coslam_status_t slam_filter_seed(slam_filter_t *f, const slam_filter_config_t *c
     if (st != COSLAM_OK) {
         return st;
     }
-    if (!cov3_is_finite(map->pose_cov) || map->n_landmarks > COSLAM_MAX_MSG_LANDMARKS) {
+    if (!cov3_is_finite(map->pose_cov) || !cov3_is_psd(map->pose_cov) || map->n_landmarks > COSLAM_MAX_MSG_LANDMARKS) {
         return COSLAM_E_ARG;
     }
     for (uint16_t i = 0; i < map->n_landmarks; ++i) {

@@ -172,7 +172,8 @@ coslam_status_t slam_filter_init(slam_filter_t *f, const slam_filter_config_t *c
  * with cov_rel; the relative one is kept because association and merging
  * use it. Seeding from that export gives it again (a fixed point).
  * Returns COSLAM_OK; COSLAM_E_ARG (NULL, a configuration slam_filter_init
- * refuses, a non-finite pose or pose covariance, a landmark with a
+ * refuses, a non-finite pose, a pose covariance that is not finite,
+ * symmetric and positive semi-definite (cov3_is_psd), a landmark with a
  * non-finite mean, a cov_rel that is not positive definite, or id 0):
  * the filter is then initialised at the pose with no landmark;
  * COSLAM_E_CAPACITY: more landmarks than the filter holds (counted by the
