@@ -111,14 +111,21 @@ replay: configure
 
 # Noise calibration (docs/calibration.md): simulated worlds (train seeds 1-16,
 # held-out 101-116), then MRCLAM Dataset 6 robots 1-3 (held-out 4-5, map
-# score on Dataset 1), EKF-SLAM. CAL_ARGS adds options to both.
+# score on Dataset 1), EKF-SLAM. CAL_ARGS adds options to both. The data:
+# COSLAM_DATA_DIR (the folder holding mrclam/; environment or command line),
+# else ../shared/data beside the checkout, as tools/run_replay.sh reads it;
+# checked before the first run, not after the synthetic one.
 CAL_ARGS ?=
+CAL_DATA = $(if $(strip $(COSLAM_DATA_DIR)),$(COSLAM_DATA_DIR),../shared/data)/mrclam
 calibrate: configure
+	@for d in $(CAL_DATA)/MRCLAM_Dataset6 $(CAL_DATA)/MRCLAM_Dataset1; do test -d "$$d" || \
+	  { echo "calibrate: $$d: no such folder (set COSLAM_DATA_DIR to the folder holding mrclam/)" >&2; exit 2; }; done
 	@cmake --build $(BUILD) -j$(JOBS) --target coslam-calibrate
 	@$(BUILD)/host/calibrate/coslam-calibrate --train-seeds 1-16 --test-seeds 101-116 --evals 301 \
 	  --lambda 10 -o out/calibrate/synth_paper $(CAL_ARGS)
 	@$(BUILD)/host/calibrate/coslam-calibrate --source mrclam -c host/replay/mrclam6.ini --evals 301 \
-	  --lambda 10 --map-data ../shared/data/mrclam/MRCLAM_Dataset1 -o out/calibrate/mrclam6_ekf $(CAL_ARGS)
+	  --lambda 10 --data $(CAL_DATA)/MRCLAM_Dataset6 --map-data $(CAL_DATA)/MRCLAM_Dataset1 \
+	  -o out/calibrate/mrclam6_ekf $(CAL_ARGS)
 
 # Figs. 4 and 5 (hand-tuned against calibrated on the held-out seeds) and the
 # particle-count curve (Fig. 10) with the calibrated weights; about 10 min.

@@ -23,6 +23,7 @@
 
 #include "app/slam_params_ini.h"
 #include "calib.h"
+#include "data_dir.hpp"
 #include "experiments.h"
 #include "replay_config.h"
 #include "profile_json.hpp"
@@ -207,7 +208,8 @@ int run(int argc, char **argv)
                  "(docs/calibration.md)"};
     std::vector<std::string> config_files;
     std::string source = "synth", world = "paper", filter = "ekf", train_seeds = "1-4",
-                test_seeds = "101-104", data_dir = COSLAM_DATA_DIR "/mrclam/MRCLAM_Dataset6", map_data_dir,
+                test_seeds = "101-104", data_dir = coslam::cli::data_dir(COSLAM_DATA_DIR) + "/mrclam/MRCLAM_Dataset6",
+                map_data_dir,
                 optimiser = "cmaes", out_dir = "out/calibrate", fixed;
     std::vector<int> train_robots{1, 2, 3}, test_robots{4, 5};
     std::string filter_seeds = "1";
@@ -236,7 +238,9 @@ int run(int argc, char **argv)
     app.add_option("-p,--particles", particles, "Fast-SLAM particles (synth; refused with mrclam: [filter] particles of -c)")->check(CLI::Range(1, 1000));
     app.add_option("--train-seeds", train_seeds, "synthetic training world seeds, e.g. 1-4 or 1,2,7");
     app.add_option("--test-seeds", test_seeds, "held-out synthetic world seeds (must not overlap the training ones)");
-    app.add_option("--data", data_dir, "MRCLAM dataset folder (mrclam)");
+    app.add_option("--data", data_dir, "MRCLAM dataset folder (mrclam); default $COSLAM_DATA_DIR/mrclam/MRCLAM_Dataset6, "
+                                     "the build's data folder when the variable is unset")
+        ->capture_default_str();
     app.add_option("--train-robots", train_robots, "MRCLAM training robots")->delimiter(',')->check(CLI::Range(1, 255));
     app.add_option("--test-robots", test_robots, "MRCLAM held-out robots")->delimiter(',')->check(CLI::Range(1, 255));
     app.add_option("--filter-seeds", filter_seeds, "MRCLAM filter seeds per robot (Fast-SLAM particle noise), e.g. 1-3");

@@ -18,7 +18,7 @@
 //                       [--methods ekf,fs2,fs1,mrpt] [--report NAME]
 //                       [--mrpt-sd-range M] [--mrpt-sd-bearing RAD] [--mrpt-assoc nn,jcbb]
 // The data folder defaults to $COSLAM_DATA_DIR/mrclam/MRCLAM_Dataset6 (the
-// build's COSLAM_DATA_DIR if the variable is unset); without it the
+// build's COSLAM_DATA_DIR if the variable is unset or empty); without it the
 // benchmark prints SKIPPED and exits 0. Any folder coslam-replay reads
 // works (an MRCLAM dataset or a landmark log, e.g. the large world of
 // `coslam-eval-worlds --world large --write-log DIR`: issue 13's stream for
@@ -43,6 +43,7 @@
 
 #include "bench_slam.h"
 #include "checked_file.hpp"
+#include "data_dir.hpp"
 #include "replay_config.h"
 #include "replay_data.h"
 #include "coslam/pose2.h"
@@ -230,8 +231,7 @@ int main(int argc, char **argv)
 {
     CLI::App app{"coslam-bench-mrclam: coslam EKF-SLAM / Fast-SLAM vs MRPT EKF-SLAM on MRCLAM single-robot streams"};
     // COSLAM_DATA_DIR in the environment overrides the build's data folder
-    const char *env_data = std::getenv("COSLAM_DATA_DIR");
-    std::string data = std::string(env_data != nullptr ? env_data : COSLAM_DATA_DIR) + "/mrclam/MRCLAM_Dataset6";
+    std::string data = coslam::cli::data_dir(COSLAM_DATA_DIR) + "/mrclam/MRCLAM_Dataset6";
     std::string config;
     std::vector<int> robots;
     int particles = 100;

@@ -5,7 +5,8 @@ set -u
 # an MPI build: no orted for each singleton start (Open MPI 4), faster
 export OMPI_MCA_ess_singleton_isolated=1
 BIN=$1
-DATA=${2:-}
+# the shared data: COSLAM_DATA_DIR overrides the build's folder (argument 2)
+DATA=${COSLAM_DATA_DIR:-${2:-}}
 fail=0
 check() {
   out=$("$BIN" "$@" -o /tmp/coslam-cal-cli-never 2>&1); rc=$?
@@ -70,6 +71,28 @@ if [ -n "$DATA" ] && [ -d "$D1" ]; then
 else
   echo "skip: no $D1"
 fi
+# the data folder comes from COSLAM_DATA_DIR when it is set (it was the
+# build's folder only): a missing one is named; the real one, reached through
+# another path, is read (a robot not in it is refused naming that path)
+W=$(mktemp -d)
+out=$(COSLAM_DATA_DIR="$W/missing" "$BIN" --source mrclam -o /tmp/coslam-cal-cli-never 2>&1); rc=$?
+if [ $rc -ne 2 ] || ! echo "$out" | grep -qF "$W/missing/mrclam/MRCLAM_Dataset6: no such folder"; then
+  echo "FAIL: COSLAM_DATA_DIR at a missing folder gave exit $rc: $out"; fail=1
+else
+  echo "ok: COSLAM_DATA_DIR missing -> $(echo "$out" | grep -F "$W/missing" | head -1)"
+fi
+if [ -n "$DATA" ] && [ -d "$DATA/mrclam/MRCLAM_Dataset6" ]; then
+  ln -s "$(cd "$DATA" && pwd)/mrclam" "$W/mrclam"
+  out=$(COSLAM_DATA_DIR="$W" "$BIN" --source mrclam --train-robots 9 -o /tmp/coslam-cal-cli-never 2>&1); rc=$?
+  if [ $rc -ne 2 ] || ! echo "$out" | grep -qF -- "--data $W/mrclam/MRCLAM_Dataset6: robot 9 is not in the dataset"; then
+    echo "FAIL: COSLAM_DATA_DIR at the data gave exit $rc: $out"; fail=1
+  else
+    echo "ok: COSLAM_DATA_DIR at the data -> $(echo "$out" | grep -F "robot 9" | head -1)"
+  fi
+else
+  echo "skip: no $DATA/mrclam/MRCLAM_Dataset6"
+fi
+rm -rf "$W"
 # a full disk: the report is an error naming the file, not exit 0
 if [ -e /dev/full ]; then
   W=$(mktemp -d)
