@@ -25,13 +25,14 @@ public:
     }
 };
 
-/// Open path for writing; throw WriteError with the OS's reason if it cannot
-/// be opened. errno is cleared first, so a later close_checked names the
-/// reason of this file's failed write, not that of an older call.
-inline std::ofstream open_checked(const std::string &path)
+/// Open path for writing (mode: e.g. std::ios::binary added); throw
+/// WriteError with the OS's reason if it cannot be opened. errno is cleared
+/// first, so a later close_checked names the reason of this file's failed
+/// write, not that of an older call.
+inline std::ofstream open_checked(const std::string &path, std::ios::openmode mode = std::ios::out)
 {
     errno = 0;
-    std::ofstream f(path);
+    std::ofstream f(path, mode | std::ios::out);
     if (!f) {
         throw WriteError(path, errno);
     }

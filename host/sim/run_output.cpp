@@ -80,8 +80,7 @@ void write_map(const std::string &dir, const std::string &name, const pose2_t &s
 // row 0 is the top (largest y) of the robot's map frame.
 void write_grid(const std::string &dir, const std::string &name, const occ_grid_t &g)
 {
-    std::ofstream f(dir + "/" + name, std::ios::binary);
-    if (!f) throw std::runtime_error("cannot write " + dir + "/" + name);
+    std::ofstream f = coslam::cli::open_checked(dir + "/" + name, std::ios::binary);
     f << "P5\n" << COSLAM_GRID_CELLS_X << ' ' << COSLAM_GRID_CELLS_Y << "\n255\n";
     for (int iy = COSLAM_GRID_CELLS_Y - 1; iy >= 0; --iy) {
         for (int ix = 0; ix < COSLAM_GRID_CELLS_X; ++ix) {

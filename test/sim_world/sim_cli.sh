@@ -2,10 +2,11 @@
 # coslam-sim on bad input: a clear error naming the file (and line, key),
 # exit 2 for a bad option or scenario (an impossible world: a self-crossing
 # arena, a landmark outside it, a negative explore_s, a robot started in a
-# wall); a fault a shortened run does not reach is said so, not printed as
+# wall, a fault of no length, a zero resend period, a wall that is a point);
+# a fault a shortened run does not reach is said so, not printed as
 # -1.0 s; a run without a merge says "no merge" and writes first_merge_s
-# null, not -1; a full disk is an error naming the file and the OS's
-# reason, exit 1.
+# null, not -1; a full disk or an output file that cannot be opened is an
+# error naming the file and the OS's reason, exit 1.
 set -u
 BIN=$1
 PAPER=$2
@@ -66,6 +67,24 @@ expect_error "a robot started in a wall" 2 "robot[1].start (1, 0): the body over
 scenario 's/^start = \[1.0, 0.0, 0.0\] .*/start = [6.0, 0.0, 0.0]/' start_out
 expect_error "a robot started outside the arena" 2 "robot[1].start (6, 0): outside the arena" \
   --scenario "$WORK/start_out.toml" --out "$WORK/never"
+# values the robot could not act on (accepted before): a fault of no
+# length, a map resent at every step, a period the robot's microseconds
+# cannot hold, a wall that is a point
+cp "$PAPER" "$WORK/fault0.toml"
+printf '\n[[fault]]\nrobot = 1\nkind = "laser_unplug"\nat_s = 50\nduration_s = 0\n' >> "$WORK/fault0.toml"
+line=$(grep -n '^duration_s = 0$' "$WORK/fault0.toml" | cut -d: -f1)
+expect_error "a fault of duration 0" 2 \
+  "line $line: fault[0].duration_s: duration_s 0 s is shorter than one physics step (timing.physics_dt_ms 1 ms)" \
+  --scenario "$WORK/fault0.toml" --out "$WORK/never"
+scenario 's/^resend_s = 1.0$/resend_s = 0/' resend0
+expect_error "a zero meeting.resend_s" 2 "line 99: meeting.resend_s: value 0 outside [0.001, 4000]" \
+  --scenario "$WORK/resend0.toml" --out "$WORK/never"
+scenario 's/^meeting_gap_s = 5.0$/meeting_gap_s = 5000/' gap_big
+expect_error "a meeting.meeting_gap_s beyond 4000 s" 2 "meeting.meeting_gap_s: value 5000 outside [0, 4000]" \
+  --scenario "$WORK/gap_big.toml" --out "$WORK/never"
+scenario 's/^boxes = \[/walls = [ { from = [1.0, 2.0], to = [1.0, 2.0] } ]\nboxes = [/' wall0
+expect_error "a wall of length 0" 2 "world.walls[0].to: (1, 2) is the same point as from: a wall needs a length" \
+  --scenario "$WORK/wall0.toml" --out "$WORK/never"
 [ ! -e "$WORK/never" ] || { echo "FAIL: an output folder was made"; fail=1; }
 # --duration shortens the run below the fault's start (and below any merge)
 cp "$PAPER" "$WORK/fault.toml"
@@ -85,6 +104,10 @@ if [ "$(grep -c '"first_merge_s": null' "$WORK/short/metrics.json")" -ne 2 ] ||
 else
   echo "ok: no merge -> first_merge_s null; $(echo "$out" | grep -E '^  robot0 ')"
 fi
+# an output file that cannot be opened: the OS's reason (the grid had none)
+mkdir -p "$WORK/grid/robot0_grid.pgm"
+expect_error "a grid file that cannot be opened" 1 "cannot write $WORK/grid/robot0_grid.pgm: Is a directory" \
+  --camera oracle --duration 1 --out "$WORK/grid"
 # a full disk
 if [ -e /dev/full ]; then
   mkdir -p "$WORK/full"

@@ -318,6 +318,10 @@ void read_world(const toml::table &t, WorldSpec &w)
             b.require("to");
             b.vec2("from", s.from);
             b.vec2("to", s.to);
+            if (s.from == s.to) {
+                // a point: it stops no ray, no robot, and no start check sees it
+                b.fail("to", fmt_xy(s.to) + " is the same point as from: a wall needs a length");
+            }
             b.done();
             w.walls.push_back(s);
         }
@@ -433,9 +437,12 @@ void read_meeting(const toml::table &t, MeetingSpec &m)
 {
     Reader r(t, "meeting");
     r.num("pair_window_ms", m.pair_window_ms, 0.001, 1e6);
-    r.num("resend_s", m.resend_s, 0.0, 1e6);
+    // the robot holds both in microseconds (uint32_t): at most 4000 s, as
+    // robot.ini's [merge] resend_s and gap_s; a resend period of 0 would
+    // send the map again at every step until max_sends
+    r.num("resend_s", m.resend_s, 0.001, 4000.0);
     r.integer("max_sends", m.max_sends, 0, 255);
-    r.num("meeting_gap_s", m.meeting_gap_s, 0.0, 1e6);
+    r.num("meeting_gap_s", m.meeting_gap_s, 0.0, 4000.0);
     r.num("remerge_s", m.remerge_s, 0.0, 1e6);
     r.num("peer_speed_mps", m.peer_speed_mps, 0.0, 100.0);
     r.num("peer_turn_dps", m.peer_turn_dps, 0.0, 10000.0);
@@ -574,6 +581,14 @@ void read_fault(const toml::table &t, size_t i, const Scenario &sc, FaultSpec &f
     }
     if (f.kind != FaultKind::Kidnap) r.require("duration_s");
     r.num("duration_s", f.duration_s, 0.0, kMaxDurationS);
+    if (f.kind != FaultKind::Kidnap && f.duration_s * 1000.0 < sc.physics_dt_ms) {
+        // faults are switched at physics steps: a shorter one is switched
+        // on and off in the same step and never acts
+        std::ostringstream s;
+        s << "duration_s " << f.duration_s << " s is shorter than one physics step (timing.physics_dt_ms "
+          << sc.physics_dt_ms << " ms): the fault would end before it acts";
+        r.fail("duration_s", s.str());
+    }
     // kind-specific keys: only the kind's own are read, so another kind's
     // key is refused by done() as unknown
     switch (f.kind) {
