@@ -1,6 +1,7 @@
 // host/replay/replay_output.cpp - TUM paths, map CSVs, metrics.json.
 #include "replay_output.h"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -519,6 +520,11 @@ void print_summary(std::ostream &out, const ReplayResult &res, const ReplayOptio
         }
         out << "  map rmse ";
         cell(0, e.before.measured(), e.before.rmse_m) << " -> ";
+        const auto rcv = std::find_if(res.robots.begin(), res.robots.end(),
+                                      [&](const RobotResult &r) { return r.id == e.receiver; });
+        if (rcv != res.robots.end() && rcv->filter != FilterKind::Ekf) {
+            out << " (sums over the particles)"; // Fast-SLAM fuses and adds in each
+        }
         cell(0, e.after.measured(), e.after.rmse_m) << " (" << e.before.n_estimated << " -> " << e.after.n_estimated
                                                 << " landmarks)\n";
     }

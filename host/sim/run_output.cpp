@@ -335,6 +335,23 @@ std::string run_summary(const Simulation &sim, const std::string &out_dir)
             const PixelCameraStats &st = pc->stats();
             const double nm = static_cast<double>(st.landmark_matched);
             char cl[320];
+std::string merge_summary_line(const MergeRecord &m, const std::string &robot, const std::string &peer,
+                               int particles)
+{
+    // Fast-SLAM merges into every particle: its counts as the mean per particle
+    char what[256];
+    (void)slam_filter_merge_format(&m.stats, static_cast<uint32_t>(std::max(1, particles)), what, sizeof what);
+    // dt = own sighting - the sender's: its size, and whose came first
+    const long dt_ms = std::lround(m.dt_sightings_ms);
+    const std::string first = dt_ms == 0 ? "" : (dt_ms > 0 ? " (" + peer + "'s first)" : " (" + robot + "'s first)");
+    std::ostringstream s;
+    s << std::fixed << "  merge t=" << std::setprecision(1) << m.t_s << " s: " << robot << " <- " << peer << " ("
+      << m.n_landmarks_in << " landmarks: " << what << "), transform error " << std::setprecision(3)
+      << m.transform_err_m << " m / " << std::setprecision(2) << m.transform_err_rad * kRad2Deg << " deg, sightings "
+      << std::labs(dt_ms) << " ms apart" << first;
+    return s.str();
+}
+
             std::snprintf(cl, sizeof cl,
                           "    %s: %llu frames, %llu landmark sightings (%llu false), range error RMS %.1f %%, bearing "
                           "%.2f deg; %llu robot sightings (%llu wrong id)\n",
@@ -391,15 +408,8 @@ std::string run_summary(const Simulation &sim, const std::string &out_dir)
         s << "  merges: none\n";
     }
     for (const auto &m : r.merges) {
-        // Fast-SLAM merges into every particle: report per particle
-        const uint32_t per = static_cast<uint32_t>(std::max(1, r.robots[static_cast<size_t>(m.robot)].particles));
-        char what[256];
-        (void)slam_filter_merge_format(&m.stats, per, what, sizeof what);
-        s << "  merge t=" << std::setprecision(1) << m.t_s << " s: " << r.robots[static_cast<size_t>(m.robot)].name
-          << " <- " << r.robots[static_cast<size_t>(m.peer)].name << " (" << m.n_landmarks_in << " landmarks: "
-          << what << "), transform error " << std::setprecision(3) << m.transform_err_m << " m / " << std::setprecision(2)
-          << m.transform_err_rad * kRad2Deg << " deg, sightings " << std::setprecision(0) << m.dt_sightings_ms
-          << " ms apart\n";
+        const RobotRecord &self = r.robots[static_cast<size_t>(m.robot)];
+        s << merge_summary_line(m, self.name, r.robots[static_cast<size_t>(m.peer)].name, self.particles) << '\n';
     }
     if (!r.refusals.empty()) {
         s << "  refused messages: " << r.refusals.size() << " (see metrics.json)\n";

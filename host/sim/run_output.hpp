@@ -23,6 +23,14 @@ void write_run_outputs(const Simulation &sim, const std::string &dir);
 /// metrics.json content.
 nlohmann::json run_metrics(const Simulation &sim);
 
+/// One merge of the summary, without a newline: "  merge t=52.3 s: robot0 <-
+/// robot1 (16 landmarks: 7.0 fused, 9.0 added (per particle, mean of 100);
+/// not added: ...), transform error ..., sightings 100 ms apart (robot1's
+/// first)". particles: the receiver's (0 for EKF-SLAM: its counts are
+/// landmarks); the sightings' time apart is unsigned, the first one named.
+std::string merge_summary_line(const MergeRecord &m, const std::string &robot, const std::string &peer,
+                               int particles);
+
 /// The one-screen summary (errors before and after the merge, collisions,
 /// speed), without a trailing newline.
 std::string run_summary(const Simulation &sim, const std::string &out_dir);

@@ -379,7 +379,8 @@ static void test_unrefutable_landmark_is_not_added(void **state)
 }
 
 /* The merge line the robot and the simulator print (slam_filter_merge_format):
- * Fast-SLAM's fusions and additions per particle, the refusals as counted. */
+ * Fast-SLAM's fusions and additions as the mean per particle, said so, to
+ * 0.1 and adding up; the refusals as counted; EKF-SLAM's as counted. */
 static void test_merge_line_format(void **state)
 {
     (void)state;
@@ -392,15 +393,33 @@ static void test_merge_line_format(void **state)
     st.ambiguous = 3U;
     st.unrefutable = 4U;
     char buf[256];
-    const char *want = "5 fused, 9 added; not added: 1 where it looked and saw nothing, 2 echoes, 3 ambiguous, "
-                       "4 too uncertain to refute";
+    const char *want = "5.0 fused, 9.0 added (per particle, mean of 100); not added: 1 where it looked and saw "
+                       "nothing, 2 echoes, 3 ambiguous, 4 too uncertain to refute";
     assert_int_equal(slam_filter_merge_format(&st, 100U, buf, sizeof buf), (int)strlen(want));
     assert_string_equal(buf, want);
+    /* coslam-sim's robot0 <- robot1, 16 landmarks in: the sums over 100
+     * particles were shown truncated as "6 fused, 9 added" */
+    st.fused = 696U;
+    st.added = 904U;
+    (void)slam_filter_merge_format(&st, 100U, buf, sizeof buf);
+    assert_non_null(strstr(buf, "7.0 fused, 9.0 added (per particle, mean of 100);"));
+    /* rounded on their own 6.95 and 9.05 would show 7.0 + 9.1 for a total of
+     * 16.0: added is the total's rounded mean less the rounded fused */
+    st.fused = 6950U;
+    st.added = 9050U;
+    (void)slam_filter_merge_format(&st, 1000U, buf, sizeof buf);
+    assert_non_null(strstr(buf, "7.0 fused, 9.0 added (per particle, mean of 1000);"));
+    st.fused = 500U;
+    st.added = 900U;
     st.fused_ci = 200U;
     (void)slam_filter_merge_format(&st, 100U, buf, sizeof buf);
-    assert_non_null(strstr(buf, "5 fused, 9 added, 2 by CI; not added: 1 where"));
-    (void)slam_filter_merge_format(&st, 0U, buf, sizeof buf); /* 0 is taken as 1 (EKF-SLAM) */
-    assert_non_null(strstr(buf, "500 fused, 900 added, 200 by CI;"));
+    assert_non_null(strstr(buf, "5.0 fused, 9.0 added, 2.0 by CI (per particle, mean of 100); not added: 1 where"));
+    st.pair_lost = 30U;
+    (void)slam_filter_merge_format(&st, 100U, buf, sizeof buf);
+    assert_non_null(strstr(buf, "refute, 0.3 per particle with a candidate pair beyond COSLAM_MERGE_MAX_PAIRS"));
+    st.pair_lost = 0U;
+    (void)slam_filter_merge_format(&st, 0U, buf, sizeof buf); /* 0 is taken as 1 (EKF-SLAM): landmarks */
+    assert_non_null(strstr(buf, "500 fused, 900 added, 200 by CI; not added"));
     char small[8];
     assert_true(slam_filter_merge_format(&st, 1U, small, sizeof small) > 7);
     assert_string_equal(small, "500 fus"); /* cut, terminated */

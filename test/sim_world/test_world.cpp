@@ -548,6 +548,37 @@ TEST(RunOutput, FilesAreWrittenAndParse)
     EXPECT_EQ(rows_na, 2);
 }
 
+// The summary's merge line: Fast-SLAM's counts (sums over the particles in
+// merge_stats_t) as the mean per particle that adds up, said so (it printed
+// "16 landmarks: 6 fused, 9 added"); the sightings' time apart unsigned with
+// the first named (it printed "-100 ms apart"); EKF-SLAM's as landmarks.
+TEST(RunOutput, MergeLineCountsPerParticleAndSightingsUnsigned)
+{
+    MergeRecord m;
+    m.t_s = 52.3;
+    m.n_landmarks_in = 16;
+    m.stats.fused = 696U;
+    m.stats.added = 904U;
+    m.dt_sightings_ms = -100.0; // own sighting first
+    std::string l = merge_summary_line(m, "robot0", "robot1", 100);
+    EXPECT_NE(l.find("robot0 <- robot1 (16 landmarks: 7.0 fused, 9.0 added (per particle, mean of 100);"),
+              std::string::npos)
+        << l;
+    EXPECT_NE(l.find("sightings 100 ms apart (robot0's first)"), std::string::npos) << l;
+    EXPECT_EQ(l.find("-100"), std::string::npos) << l;
+    m.dt_sightings_ms = 40.2; // the sender's first
+    EXPECT_NE(merge_summary_line(m, "robot0", "robot1", 100).find("sightings 40 ms apart (robot1's first)"),
+              std::string::npos);
+    m.dt_sightings_ms = 0.2;
+    l = merge_summary_line(m, "robot0", "robot1", 100);
+    EXPECT_NE(l.find("sightings 0 ms apart"), std::string::npos) << l;
+    EXPECT_EQ(l.find("first)"), std::string::npos) << l;
+    m.stats.fused = 6U; // EKF-SLAM: landmarks, no unit said
+    m.stats.added = 10U;
+    l = merge_summary_line(m, "robot1", "robot0", 0);
+    EXPECT_NE(l.find("(16 landmarks: 6 fused, 10 added; not added"), std::string::npos) << l;
+}
+
 TEST(RunOutput, FaultNotReachedInAShortenedRun)
 {
     Scenario sc = load_scenario_file(kPaper);

@@ -1019,26 +1019,59 @@ int slam_filter_limits(const slam_filter_t *f, slam_filter_limit_t out[SLAM_FILT
     return n;
 }
 
+/* sum / k in tenths, rounded half up (k >= 1; sum * 10 fits in 64 bits) */
+static uint64_t merge_tenths(uint64_t sum, uint32_t k)
+{
+    return (sum * 10U + k / 2U) / k;
+}
+
+/* a merge count: whole for EKF-SLAM (k == 1), to 0.1 for Fast-SLAM's mean
+ * per particle */
+static void merge_count_str(char *b, size_t cap, uint64_t tenths, uint32_t k)
+{
+    if (k == 1U) {
+        (void)snprintf(b, cap, "%lu", (unsigned long)(tenths / 10U));
+    } else {
+        (void)snprintf(b, cap, "%lu.%lu", (unsigned long)(tenths / 10U), (unsigned long)(tenths % 10U));
+    }
+}
+
 int slam_filter_merge_format(const merge_stats_t *s, uint32_t per, char *buf, size_t cap)
 {
     if (s == NULL || buf == NULL || cap == 0U) {
         return 0;
     }
     const uint32_t k = per == 0U ? 1U : per;
-    char ci[32] = "";
+    /* fused and added are rounded together: added is the rounded mean of
+     * their total less the rounded fused, so the two add up (each is still
+     * within 0.1 of its mean) */
+    const uint64_t both = merge_tenths((uint64_t)s->fused + s->added, k);
+    const uint64_t fused = merge_tenths(s->fused, k);
+    char f[24], a[24];
+    merge_count_str(f, sizeof f, fused, k);
+    merge_count_str(a, sizeof a, both - fused, k);
+    char ci[40] = "";
     if (s->fused_ci != 0U) {
-        (void)snprintf(ci, sizeof ci, ", %lu by CI", (unsigned long)(s->fused_ci / k));
+        char c[24];
+        merge_count_str(c, sizeof c, merge_tenths(s->fused_ci, k), k);
+        (void)snprintf(ci, sizeof ci, ", %s by CI", c);
     }
-    char lost[96] = "";
+    char unit[48] = "";
+    if (k > 1U) {
+        (void)snprintf(unit, sizeof unit, " (per particle, mean of %lu)", (unsigned long)k);
+    }
+    char lost[128] = "";
     if (s->pair_lost != 0U) {
-        (void)snprintf(lost, sizeof lost, ", %lu with a candidate pair beyond COSLAM_MERGE_MAX_PAIRS",
-                       (unsigned long)(s->pair_lost / k));
+        char l[24];
+        merge_count_str(l, sizeof l, merge_tenths(s->pair_lost, k), k);
+        (void)snprintf(lost, sizeof lost, ", %s%s with a candidate pair beyond COSLAM_MERGE_MAX_PAIRS", l,
+                       k > 1U ? " per particle" : "");
     }
     return snprintf(buf, cap,
-                    "%lu fused, %lu added%s; not added: %lu where it looked and saw nothing, %lu echoes, %lu "
+                    "%s fused, %s added%s%s; not added: %lu where it looked and saw nothing, %lu echoes, %lu "
                     "ambiguous, %lu too uncertain to refute%s",
-                    (unsigned long)(s->fused / k), (unsigned long)(s->added / k), ci, (unsigned long)s->vetoed,
-                    (unsigned long)s->echoes, (unsigned long)s->ambiguous, (unsigned long)s->unrefutable, lost);
+                    f, a, ci, unit, (unsigned long)s->vetoed, (unsigned long)s->echoes, (unsigned long)s->ambiguous,
+                    (unsigned long)s->unrefutable, lost);
 }
 
 int slam_filter_limit_format(const slam_filter_limit_t *l, unsigned robot_id, char *buf, size_t cap)

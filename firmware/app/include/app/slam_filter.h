@@ -431,9 +431,13 @@ int slam_filter_limit_format(const slam_filter_limit_t *l, unsigned robot_id, ch
  *   "5 fused, 9 added; not added: 0 where it looked and saw nothing, 0
  *    echoes, 0 ambiguous, 0 too uncertain to refute"
  * (", 2 by CI" after "added" when covariance intersection fused any).
- * `per`: the filter's particles for Fast-SLAM (its fusions and additions
- * are counted in every particle), 1 for EKF-SLAM; 0 is taken as 1. No
- * newline; snprintf's return, cut at cap - 1 as slam_filter_limit_format.
+ * `per`: the filter's particles for Fast-SLAM, 1 for EKF-SLAM; 0 is taken
+ * as 1. Fast-SLAM fuses and adds in every particle and merge_stats_t holds
+ * the sums: with per > 1 the fused, added, CI and lost counts are the mean
+ * per particle to 0.1, "7.0 fused, 9.0 added (per particle, mean of 100);
+ * not added: ...", fused and added rounded so that they add up to their
+ * total's rounded mean; the check's refusals are per landmark as counted.
+ * No newline; snprintf's return, cut at cap - 1 as slam_filter_limit_format.
  */
 int slam_filter_merge_format(const merge_stats_t *s, uint32_t per, char *buf, size_t cap);
 
