@@ -60,9 +60,10 @@ def robot_figure(d, k, metrics, title):
     truth_map = read_csv(base + "_truth_map.csv")
     t_merge = None
     for r in metrics.get("robots", []):
-        if r["id"] == k and r.get("shown_merge_t_s", -1) >= 0 and os.path.exists(base + "_map_before_merge.csv"):
+        # shown_merge_t_s is null (None) for a robot that never merged
+        if r["id"] == k and r.get("shown_merge_t_s") is not None and os.path.exists(base + "_map_before_merge.csv"):
             t_merge = r["shown_merge_t_s"]
-            added = r.get("shown_merge_added", 0)
+            added = r["shown_merge_added"]
     panels = [("merge at t = %.0f s (+%d landmarks)" % (t_merge, added), t_merge)] if t_merge is not None else []
     panels.append(("end of run", None))
     fig, axs = plt.subplots(1, len(panels), figsize=(7.5 * len(panels), 7.5), squeeze=False)

@@ -173,7 +173,7 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
             const double e = std::hypot(s.est.x - s.truth.x, s.est.y - s.truth.y);
             const double h = std::fabs(angle_wrap(s.est.theta - s.truth.theta));
             const double n = nees_pose(s.est, s.cov, s.truth);
-            errors << s.t_s << ',' << r.id << ',' << e << ',' << h << ',' << (std::isfinite(n) ? n : -1.0) << '\n';
+            errors << s.t_s << ',' << r.id << ',' << e << ',' << h << ',' << csv_or_nan(std::isfinite(n), n) << '\n';
         }
         for (const auto &m : r.map_series) {
             const bool k = m.score.valid;
@@ -187,13 +187,15 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
     {
         const fs::path p = d / "merge_events.csv";
         auto f = open_out(p);
-        f << "t,robot,sender,status,t_err_m,t_err_rad,t_nees,fused,fused_ci,added,capacity_drops,"
+        // fused ... capacity_drops: summed over the receiver's particles (docs/replay.md)
+        f << "t,robot,sender,status,t_err_m,t_err_rad,t_nees,fused_particle_sum,fused_ci_particle_sum,"
+             "added_particle_sum,capacity_drops_particle_sum,"
              "n_before,rmse_before_m,spurious_before,missed_before,n_after,rmse_after_m,spurious_after,"
              "missed_after,merge_us\n";
         for (const auto &e : res.merges) {
             f << e.t_s << ',' << e.receiver << ',' << e.sender << ',' << static_cast<int>(e.status) << ','
-              << (e.has_truth ? e.t_err_m : -1.0) << ',' << (e.has_truth ? e.t_err_rad : -1.0) << ','
-              << (e.has_truth ? e.t_nees : -1.0) << ',' << e.stats.fused << ',' << e.stats.fused_ci << ','
+              << csv_or_nan(e.has_truth, e.t_err_m) << ',' << csv_or_nan(e.has_truth, e.t_err_rad) << ','
+              << csv_or_nan(e.has_truth, e.t_nees) << ',' << e.stats.fused << ',' << e.stats.fused_ci << ','
               << e.stats.added << ',' << e.stats.capacity_drops << ',' << e.before.n_estimated << ','
               << csv_or_nan(e.before.measured(), e.before.rmse_m) << ',' << csv_or_nan(e.before.valid, e.before.n_spurious)
               << ',' << csv_or_nan(e.before.valid, e.before.n_missed) << ',' << e.after.n_estimated << ','
@@ -255,7 +257,8 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
         json rj;
         rj["id"] = r.id;
         rj["filter"] = filter_kind_name(r.filter);
-        rj["particles"] = r.filter == FilterKind::Ekf ? 0 : cfg.filter.particles;
+        // null: EKF-SLAM is not a particle filter
+        rj["particles"] = or_null(r.filter != FilterKind::Ekf, cfg.filter.particles);
         rj["t_start_s"] = r.t_start_s;
         rj["map_frame_in_world"] = pose_json(r.frame.origin);
         // when the frame was placed: the start, or the first truth sample of
@@ -275,9 +278,10 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
                       {"fit_heading_rmse_deg", or_null(r.pose_fit_samples > 0, r.heading_fit_rmse_rad * 180.0 / M_PI)}};
         rj["map"] = score_json(r.final_score);
         rj["map_fit"] = fit_json(r.final_score);
-        rj["first_merge_t_s"] = r.t_first_merge_s;
-        rj["shown_merge_t_s"] = r.t_shown_merge_s;
-        rj["shown_merge_added"] = r.shown_merge_gain;
+        // null: the robot never merged (these were -1)
+        rj["first_merge_t_s"] = or_null(r.t_first_merge_s >= 0.0, r.t_first_merge_s);
+        rj["shown_merge_t_s"] = or_null(r.t_shown_merge_s >= 0.0, r.t_shown_merge_s);
+        rj["shown_merge_added"] = or_null(r.t_shown_merge_s >= 0.0, r.shown_merge_gain);
         rj["steps"] = {{"frames", r.frames},           {"updates", r.updates},
                        {"predictions", r.predictions}, {"step_us_mean", r.step_us_mean},
                        {"step_us_max", r.step_us_max}, {"filter_s", r.filter_s}};
@@ -344,12 +348,13 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
                    {"status", coslam_status_str(e.status)},
                    {"transform", pose_json(e.transform)},
                    {"transform_cov", cov3_json(e.transform_cov)},
-                   {"fused", e.stats.fused},
+                   // summed over the receiver's particles (docs/replay.md)
+                   {"fused_particle_sum", e.stats.fused},
                    {"particles_due", e.particles_due},
-                   {"fused_ci", e.stats.fused_ci},
-                   {"added", e.stats.added},
-                   {"capacity_drops", e.stats.capacity_drops},
-                   {"skipped", e.stats.skipped},
+                   {"fused_ci_particle_sum", e.stats.fused_ci},
+                   {"added_particle_sum", e.stats.added},
+                   {"capacity_drops_particle_sum", e.stats.capacity_drops},
+                   {"skipped_particle_sum", e.stats.skipped},
                    {"check",
                     {{"pairs", e.stats.pairs},
                      {"nis", or_null(e.stats.pairs > 0, e.stats.nis)}, // no pairs: nothing measured
@@ -515,16 +520,16 @@ void print_summary(std::ostream &out, const ReplayResult &res, const ReplayOptio
         }
         out << " refused " << e.stats.vetoed << "+" << e.stats.echoes << "+"
             << e.stats.ambiguous << "+" << e.stats.unrefutable << "  fused " << e.stats.fused << " added " << e.stats.added;
-        if (e.particles_due > 0U) {
-            out << " (first part; " << e.particles_due << " particles in idle time)";
-        }
-        out << "  map rmse ";
-        cell(0, e.before.measured(), e.before.rmse_m) << " -> ";
         const auto rcv = std::find_if(res.robots.begin(), res.robots.end(),
                                       [&](const RobotResult &r) { return r.id == e.receiver; });
         if (rcv != res.robots.end() && rcv->filter != FilterKind::Ekf) {
             out << " (sums over the particles)"; // Fast-SLAM fuses and adds in each
         }
+        if (e.particles_due > 0U) {
+            out << " (first part; " << e.particles_due << " particles in idle time)";
+        }
+        out << "  map rmse ";
+        cell(0, e.before.measured(), e.before.rmse_m) << " -> ";
         cell(0, e.after.measured(), e.after.rmse_m) << " (" << e.before.n_estimated << " -> " << e.after.n_estimated
                                                 << " landmarks)\n";
     }

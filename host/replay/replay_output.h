@@ -7,7 +7,7 @@
 //                                the map right before and after the merge that
 //                                added the most landmarks (metrics.json: shown_merge_t_s)
 //   robot<k>_truth_map.csv       true landmarks in the map frame (id,x,y)
-//   errors.csv                   t,robot,pos_err_m,heading_err_rad,nees
+//   errors.csv                   t,robot,pos_err_m,heading_err_rad,nees (nan: not measured)
 //   map_errors.csv               t,robot,n_estimated,n_matched,n_spurious,n_missed,rmse_m
 //   merge_events.csv             t,robot,sender,... one row per merge (robot = receiver)
 //   metrics.json                 everything above summarised, the configuration,

@@ -40,6 +40,18 @@ nlohmann::json measured(bool valid, double v)
     return valid ? nlohmann::json(v) : nlohmann::json(nullptr);
 }
 
+// A CSV cell: the value, or nan where nothing was measured (docs/sim.md
+// "Outputs": the convention of every CSV of the host tools)
+template <typename T>
+void csv_cell(std::ostream &f, bool valid, T v)
+{
+    if (valid) {
+        f << v;
+    } else {
+        f << "nan";
+    }
+}
+
 void write_tum(const std::string &dir, const std::string &name, const std::vector<std::pair<double, pose2_t>> &path,
                const pose2_t *frame)
 {
@@ -70,8 +82,11 @@ void write_map(const std::string &dir, const std::string &name, const pose2_t &s
     for (size_t i = 0; i < m.landmarks.size(); ++i) {
         const map_landmark_t w = to_world(start, m.landmarks[i]);
         f << w.id << ',' << w.mean.x << ',' << w.mean.y << ',' << w.cov.xx << ',' << w.cov.xy << ',' << w.cov.yy << ','
-          << static_cast<int>(w.signature) << ',' << w.n_obs << ',' << w.src_mask << ','
-          << (i < static_cast<size_t>(COSLAM_MAX_MSG_LANDMARKS) ? m.eval.match[i] : -1) << '\n';
+          << static_cast<int>(w.signature) << ',' << w.n_obs << ',' << w.src_mask << ',';
+        // truth_id: the true landmark it was matched to; nan: none (spurious)
+        const int match = i < static_cast<size_t>(COSLAM_MAX_MSG_LANDMARKS) ? m.eval.match[i] : -1;
+        csv_cell(f, match >= 0, match);
+        f << '\n';
     }
     close_out(f, dir, name);
 }
@@ -119,10 +134,12 @@ nlohmann::json merge_json(const MergeRecord &m)
         j["transform_err_m"] = m.transform_err_m;
         j["transform_err_deg"] = m.transform_err_rad * kRad2Deg;
         j["transform_nees"] = std::isfinite(m.transform_nees) ? nlohmann::json(m.transform_nees) : nlohmann::json(nullptr);
-        j["fused"] = m.stats.fused;
-        j["fused_ci"] = m.stats.fused_ci;
-        j["added"] = m.stats.added;
-        j["capacity_drops"] = m.stats.capacity_drops;
+        // summed over the receiver's particles (docs/sim.md): Fast-SLAM
+        // fuses and adds in every particle; EKF-SLAM's are landmarks
+        j["fused_particle_sum"] = m.stats.fused;
+        j["fused_ci_particle_sum"] = m.stats.fused_ci;
+        j["added_particle_sum"] = m.stats.added;
+        j["capacity_drops_particle_sum"] = m.stats.capacity_drops;
         j["check"] = {{"pairs", m.stats.pairs},
                       {"nis", m.stats.nis},
                       {"nis_bound", m.stats.nis_bound},
@@ -179,7 +196,8 @@ nlohmann::json run_metrics(const Simulation &sim)
             {"name", rr.name},
             {"id", rr.id},
             {"filter", slam_filter_kind_name(rr.filter)},
-            {"particles", rr.particles},
+            // null: EKF-SLAM is not a particle filter
+            {"particles", rr.particles > 0 ? nlohmann::json(rr.particles) : nlohmann::json(nullptr)},
             {"start", {rr.start.x, rr.start.y, rr.start.theta}},
             {"distance_m", rr.distance_m},
             {"pose_rmse_m", {{"all", rr.pose_rmse_m}, {"before_merge", rr.pose_rmse_before_merge_m},
@@ -264,9 +282,12 @@ void write_run_outputs(const Simulation &sim, const std::string &dir)
         std::ofstream e = open_out(dir, p + "_errors.csv");
         e << "t,pos_err_m,heading_err_deg,map_rmse_m,map_max_err_m,n_est,n_matched,n_missed,n_spurious\n";
         for (const auto &s : rr.errors) {
-            e << s.t_s << ',' << s.pos_err_m << ',' << s.heading_err_rad * kRad2Deg << ',' << s.map_rmse_m << ','
-              << s.map_max_err_m << ',' << s.n_est << ',' << s.n_matched << ',' << s.n_missed << ',' << s.n_spurious
-              << '\n';
+            // no matched landmark: no map error (nan, was 0)
+            e << s.t_s << ',' << s.pos_err_m << ',' << s.heading_err_rad * kRad2Deg << ',';
+            csv_cell(e, s.n_matched > 0, s.map_rmse_m);
+            e << ',';
+            csv_cell(e, s.n_matched > 0, s.map_max_err_m);
+            e << ',' << s.n_est << ',' << s.n_matched << ',' << s.n_missed << ',' << s.n_spurious << '\n';
         }
         close_out(e, dir, p + "_errors.csv");
         write_grid(dir, p + "_grid.pgm", *robot_node_grid(&sim.node(k)));
@@ -282,7 +303,9 @@ void write_run_outputs(const Simulation &sim, const std::string &dir)
     }
     {
         std::ofstream f = open_out(dir, "merge_events.csv");
-        f << "t,robot,peer,seq,status,n_in,fused,fused_ci,added,transform_err_m,transform_err_deg,dt_sightings_ms\n";
+        // fused ... added: summed over the receiver's particles (docs/sim.md)
+        f << "t,robot,peer,seq,status,n_in,fused_particle_sum,fused_ci_particle_sum,added_particle_sum,transform_err_m,"
+             "transform_err_deg,dt_sightings_ms\n";
         for (const auto &m : r.merges) {
             f << m.t_s << ',' << m.robot << ',' << m.peer << ',' << m.seq << ',' << coslam_status_str(m.status) << ','
               << m.n_landmarks_in << ',' << m.stats.fused << ',' << m.stats.fused_ci << ',' << m.stats.added << ','
@@ -312,6 +335,23 @@ void write_run_outputs(const Simulation &sim, const std::string &dir)
     close_out(f, dir, "metrics.json");
 }
 
+std::string merge_summary_line(const MergeRecord &m, const std::string &robot, const std::string &peer,
+                               int particles)
+{
+    // Fast-SLAM merges into every particle: its counts as the mean per particle
+    char what[256];
+    (void)slam_filter_merge_format(&m.stats, static_cast<uint32_t>(std::max(1, particles)), what, sizeof what);
+    // dt = own sighting - the sender's: its size, and whose came first
+    const long dt_ms = std::lround(m.dt_sightings_ms);
+    const std::string first = dt_ms == 0 ? "" : (dt_ms > 0 ? " (" + peer + "'s first)" : " (" + robot + "'s first)");
+    std::ostringstream s;
+    s << std::fixed << "  merge t=" << std::setprecision(1) << m.t_s << " s: " << robot << " <- " << peer << " ("
+      << m.n_landmarks_in << " landmarks: " << what << "), transform error " << std::setprecision(3)
+      << m.transform_err_m << " m / " << std::setprecision(2) << m.transform_err_rad * kRad2Deg << " deg, sightings "
+      << std::labs(dt_ms) << " ms apart" << first;
+    return s.str();
+}
+
 std::string run_summary(const Simulation &sim, const std::string &out_dir)
 {
     const SimulationResult &r = sim.result();
@@ -335,23 +375,6 @@ std::string run_summary(const Simulation &sim, const std::string &out_dir)
             const PixelCameraStats &st = pc->stats();
             const double nm = static_cast<double>(st.landmark_matched);
             char cl[320];
-std::string merge_summary_line(const MergeRecord &m, const std::string &robot, const std::string &peer,
-                               int particles)
-{
-    // Fast-SLAM merges into every particle: its counts as the mean per particle
-    char what[256];
-    (void)slam_filter_merge_format(&m.stats, static_cast<uint32_t>(std::max(1, particles)), what, sizeof what);
-    // dt = own sighting - the sender's: its size, and whose came first
-    const long dt_ms = std::lround(m.dt_sightings_ms);
-    const std::string first = dt_ms == 0 ? "" : (dt_ms > 0 ? " (" + peer + "'s first)" : " (" + robot + "'s first)");
-    std::ostringstream s;
-    s << std::fixed << "  merge t=" << std::setprecision(1) << m.t_s << " s: " << robot << " <- " << peer << " ("
-      << m.n_landmarks_in << " landmarks: " << what << "), transform error " << std::setprecision(3)
-      << m.transform_err_m << " m / " << std::setprecision(2) << m.transform_err_rad * kRad2Deg << " deg, sightings "
-      << std::labs(dt_ms) << " ms apart" << first;
-    return s.str();
-}
-
             std::snprintf(cl, sizeof cl,
                           "    %s: %llu frames, %llu landmark sightings (%llu false), range error RMS %.1f %%, bearing "
                           "%.2f deg; %llu robot sightings (%llu wrong id)\n",

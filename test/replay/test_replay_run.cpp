@@ -18,6 +18,7 @@
 #include <sstream>
 #include <iomanip>
 #include <iostream>
+#include <map>
 #include <nlohmann/json.hpp>
 
 #include "replay_config.h"
@@ -379,6 +380,82 @@ TEST(ReplaySynthetic, OutputsAreCompleteAndReadable)
     const ReplayResult res2 = run_replay(load_dataset((dir / "copy").string()), cfg, opt);
     EXPECT_EQ(res2.robots[0].pose_rmse_m, res.robots[0].pose_rmse_m);
     EXPECT_EQ(res2.merges.size(), res.merges.size());
+    fs::remove_all(dir);
+}
+
+// Where nothing was measured the outputs say so: nan in the CSVs, null in
+// metrics.json, never a -1 a plot would draw (errors.csv nees, the merge
+// transform errors without truth, merge times without a merge, EKF-SLAM's
+// particles). The merge counts name their unit (sums over the particles).
+TEST(ReplaySynthetic, OutputsSayNotMeasuredAsNanAndNull)
+{
+    const fs::path dir = temp_dir("synth_unmeasured");
+    write_synth2(dir / "data", 12);
+    fs::remove(dir / "data" / "robot1_truth.txt"); // robot 1's merges have no true transform
+    const Dataset ds = load_dataset((dir / "data").string());
+    ReplayConfig cfg = synth_config();
+    cfg.filter.type = FilterKind::Ekf;
+    ReplayOptions opt;
+    ReplayResult res = run_replay(ds, cfg, opt);
+    ASSERT_FALSE(res.merges.empty());
+    // a pose covariance without an inverse: the sample has no NEES
+    ASSERT_TRUE(res.robots[1].has_truth);
+    ASSERT_TRUE(res.robots[1].path.at(3).has_truth);
+    res.robots[1].path.at(3).cov = cov3_t{};
+    write_run_outputs((dir / "out").string(), ds, cfg, opt, res, RunInfo{"test", 0.0});
+    // the columns of a CSV by name, each row's cells as text
+    auto read = [](const fs::path &p) {
+        std::ifstream f(p);
+        std::string line;
+        std::getline(f, line);
+        std::vector<std::string> head;
+        std::stringstream hs(line);
+        for (std::string c; std::getline(hs, c, ',');) head.push_back(c);
+        std::vector<std::map<std::string, std::string>> rows;
+        while (std::getline(f, line)) {
+            std::stringstream ls(line);
+            std::map<std::string, std::string> row;
+            size_t i = 0;
+            for (std::string c; std::getline(ls, c, ',') && i < head.size(); ++i) row[head[i]] = c;
+            rows.push_back(row);
+        }
+        return std::make_pair(head, rows);
+    };
+    const auto [mh, merges] = read(dir / "out" / "merge_events.csv");
+    EXPECT_NE(std::find(mh.begin(), mh.end(), "fused_particle_sum"), mh.end());
+    EXPECT_NE(std::find(mh.begin(), mh.end(), "added_particle_sum"), mh.end());
+    ASSERT_EQ(merges.size(), res.merges.size());
+    for (const auto &m : merges) {
+        for (const char *c : {"t_err_m", "t_err_rad", "t_nees"}) {
+            EXPECT_EQ(m.at(c), "nan") << c << " of a merge without truth";
+        }
+    }
+    const auto [eh, errors] = read(dir / "out" / "errors.csv");
+    int nees_nan = 0;
+    for (const auto &e : errors) {
+        const std::string &n = e.at("nees");
+        nees_nan += n == "nan";
+        EXPECT_TRUE(n == "nan" || std::stod(n) >= 0.0) << "a sentinel NEES: " << n;
+    }
+    EXPECT_EQ(nees_nan, 1) << "the sample with a singular covariance";
+    std::ifstream jf(dir / "out" / "metrics.json");
+    const nlohmann::json j = nlohmann::json::parse(jf);
+    for (const auto &r : j["robots"]) {
+        EXPECT_TRUE(r["particles"].is_null()) << "EKF-SLAM has no particles";
+    }
+    EXPECT_TRUE(j["merges"]["events"][0].contains("fused_particle_sum"));
+    // a run that ends before any merge: no merge times, no merge shown
+    opt.duration_s = 1.0;
+    const ReplayResult early = run_replay(ds, cfg, opt);
+    ASSERT_TRUE(early.merges.empty());
+    write_run_outputs((dir / "early").string(), ds, cfg, opt, early, RunInfo{"test", 0.0});
+    std::ifstream ef(dir / "early" / "metrics.json");
+    const nlohmann::json je = nlohmann::json::parse(ef);
+    for (const auto &r : je["robots"]) {
+        EXPECT_TRUE(r["first_merge_t_s"].is_null());
+        EXPECT_TRUE(r["shown_merge_t_s"].is_null());
+        EXPECT_TRUE(r["shown_merge_added"].is_null());
+    }
     fs::remove_all(dir);
 }
 

@@ -548,6 +548,49 @@ TEST(RunOutput, FilesAreWrittenAndParse)
     EXPECT_EQ(rows_na, 2);
 }
 
+// Not measured is nan in the CSVs and null in metrics.json, never a number:
+// with an evaluation gate of 1 mm no landmark is matched, so every map
+// error is unmeasured (it was 0) and every landmark has no true one
+// (truth_id, it was -1); the EKF-SLAM robot has no particles (it was 0).
+TEST(RunOutput, NotMeasuredIsNanInTheCsvsAndNullInTheJson)
+{
+    Scenario sc = load_scenario_file(kPaper);
+    sc.evaluation.gate_m = 1e-3;
+    Simulation sim(sc, SimulationOptions{std::nullopt, 3.0});
+    sim.run();
+    const std::string dir = ::testing::TempDir() + "coslam_run_output_unmeasured";
+    std::filesystem::remove_all(dir);
+    write_run_outputs(sim, dir);
+    std::ifstream mj(dir + "/metrics.json");
+    const nlohmann::json m = nlohmann::json::parse(mj);
+    EXPECT_TRUE(m["robots"][1]["particles"].is_null()) << "EKF-SLAM is not a particle filter (it was 0)";
+    EXPECT_EQ(m["robots"][0]["particles"], 100);
+    for (const char *f : {"robot0_errors.csv", "robot0_map.csv", "robot1_map.csv"}) {
+        std::ifstream cf(dir + "/" + f);
+        std::string head, line;
+        std::getline(cf, head);
+        const bool errors = head.rfind("t,pos_err_m,heading_err_deg,map_rmse_m,map_max_err_m,n_est,n_matched", 0) == 0;
+        ASSERT_TRUE(errors || head == "id,x,y,cxx,cxy,cyy,signature,n_obs,src_mask,truth_id") << head;
+        int rows = 0;
+        while (std::getline(cf, line)) {
+            std::vector<std::string> c;
+            std::stringstream ls(line);
+            for (std::string v; std::getline(ls, v, ',');) c.push_back(v);
+            ASSERT_EQ(c.size(), errors ? 9u : 10u) << line;
+            if (errors) {
+                EXPECT_EQ(c[6], "0") << line; // nothing matched
+                EXPECT_EQ(c[3], "nan") << line;
+                EXPECT_EQ(c[4], "nan") << line;
+            } else {
+                EXPECT_EQ(c[9], "nan") << line;
+            }
+            rows++;
+        }
+        EXPECT_GT(rows, 0) << f;
+    }
+    std::filesystem::remove_all(dir);
+}
+
 // The summary's merge line: Fast-SLAM's counts (sums over the particles in
 // merge_stats_t) as the mean per particle that adds up, said so (it printed
 // "16 landmarks: 6 fused, 9 added"); the sightings' time apart unsigned with
