@@ -31,10 +31,19 @@ expect_error() {
 scenario() {
   sed "$1" "$PAPER" > "$WORK/$2.toml"
 }
+# with_fault NAME AT_S DURATION_S: a copy of the paper scenario with a
+# laser_unplug fault of robot 1 appended
+with_fault() {
+  cp "$PAPER" "$WORK/$1.toml"
+  printf '\n[[fault]]\nrobot = 1\nkind = "laser_unplug"\nat_s = %s\nduration_s = %s\n' "$2" "$3" >> "$WORK/$1.toml"
+}
+# refused WHAT NEEDLE NAME: $WORK/NAME.toml is refused (exit 2) with NEEDLE
+refused() {
+  expect_error "$1" 2 "$2" --scenario "$WORK/$3.toml" --out "$WORK/never"
+}
 expect_error "a directory" 2 "$WORK: is a directory, not a scenario file" --scenario "$WORK" --out "$WORK/never"
 expect_error "a bad option value" 2 "--seed" --seed -3 --out "$WORK/never"
-cp "$PAPER" "$WORK/late.toml"
-printf '\n[[fault]]\nrobot = 1\nkind = "laser_unplug"\nat_s = 500\nduration_s = 5\n' >> "$WORK/late.toml"
+with_fault late 500 5
 line=$(grep -n '^at_s = 500' "$WORK/late.toml" | cut -d: -f1)
 expect_error "a fault after the end" 2 \
   "$WORK/late.toml: line $line: fault[0].at_s: at_s 500 is at or after the run's end (duration_s 120 s)" \
@@ -70,25 +79,19 @@ expect_error "a robot started outside the arena" 2 "robot[1].start (6, 0): outsi
 # values the robot could not act on (accepted before): a fault of no
 # length, a map resent at every step, a period the robot's microseconds
 # cannot hold, a wall that is a point
-cp "$PAPER" "$WORK/fault0.toml"
-printf '\n[[fault]]\nrobot = 1\nkind = "laser_unplug"\nat_s = 50\nduration_s = 0\n' >> "$WORK/fault0.toml"
+with_fault fault0 50 0
 line=$(grep -n '^duration_s = 0$' "$WORK/fault0.toml" | cut -d: -f1)
-expect_error "a fault of duration 0" 2 \
-  "line $line: fault[0].duration_s: duration_s 0 s is shorter than one physics step (timing.physics_dt_ms 1 ms)" \
-  --scenario "$WORK/fault0.toml" --out "$WORK/never"
+refused "a fault of duration 0" \
+  "line $line: fault[0].duration_s: duration_s 0 s is shorter than one physics step (timing.physics_dt_ms 1 ms)" fault0
 scenario 's/^resend_s = 1.0$/resend_s = 0/' resend0
-expect_error "a zero meeting.resend_s" 2 "line 99: meeting.resend_s: value 0 outside [0.001, 4000]" \
-  --scenario "$WORK/resend0.toml" --out "$WORK/never"
+refused "a zero meeting.resend_s" "line 99: meeting.resend_s: value 0 outside [0.001, 4000]" resend0
 scenario 's/^meeting_gap_s = 5.0$/meeting_gap_s = 5000/' gap_big
-expect_error "a meeting.meeting_gap_s beyond 4000 s" 2 "meeting.meeting_gap_s: value 5000 outside [0, 4000]" \
-  --scenario "$WORK/gap_big.toml" --out "$WORK/never"
+refused "a meeting.meeting_gap_s beyond 4000 s" "meeting.meeting_gap_s: value 5000 outside [0, 4000]" gap_big
 scenario 's/^boxes = \[/walls = [ { from = [1.0, 2.0], to = [1.0, 2.0] } ]\nboxes = [/' wall0
-expect_error "a wall of length 0" 2 "world.walls[0].to: (1, 2) is the same point as from: a wall needs a length" \
-  --scenario "$WORK/wall0.toml" --out "$WORK/never"
+refused "a wall of length 0" "world.walls[0].to: (1, 2) is the same point as from: a wall needs a length" wall0
 [ ! -e "$WORK/never" ] || { echo "FAIL: an output folder was made"; fail=1; }
 # --duration shortens the run below the fault's start (and below any merge)
-cp "$PAPER" "$WORK/fault.toml"
-printf '\n[[fault]]\nrobot = 1\nkind = "laser_unplug"\nat_s = 100\nduration_s = 5\n' >> "$WORK/fault.toml"
+with_fault fault 100 5
 out=$("$BIN" --quiet --camera oracle --duration 2 --scenario "$WORK/fault.toml" --out "$WORK/short" 2>&1); rc=$?
 if [ $rc -ne 0 ] || ! echo "$out" | grep -qF "fault laser_unplug on robot1: not reached (at 100.0 s, the run ended at 2.0 s)" ||
    echo "$out" | grep -qF -- "-1.0 s" || ! grep -q '"reached": false' "$WORK/short/metrics.json"; then
