@@ -20,6 +20,7 @@
 
 #include "bench_fs.h"
 #include "profile_print.h"
+#include "bench_args.h"
 #include "bench_report.h"
 
 int bench_fs_cpu_clock = 0;
@@ -63,17 +64,16 @@ int main(int argc, char **argv)
     int flat = 1;
     for (int i = 1; i < argc; ++i) {
         if (!strcmp(argv[i], "--out") && i + 1 < argc) out = argv[++i];
-        else if (!strcmp(argv[i], "--seeds") && i + 1 < argc) seeds = atoi(argv[++i]);
-        else if (!strcmp(argv[i], "--steps") && i + 1 < argc) steps = atoi(argv[++i]);
-        else if (!strcmp(argv[i], "--no-flat")) flat = 0;
+        else if (!strcmp(argv[i], "--seeds") && i + 1 < argc) {
+            if (bench_arg_int("coslam-bench-fastslam", "--seeds", argv[++i], 1, 100, &seeds) != 0) return 2;
+        } else if (!strcmp(argv[i], "--steps") && i + 1 < argc) {
+            if (bench_arg_int("coslam-bench-fastslam", "--steps", argv[++i], 2, 100000, &steps) != 0) return 2;
+        } else if (!strcmp(argv[i], "--no-flat")) flat = 0;
         else if (!strcmp(argv[i], "--cpu-time")) bench_fs_cpu_clock = 1;
         else {
             fprintf(stderr, "usage: coslam-bench-fastslam [--out DIR] [--seeds N] [--steps N] [--no-flat] [--cpu-time]\n");
             return 2;
         }
-    }
-    if (seeds < 1 || steps < 2) {
-        return 2;
     }
     profile_print(stdout, "coslam-bench-fastslam");
     if (mkdir(out, 0775) != 0 && errno != EEXIST) {
@@ -106,13 +106,9 @@ int main(int argc, char **argv)
         }
     }
     fprintf(stderr, "\n");
-    char path[1024];
-    snprintf(path, sizeof path, "%s/fastslam_scale.md", out);
-    FILE *md = fopen(path, "w");
-    snprintf(path, sizeof path, "%s/fastslam_scale.json", out);
-    FILE *js = fopen(path, "w");
-    if (!md || !js) {
-        fprintf(stderr, "coslam-bench-fastslam: cannot write into %s\n", out);
+    FILE *md = NULL;
+    FILE *js = NULL;
+    if (bench_report_open("coslam-bench-fastslam", out, "fastslam_scale", &md, &js) != 0) {
         return 1;
     }
     FILE *sinks[2] = {stdout, md};
@@ -153,14 +149,19 @@ int main(int argc, char **argv)
     for (int impl = flat ? 0 : 1; impl < 2; ++impl) {
         for (int p = 0; p < N_P; ++p) {
             const cell_t *c = cell[impl][p];
-            fprintf(js,
-                    "    {\"impl\": \"%s\", \"particles\": %d, \"step_us_mean\": [%.2f, %.2f, %.2f, %.2f], "
-                    "\"step_us_max\": [%.0f, %.0f, %.0f, %.0f], \"resample_us_mean\": [%.2f, %.2f, %.2f, %.2f], "
-                    "\"update_us_mean\": [%.2f, %.2f, %.2f, %.2f], \"final_pos_err_m\": [%.3f, %.3f, %.3f, %.3f]}%s\n",
-                    impl ? "tree" : "flat", ps[p], c[0].step, c[1].step, c[2].step, c[3].step, c[0].step_max,
-                    c[1].step_max, c[2].step_max, c[3].step_max, c[0].rs, c[1].rs, c[2].rs, c[3].rs, c[0].update,
-                    c[1].update, c[2].update, c[3].update, c[0].err, c[1].err, c[2].err, c[3].err,
-                    (impl == 1 && p == N_P - 1) ? "" : ",");
+            static const char *const keys[] = {"step_us_mean", "step_us_max", "resample_us_mean", "update_us_mean",
+                                               "final_pos_err_m"};
+            const int decimals[] = {2, 0, 2, 2, 3};
+            fprintf(js, "    {\"impl\": \"%s\", \"particles\": %d", impl ? "tree" : "flat", ps[p]);
+            for (int q = 0; q < 5; ++q) {
+                double v[N_M];
+                for (int k = 0; k < N_M; ++k) {
+                    v[k] = q == 0 ? c[k].step : q == 1 ? c[k].step_max : q == 2 ? c[k].rs : q == 3 ? c[k].update : c[k].err;
+                }
+                fprintf(js, ", \"%s\": ", keys[q]);
+                bench_json_array(js, v, N_M, decimals[q]);
+            }
+            fprintf(js, "}%s\n", (impl == 1 && p == N_P - 1) ? "" : ",");
         }
     }
     fprintf(js, "  ]\n}\n");

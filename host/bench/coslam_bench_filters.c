@@ -17,6 +17,7 @@
 #include <sys/stat.h>
 
 #include "slam_run.h"
+#include "bench_args.h"
 #include "bench_report.h"
 #include "profile_print.h"
 
@@ -32,14 +33,11 @@ int main(int argc, char **argv)
     int seeds = 3;
     for (int i = 1; i < argc; ++i) {
         if (!strcmp(argv[i], "--out") && i + 1 < argc) out = argv[++i];
-        else if (!strcmp(argv[i], "--seeds") && i + 1 < argc) seeds = atoi(argv[++i]);
-        else { fprintf(stderr, "usage: coslam-bench-filters [--out DIR] [--seeds N]\n"); return 2; }
+        else if (!strcmp(argv[i], "--seeds") && i + 1 < argc) {
+            if (bench_arg_int("coslam-bench-filters", "--seeds", argv[++i], 1, 100, &seeds) != 0) return 2;
+        } else { fprintf(stderr, "usage: coslam-bench-filters [--out DIR] [--seeds N]\n"); return 2; }
     }
     profile_print(stdout, "coslam-bench-filters");
-    if (seeds < 1 || seeds > 100) {
-        fprintf(stderr, "coslam-bench-filters: --seeds outside [1, 100]\n");
-        return 2;
-    }
     if (COSLAM_MAX_PARTICLES < 1000 || COSLAM_MAX_LANDMARKS < 150) {
         fprintf(stderr, "coslam-bench-filters: needs 1000 particles and 150 landmarks, more than this build's profile "
                         "%s has: build with PROFILE=host (make bench does)\n", COSLAM_PROFILE_NAME);
@@ -112,10 +110,13 @@ int main(int argc, char **argv)
     }
     fprintf(js, "{\n  \"profile\": \"%s\",\n  \"seeds\": %d,\n  \"landmarks\": [15, 64, 150],\n  \"filters\": [\n", COSLAM_PROFILE_NAME, seeds);
     for (int f = 0; f < nf; ++f) {
-        fprintf(js, "    {\"name\": \"%s\", \"step_us_mean\": [%.2f, %.2f, %.2f], \"step_us_max\": [%.1f, %.1f, %.1f], "
-                    "\"landmark_rmse_m\": [%.4f, %.4f, %.4f]}%s\n",
-                filters[f].name, mean_us[f][0], mean_us[f][1], mean_us[f][2], max_us[f][0], max_us[f][1], max_us[f][2],
-                lm_rmse[f][0], lm_rmse[f][1], lm_rmse[f][2], f + 1 < nf ? "," : "");
+        fprintf(js, "    {\"name\": \"%s\", \"step_us_mean\": ", filters[f].name);
+        bench_json_array(js, mean_us[f], 3, 2);
+        fputs(", \"step_us_max\": ", js);
+        bench_json_array(js, max_us[f], 3, 1);
+        fputs(", \"landmark_rmse_m\": ", js);
+        bench_json_array(js, lm_rmse[f], 3, 4);
+        fprintf(js, "}%s\n", f + 1 < nf ? "," : "");
     }
     fprintf(js, "  ]\n}\n");
     if (bench_report_close("coslam-bench-filters", out, "core_step_time", md, js) != 0) {

@@ -26,6 +26,7 @@
 
 #include "coslam/map_merge.h"
 #include "profile_print.h"
+#include "bench_args.h"
 #include "bench_report.h"
 
 static double now_us(void)
@@ -185,6 +186,11 @@ static void build_ekf_case(int m, int m_in, uint16_t merge_batch, rng_t *r)
     build_message(m, m_in, r);
 }
 
+/* merge_time.json's timed fields, in the order main fills them */
+static const char *const k_fs_keys[] = {"merge_us", "part_max_us", "own_export_us", "export_pass1_ns",
+                                        "export_pass2_ns", "send_max_us", "naive_search_us"};
+static const char *const k_ekf_keys[] = {"merge_us", "merge_each_at_once_us", "part_first_us", "part_max_us"};
+
 int main(int argc, char **argv)
 {
     const char *out = "out/bench";
@@ -192,8 +198,9 @@ int main(int argc, char **argv)
     int naive = 1;
     for (int i = 1; i < argc; ++i) {
         if (!strcmp(argv[i], "--out") && i + 1 < argc) out = argv[++i];
-        else if (!strcmp(argv[i], "--reps") && i + 1 < argc) reps = atoi(argv[++i]);
-        else if (!strcmp(argv[i], "--no-naive")) naive = 0;
+        else if (!strcmp(argv[i], "--reps") && i + 1 < argc) {
+            if (bench_arg_int("coslam-bench-merge", "--reps", argv[++i], 1, 100, &reps) != 0) return 2;
+        } else if (!strcmp(argv[i], "--no-naive")) naive = 0;
         else { fprintf(stderr, "usage: coslam-bench-merge [--out DIR] [--reps N] [--no-naive]\n"); return 2; }
     }
     profile_print(stdout, "coslam-bench-merge");
@@ -391,13 +398,9 @@ int main(int argc, char **argv)
         }
     }
     fprintf(stderr, "\n");
-    char path[1024];
-    snprintf(path, sizeof path, "%s/merge_time.md", out);
-    FILE *md = fopen(path, "w");
-    snprintf(path, sizeof path, "%s/merge_time.json", out);
-    FILE *js = fopen(path, "w");
-    if (!md || !js) {
-        fprintf(stderr, "coslam-bench-merge: cannot write into %s\n", out);
+    FILE *md = NULL;
+    FILE *js = NULL;
+    if (bench_report_open("coslam-bench-merge", out, "merge_time", &md, &js) != 0) {
         return 1;
     }
     FILE *sinks[2] = {stdout, md};
@@ -412,9 +415,13 @@ int main(int argc, char **argv)
                    "largest call [ms] | naive all-pairs duplicate search alone [ms] |\n|---|---|---|---|---|---|---|\n",
                 mc.step_units);
         for (int c = 0; c < 4; ++c) {
-            fprintf(o, "| (%d, %d, %d) | %.2f | %.1f | %.2f | %d | %.2f | %.1f |\n", cases[c][0], cases[c][1],
+            char naive_ms[32] = "-"; /* --no-naive: not measured */
+            if (isfinite(naive_us[c])) {
+                snprintf(naive_ms, sizeof naive_ms, "%.1f", naive_us[c] / 1000.0);
+            }
+            fprintf(o, "| (%d, %d, %d) | %.2f | %.1f | %.2f | %d | %.2f | %s |\n", cases[c][0], cases[c][1],
                     cases[c][2], fs_us[c] / 1000.0, 1000.0 * fs_us[c] / ((double)cases[c][0] * cases[c][2]),
-                    export_us[c] / 1000.0, part_calls[c], part_us[c] / 1000.0, naive_us[c] / 1000.0);
+                    export_us[c] / 1000.0, part_calls[c], part_us[c] / 1000.0, naive_ms);
         }
         fprintf(o, "\nThe merge column is the transform, the check and the fusion in one call; the robot's merge path "
                    "first exports its own whole map for the check (every particle's every landmark, O(N M)). In parts, "
@@ -449,20 +456,23 @@ int main(int argc, char **argv)
                    "filter's inputs meanwhile (slam_filter).\n",
                 MERGE_EKF_MADDS_PER_UNIT);
     }
+    /* naive_search_us is null with --no-naive (not measured) */
     fprintf(js, "{\"fastslam\": [");
     for (int c = 0; c < 4; ++c) {
-        fprintf(js, "%s{\"particles\": %d, \"landmarks\": %d, \"incoming\": %d, \"merge_us\": %.1f, "
-                    "\"part_calls\": %d, \"part_max_us\": %.1f, \"own_export_us\": %.1f, \"export_pass1_ns\": %.1f, "
-                    "\"export_pass2_ns\": %.1f, \"send_calls\": %d, \"send_max_us\": %.1f, \"naive_search_us\": %.1f}",
-                c ? ", " : "", cases[c][0], cases[c][1], cases[c][2], fs_us[c], part_calls[c], part_us[c], export_us[c],
-                export_ns_per_lm[c][0], export_ns_per_lm[c][1], send_calls[c], send_us[c], naive_us[c]);
+        const double fs[] = {fs_us[c], part_us[c], export_us[c], export_ns_per_lm[c][0], export_ns_per_lm[c][1],
+                             send_us[c], naive_us[c]};
+        fprintf(js, "%s{\"particles\": %d, \"landmarks\": %d, \"incoming\": %d, \"part_calls\": %d, \"send_calls\": %d",
+                c ? ", " : "", cases[c][0], cases[c][1], cases[c][2], part_calls[c], send_calls[c]);
+        bench_json_fields(js, k_fs_keys, fs, 7, 1);
+        fputc('}', js);
     }
     fprintf(js, "], \"ekfslam\": [");
     for (int c = 0; c < 3; ++c) {
-        fprintf(js, "%s{\"landmarks\": %d, \"incoming\": %d, \"merge_us\": %.1f, \"merge_each_at_once_us\": %.1f, "
-                    "\"part_calls\": %d, \"part_first_us\": %.1f, \"part_max_us\": %.1f}",
-                c ? ", " : "", ekf_m[c][0], ekf_m[c][1], ekf_us[c][0], ekf_us[c][1], ekf_calls[c], ekf_first_us[c],
-                ekf_part_us[c]);
+        const double ek[] = {ekf_us[c][0], ekf_us[c][1], ekf_first_us[c], ekf_part_us[c]};
+        fprintf(js, "%s{\"landmarks\": %d, \"incoming\": %d, \"part_calls\": %d", c ? ", " : "", ekf_m[c][0],
+                ekf_m[c][1], ekf_calls[c]);
+        bench_json_fields(js, k_ekf_keys, ek, 4, 1);
+        fputc('}', js);
     }
     fprintf(js, "]}\n");
     if (bench_report_close("coslam-bench-merge", out, "merge_time", md, js) != 0) {

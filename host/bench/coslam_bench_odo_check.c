@@ -17,6 +17,7 @@
 #include "app/odo_check.h"
 #include "room_scan.h"
 #include "profile_print.h"
+#include "bench_args.h"
 #include "bench_report.h"
 
 static double cpu_us(void)
@@ -34,9 +35,7 @@ int main(int argc, char **argv)
         if (strcmp(argv[i], "--out") == 0 && i + 1 < argc) {
             out = argv[++i];
         } else if (strcmp(argv[i], "--checks") == 0 && i + 1 < argc) {
-            checks = strtol(argv[++i], NULL, 10);
-            if (checks < 1 || checks > 1000000) {
-                fprintf(stderr, "coslam-bench-odo-check: --checks outside [1, 1e6]\n");
+            if (bench_arg_long("coslam-bench-odo-check", "--checks", argv[++i], 1, 1000000, &checks) != 0) {
                 return 2;
             }
         } else {
@@ -79,7 +78,9 @@ int main(int argc, char **argv)
     }
     char path[512];
     snprintf(path, sizeof path, "%s/odo_check.md", out);
+    errno = 0;
     FILE *f = fopen(path, "w");
+    const int open_errno = errno; /* the printf below may change errno */
     const double mean = t_check / (double)n_check;
     char table[1024];
     snprintf(table, sizeof table,
@@ -90,7 +91,7 @@ int main(int argc, char **argv)
              COSLAM_APP_ODO_CHECK_POINTS, c.disagreements + c.mismatches);
     printf("%s", table);
     if (f == NULL) {
-        fprintf(stderr, "coslam-bench-odo-check: cannot write %s: %s (the table is above)\n", path, strerror(errno));
+        fprintf(stderr, "coslam-bench-odo-check: cannot write %s: %s (the table is above)\n", path, strerror(open_errno));
         return 1;
     }
     fputs(table, f);

@@ -14,16 +14,19 @@
  * too: the compressed EKF's global update lands in one step.
  * Writes <out>/scale_step_time.{md,json}.
  *   coslam-bench-scale [--out DIR] [--seed S] [--quick | --ekf]
- * --quick: Fast-SLAM 2.0 with 100 particles only; --ekf: EKF-SLAM only.
+ * --quick: Fast-SLAM 2.0 with 100 particles only; --ekf: EKF-SLAM only (one
+ * or the other: both together are refused, exit 2). --seed S: a whole number >= 0.
  */
 #define _POSIX_C_SOURCE 200809L
 #include <errno.h>
+#include <limits.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
 
+#include "bench_args.h"
 #include "bench_report.h"
 #include "eval_worlds.h"
 #include "profile_print.h"
@@ -45,10 +48,16 @@ int main(int argc, char **argv)
     int ekf_only = 0;
     for (int i = 1; i < argc; ++i) {
         if (!strcmp(argv[i], "--out") && i + 1 < argc) out = argv[++i];
-        else if (!strcmp(argv[i], "--seed") && i + 1 < argc) seed = atol(argv[++i]);
-        else if (!strcmp(argv[i], "--quick")) quick = 1;
+        else if (!strcmp(argv[i], "--seed") && i + 1 < argc) {
+            if (bench_arg_long("coslam-bench-scale", "--seed", argv[++i], 0, LONG_MAX, &seed) != 0) return 2;
+        } else if (!strcmp(argv[i], "--quick")) quick = 1;
         else if (!strcmp(argv[i], "--ekf")) ekf_only = 1;
         else { fprintf(stderr, "usage: coslam-bench-scale [--out DIR] [--seed S] [--quick | --ekf]\n"); return 2; }
+    }
+    if (quick && ekf_only) {
+        fprintf(stderr, "coslam-bench-scale: --quick (Fast-SLAM 2.0, 100 particles) and --ekf (EKF-SLAM) are "
+                        "alternatives: give one\n");
+        return 2;
     }
     profile_print(stdout, "coslam-bench-scale");
     if (COSLAM_MAX_PARTICLES < 1000 || COSLAM_MAX_LANDMARKS < 2048 || COSLAM_EKF_MAX_LANDMARKS < 1024 ||
@@ -150,12 +159,20 @@ int main(int argc, char **argv)
     fprintf(js, "{\n  \"profile\": \"%s\",\n  \"seed\": %ld,\n  \"bins_landmarks\": [64, 256, 1024, 2048],\n"
                 "  \"filters\": [\n", COSLAM_PROFILE_NAME, seed);
     for (int c = 0; c < nc; ++c) {
-        fprintf(js, "    {\"name\": \"%s\", \"world_landmarks\": %d, \"step_ms\": [%.4f, %.4f, %.4f, %.4f], "
-                    "\"steps\": [%d, %d, %d, %d], \"worst_step_ms\": %.3f, \"final_error_m\": %.4f, \"pose_rmse_m\": %.4f, \"spurious\": %d, "
-                    "\"exported\": %d, \"idle_ms_mean\": %.4f}%s\n",
-                cases[c].name, cases[c].n_landmarks, 1e-3 * bin_us[c][0], 1e-3 * bin_us[c][1], 1e-3 * bin_us[c][2],
-                1e-3 * bin_us[c][3], bin_n[c][0], bin_n[c][1], bin_n[c][2], bin_n[c][3], max_ms[c], final_err[c], pose_rmse[c],
-                spurious[c], estimated[c], idle_ms[c], c + 1 < nc ? "," : "");
+        /* a size bin no step fell in: null (it was 0) */
+        double step_ms[4];
+        for (int b = 0; b < 4; ++b) {
+            step_ms[b] = bin_n[c][b] > 0 ? 1e-3 * bin_us[c][b] : NAN;
+        }
+        const double fig[] = {max_ms[c], final_err[c], pose_rmse[c]};
+        static const char *const fig_keys[] = {"worst_step_ms", "final_error_m", "pose_rmse_m"};
+        fprintf(js, "    {\"name\": \"%s\", \"world_landmarks\": %d, \"step_ms\": ", cases[c].name, cases[c].n_landmarks);
+        bench_json_array(js, step_ms, 4, 4);
+        fprintf(js, ", \"steps\": [%d, %d, %d, %d]", bin_n[c][0], bin_n[c][1], bin_n[c][2], bin_n[c][3]);
+        bench_json_fields(js, fig_keys, fig, 3, 4);
+        fprintf(js, ", \"spurious\": %d, \"exported\": %d, \"idle_ms_mean\": ", spurious[c], estimated[c]);
+        bench_json_num(js, idle_ms[c], 4);
+        fprintf(js, "}%s\n", c + 1 < nc ? "," : "");
     }
     fprintf(js, "  ]\n}\n");
     if (bench_report_close("coslam-bench-scale", out, "scale_step_time", md, js) != 0) {

@@ -10,24 +10,25 @@
 
 #include "app/profile.h"
 
-/* Opens both files (0) or neither (-1, the reason on stderr, `tool` named). */
+/* Opens both files (0) or neither (-1, "<tool>: cannot write <path>: <OS
+ * reason>" on stderr). */
 static inline int bench_report_open(const char *tool, const char *out, const char *stem, FILE **md, FILE **js)
 {
     char path[1024];
-    snprintf(path, sizeof path, "%s/%s.md", out, stem);
-    *md = fopen(path, "w");
-    snprintf(path, sizeof path, "%s/%s.json", out, stem);
-    *js = fopen(path, "w");
-    if (*md == NULL || *js == NULL) {
-        fprintf(stderr, "%s: cannot write %s.md/.json into %s\n", tool, stem, out);
-        if (*md != NULL) {
-            fclose(*md);
+    *md = *js = NULL;
+    for (int k = 0; k < 2; ++k) {
+        snprintf(path, sizeof path, "%s/%s.%s", out, stem, k == 0 ? "md" : "json");
+        errno = 0;
+        FILE *f = fopen(path, "w");
+        if (f == NULL) {
+            fprintf(stderr, "%s: cannot write %s: %s\n", tool, path, strerror(errno));
+            if (*md != NULL) {
+                fclose(*md);
+            }
+            *md = NULL;
+            return -1;
         }
-        if (*js != NULL) {
-            fclose(*js);
-        }
-        *md = *js = NULL;
-        return -1;
+        *(k == 0 ? md : js) = f;
     }
     char prof[192];
     (void)app_profile_format(prof, sizeof prof);

@@ -1,0 +1,96 @@
+#!/bin/sh
+# The coslam-bench-* programs refuse malformed and out-of-range numbers
+# and conflicting options (exit 2, the option and the accepted range said,
+# before any run), say a report they cannot write (exit 1, the path and the
+# OS's reason), and write no inf/nan into their JSON (null instead).
+#   bench_cli.sh WORK PYTHON3 NAME=BINARY...
+set -u
+WORK=$1
+PY=$2
+shift 2
+fail=0
+rm -rf "$WORK"
+mkdir -p "$WORK"
+bin() { # NAME -> its binary, empty if not built
+  for nb in $ALL; do
+    [ "${nb%%=*}" = "$1" ] && { echo "${nb#*=}"; return; }
+  done
+}
+ALL="$*"
+# refused NAME EXPECTED-TEXT ARGS...: exit 2 and EXPECTED-TEXT in the output
+refused() {
+  b=$(bin "$1")
+  want=$2
+  shift 2
+  [ -n "$b" ] || return 0
+  out=$("$b" --out "$WORK/never" "$@" 2>&1); rc=$?
+  if [ $rc -ne 2 ] || ! printf '%s\n' "$out" | grep -qF -- "$want"; then
+    echo "FAIL: $(basename "$b") $* gave exit $rc, wanted 2 and '$want': $(printf '%s\n' "$out" | tail -2)"
+    fail=1
+  else
+    echo "ok: $(basename "$b") $* -> $(printf '%s\n' "$out" | grep -F -- "$want" | head -1)"
+  fi
+}
+refused merge "--reps 0 outside [1, 100]" --reps 0
+refused merge "--reps -3 outside [1, 100]" --reps -3
+refused merge "--reps 'abc': not a whole number" --reps abc
+refused merge "--reps '5x': not a whole number" --reps 5x
+refused filters "--seeds 0 outside [1, 100]" --seeds 0
+refused filters "--seeds 'abc': not a whole number" --seeds abc
+refused fastslam "--seeds 0 outside [1, 100]" --seeds 0
+refused fastslam "--steps 0 outside [2, 100000]" --steps 0
+refused fastslam "--steps 'abc': not a whole number" --steps abc
+refused scale "--quick (Fast-SLAM 2.0, 100 particles) and --ekf (EKF-SLAM) are alternatives" --quick --ekf
+refused scale "--seed 'abc': not a whole number" --seed abc
+refused scale "--seed -1 outside [0," --seed -1
+refused odo-check "--checks 0 outside [1, 1000000]" --checks 0
+refused odo-check "--checks '5x': not a whole number" --checks 5x
+[ ! -e "$WORK/never" ] || { echo "FAIL: a refused command line created $WORK/never"; fail=1; }
+
+# a report that cannot be written (a full disk: a symlink to /dev/full)
+full() { # NAME FILE ARGS...
+  b=$(bin "$1")
+  f=$2
+  shift 2
+  [ -n "$b" ] && [ -e /dev/full ] || return 0
+  d="$WORK/full_$(basename "$b")"
+  mkdir -p "$d"
+  ln -s /dev/full "$d/$f"
+  out=$("$b" --out "$d" "$@" 2>&1); rc=$?
+  if [ $rc -ne 1 ] || ! printf '%s\n' "$out" | grep -qF "cannot write $d/$f: No space left on device"; then
+    echo "FAIL: $(basename "$b") with $f on a full disk gave exit $rc: $(printf '%s\n' "$out" | tail -2)"
+    fail=1
+  else
+    echo "ok: full disk -> $(printf '%s\n' "$out" | grep -F 'cannot write')"
+  fi
+}
+full fastslam fastslam_scale.json --seeds 1 --steps 2 --no-flat
+full odo-check odo_check.md --checks 1
+
+# every number in the JSON finite: --no-naive (the naive search not
+# measured) wrote nan before; now null
+b=$(bin merge)
+if [ -n "$b" ]; then
+  if ! "$b" --reps 1 --no-naive --out "$WORK/merge" > "$WORK/merge.txt" 2>&1; then
+    echo "FAIL: coslam-bench-merge --reps 1 --no-naive: $(tail -2 "$WORK/merge.txt")"; fail=1
+  elif ! "$PY" - "$WORK/merge/merge_time.json" <<'PYEOF'
+import json, sys
+def refuse(c):
+    raise ValueError("not finite: " + c)
+with open(sys.argv[1]) as f:
+    text = f.read()
+try:
+    d = json.loads(text, parse_constant=refuse)
+except ValueError as e:
+    sys.exit("merge_time.json is not valid JSON (%s): %s" % (e, text[:300]))
+naive = [r["naive_search_us"] for r in d["fastslam"]]
+if naive != [None] * 4:
+    sys.exit("naive_search_us without the naive search: %s (wanted null)" % naive)
+PYEOF
+  then
+    fail=1
+  else
+    echo "ok: merge_time.json is valid JSON, naive_search_us null with --no-naive"
+  fi
+fi
+exit $fail
