@@ -62,6 +62,20 @@ inline CLI::Validator int_in(long long lo, long long hi)
         "INT in " + desc, "INT_IN");
 }
 
+/// app.parse with the house's exit statuses: returns -1 when parsed (go
+/// on), else the status to exit with: 0 for --help, 2 for a bad option or
+/// value (a usage error; CLI11 says which). CLI11_PARSE would exit with
+/// CLI11's own codes (105 for a value a check refused).
+inline int parse_usage(CLI::App &app, int argc, char **argv)
+{
+    try {
+        app.parse(argc, argv);
+    } catch (const CLI::ParseError &e) {
+        return app.exit(e) == 0 ? 0 : 2;
+    }
+    return -1;
+}
+
 } // namespace coslam::cli
 
 #endif

@@ -10,6 +10,8 @@
 // raw format, converted first). Target: < 2 ms per frame (issue 11).
 //
 //   coslam-bench-vision [--out DIR] [--frames N] [--repeats R]
+// N in [1, 5000], R in [1, 1000] (else exit 2); a report that cannot be
+// written is "cannot write PATH: REASON", exit 1.
 #include <CLI/CLI.hpp>
 #include <chrono>
 #include <cstdio>
@@ -21,10 +23,13 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "checked_file.hpp"
+#include "cli_checks.hpp"
 #include "vision_scenes.hpp"
 
 using namespace coslam;
 using namespace coslam::vision_host;
+namespace cli = coslam::cli;
 
 int main(int argc, char **argv)
 {
@@ -32,9 +37,11 @@ int main(int argc, char **argv)
     std::string out = "out/bench";
     int frames = 100, repeats = 15;
     app.add_option("--out", out, "report directory (vision.json)")->capture_default_str();
-    app.add_option("--frames", frames, "rendered frames")->capture_default_str();
-    app.add_option("--repeats", repeats, "detections per frame (the fastest counts)")->capture_default_str();
-    CLI11_PARSE(app, argc, argv);
+    app.add_option("--frames", frames, "rendered frames")->capture_default_str()->check(cli::int_in(1, 5000));
+    app.add_option("--repeats", repeats, "detections per frame (the fastest counts)")
+        ->capture_default_str()
+        ->check(cli::int_in(1, 1000));
+    if (const int rc = cli::parse_usage(app, argc, argv); rc >= 0) return rc;
     try {
         cpu_set_t set;
         CPU_ZERO(&set);
@@ -103,7 +110,7 @@ int main(int argc, char **argv)
         std::printf("  target < 2 ms per frame (rgb24_runs, the robot's pipeline): %s\n", ok ? "met" : "NOT met");
         rep["target_met"] = ok;
         std::filesystem::create_directories(out);
-        std::ofstream(out + "/vision.json") << rep.dump(2) << "\n";
+        cli::write_text_file(out + "/vision.json", rep.dump(2) + "\n");
     } catch (const std::exception &e) {
         std::fprintf(stderr, "coslam-bench-vision: %s\n", e.what());
         return 1;

@@ -81,8 +81,8 @@ public:
             char name[64];
             std::snprintf(name, sizeof name, "%06d_", index);
             const cv::Mat cls = classes_picture(vision_detector_classes(det_), VISION_IMAGE_WIDTH_PX, VISION_IMAGE_HEIGHT_PX);
-            write_rgb(annotate_ + "/" + name + stem + "_detections.png", annotate(rgb_, res_));
-            write_rgb(annotate_ + "/" + name + stem + "_classes.png", cls);
+            write_rgb_checked(annotate_ + "/" + name + stem + "_detections.png", annotate(rgb_, res_));
+            write_rgb_checked(annotate_ + "/" + name + stem + "_classes.png", cls);
         }
     }
 

@@ -31,6 +31,8 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "checked_file.hpp"
+#include "cli_checks.hpp"
 #include "vision_scenes.hpp"
 
 using namespace coslam;
@@ -92,17 +94,19 @@ int main(int argc, char **argv)
     std::string lut_path, model_path, images, json_path, blobs = "runs";
     int n_examples = 3;
     bool verbose = false, dump = false;
-    app.add_option("--frames", frames, "rendered frames")->capture_default_str();
+    app.add_option("--frames", frames, "rendered frames")->capture_default_str()->check(coslam::cli::int_in(1, 1000000));
     app.add_option("--seed0", seed0, "scene seed of the first frame")->capture_default_str();
     app.add_option("--lut", lut_path, "colour table (default: the shipped one)");
     app.add_option("--model", model_path, "range model (default: the shipped one; 'pinhole': uncalibrated)");
     app.add_option("--images", images, "write example figures here");
-    app.add_option("--examples", n_examples, "how many example figures")->capture_default_str();
+    app.add_option("--examples", n_examples, "how many example figures")
+        ->capture_default_str()
+        ->check(coslam::cli::int_in(0, 1000000));
     app.add_option("--json", json_path, "write the statistics as JSON");
     app.add_flag("--verbose", verbose, "print every missed clear marker and every false marker");
     app.add_flag("--dump", dump, "with --images: write the figures of every frame");
     app.add_option("--blobs", blobs, "runs | opencv")->check(CLI::IsMember({"runs", "opencv"}))->capture_default_str();
-    CLI11_PARSE(app, argc, argv);
+    if (const int rc = coslam::cli::parse_usage(app, argc, argv); rc >= 0) return rc;
 
     try {
         cv::setNumThreads(1);
@@ -222,7 +226,7 @@ int main(int argc, char **argv)
                     cv::hconcat(std::vector<cv::Mat>{rgb, cls, ann}, row);
                     char name[128];
                     std::snprintf(name, sizeof name, "%s/example%d.png", images.c_str(), examples + 1);
-                    write_rgb(name, row);
+                    write_rgb_checked(name, row);
                     ++examples;
                 }
             }
@@ -284,7 +288,7 @@ int main(int argc, char **argv)
         if (!json_path.empty()) {
             std::filesystem::path p(json_path);
             if (p.has_parent_path()) std::filesystem::create_directories(p.parent_path());
-            std::ofstream(json_path) << j.dump(2) << "\n";
+            coslam::cli::write_text_file(json_path, j.dump(2) + "\n");
         }
         vision_detector_destroy(det);
     } catch (const std::exception &e) {

@@ -26,6 +26,8 @@
 
 #include <opencv2/core.hpp>
 
+#include "checked_file.hpp"
+#include "cli_checks.hpp"
 #include "vision_scenes.hpp"
 
 using namespace coslam;
@@ -156,14 +158,16 @@ int main(int argc, char **argv)
     uint64_t seed0 = 4000;
     double max_range = 6.0;
     app.add_option("--out", out, "range model file to write")->capture_default_str();
-    app.add_option("--frames", frames, "rendered calibration frames")->capture_default_str();
+    app.add_option("--frames", frames, "rendered calibration frames")
+        ->capture_default_str()
+        ->check(coslam::cli::int_in(1, 1000000));
     app.add_option("--seed0", seed0, "scene seed of the first frame")->capture_default_str();
     app.add_option("--lut", lut_path, "colour table (default: the shipped one)");
     app.add_option("--max-range", max_range, "samples farther are not fitted [m]")->capture_default_str();
     app.add_option("--samples", samples_in,
                    "fit these samples instead (lines: kind (1 landmark, 2 robot) h_px range_m bearing_rad bearing_err_rad)");
     app.add_option("--dump-samples", samples_out, "write the samples used");
-    CLI11_PARSE(app, argc, argv);
+    if (const int rc = coslam::cli::parse_usage(app, argc, argv); rc >= 0) return rc;
 
     try {
         std::vector<CalSample> samples;
@@ -207,10 +211,11 @@ int main(int argc, char **argv)
             vision_detector_destroy(det);
         }
         if (!samples_out.empty()) {
-            std::ofstream o(samples_out);
+            std::ofstream o = coslam::cli::open_checked(samples_out);
             o << "# kind h_px range_m bearing_rad bearing_err_rad\n";
             for (const auto &c : samples)
                 o << c.kind << " " << c.h_px << " " << c.range_m << " " << c.bearing_rad << " " << c.bearing_err_rad << "\n";
+            coslam::cli::close_checked(o, samples_out);
         }
         const KindFit lm = fit_kind(samples, VISION_MARKER_LANDMARK, max_range);
         const KindFit rb = fit_kind(samples, VISION_MARKER_ROBOT, max_range);
@@ -237,8 +242,10 @@ int main(int argc, char **argv)
         }
         std::string header = h.str();
         if (!header.empty() && header.back() == '\n') header.pop_back();
+        errno = 0;
         const vision_status_t st = vision_range_model_save(&m, out.c_str(), header.c_str());
-        if (st != VISION_OK) throw std::runtime_error("cannot write " + out);
+        if (st == VISION_E_IO) throw coslam::cli::WriteError(out, errno);
+        if (st != VISION_OK) throw std::runtime_error("cannot write " + out + ": " + vision_status_name(st));
         std::cout << header << "\nwritten: " << out << "\n";
     } catch (const std::exception &e) {
         std::cerr << "coslam-vision-fit: " << e.what() << std::endl;

@@ -21,6 +21,8 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "checked_file.hpp"
+#include "cli_checks.hpp"
 #include "colour_train.hpp"
 #include "vision_scenes.hpp"
 
@@ -87,12 +89,20 @@ int main(int argc, char **argv)
     size_t per_bin = 4;
     app.add_option("--lut", lut_path, "colour table to write")->capture_default_str();
     app.add_option("--report", report_path, "report (markdown)")->capture_default_str();
-    app.add_option("--train", n_train, "rendered training frames (seeds 1000..)")->capture_default_str();
-    app.add_option("--val", n_val, "rendered validation frames (seeds 2000..)")->capture_default_str();
-    app.add_option("--test", n_test, "rendered held-out test frames (seeds 3000..)")->capture_default_str();
-    app.add_option("--per-bin", per_bin, "GRNN samples per class and colour-table bin")->capture_default_str();
+    app.add_option("--train", n_train, "rendered training frames (seeds 1000..)")
+        ->capture_default_str()
+        ->check(coslam::cli::int_in(1, 100000));
+    app.add_option("--val", n_val, "rendered validation frames (seeds 2000..)")
+        ->capture_default_str()
+        ->check(coslam::cli::int_in(1, 100000));
+    app.add_option("--test", n_test, "rendered held-out test frames (seeds 3000..)")
+        ->capture_default_str()
+        ->check(coslam::cli::int_in(1, 100000));
+    app.add_option("--per-bin", per_bin, "GRNN samples per class and colour-table bin")
+        ->capture_default_str()
+        ->check(coslam::cli::int_in(1, 100000));
     app.add_option("--labelled", labelled, "also train on real labelled images in DIR (NAME.png + NAME_labels.png)");
-    CLI11_PARSE(app, argc, argv);
+    if (const int rc = coslam::cli::parse_usage(app, argc, argv); rc >= 0) return rc;
 
     try {
         const auto t0 = std::chrono::steady_clock::now();
@@ -154,7 +164,9 @@ int main(int argc, char **argv)
         const ClassScores ga = score_lut(grnn_lut, test_all), ha = score_lut(hsv_lut, test_all);
         const bool grnn_wins = g.mean_f1() >= h.mean_f1();
         const vision_lut_t &chosen = grnn_wins ? grnn_lut : hsv_lut;
+        errno = 0;
         const vision_status_t st = vision_lut_save(&chosen, lut_path.c_str());
+        if (st == VISION_E_IO) throw coslam::cli::WriteError(lut_path, errno);
         if (st != VISION_OK) throw std::runtime_error("cannot write " + lut_path + ": " + vision_status_name(st));
 
         std::ostringstream rep;
@@ -180,7 +192,7 @@ int main(int argc, char **argv)
         rep << "\nTime: " << secs << " s.\n";
         std::filesystem::path rp(report_path);
         if (rp.has_parent_path()) std::filesystem::create_directories(rp.parent_path());
-        std::ofstream(report_path) << rep.str();
+        coslam::cli::write_text_file(report_path, rep.str());
         std::cout << rep.str();
     } catch (const std::exception &e) {
         std::cerr << "coslam-vision-train: " << e.what() << std::endl;

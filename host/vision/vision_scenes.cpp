@@ -2,11 +2,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 #include <stdexcept>
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "checked_file.hpp"
 #include "coslam/rng.h"
 #include "sim/world/pixel_camera.hpp"
 
@@ -205,13 +208,34 @@ cv::Mat annotate(const cv::Mat &rgb, const vision_result_t &res, const std::vect
     return out;
 }
 
-bool write_rgb(const std::string &path, const cv::Mat &rgb)
+void write_rgb_checked(const std::string &path, const cv::Mat &rgb)
 {
     cv::Mat bgr;
     cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
+    // encoded in memory, then written as a checked file: cv::imwrite gives
+    // no reason for a failed write, and may not notice a full disk
+    const std::string ext = std::filesystem::path(path).extension().string();
+    std::vector<uchar> bytes;
+    bool encoded = false;
     try {
-        return cv::imwrite(path, bgr, {cv::IMWRITE_PNG_COMPRESSION, 9});
+        encoded = cv::imencode(ext, bgr, bytes, {cv::IMWRITE_PNG_COMPRESSION, 9});
     } catch (const cv::Exception &) {
+        encoded = false;
+    }
+    if (!encoded) {
+        throw std::runtime_error("cannot write " + path + ": no image encoder for '" + ext + "' (use .png or .jpg)");
+    }
+    std::ofstream f = cli::open_checked(path);
+    f.write(reinterpret_cast<const char *>(bytes.data()), static_cast<std::streamsize>(bytes.size()));
+    cli::close_checked(f, path);
+}
+
+bool write_rgb(const std::string &path, const cv::Mat &rgb)
+{
+    try {
+        write_rgb_checked(path, rgb);
+        return true;
+    } catch (const std::exception &) {
         return false;
     }
 }

@@ -93,6 +93,10 @@ cv::Mat annotate(const cv::Mat &rgb, const vision_result_t &res, const std::vect
                  int scale = 2);
 /// Write an RGB24 Mat as PNG/JPEG (by extension). False on failure.
 bool write_rgb(const std::string &path, const cv::Mat &rgb);
+/// The same, checked: throws cli::WriteError ("cannot write PATH: the OS's
+/// reason") when the file cannot be written whole, std::runtime_error when
+/// the extension has no encoder.
+void write_rgb_checked(const std::string &path, const cv::Mat &rgb);
 
 /// Load the shipped (or given) colour table and range model; throws
 /// std::runtime_error with the reason.

@@ -45,6 +45,10 @@ refused scale "--seed 'abc': not a whole number" --seed abc
 refused scale "--seed -1 outside [0," --seed -1
 refused odo-check "--checks 0 outside [1, 1000000]" --checks 0
 refused odo-check "--checks '5x': not a whole number" --checks 5x
+refused vision "--frames: value -1 outside [1, 5000]" --frames -1
+refused vision "--frames: value 0 outside [1, 5000]" --frames 0
+refused vision "--repeats: value 0 outside [1, 1000]" --repeats 0
+refused vision "--repeats: not an integer: abc" --repeats abc
 [ ! -e "$WORK/never" ] || { echo "FAIL: a refused command line created $WORK/never"; fail=1; }
 
 # a report that cannot be written (a full disk: a symlink to /dev/full)
@@ -66,6 +70,7 @@ full() { # NAME FILE ARGS...
 }
 full fastslam fastslam_scale.json --seeds 1 --steps 2 --no-flat
 full odo-check odo_check.md --checks 1
+full vision vision.json --frames 1 --repeats 1
 
 # every number in the JSON finite: --no-naive (the naive search not
 # measured) wrote nan before; now null
