@@ -43,6 +43,7 @@
 
 #include "bench_slam.h"
 #include "checked_file.hpp"
+#include "cli_checks.hpp"
 #include "data_dir.hpp"
 #include "replay_config.h"
 #include "replay_data.h"
@@ -244,21 +245,29 @@ int main(int argc, char **argv)
     std::vector<std::string> mrpt_assoc = {"nn", "jcbb"};
     app.add_option("--data", data, "MRCLAM dataset folder");
     app.add_option("-c,--config", config, "replay INI (noise, odometry model, gates)");
-    app.add_option("-r,--robots", robots, "robots (default: all)")->delimiter(',');
-    app.add_option("-p,--particles", particles, "Fast-SLAM particles");
+    app.add_option("-r,--robots", robots, "robots (default: all)")
+        ->delimiter(',')
+        ->check(coslam::cli::int_in(1, kMaxRobotId));
+    app.add_option("-p,--particles", particles, "Fast-SLAM particles")
+        ->check(coslam::cli::int_in(1, COSLAM_MAX_PARTICLES));
     app.add_option("-o,--out", out, "report folder");
     app.add_flag("--mrpt-grid", grid, "also run MRPT over a grid of its noise settings");
-    app.add_option("--repeats", repeats, "run each stream this often, keep the fastest time");
+    app.add_option("--repeats", repeats, "run each stream this often, keep the fastest time")
+        ->check(coslam::cli::int_in(1, 100));
     app.add_option("--methods", method_names, "methods to run: ekf, fs2, fs1, mrpt")
         ->delimiter(',')
         ->check(CLI::IsMember({"ekf", "fs2", "fs1", "mrpt"}));
     app.add_option("--report", report, "report file name in the out folder, without extension");
-    app.add_option("--mrpt-sd-range", mrpt_base.std_range_m, "MRPT's range noise sd [m] (it has no range-dependent model)");
-    app.add_option("--mrpt-sd-bearing", mrpt_base.std_bearing_rad, "MRPT's bearing noise sd [rad]");
+    app.add_option("--mrpt-sd-range", mrpt_base.std_range_m, "MRPT's range noise sd [m] (it has no range-dependent model)")
+        ->check(coslam::cli::finite_in(0.0, 10.0, true));
+    app.add_option("--mrpt-sd-bearing", mrpt_base.std_bearing_rad, "MRPT's bearing noise sd [rad]")
+        ->check(coslam::cli::finite_in(0.0, 3.14159, true));
     app.add_option("--mrpt-assoc", mrpt_assoc, "MRPT's data associations to run: nn, jcbb")
         ->delimiter(',')
         ->check(CLI::IsMember({"nn", "jcbb"}));
-    CLI11_PARSE(app, argc, argv);
+    if (const int rc = coslam::cli::parse_usage(app, argc, argv); rc >= 0) {
+        return rc; // 2: a bad option or value
+    }
     std::cerr << coslam::profile_line("coslam-bench-mrclam") << "\n";
 
     try {
@@ -338,7 +347,7 @@ int main(int argc, char **argv)
         for (size_t m = 0; m < methods.size(); ++m) {
             for (const auto &s : streams) {
                 Row best;
-                for (int rep = 0; rep < std::max(1, repeats); ++rep) {
+                for (int rep = 0; rep < repeats; ++rep) {
                     auto slam = methods[m].make();
                     Row r = run_one(*slam, s, cfg.eval);
                     if (rep == 0 || r.step_us_mean < best.step_us_mean) {

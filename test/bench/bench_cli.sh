@@ -49,6 +49,10 @@ refused vision "--frames: value -1 outside [1, 5000]" --frames -1
 refused vision "--frames: value 0 outside [1, 5000]" --frames 0
 refused vision "--repeats: value 0 outside [1, 1000]" --repeats 0
 refused vision "--repeats: not an integer: abc" --repeats abc
+refused mrclam "--repeats: value 0 outside [1, 100]" --repeats 0
+refused mrclam "--particles: value 0 outside [1, " -p 0
+refused mrclam "--mrpt-sd-range: not a finite number: nan" --mrpt-sd-range nan
+refused robot-camera "usage: coslam-bench-robot-camera" --frames 3
 [ ! -e "$WORK/never" ] || { echo "FAIL: a refused command line created $WORK/never"; fail=1; }
 
 # a report that cannot be written (a full disk: a symlink to /dev/full)
@@ -71,6 +75,7 @@ full() { # NAME FILE ARGS...
 full fastslam fastslam_scale.json --seeds 1 --steps 2 --no-flat
 full odo-check odo_check.md --checks 1
 full vision vision.json --frames 1 --repeats 1
+full robot-camera robot_camera.md
 
 # every number in the JSON finite: --no-naive (the naive search not
 # measured) wrote nan before; now null

@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "checked_file.hpp"
 #include "robot_camera_rig.hpp"
 #include "vision_scenes.hpp"
 
@@ -97,11 +98,10 @@ int main(int argc, char **argv)
                   us.size(), sightings, mean, p50, p99, mx, mean * 10.0 * 1e-4, mean * 30.0 * 1e-4);
     std::fputs(md, stdout);
     const std::string path = out + "/robot_camera.md";
-    if (FILE *f = std::fopen(path.c_str(), "w")) {
-        std::fputs(md, f);
-        std::fclose(f);
-    } else {
-        std::fprintf(stderr, "coslam-bench-robot-camera: cannot write %s\n", path.c_str());
+    try {
+        coslam::cli::write_text_file(path, md);
+    } catch (const coslam::cli::WriteError &e) {
+        std::fprintf(stderr, "coslam-bench-robot-camera: %s\n", e.what());
         return 1;
     }
     return 0;
