@@ -17,6 +17,7 @@ import argparse
 import csv
 import json
 import os
+import sys
 
 import matplotlib
 matplotlib.use("Agg")
@@ -26,8 +27,16 @@ SETS = (("hand", "hand-tuned", "tab:blue"), ("calibrated", "calibrated", "tab:re
 
 
 def read_rows(path):
+    """The rows of a figures_*.csv; exits with a message naming the file
+    when it is missing or holds no row (a header at most): an empty figure
+    is not written."""
+    if not os.path.isfile(path):
+        sys.exit(f"plot_calibration_figs: no {path} (an output of coslam-calibrate --figures)")
     with open(path, newline="") as f:
-        return list(csv.DictReader(f))
+        rows = list(csv.DictReader(f))
+    if not rows:
+        sys.exit(f"plot_calibration_figs: {path} holds no rows (a header at most): nothing to plot")
+    return rows
 
 
 def xy(rows, name):
@@ -46,7 +55,10 @@ def main():
     paths = read_rows(os.path.join(a.dir, "figures_path.csv"))
     maps = read_rows(os.path.join(a.dir, "figures_map.csv"))
     err = read_rows(os.path.join(a.dir, "figures_error.csv"))
-    with open(os.path.join(a.dir, "figures.json")) as f:
+    summ_path = os.path.join(a.dir, "figures.json")
+    if not os.path.isfile(summ_path):
+        sys.exit(f"plot_calibration_figs: no {summ_path} (an output of coslam-calibrate --figures)")
+    with open(summ_path) as f:
         summ = json.load(f)
 
     # Fig. 4: paths and maps of one held-out episode

@@ -12,6 +12,7 @@ usage: plot_particles.py SWEEP_DIR_OR_CSV [-o PNG] [--title TEXT] [--dpi N]
 import argparse
 import csv
 import os
+import sys
 
 import matplotlib
 matplotlib.use("Agg")
@@ -39,7 +40,11 @@ def main():
     ap.add_argument("--dpi", type=int, default=90)
     a = ap.parse_args()
     path = os.path.join(a.sweep, "sweep.csv") if os.path.isdir(a.sweep) else a.sweep
+    if not os.path.isfile(path):
+        sys.exit(f"plot_particles: no {path} (the sweep.csv of coslam-calibrate --sweep-particles)")
     data = read_sweep(path)
+    if not data:
+        sys.exit(f"plot_particles: {path} holds no sweep rows (a header at most): nothing to plot")
     out = a.out or os.path.join(os.path.dirname(path), "particles.png")
 
     fig, (ax, axc) = plt.subplots(2, 1, figsize=(6.4, 5.6), sharex=True, gridspec_kw={"height_ratios": [3, 1.3]})

@@ -53,6 +53,16 @@ def ellipse(ax, lm, color, nsig=2.0):
     ax.add_patch(e)
 
 
+def truth_for(name, truth_paths):
+    """The truth path of the estimate <name>_path.tum: <robot>_truth_path.tum
+    for the robot of the name (its part before the first "_": robot1_ekf ->
+    robot1), matched whole (robot1 is not robot10); else a single
+    truth_path.tum shared by every estimate; else None."""
+    by_name = {os.path.basename(q): q for q in truth_paths}
+    robot = name.split("_")[0]
+    return by_name.get(robot + "_truth_path.tum") or by_name.get("truth_path.tum")
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("run_dir")
@@ -106,9 +116,12 @@ def main():
         for i, p in enumerate(est_paths):
             est = read_tum(p)
             name = os.path.basename(p).replace("_path.tum", "")
-            robot = name.split("_")[0]
-            tp = [q for q in truth_paths if os.path.basename(q).startswith(robot)] or truth_paths
-            tru = read_tum(tp[0])
+            tp = truth_for(name, truth_paths)
+            if tp is None:
+                print("plot_run: no truth path for %s (neither %s_truth_path.tum nor one truth_path.tum): "
+                      "no error curve" % (name, name.split("_")[0]), file=sys.stderr)
+                continue
+            tru = read_tum(tp)
             if len(est) == 0 or len(tru) == 0:
                 continue
             tx = np.interp(est[:, 0], tru[:, 0], tru[:, 1])

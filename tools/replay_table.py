@@ -40,21 +40,41 @@ def pooled_rmse(scores):
 
 
 def main():
+    if len(sys.argv) != 2:
+        print("usage: replay_table.py OUT_DIR", file=sys.stderr)
+        return 2
     d = sys.argv[1]
+    if not os.path.isdir(d):
+        print(f"replay_table: no folder {d}", file=sys.stderr)
+        return 1
+    found = sorted(glob.glob(os.path.join(d, "*", "metrics.json")))
+    if not found:
+        print(f"replay_table: no {d}/*/metrics.json (the coslam-replay runs of tools/run_replay.sh): no table",
+              file=sys.stderr)
+        return 1
     runs = {}
-    for p in sorted(glob.glob(os.path.join(d, "*", "metrics.json"))):
+    for p in found:
         name = os.path.basename(os.path.dirname(p))
+        if name.count("_") < 2:
+            print(f"replay_table: {p}: not a SETTING_FILTER_IDS folder, left out", file=sys.stderr)
+            continue
         setting, filt, ids = name.rsplit("_", 2)
         group = "2r" if setting.startswith("2r-") else setting
         with open(p) as f:
             runs.setdefault((group, filt, ids), []).append(json.load(f))
+    filters, idents = ("ekf", "fastslam2"), ("unknown", "known")
+    if not any(runs.get((g, f, i)) for g, _ in GROUPS for f in filters for i in idents):
+        print(f"replay_table: none of the {len(found)} runs under {d} is of a setting, filter and identities "
+              f"of the table ({', '.join(g for g, _ in GROUPS)}; ekf, fastslam2; unknown, known): no table",
+              file=sys.stderr)
+        return 1
     print("| setting | filter | ids | pose RMSE [m] | heading RMSE [deg] | pose NEES | landmark RMSE [m] | "
           "landmarks | spurious | missed | fit: landmark RMSE [m] / spurious / missed | merges | "
           "transform err RMSE [m / deg] | transform NEES | time/step mean / max [us] | wall [s] |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     for group, label in GROUPS:
-        for filt in ("ekf", "fastslam2"):
-            for ids in ("unknown", "known"):
+        for filt in filters:
+            for ids in idents:
                 ms = runs.get((group, filt, ids))
                 if not ms:
                     continue

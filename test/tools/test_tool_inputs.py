@@ -1,0 +1,116 @@
+#!/usr/bin/env python3
+"""The helper scripts under tools/ on inputs that used to give a wrong or
+empty result with exit 0:
+ - plot_run.py pairs each estimated path with its own robot's truth
+   (robot1 is not robot10, whose name starts the same);
+ - plot_particles.py, plot_calibration_figs.py and replay_table.py refuse
+   header-only or missing inputs (a message naming what is missing, exit
+   non-zero, no figure or table written).
+usage: test_tool_inputs.py SOURCE_DIR"""
+import contextlib
+import importlib.util
+import io
+import json
+import os
+import subprocess
+import sys
+import tempfile
+
+SRC = os.path.abspath(sys.argv[1])
+TOOLS = os.path.join(SRC, "tools")
+failures = []
+
+
+def check(cond, what):
+    print(("ok: " if cond else "FAIL: ") + what)
+    if not cond:
+        failures.append(what)
+
+
+def tool(name, *args, cwd=None, env=None):
+    """Runs tools/NAME (python3 for .py, sh for .sh): (exit status, stdout, stderr)."""
+    path = os.path.join(TOOLS, name)
+    cmd = [sys.executable, path] if name.endswith(".py") else ["sh", path]
+    p = subprocess.run(cmd + list(args), cwd=cwd or SRC, env=env, capture_output=True, text=True, timeout=120)
+    return p.returncode, p.stdout, p.stderr
+
+
+def write(path, text):
+    os.makedirs(os.path.dirname(path), exist_ok=True)
+    with open(path, "w") as f:
+        f.write(text)
+
+
+def tum(path, x0):
+    # t x y z qx qy qz qw: a straight line at y = 0 from x0
+    write(path, "".join(f"{t} {x0 + 0.1 * t} 0 0 0 0 0 1\n" for t in range(20)))
+
+
+with tempfile.TemporaryDirectory() as tmp:
+    # --- plot_run.py: robot1 with robot1's truth, not robot10's ---
+    spec = importlib.util.spec_from_file_location("plot_run", os.path.join(TOOLS, "plot_run.py"))
+    pr = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(pr)
+    run = os.path.join(tmp, "run")
+    for k in (1, 10):
+        tum(os.path.join(run, f"robot{k}_path.tum"), k)
+        tum(os.path.join(run, f"robot{k}_truth_path.tum"), k)
+    read = []
+    real_read_tum = pr.read_tum
+
+    def logged(path):
+        read.append(os.path.basename(path))
+        return real_read_tum(path)
+
+    pr.read_tum = logged
+    sys.argv = ["plot_run.py", run]
+    rc = pr.main()
+    # the error figure reads each estimate, then the truth it is compared with
+    pairs = {read[i]: read[i + 1] for i in range(len(read) - 1) if "truth" not in read[i] and "truth" in read[i + 1]}
+    check(rc == 0 and os.path.exists(os.path.join(run, "errors.png")), "plot_run.py wrote errors.png")
+    check(pairs.get("robot1_path.tum") == "robot1_truth_path.tum",
+          f"plot_run.py: robot1 compared with robot1's truth (pairs {pairs})")
+    check(pairs.get("robot10_path.tum") == "robot10_truth_path.tum",
+          f"plot_run.py: robot10 compared with robot10's truth (pairs {pairs})")
+    # robot1 without a truth of its own: no curve, said; not robot10's truth
+    os.remove(os.path.join(run, "robot1_truth_path.tum"))
+    read.clear()
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        pr.main()
+    pairs = {read[i]: read[i + 1] for i in range(len(read) - 1) if "truth" not in read[i] and "truth" in read[i + 1]}
+    check("robot1_path.tum" not in pairs and "no truth path for robot1" in err.getvalue(),
+          f"plot_run.py: robot1 without its truth is said, not paired (pairs {pairs}, stderr {err.getvalue()!r})")
+
+    # --- plot_particles.py: a sweep.csv with only its header ---
+    sweep = os.path.join(tmp, "sweep")
+    write(os.path.join(sweep, "sweep.csv"),
+          "filter,particles,mean_pos_err_m,pos_err_se_m,cpu_s_per_episode,lost,chosen,best\n")
+    rc, out, errs = tool("plot_particles.py", sweep)
+    check(rc != 0 and "no sweep rows" in errs and not os.path.exists(os.path.join(sweep, "particles.png")),
+          f"plot_particles.py on a header-only sweep.csv: exit {rc}, {errs.strip()!r}")
+    rc, out, errs = tool("plot_particles.py", os.path.join(tmp, "nowhere"))
+    check(rc != 0 and "no " + os.path.join(tmp, "nowhere") in errs, f"plot_particles.py on a missing file: {errs.strip()!r}")
+
+    # --- plot_calibration_figs.py: header-only figures_*.csv ---
+    figs = os.path.join(tmp, "figs")
+    write(os.path.join(figs, "figures_path.csv"), "set,t_s,x_m,y_m\n")
+    write(os.path.join(figs, "figures_map.csv"), "set,x_m,y_m\n")
+    write(os.path.join(figs, "figures_error.csv"), "t_s,pos_err_hand_m,pos_err_calibrated_m\n")
+    ep = {"episodes": [{"episode": "s101", "mean_pos_err_m": 0.1, "final_lm_rmse_m": 0.1}],
+          "mean_pos_err_m": 0.1, "final_lm_rmse_m": 0.1}
+    write(os.path.join(figs, "figures.json"), json.dumps({"figure_episode": "s101", "hand": ep, "calibrated": ep}))
+    rc, out, errs = tool("plot_calibration_figs.py", figs)
+    check(rc != 0 and "figures_path.csv holds no rows" in errs
+          and not os.path.exists(os.path.join(figs, "fig4_paths_maps.png")),
+          f"plot_calibration_figs.py on header-only CSVs: exit {rc}, {errs.strip()!r}")
+
+    # --- replay_table.py: a missing or empty folder ---
+    rc, out, errs = tool("replay_table.py", os.path.join(tmp, "nowhere"))
+    check(rc != 0 and "no folder" in errs and "|" not in out, f"replay_table.py on a missing folder: {errs.strip()!r}")
+    os.makedirs(os.path.join(tmp, "empty"))
+    rc, out, errs = tool("replay_table.py", os.path.join(tmp, "empty"))
+    check(rc != 0 and "metrics.json" in errs and "|" not in out, f"replay_table.py on an empty folder: {errs.strip()!r}")
+
+print("test_tool_inputs:", "failed" if failures else "ok")
+sys.exit(1 if failures else 0)
