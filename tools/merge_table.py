@@ -77,16 +77,40 @@ def seed_table(out, seeds):
               f"{sp_a} alone.")
 
 
+def bad_inputs(out, seeds):
+    """The runs main needs that are missing, empty or hold no robot, one
+    line each: a table without them would say "none" for goals it never
+    checked."""
+    need = [f"d{d}_{f}{alone}" for d in (6, 1) for f in ("ekf", "fastslam2") for alone in ("", "_alone")]
+    need += [f"d{d}_fastslam2_s{s}{alone}" for s in seeds for d in (6, 1) for alone in ("", "_alone")]
+    bad = []
+    for tag in need:
+        path = os.path.join(out, tag, "metrics.json")
+        if not os.path.isfile(path):
+            bad.append(f"{path}: missing (see {os.path.join(out, tag + '.txt')})")
+            continue
+        try:
+            robots = load(path).get("robots")
+        except (ValueError, AttributeError) as e:
+            bad.append(f"{path}: not a coslam-replay metrics.json ({e})")
+            continue
+        if not robots:
+            bad.append(f"{path}: no robots")
+    return bad
+
+
 def main(out, seeds):
+    if not os.path.isdir(out):
+        sys.exit(f"merge_table: no folder {out} (the outputs of tools/merge_table.sh)")
+    bad = bad_inputs(out, seeds)
+    if bad:
+        sys.exit("merge_table: no table, runs missing or empty:\n  " + "\n  ".join(bad))
     verdicts = []
     fitted = []
     for d in (6, 1):
         for f, name in (("ekf", "EKF-SLAM"), ("fastslam2", "Fast-SLAM 2.0")):
             pm, pa = f"{out}/d{d}_{f}/metrics.json", f"{out}/d{d}_{f}_alone/metrics.json"
-            if not (os.path.exists(pm) and os.path.exists(pa)):
-                print(f"missing {pm} or {pa}")
-                continue
-            m, a = load(pm), load(pa)
+            m, a = load(pm), load(pa)  # both there (bad_inputs)
             mg = m["merges"]
             print(f"\n### Dataset {d}, {name}: {mg['merged']} merges, refused {mg.get('refused_disagree', 0)} "
                   f"(maps disagree) + {mg['refused_range_check']} (ranges disagree); {mg.get('stale', 0)} stale\n")

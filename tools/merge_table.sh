@@ -13,6 +13,8 @@
 # robot's figures change from seed to seed by more than most merge changes
 # do, so the table then also runs it with each particle seed (merge and
 # alone) and counts, per robot, the seeds that miss each goal.
+# A run that fails (or a missing coslam-replay) fails the script: exit 1,
+# the run and its log named; no table is written from partial runs.
 set -eu
 build=${1:-build-host}
 out=${2:-out/merge_table}
@@ -20,6 +22,10 @@ data=${COSLAM_DATA_DIR:-../shared/data}/mrclam
 particles=${PARTICLES:-300}
 config=${CONFIG:-host/replay/mrclam6.ini}
 bin="$build/host/replay/coslam-replay"
+if [ ! -x "$bin" ]; then
+  echo "merge_table: no $bin: build it first (make replay, or cmake --build $build --target coslam-replay)" >&2
+  exit 1
+fi
 for d in 6 1; do
   if [ ! -d "$data/MRCLAM_Dataset$d" ]; then
     echo "merge_table: SKIPPED, no $data/MRCLAM_Dataset$d (set COSLAM_DATA_DIR)"
@@ -29,20 +35,30 @@ done
 mkdir -p "$out"
 run() { # dataset filter merge-flag [particle-seed]
   tag="d$1_$2${4:+_s$4}${3:+_alone}"
+  rc=0
   "$bin" run "$data/MRCLAM_Dataset$1" -c "$config" -f "$2" -p "$particles" ${4:+--seed "$4"} $3 \
-    -q --no-plots -o "$out/$tag" > "$out/$tag.txt" 2>&1
+    -q --no-plots -o "$out/$tag" > "$out/$tag.txt" 2>&1 || rc=$?
+  if [ $rc -ne 0 ]; then
+    echo "merge_table: run $tag failed (exit $rc), its log: $out/$tag.txt" >&2
+    return 1
+  fi
 }
+. "$(dirname "$0")/wait_jobs.sh"
 for d in 6 1; do
-  (run $d ekf ""; run $d ekf --no-merge) &
-  (run $d fastslam2 ""; run $d fastslam2 --no-merge) &
-  wait
+  (run $d ekf "" && run $d ekf --no-merge) &
+  p1=$!
+  (run $d fastslam2 "" && run $d fastslam2 --no-merge) &
+  wait_jobs merge_table $p1 $!
 done
 seeds=${SEEDS:-}
 for s in $seeds; do
   for d in 6 1; do
     run $d fastslam2 "" "$s" &
+    p1=$!
     run $d fastslam2 --no-merge "$s" &
-    wait
+    wait_jobs merge_table $p1 $!
   done
 done
-/usr/bin/python3 tools/merge_table.py "$out" $seeds | tee "$out/merge_table.md"
+# (the table to a file first: through a pipe to tee, its exit status would be lost)
+/usr/bin/python3 tools/merge_table.py "$out" $seeds > "$out/merge_table.md"
+cat "$out/merge_table.md"

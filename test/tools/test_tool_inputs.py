@@ -5,13 +5,19 @@ empty result with exit 0:
    (robot1 is not robot10, whose name starts the same);
  - plot_particles.py, plot_calibration_figs.py and replay_table.py refuse
    header-only or missing inputs (a message naming what is missing, exit
-   non-zero, no figure or table written).
+   non-zero, no figure or table written);
+ - merge_table.py refuses a folder with missing or empty runs instead of
+   reporting "Goals not met: none";
+ - merge_table.sh and team_table.sh fail (exit 1, the run and its log or the
+   missing binary and its target named) when a binary is missing or a
+   background run fails.
 usage: test_tool_inputs.py SOURCE_DIR"""
 import contextlib
 import importlib.util
 import io
 import json
 import os
+import stat
 import subprocess
 import sys
 import tempfile
@@ -111,6 +117,48 @@ with tempfile.TemporaryDirectory() as tmp:
     os.makedirs(os.path.join(tmp, "empty"))
     rc, out, errs = tool("replay_table.py", os.path.join(tmp, "empty"))
     check(rc != 0 and "metrics.json" in errs and "|" not in out, f"replay_table.py on an empty folder: {errs.strip()!r}")
+
+    # --- merge_table.py: runs missing or empty ---
+    mt = os.path.join(tmp, "mt")
+    write(os.path.join(mt, "d6_ekf", "metrics.json"), "")
+    rc, out, errs = tool("merge_table.py", mt)
+    check(rc != 0 and "d6_ekf/metrics.json: not a coslam-replay metrics.json" in errs
+          and "d1_fastslam2_alone/metrics.json: missing" in errs and "none" not in out,
+          f"merge_table.py on missing and empty runs: exit {rc}, {errs.strip()[:300]!r}")
+
+    # --- merge_table.sh and team_table.sh ---
+    env = dict(os.environ, COSLAM_DATA_DIR=os.path.join(tmp, "data"))
+    for d in (6, 1):
+        os.makedirs(os.path.join(tmp, "data", "mrclam", f"MRCLAM_Dataset{d}"))
+    rc, out, errs = tool("merge_table.sh", os.path.join(tmp, "build-nonexistent"), os.path.join(tmp, "o1"), env=env)
+    check(rc == 1 and "no " + os.path.join(tmp, "build-nonexistent", "host/replay/coslam-replay") in errs
+          and "--target coslam-replay" in errs and "Goals not met" not in out,
+          f"merge_table.sh without coslam-replay: exit {rc}, {errs.strip()!r}")
+
+    def fake_build(name, script):
+        b = os.path.join(tmp, name)
+        write(os.path.join(b, "host", "replay", "coslam-replay"), script)
+        os.chmod(os.path.join(b, "host", "replay", "coslam-replay"), stat.S_IRWXU)
+        return b
+
+    # every run fails: each background job's failure fails the script
+    b = fake_build("build-failing", "#!/bin/sh\necho 'cannot read the data' >&2\nexit 3\n")
+    o2 = os.path.join(tmp, "o2")
+    rc, out, errs = tool("merge_table.sh", b, o2, env=env)
+    check(rc == 1 and f"run d6_ekf failed (exit 3), its log: {o2}/d6_ekf.txt" in errs
+          and f"run d6_fastslam2 failed (exit 3), its log: {o2}/d6_fastslam2.txt" in errs
+          and "Goals not met" not in out,
+          f"merge_table.sh with failing runs: exit {rc}, {errs.strip()!r}")
+    # runs that exit 0 but leave no metrics.json: merge_table.py refuses
+    b = fake_build("build-silent", "#!/bin/sh\nexit 0\n")
+    rc, out, errs = tool("merge_table.sh", b, os.path.join(tmp, "o3"), env=env)
+    check(rc == 1 and "runs missing or empty" in errs and "Goals not met" not in out,
+          f"merge_table.sh with runs writing nothing: exit {rc}, {errs.strip()[:200]!r}")
+    # team_table.sh without coslam-eval-worlds (its call hid the shell's error)
+    rc, out, errs = tool("team_table.sh", b, os.path.join(tmp, "o4"), "ekf", "1")
+    check(rc == 1 and "no " + os.path.join(b, "host/eval/coslam-eval-worlds") in errs
+          and "--target coslam-eval-worlds" in errs,
+          f"team_table.sh without coslam-eval-worlds: exit {rc}, {errs.strip()!r}")
 
 print("test_tool_inputs:", "failed" if failures else "ok")
 sys.exit(1 if failures else 0)
