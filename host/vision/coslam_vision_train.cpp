@@ -89,15 +89,16 @@ int main(int argc, char **argv)
     size_t per_bin = 4;
     app.add_option("--lut", lut_path, "colour table to write")->capture_default_str();
     app.add_option("--report", report_path, "report (markdown)")->capture_default_str();
-    app.add_option("--train", n_train, "rendered training frames (seeds 1000..)")
-        ->capture_default_str()
-        ->check(coslam::cli::int_in(1, 100000));
-    app.add_option("--val", n_val, "rendered validation frames (seeds 2000..)")
-        ->capture_default_str()
-        ->check(coslam::cli::int_in(1, 100000));
-    app.add_option("--test", n_test, "rendered held-out test frames (seeds 3000..)")
-        ->capture_default_str()
-        ->check(coslam::cli::int_in(1, 100000));
+    const struct {
+        const char *name;
+        int *frames;
+        const char *help;
+    } frame_counts[] = {{"--train", &n_train, "rendered training frames (seeds 1000..)"},
+                        {"--val", &n_val, "rendered validation frames (seeds 2000..)"},
+                        {"--test", &n_test, "rendered held-out test frames (seeds 3000..)"}};
+    for (const auto &c : frame_counts) {
+        app.add_option(c.name, *c.frames, c.help)->capture_default_str()->check(coslam::cli::int_in(1, 100000));
+    }
     app.add_option("--per-bin", per_bin, "GRNN samples per class and colour-table bin")
         ->capture_default_str()
         ->check(coslam::cli::int_in(1, 100000));
