@@ -433,7 +433,9 @@ static int grid_may_pair(const merge_scratch_t *sc, point2_t q)
     return (int)((sc->occ[dy / sc->occ_bin] >> (dx / sc->occ_bin)) & 1U);
 }
 
-/* Greedy one-to-one selection needs the pairs sorted by d2 (heap sort). */
+/* Max-heap on d2: the entry at root moved down within p[0..end-1]. The
+ * greedy one-to-one selection needs the pairs sorted by d2 (heap sort), and
+ * the full pair table keeps its nearest pairs in this heap (collect_pair). */
 static void pair_sift(merge_pair_t *p, int root, int end)
 {
     for (;;) {
@@ -513,29 +515,6 @@ typedef struct {
     uint32_t drops;
 } pair_ctx_t;
 
-/* Max-heap on d2 over pairs[0..n-1]: the entry at `at` moved down. */
-static void pair_heap_down(merge_pair_t *pairs, int n, int at)
-{
-    for (;;) {
-        int big = at;
-        const int l = 2 * at + 1;
-        const int r = l + 1;
-        if (l < n && pairs[l].d2 > pairs[big].d2) {
-            big = l;
-        }
-        if (r < n && pairs[r].d2 > pairs[big].d2) {
-            big = r;
-        }
-        if (big == at) {
-            return;
-        }
-        const merge_pair_t tmp = pairs[at];
-        pairs[at] = pairs[big];
-        pairs[big] = tmp;
-        at = big;
-    }
-}
-
 /* Appended while there is room; once full, the table becomes a max-heap on
  * d2 and keeps the MERGE_MAX_PAIRS nearest pairs (the one-to-one selection
  * takes pairs nearest first, so it is the same on them). Every pair not
@@ -551,7 +530,7 @@ static void collect_pair(merge_scratch_t *sc, int32_t j, int32_t i, double d2, v
         pc->n_pairs++;
         if (pc->n_pairs == MERGE_MAX_PAIRS) {
             for (int k = MERGE_MAX_PAIRS / 2 - 1; k >= 0; --k) {
-                pair_heap_down(pairs, MERGE_MAX_PAIRS, k);
+                pair_sift(pairs, k, MERGE_MAX_PAIRS);
             }
         }
         return;
@@ -565,7 +544,7 @@ static void collect_pair(merge_scratch_t *sc, int32_t j, int32_t i, double d2, v
     pairs[0].own = j;
     pairs[0].in = i;
     pairs[0].d2 = d2;
-    pair_heap_down(pairs, MERGE_MAX_PAIRS, 0);
+    pair_sift(pairs, 0, MERGE_MAX_PAIRS);
 }
 
 /*
