@@ -541,6 +541,7 @@ struct OtherWorld {
     const char *boxes;
     bool slip;        ///< doubled odometry noise and wheel slip
     uint64_t seed;
+    const char *landmarks = nullptr; ///< replaces the paper's (they must lie in the arena), nullptr: kept
 };
 
 class OdometryCheckQuiet : public ::testing::TestWithParam<OtherWorld> {};
@@ -561,6 +562,9 @@ TEST_P(OdometryCheckQuiet, NoDisagreementOrMismatchWithoutAFault)
     ss << f.rdbuf();
     std::string t = replace_between(ss.str(), "arena = [[", "]]", std::string("arena = ") + w.arena);
     t = replace_between(t, "boxes = [", "\n]", std::string("boxes = [") + w.boxes + "\n]");
+    if (w.landmarks != nullptr) {
+        t = replace_between(t, "landmarks = [", "\n]", std::string("landmarks = [") + w.landmarks + "\n]");
+    }
     if (w.slip) {
         t = replace_between(t, "odo_xy_sd_m = ", "\n", "odo_xy_sd_m = 0.04\n");
         t = replace_between(t, "wheel_slip_sd = ", "\n", "wheel_slip_sd = 0.05\n");
@@ -591,7 +595,17 @@ INSTANTIATE_TEST_SUITE_P(
                                  "{ center = [2.5, 1.8], size = [1.0, 0.6] }, { center = [-2.5, -1.8], size = [0.6, 1.0] }, "
                                  "{ center = [3.5, -2.5], size = [0.4, 0.4] }, { center = [-3.5, 2.5], size = [0.4, 0.4] },",
                                  true, 11},
-                      OtherWorld{"corridor", "[[-4.5, -1.6], [4.5, -1.6], [4.5, 1.6], [-4.5, 1.6]]", "", false, 12},
+                      // the paper's markers on the corridor's walls (the scenario refuses
+                      // a landmark outside the arena)
+                      OtherWorld{"corridor", "[[-4.5, -1.6], [4.5, -1.6], [4.5, 1.6], [-4.5, 1.6]]", "", false, 12,
+                                 "{ pos = [-3.75, 1.58], signature = 0 }, { pos = [-2.25, 1.58], signature = 1 }, "
+                                 "{ pos = [-0.75, 1.58], signature = 2 }, { pos = [0.75, 1.58], signature = 3 }, "
+                                 "{ pos = [2.25, 1.58], signature = 0 }, { pos = [3.75, 1.58], signature = 1 }, "
+                                 "{ pos = [-3.75, -1.58], signature = 2 }, { pos = [-2.25, -1.58], signature = 3 }, "
+                                 "{ pos = [-0.75, -1.58], signature = 0 }, { pos = [0.75, -1.58], signature = 1 }, "
+                                 "{ pos = [2.25, -1.58], signature = 2 }, { pos = [3.75, -1.58], signature = 3 }, "
+                                 "{ pos = [-4.48, -0.75], signature = 2 }, { pos = [-4.48, 0.75], signature = 3 }, "
+                                 "{ pos = [4.48, -0.75], signature = 0 }, { pos = [4.48, 0.75], signature = 1 },"},
                       OtherWorld{"posts_slip", "[[-4.5, -3.5], [4.5, -3.5], [4.5, 3.5], [-4.5, 3.5]]",
                                  "{ center = [3.0, -1.5], size = [0.3, 0.3] }, { center = [-3.0, 1.5], size = [0.3, 0.3] }, "
                                  "{ center = [1.5, -2.5], size = [0.3, 0.3] }, { center = [-1.5, 2.5], size = [0.3, 0.3] },",
