@@ -242,7 +242,9 @@ int main(int argc, char **argv)
     auto *pc = app.add_subcommand("print-config", "print the configuration in effect as INI");
     pc->add_option("-c,--config", config_files, "INI file(s) applied over the defaults, in order");
 
-    CLI11_PARSE(app, argc, argv);
+    if (const int rc = coslam::cli::parse_usage(app, argc, argv); rc >= 0) {
+        return rc; // --help 0, a bad option or value 2 (CLI11's own codes were 105, 106, ...)
+    }
 
     try {
         ReplayConfig cfg = replay_config_default();

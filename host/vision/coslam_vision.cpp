@@ -22,6 +22,7 @@
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
 
+#include "cli_checks.hpp"
 #include "vision_scenes.hpp"
 
 using namespace coslam;
@@ -107,7 +108,9 @@ int main(int argc, char **argv)
     app.add_option("--annotate", annotate_dir, "write annotated images (detections, colour classes) here");
     app.add_option("--camera", camera, "live camera index (OpenCV VideoCapture) instead of files");
     app.add_option("--frames", frames, "with --camera: stop after this many frames (0: until the stream ends)");
-    CLI11_PARSE(app, argc, argv);
+    if (const int rc = cli::parse_usage(app, argc, argv); rc >= 0) {
+        return rc; // --help 0, a bad option or value 2
+    }
     if (files.empty() && camera < 0) {
         std::cerr << "coslam-vision: give image files or --camera N\n";
         return 2;

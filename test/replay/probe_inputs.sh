@@ -105,15 +105,15 @@ probe "valid log" 0 "outputs in" $R "$B" -o "$WORK/r0"
 profile=$(sed -n 's/.*: profile \([a-z]*\):.*/\1/p' "$WORK/out.txt" | head -1)
 
 # command-line values
-probe "-p 0" nz "outside|particles" $R "$B" -f fastslam2 -p 0 -o "$WORK/r"
-probe "-p -5" nz "outside" $R "$B" -p -5 -o "$WORK/r"
-probe "-p 100000" nz "outside" $R "$B" -p 100000 -o "$WORK/r"
-probe "-d -5" nz "outside" $R "$B" -d -5 -o "$WORK/r"
-probe "-d nan" nz "not a finite number" $R "$B" -d nan -o "$WORK/r"
-probe "--merge-window nan" nz "not a finite number" $R "$B" --merge-window nan -o "$WORK/r"
-probe "--merge-interval -1" nz "outside" $R "$B" --merge-interval -1 -o "$WORK/r"
-probe "--seed -3" nz "outside" $R "$B" --seed -3 -o "$WORK/r"
-probe "-r 0" nz "outside" $R "$B" -r 0 -o "$WORK/r"
+probe "-p 0" 2 "outside|particles" $R "$B" -f fastslam2 -p 0 -o "$WORK/r"
+probe "-p -5" 2 "outside" $R "$B" -p -5 -o "$WORK/r"
+probe "-p 100000" 2 "outside" $R "$B" -p 100000 -o "$WORK/r"
+probe "-d -5" 2 "outside" $R "$B" -d -5 -o "$WORK/r"
+probe "-d nan" 2 "not a finite number" $R "$B" -d nan -o "$WORK/r"
+probe "--merge-window nan" 2 "not a finite number" $R "$B" --merge-window nan -o "$WORK/r"
+probe "--merge-interval -1" 2 "outside" $R "$B" --merge-interval -1 -o "$WORK/r"
+probe "--seed -3" 2 "outside" $R "$B" --seed -3 -o "$WORK/r"
+probe "-r 0" 2 "outside" $R "$B" -r 0 -o "$WORK/r"
 probe "--robot-filter 20-digit id" 2 "robot id" $R "$B" --robot-filter 99999999999999999999=ekf -o "$WORK/r"
 
 # files
