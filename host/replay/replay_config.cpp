@@ -453,10 +453,10 @@ void replay_config_validate(const ReplayConfig &c)
         bad("[merge] sender_speed_mps and sender_turn_radps must be >= 0");
     }
     if (!(c.merge.max_range_m > 0.0 && std::isfinite(c.merge.max_range_m) && c.merge.window_s > 0.0 &&
-          c.merge.window_s < 4000.0 && c.merge.interval_s < 4000.0 && c.merge.resend_s >= 0.0 &&
+          c.merge.window_s < 4000.0 && c.merge.interval_s < 4000.0 && c.merge.resend_s >= 0.001 &&
           c.merge.resend_s < 4000.0)) {
         bad("[merge] max_range_m must be finite and > 0, 0 < window_s < 4000, interval_s < 4000, "
-            "0 <= resend_s < 4000");
+            "0.001 <= resend_s < 4000 (0 sent the whole budget in consecutive frames)");
     }
     if (!(std::isfinite(c.merge.core.agree_z) && c.merge.core.max_contradict_fraction >= 0.0 &&
           c.merge.core.max_contradict_fraction <= 1.0 && c.merge.core.ambiguous_chi2 >= 0.0 &&

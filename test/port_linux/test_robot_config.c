@@ -317,6 +317,9 @@ static void bad_files_name_file_and_line(void **state)
     refused("[laser]\nlost_timeout_s = 0.0000001\n",
             "bad.ini:2: [laser] lost_timeout_s: 0.0000001 is below the microsecond these durations are kept in");
     refused("[merge]\nwindow_s = 1e-7\n", "bad.ini:2: [merge] window_s: 1e-7 is below the microsecond");
+    /* 0 sent the map again in every frame until the meeting's budget was
+     * spent (coslam-sim and coslam-replay refuse it too) */
+    refused("[merge]\nresend_s = 0\n", "bad.ini:2: [merge] resend_s: 0 is outside its domain");
     /* a section header without its ']': said at its own line, not as the
      * next line's key "outside any [section]" */
     refused("[robot\nid = 1\n", "bad.ini:1: syntax error");

@@ -456,6 +456,11 @@ TEST(Config, DefaultsValidateAndRoundTrip)
 {
     ReplayConfig a = replay_config_default();
     EXPECT_NO_THROW(replay_config_validate(a));
+    {
+        ReplayConfig z = a; // 0 sent the whole budget in consecutive frames
+        z.merge.resend_s = 0.0;
+        EXPECT_THROW(replay_config_validate(z), ReplayError);
+    }
     a.filter.type = FilterKind::Ekf;
     a.robot[3].filter = FilterKind::FastSlam1;
     a.robot[3].has_filter = true;

@@ -520,7 +520,7 @@ static const cfg_key_t keys[] = {
     NO_("merge", "max_range_m", K_F64, node.meeting.max_range_m, 0.0, 1000.0),
     N_("merge", "export_min_obs", K_U16, node.meeting.export_min_obs, 1, 65535),
     N_("merge", "max_sends", K_U8, node.meeting.max_sends, 0, 255),
-    N_("merge", "resend_s", K_US, node.meeting.resend_period_us, 0.0, 4000.0),
+    N_("merge", "resend_s", K_US, node.meeting.resend_period_us, 0.001, 4000.0),
     N_("merge", "gap_s", K_US, node.meeting.meeting_gap_us, 0.0, 4000.0),
     N_("merge", "link_latency_s", K_US, node.meeting.link_latency_us, 0.0, 10.0),
     NO_("merge", "gate_chi2", K_F64, node.meeting.merge.gate_chi2, 0.0, INF_),
