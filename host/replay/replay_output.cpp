@@ -401,7 +401,7 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
     j["timing"] = {{"wall_s", res.wall_s},
                    {"load_s", info.load_s},
                    {"replayed_s", replayed},
-                   {"realtime_factor", res.wall_s > 0.0 ? replayed / res.wall_s : 0.0}};
+                   {"realtime_factor", or_null(res.wall_s > 0.0, res.wall_s > 0.0 ? replayed / res.wall_s : 0.0)}};
     j["notes"] = res.notes;
     const fs::path metrics_path = d / "metrics.json";
     auto f = open_out(metrics_path);

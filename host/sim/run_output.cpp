@@ -166,7 +166,7 @@ nlohmann::json run_metrics(const Simulation &sim)
                      {"n_landmarks", sim.world().landmarks().size()}};
     j["timing"] = {{"sim_s", r.sim_s},
                    {"wall_s", r.wall_s},
-                   {"realtime_factor", r.wall_s > 0.0 ? r.sim_s / r.wall_s : 0.0},
+                   {"realtime_factor", measured(r.wall_s > 0.0, r.wall_s > 0.0 ? r.sim_s / r.wall_s : 0.0)},
                    {"physics_dt_ms", sc.physics_dt_ms},
                    {"control_period_ms", sc.control_period_ms}};
     int seen = 0;
@@ -185,8 +185,9 @@ nlohmann::json run_metrics(const Simulation &sim)
              {"false_markers", st.false_markers},
              {"robot_sightings", st.robot_sightings},
              {"robot_id_errors", st.robot_id_errors},
-             {"range_err_rel_rms", nm > 0 ? std::sqrt(st.range_rel_err_sum2 / nm) : 0.0},
-             {"bearing_err_rms_deg", nm > 0 ? std::sqrt(st.bearing_err_sum2 / nm) * 180.0 / COSLAM_PI : 0.0}});
+             {"range_err_rel_rms", measured(nm > 0, nm > 0 ? std::sqrt(st.range_rel_err_sum2 / nm) : 0.0)},
+             {"bearing_err_rms_deg",
+              measured(nm > 0, nm > 0 ? std::sqrt(st.bearing_err_sum2 / nm) * 180.0 / COSLAM_PI : 0.0)}});
     }
     j["robots"] = nlohmann::json::array();
     for (size_t k = 0; k < r.robots.size(); ++k) {
@@ -374,15 +375,19 @@ std::string run_summary(const Simulation &sim, const std::string &out_dir)
             if (pc == nullptr) continue;
             const PixelCameraStats &st = pc->stats();
             const double nm = static_cast<double>(st.landmark_matched);
-            char cl[320];
+            char err[96] = "range and bearing error n/a (no sighting matched a landmark)";
+            if (nm > 0) {
+                std::snprintf(err, sizeof err, "range error RMS %.1f %%, bearing %.2f deg",
+                              100.0 * std::sqrt(st.range_rel_err_sum2 / nm),
+                              std::sqrt(st.bearing_err_sum2 / nm) * 180.0 / COSLAM_PI);
+            }
+            char cl[400];
             std::snprintf(cl, sizeof cl,
-                          "    %s: %llu frames, %llu landmark sightings (%llu false), range error RMS %.1f %%, bearing "
-                          "%.2f deg; %llu robot sightings (%llu wrong id)\n",
+                          "    %s: %llu frames, %llu landmark sightings (%llu false), %s; %llu robot sightings (%llu "
+                          "wrong id)\n",
                           r.robots[k].name.c_str(), static_cast<unsigned long long>(st.frames),
                           static_cast<unsigned long long>(st.landmark_sightings),
-                          static_cast<unsigned long long>(st.landmark_sightings - st.landmark_matched),
-                          nm > 0 ? 100.0 * std::sqrt(st.range_rel_err_sum2 / nm) : 0.0,
-                          nm > 0 ? std::sqrt(st.bearing_err_sum2 / nm) * 180.0 / COSLAM_PI : 0.0,
+                          static_cast<unsigned long long>(st.landmark_sightings - st.landmark_matched), err,
                           static_cast<unsigned long long>(st.robot_sightings),
                           static_cast<unsigned long long>(st.robot_id_errors));
             s << cl;
