@@ -340,7 +340,7 @@ std::string merge_summary_line(const MergeRecord &m, const std::string &robot, c
                                int particles)
 {
     // Fast-SLAM merges into every particle: its counts as the mean per particle
-    char what[256];
+    char what[384];
     (void)slam_filter_merge_format(&m.stats, static_cast<uint32_t>(std::max(1, particles)), what, sizeof what);
     // dt = own sighting - the sender's: its size, and whose came first
     const long dt_ms = std::lround(m.dt_sightings_ms);

@@ -305,6 +305,12 @@ static void test_sighting_checks_and_range_limit(void **state)
     assert_int_equal(meeting_init(&g_m, &c, 0, 1), COSLAM_E_ARG);
     c.max_range_m = 0.0;
     assert_int_equal(meeting_init(&g_m, &c, 0, 2), COSLAM_E_ARG);
+    /* a sighting variance its partners would refuse as implausible */
+    c = meeting_config_default();
+    c.robot_bearing_var_rad2 = 1.01 * c.merge.max_bearing_var_rad2;
+    assert_int_equal(meeting_init(&g_m, &c, 0, 2), COSLAM_E_ARG);
+    c.robot_bearing_var_rad2 = c.merge.max_bearing_var_rad2;
+    assert_int_equal(meeting_init(&g_m, &c, 0, 2), COSLAM_OK);
 }
 
 static void test_budget_renewed_then_implicit_ack(void **state)

@@ -392,7 +392,7 @@ static void test_merge_line_format(void **state)
     st.echoes = 2U;
     st.ambiguous = 3U;
     st.unrefutable = 4U;
-    char buf[256];
+    char buf[384];
     const char *want = "5.0 fused, 9.0 added (per particle, mean of 100); not added: 1 where it looked and saw "
                        "nothing, 2 echoes, 3 ambiguous, 4 too uncertain to refute";
     assert_int_equal(slam_filter_merge_format(&st, 100U, buf, sizeof buf), (int)strlen(want));
@@ -414,10 +414,14 @@ static void test_merge_line_format(void **state)
     st.fused_ci = 200U;
     (void)slam_filter_merge_format(&st, 100U, buf, sizeof buf);
     assert_non_null(strstr(buf, "5.0 fused, 9.0 added, 2.0 by CI (per particle, mean of 100); not added: 1 where"));
+    /* the check's count is of landmarks, the fusion's a sum over particles */
     st.pair_lost = 30U;
+    st.check_lost = 3U;
     (void)slam_filter_merge_format(&st, 100U, buf, sizeof buf);
-    assert_non_null(strstr(buf, "refute, 0.3 per particle with a candidate pair beyond COSLAM_MERGE_MAX_PAIRS"));
+    assert_non_null(strstr(buf, "refute; pair table full (COSLAM_MERGE_MAX_PAIRS): 3 left out by the check, 0.3 per "
+                                "particle by the fusion"));
     st.pair_lost = 0U;
+    st.check_lost = 0U;
     (void)slam_filter_merge_format(&st, 0U, buf, sizeof buf); /* 0 is taken as 1 (EKF-SLAM): landmarks */
     assert_non_null(strstr(buf, "500 fused, 900 added, 200 by CI; not added"));
     char small[8];

@@ -80,7 +80,7 @@ static void print_reads_back(void **state)
     (void)state;
     char msg[600];
     robot_config_default(&cfg);
-    const char *text = "[robot]\nid = 3\nfleet_size = 5\n[filter]\ntype = ekf\n[slam]\nbearing_var_rad2 = 0.3333\n"
+    const char *text = "[robot]\nid = 3\nfleet_size = 5\n[filter]\ntype = ekf\n[slam]\nbearing_var_rad2 = 0.1111\n"
                        "exist_miss = 0.1\n[gpio]\nbumper_lines = 4, 5, 6\nestop_line = -1\nrequired = no\n";
     assert_int_equal(robot_config_load_string(&cfg, text, "t.ini", msg, sizeof msg), COSLAM_OK);
     char *a = print_to_string(&cfg);
@@ -262,7 +262,9 @@ static void bad_files_name_file_and_line(void **state)
     refused("[slam]\ngate_chi2 = abc\n", "bad.ini:2: [slam] gate_chi2: not a finite number: 'abc'");
     refused("[robot]\nstep_period_s = 10ms\n", "bad.ini:2: [robot] step_period_s: not a finite number");
     refused("[robot]\nstep_period_s = 5\n", "bad.ini:2: [robot] step_period_s: 5 is outside its domain [0.001, 1]");
-    refused("[slam]\nbearing_var_rad2 = 0\n", "bad.ini:2: [slam] bearing_var_rad2: 0 is outside its domain (0, inf)");
+    refused("[slam]\nbearing_var_rad2 = 0\n", "bad.ini:2: [slam] bearing_var_rad2: 0 is outside its domain (0, 0.25]");
+    /* sent with the sightings of partners, who refuse more than 0.25 rad^2 */
+    refused("[slam]\nbearing_var_rad2 = 0.3\n", "bad.ini:2: [slam] bearing_var_rad2: 0.3 is outside its domain (0, 0.25]");
     refused("[slam]\nvisibility_margin = 1.5\n", "bad.ini:2: [slam] visibility_margin:");
     refused("[filter]\nparticles = 2.5\n", "bad.ini:2: [filter] particles: expected an integer");
     refused("[filter]\nparticles = 100000\n", "bad.ini:2: [filter] particles: 100000 is outside");

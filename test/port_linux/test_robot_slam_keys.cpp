@@ -7,6 +7,7 @@
 // are refused by both, at the same line.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -135,7 +136,7 @@ std::string random_section(std::mt19937_64 &rng)
         if (n == "visibility_margin") { lo = 0.05; hi = 1.0; }
         if (n == "sighting_max_range_m") { lo = 1.5; hi = 30.0; }
         if (k->min_open && lo <= k->min) lo = k->min + 1e-3;
-        if (n.find("var") != std::string::npos) { hi = lo + 0.5; }
+        if (n.find("var") != std::string::npos) { hi = std::min(hi, lo + 0.5); } // bearing_var_rad2 <= 0.25
         s << n << " = " << value_text(rng, lo, hi) << "\n";
     }
     return s.str();

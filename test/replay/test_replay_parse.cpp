@@ -466,7 +466,7 @@ TEST(Config, DefaultsValidateAndRoundTrip)
     a.robot[3].has_filter = true;
     a.robot[2].odo = {0.9, 0.8, 0.1};
     a.robot[2].has_odo = true;
-    a.slam.noise.bearing_var_rad2 = 1.0 / 3.0; // not representable in few digits
+    a.slam.noise.bearing_var_rad2 = 1.0 / 7.0; // not representable in few digits
     std::ostringstream os;
     replay_config_write(a, os);
     ReplayConfig b = replay_config_default();
@@ -474,7 +474,7 @@ TEST(Config, DefaultsValidateAndRoundTrip)
     std::ostringstream os2;
     replay_config_write(b, os2);
     EXPECT_EQ(os.str(), os2.str());
-    EXPECT_EQ(b.slam.noise.bearing_var_rad2, 1.0 / 3.0);
+    EXPECT_EQ(b.slam.noise.bearing_var_rad2, 1.0 / 7.0);
     EXPECT_EQ(b.filter_of(3), FilterKind::FastSlam1);
     EXPECT_EQ(b.filter_of(1), FilterKind::Ekf);
     EXPECT_EQ(b.odo_of(2).scale_w, 0.8);

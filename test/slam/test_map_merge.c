@@ -693,11 +693,46 @@ static void test_pair_table_full(void **state)
     assert_int_equal(merge_check(&own, NULL, NULL, &sp, 0U, &mc, &g_bm, &g_sc, &st), COSLAM_OK);
     assert_true(st.pair_drops > 0U);
     assert_int_equal(st.pairs, PT_N);
-    assert_int_equal(st.pair_lost, 1);
+    assert_int_equal(st.check_lost, 1);
     assert_int_equal(g_bm.n, PT_N);
     for (uint16_t i = 0; i < g_bm.n; ++i) {
         assert_true(g_bm.id[i] != 999U);
     }
+}
+
+/* The same table in an EKF-SLAM merge in parts: the landmark that lost its
+ * candidates is known from the begin, so every part says E_CAPACITY, the
+ * first too (the robot reports the merge with that part's status), and the
+ * merge in parts ends as the merge at once does. */
+static void test_pair_table_full_ekf_in_parts(void **state)
+{
+    (void)state;
+    rng_t r;
+    rng_seed(&r, 31U);
+    pair_table_case(&r, 1, 0); /* the twins, into an empty EKF-SLAM: its map */
+    ekfslam_config_t c = ekfslam_config_default();
+    c.robot_id = 0;
+    assert_int_equal(ekfslam_init(&g_ekf, &c, (pose2_t){0.0, 0.0, 0.0}), COSLAM_OK);
+    merge_config_t mc = merge_config_default();
+    merge_stats_t st;
+    memset(&st, 0, sizeof st);
+    assert_int_equal(merge_into_ekfslam(&g_ekf, &g_bm, &mc, &g_sc, &st), COSLAM_OK);
+    assert_int_equal(g_ekf.n_lm, PT_N);
+    rng_seed(&r, 31U);
+    pair_table_case(&r, 1, 1); /* the same twins and the off-box landmark */
+    memset(&st, 0, sizeof st);
+    assert_int_equal(merge_ekfslam_begin(&g_ekf, &g_bm, &mc, &g_sc, &st), COSLAM_OK);
+    assert_int_equal(st.pair_lost, 1);
+    int done = 0;
+    int parts = 0;
+    while (!done) {
+        assert_int_equal(merge_ekfslam_run(&g_ekf, &g_bm, &g_sc, &st, 50U, &done), COSLAM_E_CAPACITY);
+        parts++;
+    }
+    assert_true(parts > 1);
+    assert_int_equal(g_ekf.n_lm, PT_N); /* nothing added */
+    assert_int_equal(st.fused, PT_N);
+    assert_int_equal(g_ekf.ctr.merge_pair_drops, 1);
 }
 
 /* A filter whose particles hold jittered copies of an own map, half of the
@@ -982,6 +1017,7 @@ int main(void)
         cmocka_unit_test(test_merge_into_fastslam),
         cmocka_unit_test(test_fastslam_pairing_brute_force),
         cmocka_unit_test(test_pair_table_full),
+        cmocka_unit_test(test_pair_table_full_ekf_in_parts),
         cmocka_unit_test(test_fastslam_merge_in_parts),
         cmocka_unit_test(test_merge_into_ekfslam),
         cmocka_unit_test(test_relative_covariance),

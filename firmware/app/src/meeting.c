@@ -59,6 +59,9 @@ coslam_status_t meeting_init(meeting_t *m, const meeting_config_t *cfg, uint8_t 
     }
     if (!(isfinite(cfg->robot_range_var_m2) && cfg->robot_range_var_m2 > 0.0) ||
         !(isfinite(cfg->robot_bearing_var_rad2) && cfg->robot_bearing_var_rad2 > 0.0) ||
+        /* what this robot sends as its sighting's variance must pass its
+         * partners' plausibility bound (the same default everywhere) */
+        !(cfg->robot_bearing_var_rad2 <= cfg->merge.max_bearing_var_rad2) ||
         !finite_nonneg(cfg->robot_range_var_per_m2) ||
         !finite_nonneg(cfg->merge.peer_speed_mps) || !finite_nonneg(cfg->merge.peer_turn_radps) ||
         !finite_nonneg(cfg->merge.range_check_chi2) || cfg->pair_window_us == 0U || cfg->export_min_obs == 0U ||

@@ -402,7 +402,8 @@ static void read_sightings(robot_node_t *n)
         const robot_seen_t *r = &n->frame.robots[i];
         /* an id no partner has (outside the team, or this robot's own) and
          * a sighting the meeting refuses are lost: counted, never silent */
-        if (r->robot_id >= n->cfg.n_robots || r->robot_id == n->cfg.robot_id) {
+        if (r->robot_id >= n->cfg.n_robots || r->robot_id == n->cfg.robot_id || !(isfinite(r->range_m) && r->range_m > 0.0) ||
+            !isfinite(r->bearing_rad)) {
             n->ctr.robot_sightings_refused++;
             continue;
         }

@@ -549,10 +549,10 @@ static coslam_status_t merge_check_fuse(slam_filter_t *f, slam_merge_work_t *w, 
     if (st != COSLAM_OK) {
         return st;
     }
-    const int check_lost = stats->pair_lost > 0U;
+    const int check_lost = stats->check_lost > 0U;
     if (check_lost) {
         /* the check's pairing: the landmarks it left out are counted in
-         * stats->pair_lost, the merge goes on with the rest */
+         * stats->check_lost, the merge goes on with the rest */
         if (f->kind == SLAM_FILTER_EKF) {
             f->u.ekf.ctr.merge_pair_drops++;
         } else {
@@ -1060,12 +1060,15 @@ int slam_filter_merge_format(const merge_stats_t *s, uint32_t per, char *buf, si
     if (k > 1U) {
         (void)snprintf(unit, sizeof unit, " (per particle, mean of %lu)", (unsigned long)k);
     }
-    char lost[128] = "";
-    if (s->pair_lost != 0U) {
+    char lost[160] = "";
+    if (s->check_lost != 0U || s->pair_lost != 0U) {
+        /* the check's count is of landmarks, the fusion's summed over the
+         * particles like fused and added */
         char l[24];
         merge_count_str(l, sizeof l, merge_tenths(s->pair_lost, k), k);
-        (void)snprintf(lost, sizeof lost, ", %s%s with a candidate pair beyond COSLAM_MERGE_MAX_PAIRS", l,
-                       k > 1U ? " per particle" : "");
+        (void)snprintf(lost, sizeof lost,
+                       "; pair table full (COSLAM_MERGE_MAX_PAIRS): %lu left out by the check, %s%s by the fusion",
+                       (unsigned long)s->check_lost, l, k > 1U ? " per particle" : "");
     }
     return snprintf(buf, cap,
                     "%s fused, %s added%s%s; not added: %lu where it looked and saw nothing, %lu echoes, %lu "

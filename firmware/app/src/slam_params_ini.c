@@ -15,7 +15,9 @@
  * "finite"; FLT_MAX for float fields (a larger double would become inf). */
 static const slam_params_ini_key_t keys[] = {
     {"range_var_m2", NOISE_(range_var_m2), D_, 0.0, HUGE_VAL, 1U},
-    {"bearing_var_rad2", NOISE_(bearing_var_rad2), D_, 0.0, HUGE_VAL, 1U},
+    /* at most merge_config_t's max_bearing_var_rad2: the robot sends it with
+     * its sightings of partners, who refuse more as implausible */
+    {"bearing_var_rad2", NOISE_(bearing_var_rad2), D_, 0.0, 0.25, 1U},
     {"odo_xy_var_m2_per_m", NOISE_(odo_xy_var_m2_per_m), D_, 0.0, HUGE_VAL, 0U},
     {"odo_theta_var_rad2_per_m", NOISE_(odo_theta_var_rad2_per_m), D_, 0.0, HUGE_VAL, 0U},
     {"lm_process_var_m2_per_m", NOISE_(lm_process_var_m2_per_m), D_, 0.0, HUGE_VAL, 0U},

@@ -953,7 +953,7 @@ coslam_status_t merge_ekfslam_run(ekfslam_t *ekf, const merge_body_map_t *bm, me
     while (sc->ekf_next < 2U * n || ekf->merge_bn > 0) {
         if (budget > 0U && spent >= limit) {
             *done = 0;
-            return COSLAM_OK;
+            return sc->ekf_result; /* the status so far: E_CAPACITY once anything was left out */
         }
         const uint32_t k = sc->ekf_next;
         const int adding = k >= n; /* or every item done (k = 2n) */
@@ -1410,7 +1410,7 @@ coslam_status_t merge_check(const map_whole_t *own, const merge_coverage_t *cove
     stats->echoes = echoes;
     stats->ambiguous = ambiguous;
     stats->unrefutable = unrefutable;
-    stats->pair_lost = lost;
+    stats->check_lost = lost;
     if (vetoed >= 2U && (double)vetoed > cfg->max_contradict_fraction * (double)(n_pairs + vetoed)) {
         return COSLAM_E_MERGE_DISAGREE;
     }

@@ -493,7 +493,7 @@ static void log_meeting_events(int verbose)
     while (robot_node_take_event(&node, &ev) == COSLAM_OK) {
         if (ev.kind == MEETING_EV_MERGED) {
             /* what the merge did and left out, as coslam-sim prints it */
-            char what[256];
+            char what[384];
             (void)slam_filter_merge_format(
                 &ev.stats, node.filter.kind == SLAM_FILTER_EKF ? 1U : node.filter.u.fs.cfg.n_particles, what,
                 sizeof what);

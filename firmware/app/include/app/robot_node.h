@@ -169,9 +169,10 @@ typedef struct {
     uint32_t can_errors;          /**< CAN frames the controller lost: HAL rx_overflow + rx_malformed counts */
     uint32_t robot_sightings_refused; /**< robot sightings not given to the meeting: an id outside the team
                                            (not below n_robots) or this robot's own (a robot does not see
-                                           its own marker: a misread, or another robot wearing it), or one
-                                           the meeting refused (COSLAM_E_ARG: range not finite and positive,
-                                           bearing not finite) */
+                                           its own marker: a misread, or another robot wearing it), a range
+                                           not finite and positive or a bearing not finite; or one the
+                                           meeting refused (COSLAM_E_ARG, not a failed send: e.g. a
+                                           non-finite odometry pose or travel) */
 } robot_node_counters_t;
 
 typedef struct {

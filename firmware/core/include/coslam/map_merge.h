@@ -320,8 +320,9 @@ typedef struct {
     uint32_t capacity_drops;/**< landmarks that did not fit */
     uint32_t skipped;       /**< incoming landmarks below min_obs or numerically unusable */
     uint32_t pair_drops;    /**< candidate pairs beyond MERGE_MAX_PAIRS (the farthest) */
-    uint32_t pair_lost;     /**< incoming landmarks neither fused nor added: unpaired, and
-                                 a candidate pair of theirs was beyond MERGE_MAX_PAIRS */
+    uint32_t pair_lost;     /**< the fusion's incoming landmarks neither fused nor added:
+                                 unpaired, and a candidate pair of theirs was beyond
+                                 MERGE_MAX_PAIRS (summed over particles for Fast-SLAM) */
     /* merge_check */
     uint32_t pairs;         /**< incoming landmarks paired with own ones */
     uint32_t vetoed;        /**< unpaired, where the receiver looked and saw nothing */
@@ -330,6 +331,8 @@ typedef struct {
                                  from another incoming one */
     uint32_t unrefutable;   /**< unpaired, too uncertain for the receiver ever to refute
                                  (refute_sd_factor) */
+    uint32_t check_lost;    /**< unpaired, a candidate pair beyond MERGE_MAX_PAIRS: left out
+                                 by the check (per landmark, as vetoed) */
     double nis;             /**< joint normalised innovation squared of the pairs */
     double nis_bound;       /**< its chi-square bound (0: no pairs) */
     pose2_t t_shift;        /**< refined transform minus the sightings' one */
@@ -480,7 +483,9 @@ coslam_status_t merge_into_ekfslam(ekfslam_t *ekf, const merge_body_map_t *bm, c
  * appends the new landmarks, until about `budget` work units are spent
  * (MERGE_EKF_MADDS_PER_UNIT multiply-adds each; the item or tile of rows
  * that crosses it is finished; 0: no budget), and sets *done when the
- * merge has ended (ekfslam_merge_end; its status is returned then).
+ * merge has ended (ekfslam_merge_end). Each call returns the merge's
+ * status so far: COSLAM_E_CAPACITY from the call in which a landmark was
+ * first left out (the state full, or MERGE_PAIR_LOST at the begin) on.
  * The pending updates' columns are applied in tiles of rows
  * (ekfslam_merge_flush_run) before an update that could fill them and
  * before the first addition, whatever the budget: the parts are the whole
