@@ -38,6 +38,7 @@
 #include <string.h>
 #include <sys/stat.h>
 
+#include "bench_args.h"
 #include "eval_worlds.h"
 #include "profile_print.h"
 
@@ -207,29 +208,15 @@ static void usage(FILE *to)
                 "[--seed0 S] [--out DIR] [--trace] [--active-radius R] [--write-log DIR [--robots N]]\n");
 }
 
-/* The whole of `s` as a whole number in [lo, hi]; else says which option
- * and returns -1. */
+/* Whole-number options: the benches' parser (host/cli/bench_args.h). */
 static int parse_long(const char *opt, const char *s, long lo, long hi, long *out)
 {
-    char *end = NULL;
-    errno = 0;
-    const long v = strtol(s, &end, 10);
-    if (end == s || *end != '\0' || errno == ERANGE || v < lo || v > hi) {
-        fprintf(stderr, "coslam-eval-worlds: %s '%s': expected a whole number in [%ld, %ld]\n", opt, s, lo, hi);
-        return -1;
-    }
-    *out = v;
-    return 0;
+    return bench_arg_long("coslam-eval-worlds", opt, s, lo, hi, out);
 }
 
 static int parse_int(const char *opt, const char *s, int lo, int hi, int *out)
 {
-    long v = 0;
-    if (parse_long(opt, s, lo, hi, &v) != 0) {
-        return -1;
-    }
-    *out = (int)v;
-    return 0;
+    return bench_arg_int("coslam-eval-worlds", opt, s, lo, hi, out);
 }
 
 /* The whole of `s` as a finite number >= 0; else says which option and
