@@ -257,6 +257,48 @@ static void test_fastslam_pool_exhaustion(void **state)
     assert_int_equal(g_pool.leaves_live, 0);
 }
 
+/* The most parents a leaf can have: every one of COSLAM_MAX_PARTICLES maps
+ * shares slot 0's leaf through a private level-1 node of its own (each map
+ * wrote slot 1, which copied the node and bumped the leaf's count), and
+ * lm_tree_move adds one for a moment. The count must hold that exactly
+ * (lm_tree_leaf_ref_t is 8 bits in the default profile) and fall back to
+ * zero, every leaf freed, when the maps go. */
+static void test_leaf_ref_at_most_maps(void **state)
+{
+    (void)state;
+    _Static_assert(COSLAM_MAX_PARTICLES + 1UL <= LM_TREE_LEAF_REF_MAX, "leaf reference count too narrow");
+    static lm_tree_idx_t roots[COSLAM_MAX_PARTICLES];
+    lm_tree_pool_init(&g_pool, 0U, 0U);
+    const landmark_t shared = make_lm(1.0, 2.0, 0.01, 1U);
+    roots[0] = LM_TREE_NIL;
+    assert_int_equal(lm_tree_set(&g_pool, &roots[0], 0, &shared), COSLAM_OK);
+    assert_int_equal(lm_tree_set(&g_pool, &roots[0], 1, &shared), COSLAM_OK);
+    for (int k = 1; k < COSLAM_MAX_PARTICLES; ++k) {
+        lm_tree_retain(&g_pool, roots[0]);
+        roots[k] = roots[0];
+        const landmark_t own = make_lm(3.0, (double)k, 0.01, 2U + (uint32_t)k);
+        assert_int_equal(lm_tree_set(&g_pool, &roots[k], 1, &own), COSLAM_OK);
+    }
+    lm_tree_idx_t n = roots[0];
+    for (int l = 0; l + 1 < LM_TREE_DEPTH; ++l) {
+        n = g_pool.node[n].child[0];
+    }
+    const lm_tree_idx_t leaf = g_pool.node[n].child[0];
+    assert_int_equal(g_pool.leaf_ref[leaf], COSLAM_MAX_PARTICLES);
+    check_refcounts(&g_pool, roots, COSLAM_MAX_PARTICLES);
+    /* the last map moves slot 0 into slot 1: parents N + 1, then back to N */
+    assert_int_equal(lm_tree_move(&g_pool, &roots[COSLAM_MAX_PARTICLES - 1], 1, 0), COSLAM_OK);
+    assert_int_equal(g_pool.leaf_ref[leaf], COSLAM_MAX_PARTICLES);
+    ASSERT_NEAR(lm_tree_get(&g_pool, roots[COSLAM_MAX_PARTICLES - 1], 1)->mean.y, 2.0, 0.0);
+    check_refcounts(&g_pool, roots, COSLAM_MAX_PARTICLES);
+    for (int k = 0; k < COSLAM_MAX_PARTICLES; ++k) {
+        ASSERT_NEAR(lm_tree_get(&g_pool, roots[k], k + 1 < COSLAM_MAX_PARTICLES ? 0U : 1U)->mean.x, 1.0, 0.0);
+        lm_tree_release(&g_pool, &roots[k]);
+    }
+    assert_int_equal(g_pool.nodes_live, 0);
+    assert_int_equal(g_pool.leaves_live, 0);
+}
+
 /* ---- randomized against flat arrays --------------------------------------- */
 
 #define N_MAPS 12
@@ -442,6 +484,7 @@ int main(void)
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_cow_isolation_after_resampling),
         cmocka_unit_test(test_fastslam_pool_exhaustion),
+        cmocka_unit_test(test_leaf_ref_at_most_maps),
         cmocka_unit_test(test_randomized_against_flat),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -203,6 +203,7 @@ static lm_tree_idx_t *private_path(lm_tree_pool_t *p, lm_tree_idx_t *root, uint3
                     continue;
                 }
                 if (l == D_ - 1) {
+                    COSLAM_ASSERT(p->leaf_ref[ch] < LM_TREE_LEAF_REF_MAX);
                     p->leaf_ref[ch]++;
                 } else {
                     p->node[ch].ref++;
@@ -414,6 +415,7 @@ coslam_status_t lm_tree_move(lm_tree_pool_t *p, lm_tree_idx_t *root, uint32_t ds
     }
     COSLAM_ASSERT(*ld != LM_TREE_NIL && *ls != LM_TREE_NIL);
     const lm_tree_idx_t moved = *ls;
+    COSLAM_ASSERT(p->leaf_ref[moved] < LM_TREE_LEAF_REF_MAX);
     p->leaf_ref[moved]++;
     leaf_unref(p, *ld);
     *ld = moved;

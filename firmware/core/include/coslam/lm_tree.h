@@ -51,7 +51,9 @@
  * Tests may also lower the limits at run time (lm_tree_pool_init).
  *
  * Memory (default profile, F = 8, 100 particles x 64 landmarks): leaves
- * 100 * 64 * (88 + 2) B, nodes 100 * 9 * 36 B.
+ * 100 * 64 * (88 + 1) B (an 8-bit reference count, lm_tree_leaf_ref_t),
+ * nodes 100 * 9 * 36 B. A pool serves at most COSLAM_MAX_PARTICLES maps at
+ * once: the reference counts are sized for that.
  */
 #ifndef COSLAM_LM_TREE_H
 #define COSLAM_LM_TREE_H
@@ -125,6 +127,21 @@ typedef uint32_t lm_tree_idx_t;
 #define LM_TREE_NIL ((lm_tree_idx_t)0xFFFFFFFFUL)
 #endif
 
+/** Reference count of a leaf: the level-1 nodes pointing at it. A pool
+ *  serves at most COSLAM_MAX_PARTICLES maps at once (Fast-SLAM: one per
+ *  particle, copied in place by resampling), each map holds a leaf in one
+ *  slot at most and reaches one level-1 node per slot, so a leaf has at
+ *  most COSLAM_MAX_PARTICLES parents, one more for a moment inside
+ *  lm_tree_move. 8 bits when that fits (the default profile: 100 x 64
+ *  leaves, 6,400 B less than 16 bits), else 16. */
+#if COSLAM_MAX_PARTICLES + 1 < 0xFF
+typedef uint8_t lm_tree_leaf_ref_t;
+#define LM_TREE_LEAF_REF_MAX 0xFFU
+#else
+typedef uint16_t lm_tree_leaf_ref_t;
+#define LM_TREE_LEAF_REF_MAX 0xFFFFU
+#endif
+
 /** Explicit stack bound of the iterative release. */
 #define LM_TREE_STACK (1UL + LM_TREE_DEPTH * (LM_TREE_FANOUT - 1UL))
 
@@ -152,7 +169,7 @@ typedef struct {
     lm_tree_idx_t leaf_free;
     uint32_t capacity_drops;  /**< allocations refused: pool exhausted */
     lm_tree_node_t node[LM_TREE_MAX_NODES];
-    uint16_t leaf_ref[LM_TREE_MAX_LEAVES];
+    lm_tree_leaf_ref_t leaf_ref[LM_TREE_MAX_LEAVES]; /**< see lm_tree_leaf_ref_t */
     lm_tree_leaf_t leaf[LM_TREE_MAX_LEAVES];
 } lm_tree_pool_t;
 
