@@ -5,8 +5,10 @@
 #define COSLAM_HOST_CLI_CHECKED_FILE_HPP
 
 #include <cerrno>
+#include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <iostream>
 #include <stdexcept>
 #include <string>
 
@@ -62,6 +64,28 @@ inline void write_text_file(const std::string &path, const std::string &text)
     std::ofstream f = open_checked(path);
     f << text;
     close_checked(f, path);
+}
+
+/// Flush standard output (std::cout and C's stdout) and say whether
+/// anything written to it was lost: 0 if all of it went out, else the errno
+/// of the failure (EIO when the OS gave none). A failed write is sticky
+/// (std::cout's badbit, stdout's error flag), so a tool calls this once,
+/// before it exits: its output to a full disk or to a pipe closed with
+/// SIGPIPE ignored is then an error, not an exit 0 with the output lost.
+inline int stdout_flush_error()
+{
+    errno = 0;
+    std::cout.flush(); // with sync_with_stdio (the default) also fflush(stdout)
+    int err = errno;
+    errno = 0;
+    const int rc = std::fflush(stdout);
+    if (err == 0) {
+        err = errno;
+    }
+    if (rc == 0 && !std::ferror(stdout) && std::cout.good()) {
+        return 0;
+    }
+    return err != 0 ? err : EIO;
 }
 
 } // namespace coslam::cli

@@ -18,6 +18,7 @@
 #include <iostream>
 #include <limits>
 #include <sstream>
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include "checked_file.hpp"
@@ -158,9 +159,43 @@ void print_noise_fit(std::ostream &os, const NoiseFit &nf, const ReplayConfig &c
        << n.range_var_per_m2 << " bearing_var_rad2 " << n.bearing_var_rad2 << "\n";
 }
 
+// Why a plot command run through std::system failed, for the error line.
+std::string plot_failure(int status)
+{
+    if (status == -1) {
+        return "no shell could be started";
+    }
+    if (WIFEXITED(status)) {
+        return "the plotter exited with status " + std::to_string(WEXITSTATUS(status));
+    }
+    if (WIFSIGNALED(status)) {
+        return "the plotter was killed by signal " + std::to_string(WTERMSIG(status));
+    }
+    return "status " + std::to_string(status);
+}
+
+int replay_main(int argc, char **argv);
+
 } // namespace
 
+// Every subcommand's exit status, then standard output checked: what was
+// printed to a full disk or a closed pipe (SIGPIPE ignored) is lost, and a
+// run that lost it does not exit 0 (replay_output.h: exit codes).
 int main(int argc, char **argv)
+{
+    int rc = replay_main(argc, argv);
+    if (const int err = coslam::cli::stdout_flush_error(); err != 0) {
+        std::cerr << "coslam-replay: " << coslam::cli::WriteError("standard output", err).what() << "\n";
+        if (rc != 2) {
+            rc = kExitWrite;
+        }
+    }
+    return rc;
+}
+
+namespace {
+
+int replay_main(int argc, char **argv)
 {
     CLI::App app{"coslam-replay: replay recorded multi-robot landmark data through the coslam core"};
     app.require_subcommand(1);
@@ -205,7 +240,7 @@ int main(int argc, char **argv)
         ->check(finite_in(0.0, 4000.0));
     run->add_option("--seed", seed, "filter seed")->check(int_in(0, std::numeric_limits<long long>::max()));
     run->add_option("-o,--out", out_dir, "output folder");
-    run->add_flag("--no-plots", no_plots, "do not draw the figures");
+    run->add_flag("--no-plots", no_plots, "do not draw the figures (figures that fail to draw: exit 4)");
     run->add_flag("-q,--quiet", quiet, "no progress bar");
     run->add_flag("--allow-capacity-limits", allow_capacity,
                   "exit 0 even when a capacity of the core was hit (otherwise exit 3)");
@@ -414,10 +449,19 @@ int main(int argc, char **argv)
         const bool capacity_hit = report_limits(std::cerr, ds, res);
         std::cout << "outputs in " << out_dir << " (dataset read in " << std::fixed << std::setprecision(2) << load_s
                   << " s)\n";
+        bool plot_failed = false;
         if (!no_plots) {
+            // the summary before the plotter's own lines on a shared stdout
+            std::cout.flush();
             const std::string cmd = "/usr/bin/python3 '" + plot_script() + "' '" + out_dir + "'";
-            if (std::system(cmd.c_str()) != 0) {
-                std::cerr << "warning: plotting failed (" << cmd << ")\n";
+            const int status = std::system(cmd.c_str());
+            if (status != 0) {
+                // figures were asked for and are missing: not a success,
+                // though every data file above was written whole
+                std::cerr << "coslam-replay: error: the figures were not drawn: " << plot_failure(status) << " ("
+                          << cmd << "); the data outputs in " << out_dir
+                          << " are complete (--no-plots runs without figures)\n";
+                plot_failed = true;
             }
         }
         if (capacity_hit && !allow_capacity) {
@@ -425,6 +469,10 @@ int main(int argc, char **argv)
                          "those of an unlimited filter. Exit "
                       << kExitCapacity << " (--allow-capacity-limits to accept)\n";
             return kExitCapacity;
+        }
+        if (plot_failed) {
+            std::cerr << "coslam-replay: exit " << kExitPlot << ": figures missing\n";
+            return kExitPlot;
         }
         return 0;
     } catch (const coslam::cli::WriteError &e) {
@@ -440,3 +488,5 @@ int main(int argc, char **argv)
         return 2;
     }
 }
+
+} // namespace

@@ -45,13 +45,19 @@ void print_summary(std::ostream &out, const ReplayResult &res, const ReplayOptio
 bool report_limits(std::ostream &err, const Dataset &ds, const ReplayResult &res);
 
 /// coslam-replay's exit codes: 0 done; 2 bad input or usage (a data or
-/// configuration file, an option); 3 (kExitCapacity) a capacity of the core
-/// was hit; 1 (kExitWrite) an output file could not be written whole (a full
-/// disk: coslam::cli::WriteError, the path and the OS's reason on stderr).
-/// CLI11's own parse errors keep CLI11's codes (105 a value out of range).
+/// configuration file, an option, through cli::parse_usage); 3
+/// (kExitCapacity) a capacity of the core was hit; 1 (kExitWrite) an output
+/// file or standard output could not be written whole (a full disk, a closed
+/// pipe: coslam::cli::WriteError, the path and the OS's reason on stderr);
+/// 4 (kExitPlot) the figures asked for (no --no-plots) were not drawn, every
+/// data output being written whole. When several apply: 1 before 3 before 4
+/// (the most serious loss first); 2 stays 2 (nothing was run).
 inline constexpr int kExitWrite = 1;
 /// Exit code of a run that hit a capacity of the core.
 inline constexpr int kExitCapacity = 3;
+/// Exit code of a run whose figures could not be drawn (the plot script
+/// failed or could not start); its data outputs are complete.
+inline constexpr int kExitPlot = 4;
 
 } // namespace coslam::replay
 

@@ -3,7 +3,8 @@
 # silently (a directory in place of a file, empty required files, a NUL byte,
 # odometry gaps, periods too small to advance, fit-odometry with nothing to
 # fit, 0.000 printed for what was not measured, settings for robots not in
-# the data): each case must end with the expected exit code and say why.
+# the data, figures not drawn, standard output on a full disk): each case
+# must end with the expected exit code and say why.
 #
 #   robust_inputs.sh REPLAY_BIN SOURCE_DIR WORK_DIR
 set -u
@@ -181,6 +182,56 @@ if [ -e /dev/full ]; then
         $R "$B" -o "$WORK/plain_file/r"
 else
     echo "skip full disk: no /dev/full"
+fi
+
+# 10. figures asked for that cannot be drawn (the plot script fails) are an
+# error line and exit 4 (was a warning and exit 0); a plot script that
+# works (python3 runs /dev/null: exit 0) leaves exit 0
+check "plot script fails" 4 "^coslam-replay: error: the figures were not drawn: the plotter exited with status 2 " \
+    env COSLAM_PLOT_REPLAY="$WORK/no_such_plot.py" "$REPLAY" run -q -f ekf "$B" -o "$WORK/rp"
+if ! grep -q "^outputs in $WORK/rp " "$WORK/out.txt" || [ ! -s "$WORK/rp/metrics.json" ]; then
+    fails=$((fails + 1))
+    echo "FAIL plot script fails: the summary or metrics.json missing"
+fi
+check "plot script works" 0 "outputs in" env COSLAM_PLOT_REPLAY=/dev/null "$REPLAY" run -q -f ekf "$B" -o "$WORK/rp"
+check "--no-plots with a failing plot script" 0 "outputs in" \
+    env COSLAM_PLOT_REPLAY="$WORK/no_such_plot.py" $R "$B" -o "$WORK/rp"
+
+# 11. standard output that cannot be written (a full disk) is an error,
+# exit 1, whatever was written to files (was exit 0 with the output lost)
+# full_stdout NAME PATTERN CMD...: stdout on /dev/full, stderr checked
+full_stdout() {
+    name=$1
+    pat=$2
+    shift 2
+    timeout 60 "$@" > /dev/full 2> "$WORK/err.txt"
+    rc=$?
+    msg=$(grep -E -m1 -- "$pat" "$WORK/err.txt" | cut -c1-200)
+    if [ "$rc" -ne 1 ] || [ -z "$msg" ]; then
+        fails=$((fails + 1))
+        echo "FAIL $name: rc $rc (want 1), pattern '$pat'"
+        sed -n 1,12p "$WORK/err.txt"
+    else
+        echo "ok   $name: rc $rc: $msg"
+    fi
+}
+if [ -e /dev/full ]; then
+    enospc="^coslam-replay: cannot write standard output: No space left on device"
+    full_stdout "stdout full: run" "$enospc" $R "$B" -o "$WORK/rs"
+    full_stdout "stdout full: print-config" "$enospc" "$REPLAY" print-config
+    full_stdout "stdout full: fit-odometry" "$enospc" "$REPLAY" fit-odometry "$B"
+    full_stdout "stdout full: --help" "$enospc" "$REPLAY" --help
+    # a bad input stays exit 2 (nothing ran), the lost stdout said as well
+    timeout 60 "$REPLAY" run --no-such-option > /dev/full 2> "$WORK/err.txt"
+    rc=$?
+    if [ $rc -ne 2 ]; then
+        fails=$((fails + 1))
+        echo "FAIL stdout full: bad option: rc $rc (want 2)"
+    else
+        echo "ok   stdout full: bad option: rc 2"
+    fi
+else
+    echo "skip stdout full: no /dev/full"
 fi
 
 if [ $fails -ne 0 ]; then
