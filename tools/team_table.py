@@ -1,7 +1,9 @@
 #!/usr/bin/python3
 """Per-robot issue-8 table of tools/team_table.sh: DIR holds sS/ (merging)
 and sS_alone/ (--no-merge) coslam-replay outputs (metrics.json) for each
-seed S; the goals are tools/merge_table.py's (goals_missed)."""
+seed S; the goals are tools/merge_table.py's (goals_missed). A run missing,
+unreadable or without robots is named (exit 1) before any table row.
+usage: team_table.py DIR SEED..."""
 import importlib.util
 import os
 import sys
@@ -10,6 +12,33 @@ _spec = importlib.util.spec_from_file_location(
     "merge_table", os.path.join(os.path.dirname(os.path.abspath(__file__)), "merge_table.py"))
 merge_table = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(merge_table)
+
+
+def bad_inputs(d, seeds):
+    """The runs table needs that are missing, not a coslam-replay
+    metrics.json, hold no robot, or (merged and alone) hold different
+    robots, one line each: table would stop with a traceback on the first,
+    or pair the robots wrongly."""
+    bad = []
+    for s in seeds:
+        robots = {}
+        for tag in (f"s{s}", f"s{s}_alone"):
+            path = os.path.join(d, tag, "metrics.json")
+            if not os.path.isfile(path):
+                bad.append(f"{path}: missing (see {os.path.join(d, tag + '.txt')})")
+                continue
+            try:
+                rs = merge_table.load(path).get("robots")
+                robots[tag] = [r["id"] for r in rs]
+            except (OSError, ValueError, AttributeError, KeyError, TypeError) as e:
+                bad.append(f"{path}: not a coslam-replay metrics.json ({e})")
+                continue
+            if not robots[tag]:
+                bad.append(f"{path}: no robots")
+        if len(robots) == 2 and robots[f"s{s}"] != robots[f"s{s}_alone"]:
+            bad.append(f"{os.path.join(d, f's{s}')}: robots {robots[f's{s}']} merged, "
+                       f"{robots[f's{s}_alone']} alone")
+    return bad
 
 
 def table(d, seeds):
@@ -69,4 +98,9 @@ def table(d, seeds):
 if __name__ == "__main__":
     if len(sys.argv) < 3:
         sys.exit("usage: team_table.py DIR SEED...")
+    if not os.path.isdir(sys.argv[1]):
+        sys.exit(f"team_table: no folder {sys.argv[1]} (the outputs of tools/team_table.sh)")
+    problems = bad_inputs(sys.argv[1], sys.argv[2:])
+    if problems:
+        sys.exit("team_table: no table, runs missing or empty:\n  " + "\n  ".join(problems))
     table(sys.argv[1], sys.argv[2:])

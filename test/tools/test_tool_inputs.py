@@ -7,7 +7,8 @@ empty result with exit 0:
    header-only or missing inputs (a message naming what is missing, exit
    non-zero, no figure or table written);
  - merge_table.py refuses a folder with missing or empty runs instead of
-   reporting "Goals not met: none";
+   reporting "Goals not met: none"; team_table.py, run on its own, names a
+   missing folder or missing and empty runs (exit 1) instead of a traceback;
  - merge_table.sh and team_table.sh fail (exit 1, the run and its log or the
    missing binary and its target named) when a binary is missing or a
    background run fails.
@@ -125,6 +126,27 @@ with tempfile.TemporaryDirectory() as tmp:
     check(rc != 0 and "d6_ekf/metrics.json: not a coslam-replay metrics.json" in errs
           and "d1_fastslam2_alone/metrics.json: missing" in errs and "none" not in out,
           f"merge_table.py on missing and empty runs: exit {rc}, {errs.strip()[:300]!r}")
+
+    # --- team_table.py on its own (team_table.sh checks its runs first;
+    # run alone it gave a traceback on a missing metrics.json) ---
+    rc, out, errs = tool("team_table.py", os.path.join(tmp, "nowhere"), "1")
+    check(rc == 1 and "team_table: no folder " + os.path.join(tmp, "nowhere") in errs
+          and "Traceback" not in errs and "|" not in out,
+          f"team_table.py on a missing folder: exit {rc}, {errs.strip()[:300]!r}")
+    tt = os.path.join(tmp, "tt")
+    robot = {"id": 1, "map_fit": {"n_spurious": 0, "rmse_m": 0.1}, "pose": {"rmse_m": 0.2}}
+    write(os.path.join(tt, "s1", "metrics.json"), json.dumps({"robots": [robot]}))
+    write(os.path.join(tt, "s2", "metrics.json"), "")
+    rc, out, errs = tool("team_table.py", tt, "1", "2")
+    check(rc == 1 and "Traceback" not in errs and "|" not in out
+          and f"{tt}/s1_alone/metrics.json: missing (see {tt}/s1_alone.txt)" in errs
+          and f"{tt}/s2/metrics.json: not a coslam-replay metrics.json" in errs
+          and f"{tt}/s2_alone/metrics.json: missing" in errs,
+          f"team_table.py on missing and empty runs: exit {rc}, {errs.strip()[:400]!r}")
+    write(os.path.join(tt, "s1_alone", "metrics.json"), json.dumps({"robots": [robot]}))
+    rc, out, errs = tool("team_table.py", tt, "1")
+    check(rc == 0 and "| 1 | 1 | 0 / 0 |" in out and "robot-runs missing a goal: 0 of 1" in out,
+          f"team_table.py on a whole run: exit {rc}, {errs.strip()[:300]!r}")
 
     # --- merge_table.sh and team_table.sh ---
     env = dict(os.environ, COSLAM_DATA_DIR=os.path.join(tmp, "data"))
