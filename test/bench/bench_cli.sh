@@ -45,6 +45,7 @@ refused scale "--seed 'abc': not a whole number" --seed abc
 refused scale "--seed -1 outside [0," --seed -1
 refused odo-check "--checks 0 outside [1, 1000000]" --checks 0
 refused odo-check "--checks '5x': not a whole number" --checks 5x
+refused odo-check "--odo-scale-pct 5 outside [10, 1000]" --odo-scale-pct 5
 refused vision "--frames: value -1 outside [1, 5000]" --frames -1
 refused vision "--frames: value 0 outside [1, 5000]" --frames 0
 refused vision "--repeats: value 0 outside [1, 1000]" --repeats 0
@@ -76,6 +77,37 @@ full fastslam fastslam_scale.json --seeds 1 --steps 2 --no-flat
 full odo-check odo_check.md --checks 1
 full vision vision.json --frames 1 --repeats 1
 full robot-camera robot_camera.md
+
+# coslam-bench-odo-check: a drive the check flags (odometry reporting 3x the
+# motion) is exit 3 with the report written, not 1 as a lost report; a
+# lost report stays 1 when the drive is flagged too; --help says the codes
+b=$(bin odo-check)
+if [ -n "$b" ]; then
+  # odo_case NAME WANT-RC WANT-TEXT ARGS...: exit WANT-RC, WANT-TEXT in the output
+  odo_case() {
+    name=$1; want=$2; text=$3; shift 3
+    out=$("$b" "$@" 2>&1); rc=$?
+    if [ $rc -ne "$want" ] || ! printf '%s\n' "$out" | grep -qF -- "$text"; then
+      echo "FAIL: odo-check $name: exit $rc, wanted $want and '$text': $(printf '%s\n' "$out" | tail -2)"
+      fail=1
+    else
+      echo "ok: odo-check $name: exit $rc"
+    fi
+  }
+  mkdir -p "$WORK/odo_clean" "$WORK/odo_fault" "$WORK/odo_full"
+  odo_case "fault-free" 0 "| 5 | " --checks 5 --out "$WORK/odo_clean"
+  odo_case "odometry 3x" 3 "the check flagged the drive (5 disagreements" --checks 5 --odo-scale-pct 300 \
+    --out "$WORK/odo_fault"
+  if ! grep -q '^| 5 | .* | [1-9][0-9]* |$' "$WORK/odo_fault/odo_check.md"; then
+    echo "FAIL: odo-check odometry 3x: odo_check.md not written or nothing flagged in it"; fail=1
+  fi
+  if [ -e /dev/full ]; then
+    ln -s /dev/full "$WORK/odo_full/odo_check.md"
+    odo_case "flagged and a full disk" 1 "cannot write $WORK/odo_full/odo_check.md: No space left on device" \
+      --checks 5 --odo-scale-pct 300 --out "$WORK/odo_full"
+  fi
+  odo_case "--help" 0 "3  the check flagged the drive" --help
+fi
 
 # every number in the JSON finite: --no-naive (the naive search not
 # measured) wrote nan before; now null
