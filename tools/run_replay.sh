@@ -19,20 +19,33 @@ if [ ! -d "$data" ]; then
 fi
 mkdir -p "$out"
 t0=$(date +%s)
+# run_one NAME ARGS...: one replay, its console in $out/NAME.log; a run that
+# fails stops make replay with its name, exit code (docs/replay.md: 1 a
+# write, 2 input, 3 a capacity, 4 figures not drawn) and the end of its log
+run_one() {
+  name=$1
+  shift
+  rc=0
+  "$bin" run "$data" -c "$cfg" -f "$filter" -p "$particles" $flag -q "$@" -o "$out/$name" \
+    > "$out/$name.log" 2>&1 || rc=$?
+  if [ "$rc" -ne 0 ]; then
+    echo "replay: run $name failed with exit $rc; its log: $out/$name.log" >&2
+    tail -n 5 "$out/$name.log" >&2
+    exit 1
+  fi
+}
 for filter in ekf fastslam2; do
   for ids in unknown known; do
     flag=""
     [ "$ids" = known ] && flag="--known-ids"
     echo "== 5 robots, $filter, $ids identities"
-    "$bin" run "$data" -c "$cfg" -f "$filter" -p "$particles" $flag -q -o "$out/5r_${filter}_${ids}" 2>/dev/null \
-      | sed -n '1,8p'
-    "$bin" run "$data" -c "$cfg" -f "$filter" -p "$particles" $flag -q --no-merge --no-plots \
-      -o "$out/5r-nomerge_${filter}_${ids}" > /dev/null 2>&1
+    run_one "5r_${filter}_${ids}"
+    sed -n '1,8p' "$out/5r_${filter}_${ids}.log"
+    run_one "5r-nomerge_${filter}_${ids}" --no-merge --no-plots
     for pair in 1,3 1,5 2,3 2,5 3,4 3,5 4,5; do
       plots="--no-plots"
       [ "$pair" = 2,3 ] && plots=""
-      "$bin" run "$data" -c "$cfg" -f "$filter" -p "$particles" $flag -q $plots -r "$pair" \
-        -o "$out/2r-$(echo $pair | tr , -)_${filter}_${ids}" > /dev/null 2>&1
+      run_one "2r-$(echo $pair | tr , -)_${filter}_${ids}" $plots -r "$pair"
     done
   done
 done

@@ -182,5 +182,18 @@ with tempfile.TemporaryDirectory() as tmp:
           and "--target coslam-eval-worlds" in errs,
           f"team_table.sh without coslam-eval-worlds: exit {rc}, {errs.strip()!r}")
 
+    # run_replay.sh (make replay): a run that fails stops it with the run
+    # named, its exit code and its log (it ran with stderr thrown away and
+    # set -e: exit 3 and nothing said, or a failed first run hidden by sed)
+    b = fake_build("build-replay", "#!/bin/sh\nfor a in \"$@\"; do [ \"$a\" = --no-merge ] && "
+                   "{ echo 'capacity: 257 landmarks' >&2; exit 3; }; done\necho 'coslam-replay: ok'\nexit 0\n")
+    cwd = os.path.join(tmp, "replay-cwd")
+    os.makedirs(cwd)
+    rc, out, errs = tool("run_replay.sh", b, cwd=cwd, env=env)
+    log = os.path.join("out/replay", "5r-nomerge_ekf_unknown.log")
+    check(rc == 1 and f"run 5r-nomerge_ekf_unknown failed with exit 3; its log: {log}" in errs
+          and "capacity: 257 landmarks" in errs and "coslam-replay: ok" in out,
+          f"run_replay.sh with a failing run: exit {rc}, {errs.strip()!r}")
+
 print("test_tool_inputs:", "failed" if failures else "ok")
 sys.exit(1 if failures else 0)
