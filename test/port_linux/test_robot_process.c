@@ -1029,6 +1029,49 @@ static void hung_open_left(void **state)
     remove_dir(dir);
 }
 
+/* The start-up's first opens run on the openers too, bounded: the landmark
+ * log a FIFO that never gets a writer (any open that blocks) leaves the
+ * camera down, said, and the robot starts and runs without it. Before, the
+ * start-up opened in the main thread, and the FIFO's open held it, no step
+ * ever ran, until a signal. */
+static void start_open_fifo(void **state)
+{
+    (void)state;
+    char dir[64];
+    make_dir(dir, sizeof dir);
+    char fifo[300];
+    snprintf(fifo, sizeof fifo, "%s/lm.fifo", dir);
+    assert_int_equal(mkfifo(fifo, 0600), 0);
+    char camera[400];
+    snprintf(camera, sizeof camera, "replay_log = %s\nreplay_loop = true", fifo);
+    char store[300];
+    snprintf(store, sizeof store, "%s/store", dir);
+    config(dir, "no-laser", "0.2", "30", camera, store, "fastslam2");
+    char err[300];
+    snprintf(err, sizeof err, "%s/err", dir);
+    const uint64_t t0 = now_ms();
+    const pid_t pid = spawn_robot(dir, err, NULL, NULL);
+    const long steps = wait_value(err, "steps", 20, 8000);
+    const uint64_t took_ms = now_ms() - t0;
+    uint64_t stop_ms = 0U;
+    const char *log = stop_robot_within(pid, err, 5000, &stop_ms);
+    fprintf(stderr, "start_open_fifo: %ld steps %llu ms after the spawn; dev_opening %ld; stop %llu ms\n", steps,
+            (unsigned long long)took_ms, last_value(log, "dev_opening"), (unsigned long long)stop_ms);
+    if (steps < 20) {
+        fprintf(stderr, "%s\n", log);
+    }
+    assert_true(steps >= 20); /* the loop runs */
+    assert_non_null(strstr(log, "coslam-robot: camera (landmark-log replay "));
+    assert_non_null(strstr(log, "down: its open has not returned within 2000 ms of the start (a FIFO without a "
+                                "writer? a hung device?): the robot starts without it"));
+    assert_non_null(strstr(log, "camera=down"));
+    assert_true(last_value(log, "dev_opening") >= 1);
+    assert_non_null(strstr(log, "snapshot: none found: starting a new map")); /* the storage opened meanwhile */
+    assert_non_null(strstr(log, "left to the process's exit"));                /* the stop did not wait for it */
+    assert_true(stop_ms < 4000);
+    remove_dir(dir);
+}
+
 /* ---- a storage that comes back slow to read -------------------------------- */
 
 /* The storage comes back (its directory appears) while its newest
@@ -1458,6 +1501,7 @@ int main(int argc, char **argv)
         cmocka_unit_test(diverged_warning),
         cmocka_unit_test(slow_open_said),
         cmocka_unit_test(hung_open_left),
+        cmocka_unit_test(start_open_fifo),
         cmocka_unit_test(storage_back_read),
         cmocka_unit_test(final_snapshot_reopens_storage),
         cmocka_unit_test(storage_held_by_another_robot),

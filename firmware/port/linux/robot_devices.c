@@ -468,18 +468,6 @@ static int open_finish(robot_devices_t *d, robot_dev_t id, hal_status_t s, const
     return 0;
 }
 
-/* Open device id in the calling thread; returns 1 if up. */
-static int try_open(robot_devices_t *d, robot_dev_t id, uint64_t now_us)
-{
-    char reason[ROBOT_DEVICES_REASON_MAX];
-    reason[0] = '\0';
-    hal_status_t s = open_prepare(d, id, reason, sizeof reason);
-    if (s == HAL_OK) {
-        s = open_backend(d, id, reason, sizeof reason);
-    }
-    return open_finish(d, id, s, reason, now_us);
-}
-
 /* ---- openers: the blocking part of the loop's retries on a thread -------- */
 
 /* The attempt, on the slot's opener thread. */
@@ -631,6 +619,19 @@ coslam_status_t robot_devices_init(robot_devices_t *d, const robot_config_t *cfg
     return ls;
 }
 
+/* The report of a slot's first open that ended down (`reason`): the
+ * device's consequence and the retry. */
+static void say_first_down(robot_devices_t *d, robot_dev_t id, const char *reason)
+{
+    char text[ROBOT_DEVICES_REASON_MAX + 96u];
+    const char *then = "";
+    if (id == ROBOT_DEV_CAMERA && d->camera_kind == ROBOT_SIGHTINGS_CAMERA) {
+        then = "; localisation on odometry only";
+    }
+    put_text(text, sizeof text, "down: %s%s; retrying every %g s", reason, then, d->cfg->retry_period_s);
+    say(d, d->dev[id].name, &d->dev[id], text);
+}
+
 void robot_devices_open_all(robot_devices_t *d, uint64_t now_us)
 {
     const robot_config_t *c = d->cfg;
@@ -638,91 +639,143 @@ void robot_devices_open_all(robot_devices_t *d, uint64_t now_us)
     const char *names[ROBOT_DEV_COUNT] = {c->laser_device, c->can_fd >= 0 ? "fd" : c->can_interface,
                                           c->gpio_fd >= 0 ? "fd" : c->gpio_chip, "", "", c->storage_dir};
     char text[320];
+    int want[ROBOT_DEV_COUNT] = {0};
+    /* 1: what each slot is; a configured one is down until its first
+     * attempt has ended up */
     for (int i = 0; i < ROBOT_DEV_COUNT; ++i) {
         const robot_dev_t id = (robot_dev_t)i;
         if (id == ROBOT_DEV_CAMERA) {
-            hal_status_t s = HAL_E_UNSUPPORTED;
-            char msg[ROBOT_CONFIG_MSG_MAX + 1u];
-            d->camera_kind = robot_open_sightings(&d->replay, c, d->clock, &s, msg, sizeof msg);
+            d->camera_kind = robot_sightings_kind(c);
             if (d->camera_kind == ROBOT_SIGHTINGS_NONE) {
                 put_text(st[id].what, sizeof st[id].what, "none");
                 say(d, "camera", &st[id], "not configured: localisation on odometry only");
-            } else if (d->camera_kind == ROBOT_SIGHTINGS_NO_CAMERA) {
+                continue;
+            }
+            if (d->camera_kind == ROBOT_SIGHTINGS_NO_CAMERA) {
                 put_text(st[id].what, sizeof st[id].what, "%s", c->camera_device);
                 say(d, "camera", &st[id],
                     "not available (built without the V4L2 backend or firmware/vision): localisation on odometry "
                     "only");
-            } else if (d->camera_kind == ROBOT_SIGHTINGS_CAMERA) {
+                continue;
+            }
+            if (d->camera_kind == ROBOT_SIGHTINGS_CAMERA) {
                 put_text(st[id].what, sizeof st[id].what, "V4L2 %s, %ux%u, markers", c->camera_device,
                          (unsigned)c->camera_width_px, (unsigned)c->camera_height_px);
-                if (try_open(d, id, now_us)) {
-                    say(d, "camera", &st[id], "up");
-                } else {
-                    put_text(text, sizeof text, "down: %s; localisation on odometry only; retrying every %g s",
-                             st[id].reason, c->retry_period_s);
-                    say(d, "camera", &st[id], text);
-                }
+            } else if (d->camera_kind == ROBOT_SIGHTINGS_LIVE) {
+                put_text(st[id].what, sizeof st[id].what,
+                         "live sightings on fd %d (e2e device server, a camera stand-in)", c->camera_live_fd);
             } else {
-                if (d->camera_kind == ROBOT_SIGHTINGS_LIVE) {
-                    put_text(st[id].what, sizeof st[id].what,
-                             "live sightings on fd %d (e2e device server, a camera stand-in)", c->camera_live_fd);
-                } else {
-                    put_text(st[id].what, sizeof st[id].what,
-                             "landmark-log replay %s (test/bench source, not a camera)", c->camera_replay_log);
-                }
-                if (s == HAL_OK) {
-                    st[id].state = ROBOT_DEV_UP;
-                    st[id].opens++;
-                    say(d, "camera", &st[id], "up");
-                } else {
-                    set_down(d, id, s, msg, now_us);
-                    put_text(text, sizeof text, "down: %s; retrying every %g s", msg, c->retry_period_s);
-                    say(d, "camera", &st[id], text);
-                }
+                put_text(st[id].what, sizeof st[id].what, "landmark-log replay %s (test/bench source, not a camera)",
+                         c->camera_replay_log);
             }
-            continue;
-        }
-        if (id == ROBOT_DEV_LINK) {
-            const char *warn = robot_link_warning(&d->link);
+        } else if (id == ROBOT_DEV_LINK) {
             if (d->link.mode == ROBOT_LINK_OFF) {
                 st[id].state = ROBOT_DEV_ABSENT;
-                put_text(text, sizeof text, "absent; WARNING %s: this robot maps alone and merges no maps", warn);
+                put_text(text, sizeof text, "absent; WARNING %s: this robot maps alone and merges no maps",
+                         robot_link_warning(&d->link));
                 say(d, "link", &st[id], text);
                 continue;
             }
-            if (try_open(d, id, now_us)) {
-                say(d, "link", &st[id], "up");
-            } else {
-                put_text(text, sizeof text, "down: %s; retrying every %g s", st[id].reason, c->retry_period_s);
-                say(d, "link", &st[id], text);
-            }
-            if (warn != NULL) {
-                put_text(text, sizeof text, "WARNING %s: maps from anyone on the topic are merged", warn);
-                say(d, "link", &st[id], text);
-            }
-            continue;
-        }
-#if !COSLAM_HAVE_GPIOD
-        if (id == ROBOT_DEV_GPIO && c->gpio_fd < 0) {
-            say(d, "gpio", &st[id], "not available (built without libgpiod): no bumper, no e-stop");
-            continue;
-        }
-#endif
-        if (names[i][0] == '\0') {
-            st[i].what[0] = '\0';
-            say(d, dev_names[i], &st[i], "not configured");
-            continue;
-        }
-        if (try_open(d, id, now_us)) {
-            say(d, dev_names[i], &st[i], "up");
         } else {
-            put_text(text, sizeof text, "down: %s; retrying every %g s", st[i].reason, c->retry_period_s);
-            say(d, dev_names[i], &st[i], text);
+#if !COSLAM_HAVE_GPIOD
+            if (id == ROBOT_DEV_GPIO && c->gpio_fd < 0) {
+                say(d, "gpio", &st[id], "not available (built without libgpiod): no bumper, no e-stop");
+                continue;
+            }
+#endif
+            if (names[i][0] == '\0') {
+                st[i].what[0] = '\0';
+                say(d, dev_names[i], &st[i], "not configured");
+                continue;
+            }
+        }
+        want[i] = 1;
+        st[i].state = ROBOT_DEV_DOWN;
+    }
+    /* 2: the first attempts, handed to the openers together. An open that
+     * blocks (a FIFO without a writer as the landmark log, a hung driver)
+     * used to hold the start-up in this thread until a signal; now the
+     * start waits for them until one deadline (docs/robot.md "Known
+     * trips"). A slot without an opener thread opens here, as before. */
+    int handed[ROBOT_DEV_COUNT] = {0};
+    hal_status_t result[ROBOT_DEV_COUNT];
+    char reason[ROBOT_DEV_COUNT][ROBOT_DEVICES_REASON_MAX];
+    for (int i = 0; i < ROBOT_DEV_COUNT; ++i) {
+        result[i] = HAL_E_UNSUPPORTED;
+        reason[i][0] = '\0';
+        if (want[i]) {
+            opener_start(d, (robot_dev_t)i);
         }
     }
     for (int i = 0; i < ROBOT_DEV_COUNT; ++i) {
-        if (st[i].state != ROBOT_DEV_ABSENT) {
-            opener_start(d, (robot_dev_t)i);
+        if (!want[i]) {
+            continue;
+        }
+        const robot_dev_t id = (robot_dev_t)i;
+        robot_dev_opener_t *o = &d->opener[i];
+        hal_status_t s = open_prepare(d, id, reason[i], sizeof reason[i]);
+        if (s == HAL_OK && o->worker.started) {
+            o->reason[0] = '\0';
+            if (robot_worker_submit(&o->worker) == 0) {
+                handed[i] = 1;
+                st[i].opening = 1;
+                st[i].hung_said = 0;
+                st[i].open_began_us = now_us;
+                continue;
+            }
+        }
+        if (s == HAL_OK) {
+            s = open_backend(d, id, reason[i], sizeof reason[i]);
+        }
+        result[i] = s;
+    }
+    const struct timespec end = robot_worker_deadline(ROBOT_DEVICES_START_OPEN_MS);
+    for (int i = 0; i < ROBOT_DEV_COUNT; ++i) {
+        if (handed[i]) {
+            (void)robot_worker_wait(&d->opener[i].worker, &end);
+        }
+    }
+    /* 3: the outcomes, reported in slot order */
+    for (int i = 0; i < ROBOT_DEV_COUNT; ++i) {
+        if (!want[i]) {
+            continue;
+        }
+        const robot_dev_t id = (robot_dev_t)i;
+        robot_dev_opener_t *o = &d->opener[i];
+        if (handed[i]) {
+            if (robot_worker_take(&o->worker, 0U, NULL) != 1) {
+                /* still blocked: the robot starts without it; the attempt
+                 * goes on, and the loop's service takes its outcome (or
+                 * says it hung) as for a retry. Not a failed attempt yet. */
+                put_text(st[i].reason, sizeof st[i].reason,
+                         "its open has not returned within %u ms of the start (a FIFO without a writer? a hung "
+                         "device?)",
+                         ROBOT_DEVICES_START_OPEN_MS);
+                st[i].last_error = HAL_E_TIMEOUT;
+                st[i].start_open_late = 1;
+                put_text(text, sizeof text,
+                         "down: %s: the robot starts without it; the attempt goes on on the device's opener thread "
+                         "(dev_opening)",
+                         st[i].reason);
+                say(d, dev_names[i], &st[i], text);
+            } else {
+                st[i].opening = 0;
+                result[i] = o->result;
+                put_text(reason[i], sizeof reason[i], "%s", o->reason);
+                handed[i] = 0;
+            }
+        }
+        if (handed[i]) {
+            /* said above */
+        } else if (open_finish(d, id, result[i], reason[i], now_us)) {
+            say(d, dev_names[i], &st[i], "up");
+        } else {
+            say_first_down(d, id, st[i].reason);
+        }
+        if (id == ROBOT_DEV_LINK && robot_link_warning(&d->link) != NULL) {
+            put_text(text, sizeof text, "WARNING %s: maps from anyone on the topic are merged",
+                     robot_link_warning(&d->link));
+            say(d, "link", &st[id], text);
         }
     }
 }
@@ -777,11 +830,17 @@ static unsigned open_outcome(robot_devices_t *d, robot_dev_t id, hal_status_t s,
     char said[ROBOT_DEVICES_REASON_MAX];
     put_text(said, sizeof said, "%s", st->reason);
     if (open_finish(d, id, s, why, now_us)) {
-        put_text(text, sizeof text, "back up after %lu failed attempt%s", (unsigned long)failures,
-                 failures == 1U ? "" : "s");
+        if (st->start_open_late) {
+            put_text(text, sizeof text, "up (its open begun at the start has returned)");
+        } else {
+            put_text(text, sizeof text, "back up after %lu failed attempt%s", (unsigned long)failures,
+                     failures == 1U ? "" : "s");
+        }
+        st->start_open_late = 0;
         say(d, st->name, st, text);
         return 1U << id;
     }
+    st->start_open_late = 0;
     /* a retry that fails for a reason other than the one said last is
      * said once (a storage down at a failed write: then why it cannot be
      * written); the same reason again only with -v */

@@ -88,6 +88,13 @@ extern "C" {
  *  slot down until the attempt returns, never the loop or another slot. */
 #define ROBOT_DEVICES_HUNG_OPEN_MS 5000u
 
+/** robot_devices_open_all waits this long [ms] for the first open attempts
+ *  (on the openers, all together); one that has not returned by then (a
+ *  FIFO without a writer as the landmark log, a driver stuck in an ioctl)
+ *  leaves its device down and the robot starts without it. Longer than
+ *  any healthy open measured (a UVC camera 0.1-0.5 s, Cyclone DDS). */
+#define ROBOT_DEVICES_START_OPEN_MS 2000u
+
 /** robot_devices_close_all waits this long [ms] for a running open attempt. */
 #define ROBOT_DEVICES_CLOSE_WAIT_MS 1000u
 
@@ -128,6 +135,7 @@ typedef struct {
     uint32_t hung_opens;         /**< attempts still running after ROBOT_DEVICES_HUNG_OPEN_MS (reported) */
     int opening;                 /**< an attempt runs on the slot's opener thread (the slot is DOWN) */
     int hung_said;               /**< ... and has been said to hang */
+    int start_open_late;         /**< ... the first one, begun at start-up (robot_devices_open_all) */
     uint64_t open_began_us;      /**< when it was handed over */
     uint64_t next_try_us;        /**< next open attempt (DOWN) */
 } robot_dev_status_t;
@@ -185,11 +193,17 @@ typedef struct robot_devices {
 coslam_status_t robot_devices_init(robot_devices_t *d, const robot_config_t *cfg, hal_clock_t *clock, FILE *log,
                                    int verbose, char *msg, size_t msg_cap);
 
-/** First attempt at every device, in the caller's thread (start-up: the
- *  loop does not run yet); each one is reported by name (up, down with the
- *  reason, not configured). Then starts an opener thread for every
- *  configured device (one that cannot be started is said; that device's
- *  retries then open in the loop, as before). */
+/** First attempt at every device (start-up: the loop does not run yet).
+ *  Starts an opener thread for every configured device (one that cannot
+ *  be started is said; that device opens in the caller's thread, its
+ *  retries in the loop, as before) and hands each first attempt to it;
+ *  waits for them all until one deadline, ROBOT_DEVICES_START_OPEN_MS
+ *  after the hand-over. Each device is reported by name (up, down with the
+ *  reason, not configured). An attempt still running at the deadline
+ *  leaves its device down, said ("its open has not returned within ...:
+ *  the robot starts without it"); it goes on on its opener, and
+ *  robot_devices_service takes its outcome like a retry's ("up (its open
+ *  begun at the start has returned)"), or says it hung. */
 void robot_devices_open_all(robot_devices_t *d, uint64_t now_us);
 
 /**

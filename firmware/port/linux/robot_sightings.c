@@ -459,27 +459,36 @@ void robot_replay_close(robot_replay_t *r)
     }
 }
 
-robot_sightings_kind_t robot_open_sightings(robot_replay_t *r, const robot_config_t *cfg, hal_clock_t *clock,
-                                            hal_status_t *st, char *msg, size_t msg_cap)
+robot_sightings_kind_t robot_sightings_kind(const robot_config_t *cfg)
 {
     /* ---- SIGHTING SOURCE CHOICE ------------------------------------------ */
-    *st = HAL_E_UNSUPPORTED;
-    if (msg != NULL && msg_cap > 0U) {
-        msg[0] = '\0';
-    }
     if (cfg->camera_live_fd >= 0) {
-        *st = robot_live_open(r, cfg->camera_live_fd, cfg->robot_id, cfg->fleet_size, clock, msg, msg_cap);
         return ROBOT_SIGHTINGS_LIVE;
     }
     if (cfg->camera_replay_log[0] != '\0') {
-        *st = robot_replay_open(r, cfg->camera_replay_log, cfg->camera_replay_loop, cfg->robot_id, cfg->fleet_size,
-                                clock, msg, msg_cap);
         return ROBOT_SIGHTINGS_REPLAY;
     }
     if (cfg->camera_device[0] == '\0') {
         return ROBOT_SIGHTINGS_NONE;
     }
     return COSLAM_HAVE_CAMERA ? ROBOT_SIGHTINGS_CAMERA : ROBOT_SIGHTINGS_NO_CAMERA;
+}
+
+robot_sightings_kind_t robot_open_sightings(robot_replay_t *r, const robot_config_t *cfg, hal_clock_t *clock,
+                                            hal_status_t *st, char *msg, size_t msg_cap)
+{
+    *st = HAL_E_UNSUPPORTED;
+    if (msg != NULL && msg_cap > 0U) {
+        msg[0] = '\0';
+    }
+    const robot_sightings_kind_t k = robot_sightings_kind(cfg);
+    if (k == ROBOT_SIGHTINGS_LIVE) {
+        *st = robot_live_open(r, cfg->camera_live_fd, cfg->robot_id, cfg->fleet_size, clock, msg, msg_cap);
+    } else if (k == ROBOT_SIGHTINGS_REPLAY) {
+        *st = robot_replay_open(r, cfg->camera_replay_log, cfg->camera_replay_loop, cfg->robot_id, cfg->fleet_size,
+                                clock, msg, msg_cap);
+    }
+    return k;
 }
 
 int robot_live_say_refusals(robot_replay_t *r, FILE *out)

@@ -143,6 +143,10 @@ typedef enum {
     ROBOT_SIGHTINGS_LIVE,        /**< the live stream of the e2e device server (--sightings-fd) */
 } robot_sightings_kind_t;
 
+/** The kind robot_open_sightings would choose for cfg, without opening
+ *  anything (the start-up hands the open to the camera slot's opener). */
+robot_sightings_kind_t robot_sightings_kind(const robot_config_t *cfg);
+
 /**
  * Choose and open the sighting source for cfg (header comment). Returns
  * the kind (cfg->camera_live_fd >= 0 first: the live stream); for
