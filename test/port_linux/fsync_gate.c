@@ -2,8 +2,12 @@
  * fsync_gate.so - LD_PRELOAD shim for test_robot_process slow_storage: while
  * the file named by COSLAM_TEST_FSYNC_GATE exists, fsync(2) waits (polling
  * every millisecond, at most 30 s), as an SD card's fsync does while it
- * collects garbage. Without the variable fsync is the C library's.
+ * collects garbage. While the file named by COSLAM_TEST_FSYNC_FAIL exists,
+ * fsync(2) fails at once with EIO, as on a medium whose write-back fails
+ * (the write before it succeeded). Without the variables fsync is the C
+ * library's.
  */
+#include <errno.h>
 #include <dlfcn.h>
 #include <stdlib.h>
 #include <time.h>
@@ -14,6 +18,11 @@ int fsync(int fd)
     static int (*real_fsync)(int);
     if (real_fsync == NULL) {
         real_fsync = (int (*)(int))dlsym(RTLD_NEXT, "fsync");
+    }
+    const char *fail = getenv("COSLAM_TEST_FSYNC_FAIL");
+    if (fail != NULL && access(fail, F_OK) == 0) {
+        errno = EIO;
+        return -1;
     }
     const char *gate = getenv("COSLAM_TEST_FSYNC_GATE");
     if (gate != NULL) {

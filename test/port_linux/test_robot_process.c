@@ -1250,7 +1250,9 @@ static void touch(const char *path)
 }
 
 /* spawn_robot with fsync held while `gate` exists (fsync_gate.so). */
-static pid_t spawn_robot_gated(const char *dir, const char *err, const char *gate)
+/* The robot with fsync_gate.so preloaded, its variable `var` set to `path`
+ * (verbose: with -v). */
+static pid_t spawn_robot_shimmed(const char *dir, const char *err, const char *var, const char *path, int verbose)
 {
     static char asan[512];
     const char *old = getenv("ASAN_OPTIONS");
@@ -1260,15 +1262,41 @@ static pid_t spawn_robot_gated(const char *dir, const char *err, const char *gat
     snprintf(old_asan, sizeof old_asan, "%s", old != NULL ? old : "");
     setenv("ASAN_OPTIONS", asan, 1);
     setenv("LD_PRELOAD", COSLAM_FSYNC_GATE, 1);
-    setenv("COSLAM_TEST_FSYNC_GATE", gate, 1);
-    const pid_t pid = spawn_robot(dir, err, NULL, NULL);
+    setenv(var, path, 1);
+    const pid_t pid = spawn_robot_as(dir, err, NULL, NULL, verbose, (uid_t)-1);
     unsetenv("LD_PRELOAD");
-    unsetenv("COSLAM_TEST_FSYNC_GATE");
+    unsetenv(var);
     if (old_asan[0] != '\0') {
         setenv("ASAN_OPTIONS", old_asan, 1);
     } else {
         unsetenv("ASAN_OPTIONS");
     }
+    return pid;
+}
+
+static pid_t spawn_robot_gated(const char *dir, const char *err, const char *gate)
+{
+    return spawn_robot_shimmed(dir, err, "COSLAM_TEST_FSYNC_GATE", gate, 1);
+}
+
+/* spawn_robot_gated, the gate shut as soon as the storage is up (said at
+ * start-up, before the loop's first snapshot): the storage open's probe
+ * file is fsync'ed too, and a gate shut before would hold that instead. */
+static pid_t spawn_robot_gated_once_up(const char *dir, const char *err, const char *gate)
+{
+    (void)unlink(err); /* not the last run's line */
+    const pid_t pid = spawn_robot_gated(dir, err, gate);
+    for (int i = 0; i < 2000; ++i) {
+        FILE *f = fopen(err, "r");
+        if (f != NULL) {
+            fclose(f);
+            if (strstr(slurp(err), "/store): up\n") != NULL) {
+                break;
+            }
+        }
+        sleep_ms(2);
+    }
+    touch(gate);
     return pid;
 }
 
@@ -1282,8 +1310,8 @@ static void slow_storage(void **state)
     snprintf(gate, sizeof gate, "%s/gate", dir);
 
     /* the first periodic snapshot (0.3 s) is held at its fsync for seconds */
-    touch(gate);
-    pid_t pid = spawn_robot_gated(dir, err, gate);
+    pid_t pid = spawn_robot_gated_once_up(dir, err, gate);
+    assert_int_equal(last_value(slurp(err), "snap_saves"), -1); /* before the first status line and snapshot */
     sleep_ms(2500);
     const char *log = slurp(err);
     const long steps = last_value(log, "steps");
@@ -1320,8 +1348,7 @@ static void slow_storage(void **state)
 
     /* a write that never returns: no final snapshot, but a clean stop */
     const uint64_t before = d.newest;
-    touch(gate);
-    pid = spawn_robot_gated(dir, err, gate);
+    pid = spawn_robot_gated_once_up(dir, err, gate);
     sleep_ms(1000);
     uint64_t dt = 0;
     log = stop_robot_within(pid, err, 10000, &dt); /* the final snapshot waits 5 s for the stuck write */
@@ -1484,6 +1511,61 @@ static void no_can_said_once(void **state)
     remove_dir(dir);
 }
 
+/* A medium that takes the bytes but fails their fsync (fsync_gate.so: EIO
+ * while dir/fsync-fails exists) goes down once, said with "fsync", and
+ * stays down: the retry's probe file is fsync'ed too. Before, the probe
+ * was not, so every retry brought it "back up", and every snapshot's write
+ * took it down again: two lines a snapshot period. The fsync failures are
+ * counted (storage_fsync_failures). When fsync works again: back once. */
+static void storage_fsync_fails_steady(void **state)
+{
+    (void)state;
+    char dir[64];
+    make_dir(dir, sizeof dir);
+    char store[300];
+    snprintf(store, sizeof store, "%s/store", dir);
+    config(dir, "no-laser", "0.2", "0.3", "", store, "fastslam2"); /* retry every 0.3 s, snapshot every 0.3 s */
+    char err[300];
+    snprintf(err, sizeof err, "%s/err", dir);
+    char fail[300];
+    snprintf(fail, sizeof fail, "%s/fsync-fails", dir);
+    const pid_t pid = spawn_robot_shimmed(dir, err, "COSLAM_TEST_FSYNC_FAIL", fail, 0); /* without -v */
+    assert_true(wait_value(err, "snap_saves", 1, 10000) >= 1); /* a working medium first */
+    const size_t before = strlen(slurp(err));
+    touch(fail);
+    const long failures = wait_value(err, "snap_failures", 10, 15000); /* ten snapshot periods, ten retries */
+    char *bad = strdup(slurp(err) + before);
+    assert_non_null(bad);
+    assert_int_equal(unlink(fail), 0);
+    const long saves = last_value(bad, "snap_saves");
+    assert_true(wait_value(err, "snap_saves", saves + 1, 10000) > saves);
+    const char *log = stop_robot(pid, err);
+    char storage[400];
+    snprintf(storage, sizeof storage, "coslam-robot: storage (snapshots in %s): ", store);
+    fprintf(stderr, "storage_fsync_fails: %d storage lines while fsync failed (%d back up), snap_failures %ld, "
+            "storage_fsync_failures %ld\n",
+            count_of(bad, storage), count_of(bad, "back up after "), failures,
+            last_value(bad, "storage_fsync_failures"));
+    if (count_of(bad, "back up after ") != 0 || count_of(bad, storage) > 2) {
+        fprintf(stderr, "%s\n", bad);
+    }
+    assert_true(failures >= 10);
+    assert_int_equal(count_of(bad, "back up after "), 0); /* no flapping */
+    assert_non_null(strstr(bad, "snapshot not written to snapshot."));
+    assert_non_null(strstr(bad, ": fsync: Input/output error (HAL_E_IO)"));
+    assert_non_null(strstr(bad, "down: the snapshot write failed: fsync: Input/output error"));
+    /* the first retry says why once; nothing else about it while it lasts */
+    assert_int_equal(count_of(bad, "still down (cannot write in the directory: fsync: Input/output error (the "
+                                   "probe file .coslam-write-probe)"), 1);
+    assert_true(count_of(bad, storage) <= 2);
+    assert_true(last_value(bad, "storage_fsync_failures") >= 5); /* the write, then every retry's probe */
+    assert_non_null(strstr(bad, " storage=down "));
+    assert_int_equal(count_of(log + before, "back up after "), 1); /* fsync works again: back once */
+    assert_true(last_value(log, "storage_fsync_failures") >= last_value(bad, "storage_fsync_failures"));
+    free(bad);
+    remove_dir(dir);
+}
+
 int main(int argc, char **argv)
 {
     if (argc > 1) {
@@ -1508,6 +1590,7 @@ int main(int argc, char **argv)
         cmocka_unit_test(slow_storage),
         cmocka_unit_test(status_file_failures_counted),
         cmocka_unit_test(storage_read_only_steady),
+        cmocka_unit_test(storage_fsync_fails_steady),
         cmocka_unit_test(no_can_said_once),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -331,10 +331,16 @@ static hal_status_t open_prepare(robot_devices_t *d, robot_dev_t id, char *reaso
  * snapshot's write failed, then down, then up again at the retry, then
  * down at the next write: said four lines a snapshot period. With the
  * probe its open fails: down once, said with the reason, retried on the
- * retry period without a word until it works. Not fsync'ed: a medium
- * whose fsync fails still goes down at the failed write. */
-static hal_status_t storage_writable(const char *dir, char *reason, size_t reason_cap)
+ * retry period without a word until it works. The probe is fsync'ed: a
+ * medium that takes the bytes but fails their fsync (a card whose
+ * write-back fails) was up at every retry and down at the next snapshot's
+ * write, said at each; now it stays down (*fsync_failed set, counted by
+ * the loop in storage_fsync_failures). On the opener thread, so a slow
+ * fsync holds neither the loop nor (beyond ROBOT_DEVICES_START_OPEN_MS)
+ * the start. */
+static hal_status_t storage_writable(const char *dir, char *reason, size_t reason_cap, int *fsync_failed)
 {
+    *fsync_failed = 0;
     char path[ROBOT_CONFIG_PATH_MAX + sizeof STORAGE_PROBE + 2u];
     put_text(path, sizeof path, "%s/%s", dir, STORAGE_PROBE);
     /* O_NOFOLLOW: a link there is never written through */
@@ -343,6 +349,9 @@ static hal_status_t storage_writable(const char *dir, char *reason, size_t reaso
     if (fd >= 0) {
         if (write(fd, "x", 1U) != 1) {
             e = errno != 0 ? errno : EIO;
+        } else if (fsync(fd) != 0) {
+            e = errno;
+            *fsync_failed = 1;
         }
         if (close(fd) != 0 && e == 0) {
             e = errno;
@@ -353,8 +362,8 @@ static hal_status_t storage_writable(const char *dir, char *reason, size_t reaso
         return HAL_OK;
     }
     const hal_status_t s = e == ENOSPC || e == EDQUOT ? HAL_E_OVERFLOW : HAL_E_IO;
-    put_text(reason, reason_cap, "cannot write in the directory: %s (the probe file %s) (%s)", strerror(e),
-             STORAGE_PROBE, hal_status_str(s));
+    put_text(reason, reason_cap, "cannot write in the directory: %s%s (the probe file %s) (%s)",
+             *fsync_failed ? "fsync: " : "", strerror(e), STORAGE_PROBE, hal_status_str(s));
     return s;
 }
 
@@ -413,7 +422,7 @@ static hal_status_t open_backend(robot_devices_t *d, robot_dev_t id, char *reaso
              * directory" for a missing parent), not only the HAL's class */
             put_text(reason, reason_cap, "%s (%s)", strerror(errno), hal_status_str(s));
         } else if (s == HAL_OK) {
-            s = storage_writable(c->storage_dir, reason, reason_cap);
+            s = storage_writable(c->storage_dir, reason, reason_cap, &d->storage_probe_fsync_failed);
             if (s != HAL_OK) {
                 hal_storage_close(&d->storage_state.dev);
             }
@@ -443,6 +452,10 @@ static int open_finish(robot_devices_t *d, robot_dev_t id, hal_status_t s, const
 #endif
     if (id == ROBOT_DEV_LINK && s == HAL_OK) {
         robot_link_backend_opened(&d->link);
+    }
+    if (id == ROBOT_DEV_STORAGE && d->storage_probe_fsync_failed) {
+        d->storage_probe_fsync_failed = 0;
+        d->storage_fsync_failures++;
     }
     if (id == ROBOT_DEV_CAN && s == HAL_OK && d->can_filter_count > 0U) {
         /* the filters the drive driver set (kept while the bus was down) */

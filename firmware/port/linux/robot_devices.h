@@ -182,6 +182,8 @@ typedef struct robot_devices {
     hal_link_t link_slot;            /**< the link proxy (below the decorator) */
     robot_link_t link;               /**< policy, DDS instance, decorator */
     hal_storage_linux_t storage_state;
+    int storage_probe_fsync_failed;  /**< the storage open's probe failed at its fsync (the opener's, taken by the loop) */
+    uint32_t storage_fsync_failures; /**< fsyncs the storage failed: probes and snapshot writes (the loop's) */
     robot_dev_opener_t opener[ROBOT_DEV_COUNT];
 } robot_devices_t;
 

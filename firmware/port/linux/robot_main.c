@@ -242,8 +242,15 @@ static int commit_snapshot(int verbose, const char *why, const robot_snapshot_jo
          * COSLAM_E_UNSUPPORTED stood for any failed write) */
         char os[128];
         const int e = dev.storage_state.last_errno;
-        (void)snprintf(os, sizeof os, "%s%s%s%s", e != 0 ? strerror(e) : "", e != 0 ? " (" : "",
-                       hal_status_str(ws), e != 0 ? ")" : "");
+        /* the bytes went to the medium but their fsync failed: counted,
+         * and the storage goes down; its retry's probe fsyncs too, so it
+         * stays down until an fsync works (no up-down flapping) */
+        const int at_fsync = ws != HAL_OK && dev.storage_state.last_fsync_failed;
+        if (at_fsync) {
+            dev.storage_fsync_failures++;
+        }
+        (void)snprintf(os, sizeof os, "%s%s%s%s%s", at_fsync ? "fsync: " : "", e != 0 ? strerror(e) : "",
+                       e != 0 ? " (" : "", hal_status_str(ws), e != 0 ? ")" : "");
         fprintf(stderr, "coslam-robot: snapshot: %s snapshot not written to %s: %s\n", why, job->name, os);
         if (ws == HAL_E_IO || ws == HAL_E_CLOSED) {
             char reason[160];

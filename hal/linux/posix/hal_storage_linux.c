@@ -92,6 +92,7 @@ static hal_status_t linux_write(hal_storage_t *dev, const char *name, const uint
 {
     hal_storage_linux_t *st = self_of(dev);
     st->last_errno = 0;
+    st->last_fsync_failed = 0;
     if (st->dir_fd < 0) return HAL_E_CLOSED;
     if (st->reader) return HAL_E_UNSUPPORTED;
     if (len > st->max_blob_bytes || len > UINT32_MAX) return HAL_E_OVERFLOW;
@@ -108,7 +109,10 @@ static hal_status_t linux_write(hal_storage_t *dev, const char *name, const uint
     if (fd < 0) return write_failed(st, errno);
     hal_status_t s = write_all(st, fd, hdr, sizeof hdr);
     if (s == HAL_OK && len > 0) s = write_all(st, fd, data, len);
-    if (s == HAL_OK && fsync(fd) != 0) s = write_failed(st, errno);
+    if (s == HAL_OK && fsync(fd) != 0) {
+        s = write_failed(st, errno);
+        st->last_fsync_failed = 1;
+    }
     if (close(fd) != 0 && s == HAL_OK) s = write_failed(st, errno);
     if (s == HAL_OK && renameat(st->dir_fd, tmp, st->dir_fd, name) != 0) s = write_failed(st, errno);
     if (s != HAL_OK) {
@@ -118,6 +122,7 @@ static hal_status_t linux_write(hal_storage_t *dev, const char *name, const uint
     /* make the rename itself durable */
     if (fsync(st->dir_fd) != 0) {
         st->last_errno = errno;
+        st->last_fsync_failed = 1;
         return HAL_E_IO;
     }
     return HAL_OK;

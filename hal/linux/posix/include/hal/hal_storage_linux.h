@@ -45,6 +45,9 @@ typedef struct {
     int last_errno;           /**< the OS's errno of the last write's failed call (0: the last
                                    write succeeded, or failed without one: closed, a reader,
                                    over max_blob_bytes), so a caller can say why (strerror) */
+    int last_fsync_failed;    /**< 1: the last write failed at an fsync (of the file or of the
+                                   directory): the medium took the bytes but does not say they
+                                   are on it (0: succeeded, or failed at another call) */
 } hal_storage_linux_t;
 
 /** Open (creating it, one level, mode 0755, if missing) the directory
