@@ -20,6 +20,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <signal.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -285,6 +287,37 @@ static void generations_fall_back_to_the_older(void **state)
     robot_snapshots_init(&gens, NULL);
     assert_int_equal(robot_snapshots_save(&gens, &snap_in, &name), COSLAM_E_UNSUPPORTED);
     assert_int_equal(gens.save_failures, 1);
+    /* failed writes on the Linux backend, each with what happened (all but
+     * the full medium were E_UNSUPPORTED): a storage opened to read only
+     * cannot write (E_UNSUPPORTED); a full medium, here the file size
+     * limit (EFBIG), is E_CAPACITY; a storage closed under the robot is
+     * E_STORAGE */
+    hal_storage_linux_t reader;
+    assert_int_equal(hal_storage_linux_open_reader(&reader, dir), HAL_OK);
+    robot_snapshots_init(&gens, &reader.dev);
+    assert_int_equal(robot_snapshots_save(&gens, &snap_in, &name), COSLAM_E_UNSUPPORTED);
+    assert_int_equal(gens.last_write, HAL_E_UNSUPPORTED);
+    hal_storage_close(&reader.dev);
+    robot_snapshots_init(&gens, &store.dev);
+    struct rlimit old_lim;
+    assert_int_equal(getrlimit(RLIMIT_FSIZE, &old_lim), 0);
+    struct rlimit lim = old_lim;
+    lim.rlim_cur = 64U; /* below a snapshot's size */
+    void (*old_xfsz)(int) = signal(SIGXFSZ, SIG_IGN);
+    assert_int_equal(setrlimit(RLIMIT_FSIZE, &lim), 0);
+    const coslam_status_t full = robot_snapshots_save(&gens, &snap_in, &name);
+    assert_int_equal(setrlimit(RLIMIT_FSIZE, &old_lim), 0);
+    (void)signal(SIGXFSZ, old_xfsz);
+    assert_int_equal(full, COSLAM_E_CAPACITY);
+    assert_int_equal(gens.last_write, HAL_E_OVERFLOW);
+    assert_int_equal(store.last_errno, EFBIG);
+    hal_storage_linux_t closed;
+    assert_int_equal(hal_storage_linux_open_reader(&closed, dir), HAL_OK);
+    hal_storage_close(&closed.dev);
+    robot_snapshots_init(&gens, &closed.dev);
+    gens.storage = &closed.dev; /* the handle kept after its close */
+    assert_int_equal(robot_snapshots_save(&gens, &snap_in, &name), COSLAM_E_STORAGE);
+    assert_int_equal(gens.last_write, HAL_E_CLOSED);
 
     hal_storage_close(&store.dev);
     char cmd[128];
@@ -370,7 +403,7 @@ static void an_unwritable_generation_is_passed_over(void **state)
     assert_int_equal(hal_storage_linux_open(&store, dir), HAL_OK);
     robot_snapshots_init(&gens, &store.dev);
     const char *name = NULL;
-    assert_int_equal(robot_snapshots_save(&gens, &snap_in, &name), COSLAM_E_UNSUPPORTED); /* a: fails */
+    assert_int_equal(robot_snapshots_save(&gens, &snap_in, &name), COSLAM_E_STORAGE); /* a: fails */
     /* the storage keeps the OS's reason (the robot says it): the rename
      * over a directory */
     assert_int_equal(gens.last_write, HAL_E_IO);
@@ -384,6 +417,7 @@ static void an_unwritable_generation_is_passed_over(void **state)
             assert_string_equal(name, ROBOT_SNAPSHOT_NAME_B);
             saved++;
         } else {
+            assert_int_equal(st, COSLAM_E_STORAGE);
             tried_a++;
         }
     }
@@ -540,14 +574,23 @@ static void writer_does_not_hold_the_caller(void **state)
     assert_int_equal(robot_snapshot_writer_submit(&writer, &gated.dev, job.name, gens.buf, job.len), 0);
     assert_int_equal(robot_snapshot_writer_take(&writer, 5000, &ws, &write_us), 1);
     assert_int_equal(ws, HAL_E_IO);
-    assert_int_equal(robot_snapshots_commit(&gens, &job, ws), COSLAM_E_UNSUPPORTED);
+    assert_int_equal(robot_snapshots_commit(&gens, &job, ws), COSLAM_E_STORAGE); /* was E_UNSUPPORTED */
     assert_true(gens.newest == 1 && gens.newest_seq == 2 && gens.save_failures == 1);
     assert_int_equal(gens.last_write, HAL_E_IO);
     robot_snapshots_init(&check, &store.dev);
     assert_int_equal(robot_snapshots_load(&check, &snap_out, &name, NULL), COSLAM_OK);
     assert_true(snap_out.seq == 2 && snap_out.map.pose.x == 2.0);
-    /* a full medium is E_CAPACITY */
+    /* each failure says what happened: a full medium is E_CAPACITY, a
+     * storage that cannot write E_UNSUPPORTED, a failed or closed medium
+     * E_STORAGE (all were E_UNSUPPORTED but the full one) */
     assert_int_equal(robot_snapshots_commit(&gens, &job, HAL_E_OVERFLOW), COSLAM_E_CAPACITY);
+    assert_int_equal(robot_snapshots_commit(&gens, &job, HAL_E_UNSUPPORTED), COSLAM_E_UNSUPPORTED);
+    assert_int_equal(robot_snapshots_commit(&gens, &job, HAL_E_CLOSED), COSLAM_E_STORAGE);
+    assert_int_equal(robot_snapshots_commit(&gens, &job, HAL_E_BUSY), COSLAM_E_STORAGE);
+    assert_int_equal(robot_snapshots_commit(&gens, &job, HAL_E_TIMEOUT), COSLAM_E_STORAGE);
+    assert_int_equal(robot_snapshots_commit(&gens, &job, HAL_E_ARG), COSLAM_E_ARG);
+    assert_true(gens.newest == 1 && gens.newest_seq == 2 && gens.save_failures == 7);
+    assert_string_equal(coslam_status_str(COSLAM_E_STORAGE), "E_STORAGE");
     /* too large, bad name */
     assert_int_equal(robot_snapshot_writer_submit(&writer, &gated.dev, job.name, gens.buf, sizeof gens.buf + 1U),
                      E2BIG);

@@ -44,6 +44,7 @@ const char *coslam_status_str(coslam_status_t status)
     case COSLAM_E_DRIVE_STATE: return "E_DRIVE_STATE";
     case COSLAM_E_DRIVE_PROTOCOL: return "E_DRIVE_PROTOCOL";
     case COSLAM_E_LINK: return "E_LINK";
+    case COSLAM_E_STORAGE: return "E_STORAGE";
     case COSLAM_E_UNSUPPORTED: return "E_UNSUPPORTED";
     }
     return "E_UNKNOWN";

@@ -239,7 +239,7 @@ static int commit_snapshot(int verbose, const char *why, const robot_snapshot_jo
     const coslam_status_t cs = robot_snapshots_commit(&snaps, job, ws);
     if (cs != COSLAM_OK) {
         /* the storage's own status and the OS's reason (the commit's
-         * COSLAM_E_UNSUPPORTED stood for any failed write) */
+         * COSLAM_E_STORAGE / E_CAPACITY / E_UNSUPPORTED say only the class) */
         char os[128];
         const int e = dev.storage_state.last_errno;
         /* the bytes went to the medium but their fsync failed: counted,

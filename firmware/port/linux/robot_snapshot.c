@@ -357,7 +357,14 @@ coslam_status_t robot_snapshots_commit(robot_snapshots_t *s, const robot_snapsho
             s->failed_slot = job->slot;
             s->failed_slot_skips = 0U;
         }
-        return written == HAL_E_OVERFLOW ? COSLAM_E_CAPACITY : COSLAM_E_UNSUPPORTED;
+        /* what happened, not only that it failed: the caller reacts to a
+         * failed medium (I/O, closed) otherwise than to a full one */
+        switch (written) {
+        case HAL_E_OVERFLOW: return COSLAM_E_CAPACITY;
+        case HAL_E_UNSUPPORTED: return COSLAM_E_UNSUPPORTED;
+        case HAL_E_ARG: return COSLAM_E_ARG;
+        default: return COSLAM_E_STORAGE;
+        }
     }
     if (job->slot == s->failed_slot) {
         s->failed_slot = -1; /* writable again */

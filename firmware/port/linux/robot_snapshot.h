@@ -207,8 +207,11 @@ coslam_status_t robot_snapshots_prepare(robot_snapshots_t *s, robot_snapshot_t *
  * it the newest generation (saves counted); anything else is counted in
  * save_failures and leaves the generations as they were (the write is an
  * atomic replace). last_write = written. Returns what robot_snapshots_save
- * would: COSLAM_OK, COSLAM_E_CAPACITY (HAL_E_OVERFLOW), COSLAM_E_UNSUPPORTED;
- * COSLAM_E_ARG (NULL, bad slot).
+ * would: COSLAM_OK; COSLAM_E_CAPACITY (HAL_E_OVERFLOW: the medium is full);
+ * COSLAM_E_UNSUPPORTED (HAL_E_UNSUPPORTED: the storage cannot write, e.g. a
+ * reader or the null backend); COSLAM_E_ARG (NULL, bad slot, HAL_E_ARG);
+ * COSLAM_E_STORAGE (any other failed write: HAL_E_IO, HAL_E_CLOSED,
+ * HAL_E_BUSY, ...; last_write says which).
  */
 coslam_status_t robot_snapshots_commit(robot_snapshots_t *s, const robot_snapshot_job_t *job, hal_status_t written);
 
@@ -217,8 +220,9 @@ coslam_status_t robot_snapshots_commit(robot_snapshots_t *s, const robot_snapsho
  * over the older blob (atomic replace by the storage backend). Returns
  * COSLAM_OK (*name, if not NULL, the blob written); COSLAM_E_ARG (NULL, or
  * too many landmarks to encode); COSLAM_E_CAPACITY (the medium is full:
- * HAL_E_OVERFLOW); COSLAM_E_UNSUPPORTED (no storage, or any other refused
- * write). last_write holds the HAL status of the write. Failures are
+ * HAL_E_OVERFLOW); COSLAM_E_UNSUPPORTED (no storage, or one that cannot
+ * write); COSLAM_E_STORAGE (the write failed: I/O, closed, ...; as
+ * robot_snapshots_commit). last_write holds the HAL status of the write. Failures are
  * counted in save_failures; the previous generations stay as they were.
  */
 coslam_status_t robot_snapshots_save(robot_snapshots_t *s, robot_snapshot_t *snap, const char **name);

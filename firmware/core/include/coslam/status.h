@@ -63,6 +63,8 @@ typedef enum {
     COSLAM_E_DRIVE_PROTOCOL = -75, /**< a malformed or unexpected CANopen frame */
     /* robot app (firmware/app) */
     COSLAM_E_LINK = -80,           /**< the inter-robot link refused or failed a datagram */
+    COSLAM_E_STORAGE = -81,        /**< the storage failed a write or a read (I/O, closed, busy);
+                                        the HAL status says which (a full medium is E_CAPACITY) */
     COSLAM_E_UNSUPPORTED = -90, /**< feature or hardware not available */
 } coslam_status_t;
 
