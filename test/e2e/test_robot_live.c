@@ -5,6 +5,8 @@
  * Frames with their stamps and marker classes, robot sightings, the newest
  * of several queued frames, refused datagrams, an empty frame, the peer's
  * close, and the inherited fd staying open after close (it is dup'ed).
+ * In the robot's device slot: the refusal counters the status reports stay
+ * totals across a reopen of the stream (robot_devices_live_counters).
  */
 #include <setjmp.h>
 #include <stdarg.h>
@@ -17,6 +19,9 @@
 
 #include <cmocka.h>
 
+#include "hal/hal_clock_linux.h"
+#include "robot_config.h"
+#include "robot_devices.h"
 #include "robot_sightings.h"
 
 static hal_status_t fake_now(hal_clock_t *c, uint64_t *now_us)
@@ -109,8 +114,78 @@ static void test_live(void **state)
     assert_int_equal(close(sv[1]), 0);
 }
 
+/* Bad datagrams on the stream, handed to the node through the slot's proxy. */
+static void send_bad_and_poll(robot_devices_t *d, int fd, int n)
+{
+    for (int i = 0; i < n; ++i) {
+        send_text(fd, "S 1.4 0 2.0 0.0\n"); /* no T line */
+    }
+    send_text(fd, "T 10\nR 1.0 0 2.0 0.1\n"); /* robot 0 is this robot: refused */
+    sighting_frame_t f;
+    (void)sighting_source_next_frame(&d->sightings, &f, 0);
+}
+
+static robot_config_t cfg;
+static robot_devices_t dev;
+
+/* The status's live_bad and live_robots_refused are totals: a reopen of the
+ * stream (the slot lost it and opened it again) starts the stream's own
+ * counters, which the status used to report, so they went back to 0. */
+static void test_live_counters_across_reopen(void **state)
+{
+    (void)state;
+    int sv[2];
+    assert_int_equal(socketpair(AF_UNIX, SOCK_SEQPACKET, 0, sv), 0);
+    robot_config_default(&cfg);
+    cfg.laser_device[0] = '\0';
+    cfg.can_interface[0] = '\0';
+    cfg.gpio_chip[0] = '\0';
+    cfg.storage_dir[0] = '\0';
+    cfg.fleet_key_file[0] = '\0';
+    cfg.camera_live_fd = sv[1];
+    cfg.retry_period_s = 0.1;
+    char msg[512];
+    FILE *log = fopen("/dev/null", "w");
+    assert_non_null(log);
+    assert_int_equal(robot_devices_init(&dev, &cfg, hal_clock_linux(), log, 0, msg, sizeof msg), COSLAM_OK);
+    robot_devices_open_all(&dev, 0U);
+    assert_int_equal(dev.dev[ROBOT_DEV_CAMERA].state, ROBOT_DEV_UP);
+    send_bad_and_poll(&dev, sv[0], 3);
+    uint32_t bad = 0U;
+    uint32_t refused = 0U;
+    robot_devices_live_counters(&dev, &bad, &refused);
+    assert_int_equal(bad, 3u);
+    assert_int_equal(refused, 1u);
+    /* the stream goes down (as after HAL_E_IO in a row): closed */
+    robot_devices_fail(&dev, ROBOT_DEV_CAMERA, HAL_E_IO, "test: lost", 1000U);
+    robot_devices_live_counters(&dev, &bad, &refused);
+    assert_int_equal(bad, 3u); /* down: the totals so far */
+    assert_int_equal(refused, 1u);
+    /* reopened after the retry period, on the slot's opener */
+    (void)robot_devices_service(&dev, 1000000U);
+    assert_int_equal(robot_devices_wait_opens(&dev, 5000U), 0u);
+    (void)robot_devices_service(&dev, 1000000U);
+    assert_int_equal(dev.dev[ROBOT_DEV_CAMERA].state, ROBOT_DEV_UP);
+    assert_int_equal(dev.dev[ROBOT_DEV_CAMERA].opens, 2u);
+    assert_int_equal(dev.replay.live_bad, 0u); /* the stream's own counters started again */
+    robot_devices_live_counters(&dev, &bad, &refused);
+    assert_int_equal(bad, 3u); /* not 0 */
+    assert_int_equal(refused, 1u);
+    send_bad_and_poll(&dev, sv[0], 2);
+    robot_devices_live_counters(&dev, &bad, &refused);
+    assert_int_equal(bad, 5u);
+    assert_int_equal(refused, 2u);
+    robot_devices_close_all(&dev);
+    robot_devices_live_counters(&dev, &bad, &refused);
+    assert_int_equal(bad, 5u);
+    assert_int_equal(refused, 2u);
+    fclose(log);
+    close(sv[0]);
+    close(sv[1]);
+}
+
 int main(void)
 {
-    const struct CMUnitTest tests[] = {cmocka_unit_test(test_live)};
+    const struct CMUnitTest tests[] = {cmocka_unit_test(test_live), cmocka_unit_test(test_live_counters_across_reopen)};
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

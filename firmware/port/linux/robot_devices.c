@@ -573,6 +573,12 @@ static void close_dev(robot_devices_t *d, robot_dev_t id)
     case ROBOT_DEV_CAN: hal_can_close(&d->can_state.can); break;
     case ROBOT_DEV_GPIO: hal_gpio_close(gpio_backend(d)); break;
     case ROBOT_DEV_CAMERA:
+        /* the stream's counters into the totals: its reopen starts them
+         * again (robot_devices_live_counters) */
+        d->live_bad_past += d->replay.live_bad;
+        d->live_robots_refused_past += d->replay.live_robots_refused;
+        d->replay.live_bad = 0U;
+        d->replay.live_robots_refused = 0U;
         robot_replay_close(&d->replay);
 #if COSLAM_HAVE_CAMERA
         robot_camera_close(&d->camera);
@@ -976,6 +982,19 @@ robot_node_io_t robot_devices_io(robot_devices_t *d)
     io.link = robot_link_handle(&d->link);
     io.sightings = &d->sightings;
     return io;
+}
+
+void robot_devices_live_counters(const robot_devices_t *d, uint32_t *live_bad, uint32_t *live_robots_refused)
+{
+    /* the open stream's only while up: while down its opener may be
+     * writing them (robot_live_open starts them at 0) */
+    const int up = usable(d, ROBOT_DEV_CAMERA);
+    if (live_bad != NULL) {
+        *live_bad = d->live_bad_past + (up ? d->replay.live_bad : 0U);
+    }
+    if (live_robots_refused != NULL) {
+        *live_robots_refused = d->live_robots_refused_past + (up ? d->replay.live_robots_refused : 0U);
+    }
 }
 
 hal_storage_t *robot_devices_storage(robot_devices_t *d)

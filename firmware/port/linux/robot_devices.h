@@ -176,6 +176,8 @@ typedef struct robot_devices {
     robot_gpio_fd_t gpio_fd_state;   /**< --gpio-fd (e2e tests only) */
     robot_sightings_kind_t camera_kind;
     robot_replay_t replay;
+    uint32_t live_bad_past;          /**< replay.live_bad of the streams closed before (robot_devices_live_counters) */
+    uint32_t live_robots_refused_past; /**< replay.live_robots_refused of the streams closed before */
 #if COSLAM_HAVE_CAMERA
     robot_camera_t camera;           /**< the camera (camera_kind ROBOT_SIGHTINGS_CAMERA) */
 #endif
@@ -245,6 +247,13 @@ void robot_devices_close_all(robot_devices_t *d);
 
 /** The handles for robot_node_init (proxies, the link, the clock). */
 robot_node_io_t robot_devices_io(robot_devices_t *d);
+
+/** The live sighting stream's refusals (--sightings-fd; robot_sightings.h)
+ *  since the start: the totals of the streams closed before plus, while the
+ *  slot is up, the open one's. A reopen starts the stream's own counters
+ *  (robot_live_open), so these are what the status reports: they never go
+ *  back. Either pointer may be NULL. */
+void robot_devices_live_counters(const robot_devices_t *d, uint32_t *live_bad, uint32_t *live_robots_refused);
 
 /** The storage for snapshots: the Linux directory while up, else NULL. */
 hal_storage_t *robot_devices_storage(robot_devices_t *d);

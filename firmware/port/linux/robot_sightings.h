@@ -128,7 +128,9 @@ hal_status_t robot_live_open(robot_replay_t *r, int fd, uint8_t own_id, uint8_t 
 /** The live stream's refused robot sightings, said once on `out` (the
  *  first one's reason; the rest are only counted): 1 if said now, else 0
  *  (none refused, said already, or not the live source). A reopen of the
- *  stream (robot_live_open) starts its counters and this again. */
+ *  stream (robot_live_open) starts its counters and this again; the totals
+ *  the robot reports are kept by its device slot
+ *  (robot_devices_live_counters). */
 int robot_live_say_refusals(robot_replay_t *r, FILE *out);
 
 /** Close the file (the handle then answers HAL_E_CLOSED). */

@@ -239,8 +239,11 @@ void robot_status_collect(robot_status_t *s, robot_node_t *node, const robot_dev
     u64(s, "status_file_failures", loop->status_file_failures);
     if (dev->camera_kind == ROBOT_SIGHTINGS_LIVE) {
         /* the e2e live stream (--sightings-fd): its refusals */
-        u64(s, "live_bad", dev->replay.live_bad);
-        u64(s, "live_robots_refused", dev->replay.live_robots_refused);
+        uint32_t bad = 0U;
+        uint32_t refused = 0U;
+        robot_devices_live_counters(dev, &bad, &refused); /* since the start, across reopens */
+        u64(s, "live_bad", bad);
+        u64(s, "live_robots_refused", refused);
     }
 #if COSLAM_HAVE_CAMERA
     /* the camera (robot_camera.h): only when one is configured */
