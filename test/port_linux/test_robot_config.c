@@ -336,6 +336,10 @@ static void bad_files_name_file_and_line(void **state)
     refused("[laser]\n\x1b]0;owned\x07 = 1\n", "bad.ini:2: unknown key '\\x1B]0;owned\\x07' in [laser]");
     refused("[slam]\nrange\x9b" "2J = 1\n", "bad.ini:2: unknown key 'range\\x9B2J' in [slam]");
     refused("\x1b[2Jid = 1\n", "bad.ini:1: key '\\x1B[2Jid' outside any [section]");
+    /* a backslash typed in the file is said as \\: the echo of the four
+     * characters \x1B is not that of the ESC byte (it was the same) */
+    refused("[laser]\n\\x1B]0;owned = 1\n", "bad.ini:2: unknown key '\\\\x1B]0;owned' in [laser]");
+    refused("[robot]\nid = 1\\x41\n", "bad.ini:2: [robot] id: not a finite number: '1\\\\x41'");
     /* a repeated section: refused at its second header, with the first's
      * line (libinih merged the two without a word) */
     refused("[robot]\nid = 1\n\n[laser]\ndevice =\n[robot]\nfleet_size = 3\n",

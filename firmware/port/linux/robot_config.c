@@ -613,13 +613,24 @@ typedef struct {
     int key_since_section;    /* a key line since the last header (libinih's prev_name) */
 } load_t;
 
-/* src into dst with every byte outside printable ASCII as \xNN (cut to
- * cap, terminated; an escape is never cut in half). */
+/* src into dst with every byte outside printable ASCII as \xNN and a
+ * backslash as \\ (cut to cap, terminated; an escape is never cut in
+ * half). The backslash is escaped too, so that the echo is unambiguous: a
+ * key typed as the four characters \x1B used to be said exactly as a key
+ * holding the ESC byte. */
 static void escape_text(char *dst, size_t cap, const char *src)
 {
     size_t n = 0;
     for (; *src != '\0' && n + 1U < cap; ++src) {
         const unsigned char ch = (unsigned char)*src;
+        if (ch == (unsigned char)'\\') {
+            if (n + 3U > cap) {
+                break;
+            }
+            dst[n++] = '\\';
+            dst[n++] = '\\';
+            continue;
+        }
         if (ch >= 0x20U && ch <= 0x7EU) {
             dst[n++] = (char)ch;
             continue;
