@@ -109,8 +109,47 @@ static void refused_robot_sightings_are_counted(void **state)
     assert_int_equal(meeting_last_sighting(&node.meeting, 2, &s), COSLAM_OK);
 }
 
+/* A missing bus is a drive fault only where drives are configured: with
+ * drive_absent (coslam-robot without [can] interface) the node counts
+ * none over several retry periods, and runs its sightings; without it the
+ * same missing bus (the null CAN) is one fault, counted once. */
+static void no_drives_configured_is_not_a_fault(void **state)
+{
+    (void)state;
+    static const hal_serial_ops_t no_serial = {0};
+    static hal_serial_t serial = {&no_serial, NULL};
+    robot_node_io_t io = {&fake_clock, &serial, hal_can_null(), hal_gpio_null(), hal_link_null(), &fake_source};
+    for (int absent = 0; absent <= 1; ++absent) {
+        robot_node_config_t cfg = robot_node_config_default(1, 3);
+        cfg.laser_optional = 1;
+        cfg.gpio_optional = 1;
+        cfg.filter.n_particles = 20;
+        cfg.retry_period_us = 100000U;
+        cfg.drive_absent = (uint8_t)absent;
+        assert_int_equal(robot_node_init(&node, &cfg, &io), COSLAM_OK);
+        for (int k = 0; k < 100; ++k) { /* 1 s: ten retry periods */
+            (void)robot_node_step(&node);
+        }
+        memset(&frame, 0, sizeof frame);
+        frame.stamp_us = fake_now_us;
+        add_robot(0, 1.5, -0.2);
+        frame_ready = 1;
+        (void)robot_node_step(&node);
+        const robot_node_counters_t *c = robot_node_counters(&node);
+        assert_int_equal(c->frames, 1); /* the camera side runs either way */
+        if (absent) {
+            assert_int_equal(c->drive_faults, 0);
+            assert_int_equal(c->drive_errors, 0);
+            assert_int_equal(robot_node_state(&node), ROBOT_NODE_DRIVE_UP);
+        } else {
+            assert_int_equal(c->drive_faults + c->drive_errors, 1); /* the missing bus, once */
+        }
+    }
+}
+
 int main(void)
 {
-    const struct CMUnitTest tests[] = {cmocka_unit_test(refused_robot_sightings_are_counted)};
+    const struct CMUnitTest tests[] = {cmocka_unit_test(refused_robot_sightings_are_counted),
+                                       cmocka_unit_test(no_drives_configured_is_not_a_fault)};
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -1502,12 +1502,13 @@ static void no_can_said_once(void **state)
     const char *log = stop_robot(pid, err);
     assert_int_equal(count_of(log, "coslam-robot: can: not configured\n"), 1);
     assert_int_equal(count_of(log, "no CAN configured ([can] interface is empty): no drives: no motion, no "
-                                   "odometry (drive_faults counts the missing bus once)"),
+                                   "odometry (not a fault: drive_faults stays 0)"),
                      1);
     assert_int_equal(count_of(log, "drive fault"), 0);
     assert_null(strstr(log, "EMCY"));
     assert_non_null(strstr(log, " can=absent "));
-    assert_int_equal(last_value(log, "drive_faults"), 1); /* the node's count, explained at start-up */
+    assert_int_equal(last_value(log, "drive_faults"), 0); /* no drives on purpose: no fault (was 1) */
+    assert_int_equal(last_value(log, "drive_errors"), 0);
     remove_dir(dir);
 }
 

@@ -44,6 +44,7 @@ robot_node_config_t robot_node_config_default(uint8_t robot_id, uint8_t n_robots
     c.blind_max_turn_radps = 0.3;
     c.gpio_optional = 0U;
     c.motion_without_gpio = 0U;
+    c.drive_absent = 0U;
     c.health = health_config_default();
     return c;
 }
@@ -478,6 +479,9 @@ static void set_led(robot_node_t *n, int stop)
 static coslam_status_t run_drive(robot_node_t *n)
 {
     coslam_status_t result = COSLAM_OK;
+    if (n->cfg.drive_absent) {
+        return COSLAM_OK; /* no drives on purpose: nothing is at fault */
+    }
     if (!n->drive_started) {
         if (cia402_omni_start(&n->drive, n->now_us) != COSLAM_OK) {
             n->ctr.drive_errors++;

@@ -782,6 +782,9 @@ int main(int argc, char **argv)
     robot_snapshots_init(&snaps, robot_devices_storage(&dev));
 
     const robot_node_io_t io = robot_devices_io(&dev);
+    /* no CAN configured ([can] interface empty, no --can-fd): no drives on
+     * purpose, not a fault; a configured bus that is down is one */
+    cfg.node.drive_absent = dev.dev[ROBOT_DEV_CAN].state == ROBOT_DEV_ABSENT ? 1U : 0U;
     const coslam_status_t is = robot_node_init(&node, &cfg.node, &io);
     if (is != COSLAM_OK) {
         fprintf(stderr, "coslam-robot: the robot node refused the configuration (robot_node_init: %s)\n",
@@ -804,10 +807,9 @@ int main(int argc, char **argv)
                 cfg.node.blind_max_turn_radps);
     }
     if (dev.dev[ROBOT_DEV_CAN].state == ROBOT_DEV_ABSENT) {
-        /* the bring-up then fails on the missing bus once, counted in
-         * drive_faults and not said as a drive's fault (log_limits) */
+        /* no drives on purpose (drive_absent): not a drive fault */
         fprintf(stderr, "coslam-robot: can: no CAN configured ([can] interface is empty): no drives: no motion, no "
-                        "odometry (drive_faults counts the missing bus once)\n");
+                        "odometry (not a fault: drive_faults stays 0)\n");
     } else if (dev.dev[ROBOT_DEV_CAN].state != ROBOT_DEV_UP) {
         fprintf(stderr, "coslam-robot: can: no drives: no motion, no odometry\n");
     }

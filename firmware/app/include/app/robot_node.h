@@ -47,7 +47,9 @@
  * With no CAN bus the drive bring-up fails: drive_errors if the driver
  * cannot start, else one drive fault (the bus fault, counted once while it
  * lasts and reset every retry_period_us): no odometry, no motion;
- * sightings, filter and meeting run.
+ * sightings, filter and meeting run. A robot configured without drives
+ * (drive_absent) never starts the drive and counts no fault: a missing bus
+ * is a fault only where one was configured.
  * In every mode a laser that went silent after start-up for laser_lost_us
  * (unplugged, garbled line) is counted in laser_lost and reconnected every
  * retry_period_us; without a scan the robot does not translate.
@@ -129,6 +131,10 @@ typedef struct {
     double blind_max_turn_radps;    /**< laser_optional: |w| limit without a recent scan [rad/s], >= 0 */
     uint8_t gpio_optional;          /**< 1: init succeeds without the GPIO lines */
     uint8_t motion_without_gpio;    /**< 1: move even while the GPIO roles are not attached */
+    uint8_t drive_absent;           /**< 1: this robot has no drives on purpose (no CAN configured):
+                                         the drive is never started and no drive fault or error is
+                                         counted; no odometry, no motion (the node stays in
+                                         ROBOT_NODE_DRIVE_UP); sightings, filter, meeting run */
     health_config_t health;         /**< the health monitor (app/health.h); health_config_default */
 } robot_node_config_t;
 
