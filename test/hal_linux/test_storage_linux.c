@@ -202,6 +202,25 @@ static void test_open_errors_and_closed(void **state)
     assert_int_equal(hal_storage_linux_open(&st, dir), HAL_OK); /* for teardown: the lock went with the close */
 }
 
+/* A FIFO where a blob or its temporary should be (planted, or left by a
+ * tool) must not hang the robot: open(2) of a FIFO waits for the other end.
+ * The alarm kills the test, instead of hanging it, if a call blocks. */
+static void test_fifo_does_not_block(void **state)
+{
+    (void)state;
+    char path[400];
+    snprintf(path, sizeof path, "%s/map", dir);
+    assert_int_equal(mkfifo(path, 0644), 0);
+    snprintf(path, sizeof path, "%s/.cal.tmp", dir);
+    assert_int_equal(mkfifo(path, 0644), 0);
+    alarm(10);
+    expect_read("map", HAL_E_CORRUPT); /* not a blob, as a directory is not */
+    const uint8_t x = 1;
+    assert_int_equal(hal_storage_write(&st.dev, "cal", &x, 1), HAL_E_IO); /* refused, loudly */
+    assert_int_equal(st.last_errno, ENXIO);
+    alarm(0);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -210,6 +229,7 @@ int main(void)
         cmocka_unit_test_setup_teardown(test_crash_leftover_ignored, setup, teardown),
         cmocka_unit_test_setup_teardown(test_no_space_keeps_old_blob, setup, teardown),
         cmocka_unit_test_setup_teardown(test_open_errors_and_closed, setup, teardown),
+        cmocka_unit_test_setup_teardown(test_fifo_does_not_block, setup, teardown),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -105,7 +105,9 @@ static hal_status_t linux_write(hal_storage_t *dev, const char *name, const uint
     put_u32(hdr + 8, crc32_ieee(0, data, len));
     put_u32(hdr + 12, crc32_ieee(0, hdr, 12));
 
-    const int fd = openat(st->dir_fd, tmp, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+    /* O_NONBLOCK: a FIFO in the temporary's place (no reader) fails with
+     * ENXIO instead of waiting for one; no effect on a regular file */
+    const int fd = openat(st->dir_fd, tmp, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC | O_NONBLOCK, 0644);
     if (fd < 0) return write_failed(st, errno);
     hal_status_t s = write_all(st, fd, hdr, sizeof hdr);
     if (s == HAL_OK && len > 0) s = write_all(st, fd, data, len);
@@ -132,7 +134,10 @@ static hal_status_t linux_read(hal_storage_t *dev, const char *name, uint8_t *bu
 {
     hal_storage_linux_t *st = self_of(dev);
     if (st->dir_fd < 0) return HAL_E_CLOSED;
-    const int fd = openat(st->dir_fd, name, O_RDONLY | O_CLOEXEC);
+    /* O_NONBLOCK: a FIFO under the blob's name opens at once (and is
+     * refused below as not a regular file) instead of waiting for a writer
+     * for ever; it changes nothing for a regular file */
+    const int fd = openat(st->dir_fd, name, O_RDONLY | O_CLOEXEC | O_NONBLOCK);
     if (fd < 0) return errno == ENOENT ? HAL_E_NOT_FOUND : HAL_E_IO;
     hal_status_t s = HAL_OK;
     struct stat sb;
