@@ -369,8 +369,9 @@ static hal_status_t storage_writable(const char *dir, char *reason, size_t reaso
 
 /* The part of an open attempt that blocks. It writes only device id's
  * backend state, which no proxy and no status read touches while the slot
- * is not up: so it runs on the slot's opener thread while the loop goes
- * on (or in the loop, at start-up). */
+ * is not up, and the replay source in replay_opening (never `replay`,
+ * which the loop reads at any time): so it runs on the slot's opener
+ * thread while the loop goes on (or in the loop, without an opener). */
 static hal_status_t open_backend(robot_devices_t *d, robot_dev_t id, char *reason, size_t reason_cap)
 {
     const robot_config_t *c = d->cfg;
@@ -401,7 +402,8 @@ static hal_status_t open_backend(robot_devices_t *d, robot_dev_t id, char *reaso
         break;
     case ROBOT_DEV_CAMERA:
         if (d->camera_kind == ROBOT_SIGHTINGS_REPLAY || d->camera_kind == ROBOT_SIGHTINGS_LIVE) {
-            robot_sightings_kind_t k = robot_open_sightings(&d->replay, c, d->clock, &s, reason, reason_cap);
+            robot_sightings_kind_t k =
+                robot_open_sightings(&d->replay_opening, c, d->clock, &s, reason, reason_cap);
             (void)k;
         }
 #if COSLAM_HAVE_CAMERA
@@ -450,6 +452,15 @@ static int open_finish(robot_devices_t *d, robot_dev_t id, hal_status_t s, const
         s = robot_camera_open_finish(&d->camera, s);
     }
 #endif
+    if (id == ROBOT_DEV_CAMERA &&
+        (d->camera_kind == ROBOT_SIGHTINGS_REPLAY || d->camera_kind == ROBOT_SIGHTINGS_LIVE)) {
+        /* the opener's source published: from here on the loop's */
+        if (s == HAL_OK) {
+            robot_replay_move(&d->replay, &d->replay_opening);
+        } else {
+            robot_replay_close(&d->replay_opening);
+        }
+    }
     if (id == ROBOT_DEV_LINK && s == HAL_OK) {
         robot_link_backend_opened(&d->link);
     }

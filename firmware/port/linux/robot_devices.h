@@ -37,7 +37,12 @@
  * that a slow or hung open never holds the control loop: while the slot is
  * not up no proxy touches the device's backend, so the opener owns it for
  * the attempt; the loop takes the outcome at a later service and does the
- * bookkeeping (docs/robot.md "Devices").
+ * bookkeeping (docs/robot.md "Devices"). What the opener writes is only
+ * read by the loop after that take (the worker's mutex orders it): the
+ * backend states no proxy reads while the slot is not up, the opener's
+ * result and reason, and the replay source it opens into its own
+ * replay_opening (the loop reads `replay` at any time; the opener once
+ * wrote it there, a data race ThreadSanitizer reported, docs/robot.md).
  *
  * No heap beyond what the backends hold (libgpiod's chip object) and the
  * opener threads' stacks. The API is for one thread (the loop).
@@ -175,7 +180,10 @@ typedef struct robot_devices {
 #endif
     robot_gpio_fd_t gpio_fd_state;   /**< --gpio-fd (e2e tests only) */
     robot_sightings_kind_t camera_kind;
-    robot_replay_t replay;
+    robot_replay_t replay;           /**< the loop's: the source while the camera slot is up (the loop reads it
+                                          whatever the slot's state: robot_live_say_refusals) */
+    robot_replay_t replay_opening;   /**< the camera opener's: an attempt opens the source here, and the loop
+                                          moves it into `replay` once the outcome is taken (open_finish) */
     uint32_t live_bad_past;          /**< replay.live_bad of the streams closed before (robot_devices_live_counters) */
     uint32_t live_robots_refused_past; /**< replay.live_robots_refused of the streams closed before */
 #if COSLAM_HAVE_CAMERA

@@ -459,6 +459,14 @@ void robot_replay_close(robot_replay_t *r)
     }
 }
 
+void robot_replay_move(robot_replay_t *to, robot_replay_t *from)
+{
+    *to = *from;
+    to->src.backend = to;
+    from->f = NULL;
+    from->live_fd = -1;
+}
+
 robot_sightings_kind_t robot_sightings_kind(const robot_config_t *cfg)
 {
     /* ---- SIGHTING SOURCE CHOICE ------------------------------------------ */

@@ -136,6 +136,14 @@ int robot_live_say_refusals(robot_replay_t *r, FILE *out);
 /** Close the file (the handle then answers HAL_E_CLOSED). */
 void robot_replay_close(robot_replay_t *r);
 
+/** Hand the source opened in `from` over to `to` (a closed source): `to`
+ *  becomes it, its handle (to->src) pointing at `to`; `from` is left
+ *  closed (its file and socket belong to `to` now). A device slot opens
+ *  into a private source on its opener thread and publishes it this way on
+ *  the loop's thread, so that what the loop reads is never written by the
+ *  opener (robot_devices.h). */
+void robot_replay_move(robot_replay_t *to, robot_replay_t *from);
+
 /** What robot_open_sightings chose. */
 typedef enum {
     ROBOT_SIGHTINGS_NONE = 0,    /**< no camera configured */
