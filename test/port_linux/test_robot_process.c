@@ -1567,6 +1567,65 @@ static void storage_fsync_fails_steady(void **state)
     remove_dir(dir);
 }
 
+/* A medium that takes a small write but fails larger ones at fsync
+ * (fsync_gate.so: EIO for a file of more than 64 bytes while
+ * dir/fsync-fails exists): the storage's one-byte probe file works, every
+ * snapshot (over 200 bytes) does not. Before, every retry's probe brought
+ * the storage "back up" and every snapshot took it down again: flapping,
+ * two lines a period. Now, after a failed save, a retry comes back only
+ * when a save of that size works: down once, said once why, counted
+ * (storage_save_probes_failed); when large fsyncs work again: back once. */
+static void storage_big_fsync_fails_steady(void **state)
+{
+    (void)state;
+    char dir[64];
+    make_dir(dir, sizeof dir);
+    char store[300];
+    snprintf(store, sizeof store, "%s/store", dir);
+    config(dir, "no-laser", "0.2", "0.3", "", store, "fastslam2"); /* retry every 0.3 s, snapshot every 0.3 s */
+    char err[300];
+    snprintf(err, sizeof err, "%s/err", dir);
+    char fail[300];
+    snprintf(fail, sizeof fail, "%s/fsync-fails", dir);
+    setenv("COSLAM_TEST_FSYNC_FAIL_ABOVE", "64", 1);
+    const pid_t pid = spawn_robot_shimmed(dir, err, "COSLAM_TEST_FSYNC_FAIL", fail, 0); /* without -v */
+    unsetenv("COSLAM_TEST_FSYNC_FAIL_ABOVE");
+    assert_true(wait_value(err, "snap_saves", 1, 10000) >= 1); /* a working medium first */
+    const size_t before = strlen(slurp(err));
+    touch(fail);
+    const long failures = wait_value(err, "snap_failures", 10, 15000); /* ten snapshot periods, ten retries */
+    char *bad = strdup(slurp(err) + before);
+    assert_non_null(bad);
+    assert_int_equal(unlink(fail), 0);
+    const long saves = last_value(bad, "snap_saves");
+    assert_true(wait_value(err, "snap_saves", saves + 1, 10000) > saves);
+    const char *log = stop_robot(pid, err);
+    char storage[400];
+    snprintf(storage, sizeof storage, "coslam-robot: storage (snapshots in %s): ", store);
+    fprintf(stderr, "storage_big_fsync_fails: %d storage lines while large fsyncs failed (%d back up), "
+            "snap_failures %ld, storage_save_probes_failed %ld, storage_fsync_failures %ld\n",
+            count_of(bad, storage), count_of(bad, "back up after "), failures,
+            last_value(bad, "storage_save_probes_failed"), last_value(bad, "storage_fsync_failures"));
+    if (count_of(bad, "back up after ") != 0 || count_of(bad, storage) > 2) {
+        fprintf(stderr, "%s\n", bad);
+    }
+    assert_true(failures >= 10);
+    assert_int_equal(count_of(bad, "back up after "), 0); /* no flapping (5 before) */
+    assert_non_null(strstr(bad, "down: the snapshot write failed: fsync: Input/output error"));
+    /* the first retry says why once; nothing else about it while it lasts */
+    assert_int_equal(count_of(bad, "still down (a save of "), 1);
+    assert_non_null(strstr(bad, "(the size of the snapshot that failed) still fails: fsync: Input/output error "
+                                "(HAL_E_IO); the probe file alone works: back when such a save works)"));
+    assert_true(count_of(bad, storage) <= 2);
+    assert_true(last_value(bad, "storage_save_probes_failed") >= 5); /* every retry's save */
+    assert_true(last_value(bad, "storage_fsync_failures") >= 5);
+    assert_non_null(strstr(bad, " storage=down "));
+    assert_int_equal(count_of(log + before, "back up after "), 1); /* large fsyncs work again: back once */
+    assert_null(strstr(log + before, "coslam-save-probe:")); /* nothing left to say about the probe blob */
+    free(bad);
+    remove_dir(dir);
+}
+
 int main(int argc, char **argv)
 {
     if (argc > 1) {
@@ -1592,6 +1651,7 @@ int main(int argc, char **argv)
         cmocka_unit_test(status_file_failures_counted),
         cmocka_unit_test(storage_read_only_steady),
         cmocka_unit_test(storage_fsync_fails_steady),
+        cmocka_unit_test(storage_big_fsync_fails_steady),
         cmocka_unit_test(no_can_said_once),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -10,6 +10,7 @@
 
 #include "hal_can_socketcan_internal.h" /* --can-fd: e2e tests only */
 #include "robot_link.h"
+#include "robot_snapshot.h" /* ROBOT_SNAPSHOT_MAX_BYTES: the storage's save probe */
 
 /* snprintf that may truncate on purpose (messages, labels): always terminated. */
 __attribute__((format(printf, 3, 4))) static void put_text(char *dst, size_t cap, const char *fmt, ...)
@@ -367,6 +368,29 @@ static hal_status_t storage_writable(const char *dir, char *reason, size_t reaso
     return s;
 }
 
+/* A save of `bytes` through the just opened storage `st`, as a snapshot's
+ * (temporary, fsync, rename, directory fsync), then removed: HAL_OK, or
+ * why not in `reason` (*fsync_failed set when it failed at an fsync). On
+ * the opener thread, after a snapshot save of that size failed. */
+static hal_status_t storage_saves(hal_storage_linux_t *st, size_t bytes, char *reason, size_t reason_cap,
+                                  int *fsync_failed)
+{
+    static uint8_t zeros[ROBOT_SNAPSHOT_MAX_BYTES]; /* read only (by every opener at once, harmless) */
+    const size_t n = bytes < sizeof zeros ? bytes : sizeof zeros;
+    const hal_status_t s = hal_storage_write(&st->dev, ROBOT_DEVICES_SAVE_PROBE, zeros, n);
+    if (s == HAL_OK) {
+        (void)hal_storage_remove(&st->dev, ROBOT_DEVICES_SAVE_PROBE);
+        return HAL_OK;
+    }
+    *fsync_failed = st->last_fsync_failed;
+    const int e = st->last_errno;
+    put_text(reason, reason_cap,
+             "a save of %zu bytes (the size of the snapshot that failed) still fails: %s%s (%s); the probe file "
+             "alone works: back when such a save works",
+             n, *fsync_failed ? "fsync: " : "", e != 0 ? strerror(e) : "no OS reason", hal_status_str(s));
+    return s;
+}
+
 /* The part of an open attempt that blocks. It writes only device id's
  * backend state, which no proxy and no status read touches while the slot
  * is not up, and the replay source in replay_opening (never `replay`,
@@ -424,7 +448,13 @@ static hal_status_t open_backend(robot_devices_t *d, robot_dev_t id, char *reaso
              * directory" for a missing parent), not only the HAL's class */
             put_text(reason, reason_cap, "%s (%s)", strerror(errno), hal_status_str(s));
         } else if (s == HAL_OK) {
+            d->storage_save_probe_failed = 0;
             s = storage_writable(c->storage_dir, reason, reason_cap, &d->storage_probe_fsync_failed);
+            if (s == HAL_OK && d->storage_save_probe_bytes > 0U) {
+                s = storage_saves(&d->storage_state, d->storage_save_probe_bytes, reason, reason_cap,
+                                  &d->storage_probe_fsync_failed);
+                d->storage_save_probe_failed = s != HAL_OK;
+            }
             if (s != HAL_OK) {
                 hal_storage_close(&d->storage_state.dev);
             }
@@ -467,6 +497,13 @@ static int open_finish(robot_devices_t *d, robot_dev_t id, hal_status_t s, const
     if (id == ROBOT_DEV_STORAGE && d->storage_probe_fsync_failed) {
         d->storage_probe_fsync_failed = 0;
         d->storage_fsync_failures++;
+    }
+    if (id == ROBOT_DEV_STORAGE && d->storage_save_probe_failed) {
+        d->storage_save_probe_failed = 0;
+        d->storage_save_probes_failed++;
+    }
+    if (id == ROBOT_DEV_STORAGE && s == HAL_OK) {
+        d->storage_save_probe_bytes = 0U; /* a save of that size worked (or none had failed) */
     }
     if (id == ROBOT_DEV_CAN && s == HAL_OK && d->can_filter_count > 0U) {
         /* the filters the drive driver set (kept while the bus was down) */
@@ -821,6 +858,18 @@ void robot_devices_fail(robot_devices_t *d, robot_dev_t id, hal_status_t why, co
     char text[320];
     put_text(text, sizeof text, "down: %s; retrying every %g s", reason, d->cfg->retry_period_s);
     say(d, st->name, st, text);
+}
+
+void robot_devices_storage_save_failed(robot_devices_t *d, size_t bytes, hal_status_t ws, const char *reason,
+                                       uint64_t now_us)
+{
+    if (d->dev[ROBOT_DEV_STORAGE].state != ROBOT_DEV_UP) {
+        return;
+    }
+    /* written while the storage's opener is idle (the slot is up): its
+     * next attempt reads it after the submit */
+    d->storage_save_probe_bytes = bytes > 0U ? bytes : 1U;
+    robot_devices_fail(d, ROBOT_DEV_STORAGE, ws, reason, now_us);
 }
 
 /* An open attempt of the loop's retries took took_ms: kept, and said when

@@ -100,6 +100,10 @@ extern "C" {
  *  any healthy open measured (a UVC camera 0.1-0.5 s, Cyclone DDS). */
 #define ROBOT_DEVICES_START_OPEN_MS 2000u
 
+/** The blob a storage retry saves after a failed snapshot save
+ *  (robot_devices_storage_save_failed), removed when written. */
+#define ROBOT_DEVICES_SAVE_PROBE "coslam-save-probe"
+
 /** robot_devices_close_all waits this long [ms] for a running open attempt. */
 #define ROBOT_DEVICES_CLOSE_WAIT_MS 1000u
 
@@ -194,6 +198,11 @@ typedef struct robot_devices {
     hal_storage_linux_t storage_state;
     int storage_probe_fsync_failed;  /**< the storage open's probe failed at its fsync (the opener's, taken by the loop) */
     uint32_t storage_fsync_failures; /**< fsyncs the storage failed: probes and snapshot writes (the loop's) */
+    size_t storage_save_probe_bytes; /**< a snapshot save of this size failed (0: none since the last good one):
+                                          the storage's open also saves a blob of that size and comes back only
+                                          if it works (the loop's; read by the opener after the submit) */
+    int storage_save_probe_failed;   /**< the open's save probe failed (the opener's, taken by the loop) */
+    uint32_t storage_save_probes_failed; /**< retries the save probe kept down (the loop's) */
     robot_dev_opener_t opener[ROBOT_DEV_COUNT];
 } robot_devices_t;
 
@@ -262,6 +271,17 @@ robot_node_io_t robot_devices_io(robot_devices_t *d);
  *  (robot_live_open), so these are what the status reports: they never go
  *  back. Either pointer may be NULL. */
 void robot_devices_live_counters(const robot_devices_t *d, uint32_t *live_bad, uint32_t *live_robots_refused);
+
+/** A snapshot save of `bytes` failed (ws HAL_E_IO or HAL_E_CLOSED: the
+ *  medium, `reason` in words): the storage goes down as robot_devices_fail,
+ *  and its retries come back only when a save of that size works, not on
+ *  the probe file alone (a medium whose one-byte probe is fsync'ed but
+ *  whose larger writes fail at fsync flapped up and down): each retry's
+ *  open also saves a blob of `bytes` (ROBOT_DEVICES_SAVE_PROBE) the way a
+ *  snapshot is saved, then removes it; one that fails keeps the storage
+ *  down, said once, counted in storage_save_probes_failed. */
+void robot_devices_storage_save_failed(robot_devices_t *d, size_t bytes, hal_status_t ws, const char *reason,
+                                       uint64_t now_us);
 
 /** The storage for snapshots: the Linux directory while up, else NULL. */
 hal_storage_t *robot_devices_storage(robot_devices_t *d);

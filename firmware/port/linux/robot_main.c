@@ -255,7 +255,7 @@ static int commit_snapshot(int verbose, const char *why, const robot_snapshot_jo
         if (ws == HAL_E_IO || ws == HAL_E_CLOSED) {
             char reason[160];
             (void)snprintf(reason, sizeof reason, "the snapshot write failed: %s", os);
-            robot_devices_fail(&dev, ROBOT_DEV_STORAGE, ws, reason, now_us);
+            robot_devices_storage_save_failed(&dev, job->len, ws, reason, now_us);
         }
         return -1;
     }

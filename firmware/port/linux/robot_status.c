@@ -233,6 +233,7 @@ void robot_status_collect(robot_status_t *s, robot_node_t *node, const robot_dev
     u64(s, "snap_failures", snaps->save_failures);
     u64(s, "snap_corrupt", snaps->corrupt_found);
     u64(s, "storage_fsync_failures", dev->storage_fsync_failures);
+    u64(s, "storage_save_probes_failed", dev->storage_save_probes_failed);
     u64(s, "snap_writing_ms", loop->snap_writing_ms);
     u64(s, "snap_write_max_ms", (snaps->write_max_us + 999U) / 1000U);
     u64(s, "snap_busy_skips", snaps->busy_skips);
