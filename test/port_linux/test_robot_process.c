@@ -1001,6 +1001,10 @@ static void slow_open_said(void **state)
     assert_null(strstr(log, "held the control loop"));
     assert_non_null(strstr(log, ": back up after "));
     assert_true(last_value(log, "frames") >= 3);      /* and then the camera came up */
+    /* the attempt that opened the FIFO is refused by name ("read error" before) */
+    assert_non_null(strstr(log, "lm.fifo: not a regular file (a FIFO): a replay log must be a file (it is checked "
+                                "whole, then rewound)"));
+    assert_null(strstr(log, "lm.fifo: read error"));
     remove_dir(dir);
 }
 

@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/socket.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "app/slam_params_ini.h"
@@ -378,6 +379,18 @@ hal_status_t robot_replay_open(robot_replay_t *r, const char *path, int loop, ui
         const int e = errno;
         (void)snprintf(msg, msg_cap, "%s: %s", path, strerror(e));
         return e == ENOENT ? HAL_E_NOT_FOUND : HAL_E_IO;
+    }
+    /* the log is checked whole, then rewound: a FIFO (or any stream) can
+     * be read once only, so it could never play; refused by name instead
+     * of the rewind's "read error" (its open still waits for a writer) */
+    struct stat sb;
+    const int known = fstat(fileno(f), &sb) == 0;
+    if (!known || !S_ISREG(sb.st_mode)) {
+        (void)snprintf(msg, msg_cap,
+                       "%s: not a regular file (%s): a replay log must be a file (it is checked whole, then rewound)",
+                       path, known && S_ISFIFO(sb.st_mode) ? "a FIFO" : "not a plain file");
+        (void)fclose(f);
+        return HAL_E_UNSUPPORTED;
     }
     /* check the whole log now: a bad line is refused with its place */
     char buf[512];
