@@ -8,7 +8,8 @@ empty result with exit 0:
    non-zero, no figure or table written);
  - merge_table.py refuses a folder with missing or empty runs instead of
    reporting "Goals not met: none"; team_table.py, run on its own, names a
-   missing folder or missing and empty runs (exit 1) instead of a traceback;
+   missing folder, missing and empty runs, and robots without a field it
+   reads (the file and the field; exit 1) instead of a traceback;
  - merge_table.sh and team_table.sh fail (exit 1, the run and its log or the
    missing binary and its target named) when a binary is missing or a
    background run fails.
@@ -143,6 +144,20 @@ with tempfile.TemporaryDirectory() as tmp:
           and f"{tt}/s2/metrics.json: not a coslam-replay metrics.json" in errs
           and f"{tt}/s2_alone/metrics.json: missing" in errs,
           f"team_table.py on missing and empty runs: exit {rc}, {errs.strip()[:400]!r}")
+    # robots without the fields the table reads (a metrics.json of another
+    # tool, or of an older coslam-replay): the file and the field named, exit
+    # 1, no row (a KeyError traceback before)
+    write(os.path.join(tt, "s1_alone", "metrics.json"), json.dumps({"robots": [{"id": 1, "pose": {}}]}))
+    rc, out, errs = tool("team_table.py", tt, "1")
+    check(rc == 1 and "Traceback" not in errs and "|" not in out
+          and f"{tt}/s1_alone/metrics.json: robot 1: no 'map_fit'" in errs,
+          f"team_table.py on a run whose robots lack map_fit: exit {rc}, {errs.strip()[:400]!r}")
+    write(os.path.join(tt, "s1_alone", "metrics.json"),
+          json.dumps({"robots": [{"id": 1, "map_fit": {"rmse_m": None}, "pose": {}}]}))
+    rc, out, errs = tool("team_table.py", tt, "1")
+    check(rc == 1 and "Traceback" not in errs and "|" not in out
+          and f"{tt}/s1_alone/metrics.json: robot 1: no 'map_fit.n_spurious'" in errs,
+          f"team_table.py on a run whose map_fit lacks n_spurious: exit {rc}, {errs.strip()[:400]!r}")
     write(os.path.join(tt, "s1_alone", "metrics.json"), json.dumps({"robots": [robot]}))
     rc, out, errs = tool("team_table.py", tt, "1")
     check(rc == 0 and "| 1 | 1 | 0 / 0 |" in out and "robot-runs missing a goal: 0 of 1" in out,
