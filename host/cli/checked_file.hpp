@@ -12,6 +12,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "stdout_check.h"
+
 namespace coslam::cli {
 
 /// An output file that could not be opened or written whole. A distinct type
@@ -68,24 +70,32 @@ inline void write_text_file(const std::string &path, const std::string &text)
 
 /// Flush standard output (std::cout and C's stdout) and say whether
 /// anything written to it was lost: 0 if all of it went out, else the errno
-/// of the failure (EIO when the OS gave none). A failed write is sticky
-/// (std::cout's badbit, stdout's error flag), so a tool calls this once,
-/// before it exits: its output to a full disk or to a pipe closed with
-/// SIGPIPE ignored is then an error, not an exit 0 with the output lost.
+/// of the failure, or STDOUT_CHECK_LOST_EARLIER when only an earlier write
+/// failed (a std::endl of the tool's) and stdio kept no reason. A failed
+/// write is sticky (std::cout's badbit, stdout's error flag), so a tool
+/// calls this once, before it exits: its output to a full disk or to a pipe
+/// closed with SIGPIPE ignored is then an error, not an exit 0 with the
+/// output lost. C's half is stdout_check_flush_error (stdout_check.h,
+/// shared with the C tools).
 inline int stdout_flush_error()
 {
     errno = 0;
     std::cout.flush(); // with sync_with_stdio (the default) also fflush(stdout)
-    int err = errno;
-    errno = 0;
-    const int rc = std::fflush(stdout);
-    if (err == 0) {
-        err = errno;
-    }
-    if (rc == 0 && !std::ferror(stdout) && std::cout.good()) {
+    const int err = std::cout.good() ? 0 : errno;
+    const int c_err = stdout_check_flush_error();
+    if (c_err == 0 && std::cout.good()) {
         return 0;
     }
-    return err != 0 ? err : EIO;
+    return err != 0 ? err : (c_err != 0 ? c_err : STDOUT_CHECK_LOST_EARLIER);
+}
+
+/// The exit status of a C++ tool that would exit with rc, standard output
+/// checked (stdout_flush_error): rc if nothing was lost; else "TOOL: cannot
+/// write standard output: REASON" on stderr and 1, bad usage (2) staying 2
+/// (stdout_check_status, stdout_check.h). The last call of main.
+inline int stdout_exit(const char *tool, int rc)
+{
+    return stdout_check_status(tool, rc, stdout_flush_error());
 }
 
 } // namespace coslam::cli

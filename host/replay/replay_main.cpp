@@ -178,19 +178,14 @@ int replay_main(int argc, char **argv);
 
 } // namespace
 
+static_assert(kExitWrite == STDOUT_CHECK_EXIT_WRITE, "a lost stdout exits as a lost output file");
+
 // Every subcommand's exit status, then standard output checked: what was
 // printed to a full disk or a closed pipe (SIGPIPE ignored) is lost, and a
 // run that lost it does not exit 0 (replay_output.h: exit codes).
 int main(int argc, char **argv)
 {
-    int rc = replay_main(argc, argv);
-    if (const int err = coslam::cli::stdout_flush_error(); err != 0) {
-        std::cerr << "coslam-replay: " << coslam::cli::WriteError("standard output", err).what() << "\n";
-        if (rc != 2) {
-            rc = kExitWrite;
-        }
-    }
-    return rc;
+    return coslam::cli::stdout_exit("coslam-replay", replay_main(argc, argv));
 }
 
 namespace {
@@ -452,7 +447,7 @@ int replay_main(int argc, char **argv)
         bool plot_failed = false;
         if (!no_plots) {
             // the summary before the plotter's own lines on a shared stdout
-            std::cout.flush();
+            (void)stdout_check_flush(); // a failure's reason kept for main
             const std::string cmd = "/usr/bin/python3 '" + plot_script() + "' '" + out_dir + "'";
             const int status = std::system(cmd.c_str());
             if (status != 0) {
