@@ -22,6 +22,7 @@
 #include "profile_print.h"
 #include "bench_args.h"
 #include "bench_report.h"
+#include "stdout_check.h"
 
 int bench_fs_cpu_clock = 0;
 
@@ -56,7 +57,7 @@ static int run(int impl, const bench_fs_case_t *base, int seeds, cell_t *out)
     return 0;
 }
 
-int main(int argc, char **argv)
+static int bench_fastslam_main(int argc, char **argv)
 {
     const char *out = "out/bench";
     int seeds = 2;
@@ -169,4 +170,10 @@ int main(int argc, char **argv)
         return 1;
     }
     return 0;
+}
+
+/* exit status with standard output checked (stdout_check.h) */
+int main(int argc, char **argv)
+{
+    return stdout_check_exit("coslam-bench-fastslam", bench_fastslam_main(argc, argv));
 }

@@ -20,6 +20,7 @@
 #include "bench_args.h"
 #include "bench_report.h"
 #include "profile_print.h"
+#include "stdout_check.h"
 
 typedef struct {
     const char *name;
@@ -27,7 +28,7 @@ typedef struct {
     int n_particles;
 } bench_filter_t;
 
-int main(int argc, char **argv)
+static int bench_filters_main(int argc, char **argv)
 {
     const char *out = "out/bench";
     int seeds = 3;
@@ -124,4 +125,10 @@ int main(int argc, char **argv)
     }
     free(r);
     return 0;
+}
+
+/* exit status with standard output checked (stdout_check.h) */
+int main(int argc, char **argv)
+{
+    return stdout_check_exit("coslam-bench-filters", bench_filters_main(argc, argv));
 }

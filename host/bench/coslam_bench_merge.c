@@ -28,6 +28,7 @@
 #include "profile_print.h"
 #include "bench_args.h"
 #include "bench_report.h"
+#include "stdout_check.h"
 
 static double now_us(void)
 {
@@ -191,7 +192,7 @@ static const char *const k_fs_keys[] = {"merge_us", "part_max_us", "own_export_u
                                         "export_pass2_ns", "send_max_us", "naive_search_us"};
 static const char *const k_ekf_keys[] = {"merge_us", "merge_each_at_once_us", "part_first_us", "part_max_us"};
 
-int main(int argc, char **argv)
+static int bench_merge_main(int argc, char **argv)
 {
     const char *out = "out/bench";
     int reps = 3;
@@ -479,4 +480,10 @@ int main(int argc, char **argv)
         return 1;
     }
     return 0;
+}
+
+/* exit status with standard output checked (stdout_check.h) */
+int main(int argc, char **argv)
+{
+    return stdout_check_exit("coslam-bench-merge", bench_merge_main(argc, argv));
 }

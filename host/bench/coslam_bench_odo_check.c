@@ -7,11 +7,11 @@
  * per scan that only keeps its points, and the monitor's memory. Writes
  * <out>/odo_check.md.
  *   coslam-bench-odo-check [--out DIR] [--checks N] [--odo-scale-pct P]
- * Exit status (also in --help): 0 done, nothing flagged; 1 the report could
- * not be written (or the monitor not set up); 2 bad usage; 3 the check
- * flagged the drive (disagreements or mismatches), the report written. 1
- * and 3 were both 1: a caller (make bench) could not tell a lost report
- * from a false alarm of the monitor.
+ * Exit status (also in --help): 0 done, nothing flagged; 1 the report or
+ * standard output could not be written (or the monitor not set up); 2 bad
+ * usage; 3 the check flagged the drive (disagreements or mismatches), the
+ * report written. 1 and 3 were both 1: a caller (make bench) could not
+ * tell a lost report from a false alarm of the monitor.
  */
 #define _POSIX_C_SOURCE 200809L
 #include <stdio.h>
@@ -24,6 +24,7 @@
 #include "profile_print.h"
 #include "bench_args.h"
 #include "bench_report.h"
+#include "stdout_check.h"
 
 /* Exit codes: kExitFlagged is a finding (a fault-free drive flagged is a
  * false report of the monitor), not a failure of the bench. */
@@ -44,7 +45,8 @@ static void print_help(void)
            "exit status:\n"
            "  0  done, the check flagged nothing\n"
            "  1  the report could not be written ('cannot write PATH: REASON'; the table is on stdout),\n"
-           "     or the monitor could not be set up; before 3 when both apply\n"
+           "     nor stdout ('cannot write standard output: REASON'), or the monitor could not be set\n"
+           "     up; before 3 when both apply\n"
            "  2  bad usage (an unknown option, a value not a whole number or out of its range)\n"
            "  3  the check flagged the drive (disagreements or mismatches; fault-free: a false report),\n"
            "     the report written\n",
@@ -58,7 +60,7 @@ static double cpu_us(void)
     return (double)ts.tv_sec * 1e6 + (double)ts.tv_nsec * 1e-3;
 }
 
-int main(int argc, char **argv)
+static int bench_odo_check_main(int argc, char **argv)
 {
     const char *out = "out/bench";
     long checks = 400;
@@ -158,4 +160,10 @@ int main(int argc, char **argv)
         return kExitFlagged;
     }
     return kExitOk;
+}
+
+/* exit status with standard output checked (stdout_check.h) */
+int main(int argc, char **argv)
+{
+    return stdout_check_exit("coslam-bench-odo-check", bench_odo_check_main(argc, argv));
 }

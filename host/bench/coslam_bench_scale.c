@@ -30,6 +30,7 @@
 #include "bench_report.h"
 #include "eval_worlds.h"
 #include "profile_print.h"
+#include "stdout_check.h"
 
 typedef struct {
     const char *name;
@@ -40,7 +41,7 @@ typedef struct {
 
 static const int k_bins[4] = {6, 8, 10, 11}; /* 64, 256, 1024, 2048 */
 
-int main(int argc, char **argv)
+static int bench_scale_main(int argc, char **argv)
 {
     const char *out = "out/bench";
     long seed = 1;
@@ -180,4 +181,10 @@ int main(int argc, char **argv)
     }
     free(r);
     return 0;
+}
+
+/* exit status with standard output checked (stdout_check.h) */
+int main(int argc, char **argv)
+{
+    return stdout_check_exit("coslam-bench-scale", bench_scale_main(argc, argv));
 }

@@ -23,6 +23,7 @@
 
 #include "app/slam_params_ini.h"
 #include "calib.h"
+#include "checked_file.hpp"
 #include "data_dir.hpp"
 #include "experiments.h"
 #include "replay_config.h"
@@ -569,7 +570,7 @@ int run(int argc, char **argv)
                     const double el = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
                     std::printf("[%s] gen %3d  evals %5ld  best %.5f  mean %.5f  best-ever %.5f  (%.1f s)\n",
                                 optimiser_name(o), g.generation, g.evals, g.best, g.mean, g.best_ever, el);
-                    std::fflush(stdout);
+                    (void)stdout_check_flush(); // a failure's reason kept for main's check
                 }
             };
             const auto ts = std::chrono::steady_clock::now();
@@ -739,6 +740,10 @@ int main(int argc, char **argv)
         }
 #endif
     }
+    // standard output checked (stdout_check.h): the progress lines and the
+    // report lost to a full disk or a closed pipe are exit 1 (2 stays).
+    // Before MPI_Finalize, whose flush would fail first and leave no reason.
+    rc = coslam::cli::stdout_exit("coslam-calibrate", rc);
 #ifdef COSLAM_HAVE_MPI
     MPI_Finalize();
 #endif

@@ -9,6 +9,8 @@
 #include <iostream>
 #include <sstream>
 
+#include "stdout_check.h"
+
 namespace coslam::calibrate {
 
 namespace {
@@ -73,7 +75,7 @@ void run_particle_sweep(const EpisodeContext &base, const std::vector<Episode> &
             cost.push_back(c);
             if (root) {
                 std::printf("[sweep] %s N=%d: mean cost %.5f m\n", filter_label(f), n, mean_of(c));
-                std::fflush(stdout);
+                (void)stdout_check_flush(); // a failure's reason kept for main's check
             }
         }
         const ParticleSelection sel = select_particle_count(cost, opt.margin, opt.z);

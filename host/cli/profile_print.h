@@ -7,13 +7,16 @@
 #include <stdio.h>
 
 #include "app/profile.h"
+#include "stdout_check.h"
 
 static inline void profile_print(FILE *f, const char *tool)
 {
     char line[192];
     (void)app_profile_format(line, sizeof line);
     fprintf(f, "%s: %s\n", tool, line);
-    (void)fflush(f); /* seen even if the tool is stopped early */
+    /* seen even if the tool is stopped early; on stdout a failure's reason
+     * kept for the tool's final check (stdout_check.h) */
+    (void)(f == stdout ? stdout_check_flush() : fflush(f));
 }
 
 #endif /* COSLAM_PROFILE_PRINT_H */

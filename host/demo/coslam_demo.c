@@ -15,6 +15,7 @@
 
 #include "slam_run.h"
 #include "profile_print.h"
+#include "stdout_check.h"
 
 static int mkdir_p(const char *path)
 {
@@ -54,7 +55,7 @@ static void write_map(const char *path, const map_estimate_t *m)
     fclose(f);
 }
 
-int main(int argc, char **argv)
+static int demo_main(int argc, char **argv)
 {
     const char *out = "out/demo";
     uint64_t seed = 1;
@@ -116,4 +117,10 @@ int main(int argc, char **argv)
     free(w);
     printf("results in %s/\n", out);
     return 0;
+}
+
+/* exit status with standard output checked (stdout_check.h) */
+int main(int argc, char **argv)
+{
+    return stdout_check_exit("coslam-demo", demo_main(argc, argv));
 }

@@ -68,6 +68,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "checked_file.hpp"
 #include "coslam/pose2.h"
 #include "hal/hal_storage_linux.h"
 #include "robot_snapshot.h"
@@ -281,7 +282,7 @@ bool parse_window(const std::string &v, const char *opt, const char *what, long 
 
 }  // namespace
 
-int main(int argc, char **argv)
+static int sim_devices_main(int argc, char **argv)
 {
     std::string scenario_path, robot_bin, out;
     double duration = -1.0;
@@ -821,4 +822,10 @@ int main(int argc, char **argv)
         close(p.gpio_srv);
     }
     return robot_died ? 1 : 0;
+}
+
+// exit status with standard output checked (stdout_check.h)
+int main(int argc, char **argv)
+{
+    return coslam::cli::stdout_exit("coslam-sim-devices", sim_devices_main(argc, argv));
 }

@@ -41,6 +41,7 @@
 #include "bench_args.h"
 #include "eval_worlds.h"
 #include "profile_print.h"
+#include "stdout_check.h"
 
 /* Closes f (NULL: nothing to do); a write error or a failed close is said
  * with the file's path. Returns 0, or 1 on an error. */
@@ -234,7 +235,7 @@ static int parse_nonneg(const char *opt, const char *s, double *out)
     return 0;
 }
 
-int main(int argc, char **argv)
+static int eval_worlds_main(int argc, char **argv)
 {
     const char *world = "loop";
     const char *filter = "ekf";
@@ -378,7 +379,7 @@ int main(int argc, char **argv)
             fit_pose += r->pose_rmse_fit_m;
             n_fit++;
         }
-        fflush(stdout);
+        (void)stdout_check_flush(); /* the row before the seed's stderr line */
         fprintf(stderr, "seed %llu: %u global updates; step ms by map size (steps):", (unsigned long long)seed,
                 (unsigned)r->ekf_global_updates);
         for (int k = 0; k < RUN_SIZE_BINS; ++k) {
@@ -410,4 +411,10 @@ int main(int argc, char **argv)
         return 1;
     }
     return 0;
+}
+
+/* exit status with standard output checked (stdout_check.h) */
+int main(int argc, char **argv)
+{
+    return stdout_check_exit("coslam-eval-worlds", eval_worlds_main(argc, argv));
 }

@@ -228,7 +228,7 @@ Row run_one(SlamUnderTest &slam, const Stream &s, const EvalConfig &ec)
 
 } // namespace
 
-int main(int argc, char **argv)
+static int bench_mrclam_main(int argc, char **argv)
 {
     CLI::App app{"coslam-bench-mrclam: coslam EKF-SLAM / Fast-SLAM vs MRPT EKF-SLAM on MRCLAM single-robot streams"};
     // COSLAM_DATA_DIR in the environment overrides the build's data folder
@@ -474,4 +474,10 @@ int main(int argc, char **argv)
         std::cerr << "coslam-bench-mrclam: " << e.what() << "\n";
         return 2;
     }
+}
+
+// exit status with standard output checked (stdout_check.h)
+int main(int argc, char **argv)
+{
+    return coslam::cli::stdout_exit("coslam-bench-mrclam", bench_mrclam_main(argc, argv));
 }

@@ -12,6 +12,7 @@
 #include <iostream>
 #include <unistd.h>
 
+#include "checked_file.hpp"
 #include "cli_checks.hpp"
 #include "profile_json.hpp"
 #include "run_output.hpp"
@@ -24,9 +25,10 @@
 
 namespace {
 
-// Exit codes (docs/sim.md): 0 done; 1 an output file not written whole or
-// another failure of the run; 2 bad usage or configuration (an option, the
-// scenario file); 3 a capacity of the core was hit (--allow-capacity-limits).
+// Exit codes (docs/sim.md): 0 done; 1 an output file or standard output
+// (main, stdout_check.h) not written whole or another failure of the run;
+// 2 bad usage or configuration (an option, the scenario file); 3 a capacity
+// of the core was hit (--allow-capacity-limits).
 constexpr int kExitFailed = 1;
 constexpr int kExitUsage = 2;
 constexpr int kExitCapacity = 3;
@@ -64,7 +66,7 @@ private:
 
 }  // namespace
 
-int main(int argc, char **argv)
+static int sim_main(int argc, char **argv)
 {
     CLI::App app{"coslam-sim: the two-robot cooperative SLAM experiment in simulation"};
     std::string scenario_path = COSLAM_DEFAULT_SCENARIO;
@@ -105,7 +107,9 @@ int main(int argc, char **argv)
         ProgressBar bar(quiet);
         sim.run([&](const coslam::sim::SimulationProgress &p) { bar.update(p); }, 0.5);
         coslam::sim::write_run_outputs(sim, out_dir);
-        std::cout << coslam::sim::run_summary(sim, out_dir) << std::endl;
+        // before the LIMIT lines on stderr; a failure's reason kept for main
+        std::cout << coslam::sim::run_summary(sim, out_dir) << '\n';
+        (void)stdout_check_flush();
         // limits are loud: every loss counter of every robot's filter, and
         // the sightings its source could not fit in a frame
         bool capacity = false;
@@ -144,4 +148,10 @@ int main(int argc, char **argv)
         return kExitFailed;
     }
     return 0;
+}
+
+// exit status with standard output checked (stdout_check.h)
+int main(int argc, char **argv)
+{
+    return coslam::cli::stdout_exit("coslam-sim", sim_main(argc, argv));
 }

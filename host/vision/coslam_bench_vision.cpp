@@ -36,7 +36,7 @@ using namespace coslam;
 using namespace coslam::vision_host;
 namespace cli = coslam::cli;
 
-int main(int argc, char **argv)
+static int bench_vision_main(int argc, char **argv)
 {
     CLI::App app{"coslam-bench-vision: detector time per 320x240 frame, one core"};
     std::string out = "out/bench";
@@ -129,4 +129,10 @@ int main(int argc, char **argv)
         return 1;
     }
     return 0;
+}
+
+// exit status with standard output checked (stdout_check.h)
+int main(int argc, char **argv)
+{
+    return coslam::cli::stdout_exit("coslam-bench-vision", bench_vision_main(argc, argv));
 }

@@ -22,6 +22,7 @@
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
 
+#include "checked_file.hpp"
 #include "cli_checks.hpp"
 #include "vision_scenes.hpp"
 
@@ -76,7 +77,9 @@ public:
             j[res_.markers[i].kind == VISION_MARKER_ROBOT ? "robots" : "landmarks"].push_back(marker_json(res_.markers[i]));
         }
         if (res_.dropped > 0) j["dropped"] = res_.dropped;
-        std::cout << j.dump() << std::endl;
+        // a line at a time (a live stream); a failure's reason kept for main
+        std::cout << j.dump() << '\n';
+        (void)stdout_check_flush();
         if (!annotate_.empty()) {
             const std::string stem = std::filesystem::path(source).stem().string();
             char name[64];
@@ -96,7 +99,7 @@ private:
 
 }  // namespace
 
-int main(int argc, char **argv)
+static int vision_main(int argc, char **argv)
 {
     CLI::App app{"coslam-vision: detect landmark and robot markers in images (one JSON line per frame)"};
     std::vector<std::string> files;
@@ -134,6 +137,10 @@ int main(int argc, char **argv)
             for (int i = 0; frames == 0 || i < frames; ++i) {
                 if (!cap.read(bgr) || bgr.empty()) break;
                 run.frame(bgr, "camera" + std::to_string(camera), i);
+                // standard output lost (a pipe closed, SIGPIPE ignored): a
+                // live stream would go on for ever printing nowhere; stop,
+                // main says it and exits 1
+                if (std::ferror(stdout)) break;
             }
         }
         for (size_t i = 0; i < files.size(); ++i) {
@@ -141,7 +148,8 @@ int main(int argc, char **argv)
             const cv::Mat bgr = std::filesystem::is_regular_file(files[i], ec) ? cv::imread(files[i], cv::IMREAD_COLOR) : cv::Mat();
             if (bgr.empty()) {
                 std::cout << nlohmann::json{{"source", files[i]}, {"frame", i}, {"error", "cannot read the image"}}.dump()
-                          << std::endl;
+                          << '\n';
+                (void)stdout_check_flush();
                 rc = 1;
                 continue;
             }
@@ -153,4 +161,10 @@ int main(int argc, char **argv)
     }
     vision_detector_destroy(det);
     return rc;
+}
+
+// exit status with standard output checked (stdout_check.h)
+int main(int argc, char **argv)
+{
+    return coslam::cli::stdout_exit("coslam-vision", vision_main(argc, argv));
 }

@@ -86,7 +86,7 @@ std::string fmt_dist(const char *name, const nlohmann::json &j, double scale, co
 
 }  // namespace
 
-int main(int argc, char **argv)
+static int vision_eval_main(int argc, char **argv)
 {
     CLI::App app{"coslam-vision-eval: detection statistics on rendered frames with known markers"};
     int frames = 400;
@@ -296,4 +296,10 @@ int main(int argc, char **argv)
         return 1;
     }
     return 0;
+}
+
+// exit status with standard output checked (stdout_check.h)
+int main(int argc, char **argv)
+{
+    return coslam::cli::stdout_exit("coslam-vision-eval", vision_eval_main(argc, argv));
 }

@@ -149,7 +149,7 @@ KindFit fit_kind(const std::vector<CalSample> &all, int kind, double max_range_m
 
 }  // namespace
 
-int main(int argc, char **argv)
+static int vision_fit_main(int argc, char **argv)
 {
     CLI::App app{"coslam-vision-fit: fit the range model (pixel height -> range) and its noise from calibration samples"};
     std::string out = std::string(COSLAM_SOURCE_DIR) + "/firmware/vision/data/range_model.txt";
@@ -252,4 +252,10 @@ int main(int argc, char **argv)
         return 1;
     }
     return 0;
+}
+
+// exit status with standard output checked (stdout_check.h)
+int main(int argc, char **argv)
+{
+    return coslam::cli::stdout_exit("coslam-vision-fit", vision_fit_main(argc, argv));
 }

@@ -79,7 +79,7 @@ std::string table(const ClassScores &a, const ClassScores &b, const char *na, co
 
 }  // namespace
 
-int main(int argc, char **argv)
+static int vision_train_main(int argc, char **argv)
 {
     CLI::App app{"coslam-vision-train: train the GRNN colour classifier and the HSV baseline, write the colour table"};
     std::string lut_path = std::string(COSLAM_SOURCE_DIR) + "/firmware/vision/data/colour_lut.bin";
@@ -200,4 +200,10 @@ int main(int argc, char **argv)
         return 1;
     }
     return 0;
+}
+
+// exit status with standard output checked (stdout_check.h)
+int main(int argc, char **argv)
+{
+    return coslam::cli::stdout_exit("coslam-vision-train", vision_train_main(argc, argv));
 }

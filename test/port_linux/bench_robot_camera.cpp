@@ -36,7 +36,7 @@ double cpu_us()
 
 }  // namespace
 
-int main(int argc, char **argv)
+static int bench_robot_camera_main(int argc, char **argv)
 {
     std::string out = "out/bench";
     for (int i = 1; i < argc; ++i) {
@@ -105,4 +105,10 @@ int main(int argc, char **argv)
         return 1;
     }
     return 0;
+}
+
+// exit status with standard output checked (stdout_check.h)
+int main(int argc, char **argv)
+{
+    return coslam::cli::stdout_exit("coslam-bench-robot-camera", bench_robot_camera_main(argc, argv));
 }
