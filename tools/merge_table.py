@@ -77,10 +77,47 @@ def seed_table(out, seeds):
               f"{sp_a} alone.")
 
 
+# What the tables (this one's and team_table.py's) read of each robot of a
+# metrics.json: FIELD: (type, may be
+# null). "pose" is an object whose rmse_m and fit_rmse_m may be absent.
+_NUMBER = (int, float)
+ROBOT_FIELDS = {
+    "map_fit": (dict, False),
+    "map_fit.n_spurious": (_NUMBER, False),
+    "map_fit.rmse_m": (_NUMBER, True),
+    "pose": (dict, False),
+}
+# ... and what this table reads besides
+MERGE_ROBOT_FIELDS = dict(ROBOT_FIELDS, **{"map_fit.n_estimated": (_NUMBER, False)})
+
+
+def robot_problems(r, fields=ROBOT_FIELDS):
+    """The fields of `fields` robot r lacks or holds as the wrong type, one
+    phrase each (empty: the table can read it)."""
+    problems = []
+    for name, (kind, nullable) in fields.items():
+        obj = r
+        parts = name.split(".")
+        for p in parts[:-1]:
+            obj = obj.get(p) if isinstance(obj, dict) else None
+        if not isinstance(obj, dict):
+            continue  # its parent is missing or wrong: said for the parent
+        if parts[-1] not in obj:
+            problems.append(f"no '{name}'")
+            continue
+        v = obj[parts[-1]]
+        ok = (nullable and v is None) or (isinstance(v, kind) and not isinstance(v, bool))
+        if not ok:
+            problems.append(f"'{name}' is {json.dumps(v)[:40]}, not "
+                            f"{'an object' if kind is dict else 'a number'}{' or null' if nullable else ''}")
+    return problems
+
+
 def bad_inputs(out, seeds):
-    """The runs main needs that are missing, empty or hold no robot, one
-    line each: a table without them would say "none" for goals it never
-    checked."""
+    """The runs main needs that are missing, empty, hold no robot, or hold
+    robots without a field the table reads (MERGE_ROBOT_FIELDS: the file,
+    the robot and the field named), one line each: a table without them
+    would say "none" for goals it never checked, or stop with a traceback."""
     need = [f"d{d}_{f}{alone}" for d in (6, 1) for f in ("ekf", "fastslam2") for alone in ("", "_alone")]
     need += [f"d{d}_fastslam2_s{s}{alone}" for s in seeds for d in (6, 1) for alone in ("", "_alone")]
     bad = []
@@ -96,6 +133,13 @@ def bad_inputs(out, seeds):
             continue
         if not robots:
             bad.append(f"{path}: no robots")
+            continue
+        for r in robots:
+            bad.extend(f"{path}: robot {r.get('id')}: {p}" for p in robot_problems(r, MERGE_ROBOT_FIELDS))
+        if "_s" not in tag and not tag.endswith("_alone"):  # main reads its merge counts
+            mg = load(path).get("merges")
+            if not isinstance(mg, dict) or not all(k in mg for k in ("merged", "refused_range_check")):
+                bad.append(f"{path}: no 'merges' with 'merged' and 'refused_range_check'")
     return bad
 
 
@@ -104,7 +148,7 @@ def main(out, seeds):
         sys.exit(f"merge_table: no folder {out} (the outputs of tools/merge_table.sh)")
     bad = bad_inputs(out, seeds)
     if bad:
-        sys.exit("merge_table: no table, runs missing or empty:\n  " + "\n  ".join(bad))
+        sys.exit("merge_table: no table, runs missing, empty or incomplete:\n  " + "\n  ".join(bad))
     verdicts = []
     fitted = []
     for d in (6, 1):

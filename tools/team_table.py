@@ -7,7 +7,6 @@ unreadable, without robots or with robots lacking a field the table reads
 before any table row.
 usage: team_table.py DIR SEED..."""
 import importlib.util
-import json
 import os
 import sys
 
@@ -17,43 +16,10 @@ merge_table = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(merge_table)
 
 
-# What table() reads of each robot of a metrics.json: FIELD: (type, may be
-# null). "pose" is an object whose rmse_m and fit_rmse_m may be absent.
-_NUMBER = (int, float)
-ROBOT_FIELDS = {
-    "map_fit": (dict, False),
-    "map_fit.n_spurious": (_NUMBER, False),
-    "map_fit.rmse_m": (_NUMBER, True),
-    "pose": (dict, False),
-}
-
-
-def robot_problems(r):
-    """The fields of ROBOT_FIELDS robot r lacks or holds as the wrong type,
-    one phrase each (empty: table can read it)."""
-    problems = []
-    for name, (kind, nullable) in ROBOT_FIELDS.items():
-        obj = r
-        parts = name.split(".")
-        for p in parts[:-1]:
-            obj = obj.get(p) if isinstance(obj, dict) else None
-        if not isinstance(obj, dict):
-            continue  # its parent is missing or wrong: said for the parent
-        if parts[-1] not in obj:
-            problems.append(f"no '{name}'")
-            continue
-        v = obj[parts[-1]]
-        ok = (nullable and v is None) or (isinstance(v, kind) and not isinstance(v, bool))
-        if not ok:
-            problems.append(f"'{name}' is {json.dumps(v)[:40]}, not "
-                            f"{'an object' if kind is dict else 'a number'}{' or null' if nullable else ''}")
-    return problems
-
-
 def bad_inputs(d, seeds):
     """The runs table needs that are missing, not a coslam-replay
     metrics.json, hold no robot, hold robots without a field table reads
-    (ROBOT_FIELDS: the file, the robot and the field named), or (merged and
+    (merge_table.ROBOT_FIELDS: the file, the robot and the field named), or (merged and
     alone) hold different robots, one line each: table would stop with a
     traceback on the first, or pair the robots wrongly."""
     bad = []
@@ -73,7 +39,7 @@ def bad_inputs(d, seeds):
             if not robots[tag]:
                 bad.append(f"{path}: no robots")
             for r in rs:
-                bad.extend(f"{path}: robot {r['id']}: {p}" for p in robot_problems(r))
+                bad.extend(f"{path}: robot {r['id']}: {p}" for p in merge_table.robot_problems(r))
         if len(robots) == 2 and robots[f"s{s}"] != robots[f"s{s}_alone"]:
             bad.append(f"{os.path.join(d, f's{s}')}: robots {robots[f's{s}']} merged, "
                        f"{robots[f's{s}_alone']} alone")

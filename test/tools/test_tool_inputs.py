@@ -128,6 +128,33 @@ with tempfile.TemporaryDirectory() as tmp:
           and "d1_fastslam2_alone/metrics.json: missing" in errs and "none" not in out,
           f"merge_table.py on missing and empty runs: exit {rc}, {errs.strip()[:300]!r}")
 
+    # every run there but robots without fields the table reads, and a merged
+    # run without its merge counts: each named, exit 1, no table (a KeyError
+    # traceback before)
+    mt2 = os.path.join(tmp, "mt2")
+    whole = {"id": 1, "map_fit": {"n_spurious": 0, "rmse_m": 0.1, "n_estimated": 15}, "pose": {"rmse_m": 0.2}}
+    for d in (6, 1):
+        for f in ("ekf", "fastslam2"):
+            write(os.path.join(mt2, f"d{d}_{f}_alone", "metrics.json"), json.dumps({"robots": [whole]}))
+            write(os.path.join(mt2, f"d{d}_{f}", "metrics.json"),
+                  json.dumps({"robots": [whole], "merges": {"merged": 1, "refused_range_check": 0}}))
+    write(os.path.join(mt2, "d6_ekf_alone", "metrics.json"), json.dumps({"robots": [{"id": 1, "pose": {}}]}))
+    write(os.path.join(mt2, "d1_ekf", "metrics.json"), json.dumps(
+        {"robots": [{"id": 2, "map_fit": {"n_spurious": 0, "rmse_m": 0.1}, "pose": {}}]}))
+    rc, out, errs = tool("merge_table.py", mt2)
+    check(rc == 1 and "Traceback" not in errs and "|" not in out
+          and f"{mt2}/d6_ekf_alone/metrics.json: robot 1: no 'map_fit'" in errs
+          and f"{mt2}/d1_ekf/metrics.json: robot 2: no 'map_fit.n_estimated'" in errs
+          and f"{mt2}/d1_ekf/metrics.json: no 'merges' with 'merged' and 'refused_range_check'" in errs,
+          f"merge_table.py on robots without the table's fields: exit {rc}, {errs.strip()[:400]!r}")
+    # the same runs whole: the table
+    write(os.path.join(mt2, "d6_ekf_alone", "metrics.json"), json.dumps({"robots": [whole]}))
+    write(os.path.join(mt2, "d1_ekf", "metrics.json"),
+          json.dumps({"robots": [whole], "merges": {"merged": 1, "refused_range_check": 0}}))
+    rc, out, errs = tool("merge_table.py", mt2)
+    check(rc == 0 and "| 1 | 0 / 0 | 0.100 / 0.100 |" in out, f"merge_table.py on whole runs: exit {rc}, "
+          f"{errs.strip()[:300]!r}")
+
     # --- team_table.py on its own (team_table.sh checks its runs first;
     # run alone it gave a traceback on a missing metrics.json) ---
     rc, out, errs = tool("team_table.py", os.path.join(tmp, "nowhere"), "1")
@@ -189,7 +216,7 @@ with tempfile.TemporaryDirectory() as tmp:
     # runs that exit 0 but leave no metrics.json: merge_table.py refuses
     b = fake_build("build-silent", "#!/bin/sh\nexit 0\n")
     rc, out, errs = tool("merge_table.sh", b, os.path.join(tmp, "o3"), env=env)
-    check(rc == 1 and "runs missing or empty" in errs and "Goals not met" not in out,
+    check(rc == 1 and "runs missing, empty or incomplete" in errs and "Goals not met" not in out,
           f"merge_table.sh with runs writing nothing: exit {rc}, {errs.strip()[:200]!r}")
     # team_table.sh without coslam-eval-worlds (its call hid the shell's error)
     rc, out, errs = tool("team_table.sh", b, os.path.join(tmp, "o4"), "ekf", "1")
