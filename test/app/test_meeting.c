@@ -332,6 +332,10 @@ static void test_budget_renewed_then_implicit_ack(void **state)
     t += 100000;
     meeting_on_sighting(&g_m, &g_filter, link, t, 1, 2.0, 0.0, t, kOrigin, 0.0);
     assert_int_equal(g_link.n_sent, 4);
+    /* (its map, now paired with that sighting, would be merged next, and
+     * the link is not read while a message ready to merge waits: dropped
+     * here, a merge would owe robot 1 an acknowledgement) */
+    g_m.have_pending = 0U;
     /* now a message showing our bit: robot 1 has merged our map -> stop */
     t += 1000000;
     len = make_msg_from1(2, t, t, 2.0, 0.0, (point2_t){1.0, 0.0}, (1U << 1) | 1U, 0);
@@ -680,9 +684,11 @@ static void test_replay_refused(void **state)
     const size_t len = make_msg_from1(5, t, t, 2.0, 0.0, (point2_t){1.0, 0.0}, 1U << 1, 0);
     inject(g_buf, len, 1, t + 2000);
     inject(g_buf, len, 1, t + 4000);
-    meeting_poll_link(&g_m, link);
-    assert_int_equal(g_m.ctr.replays, 1);
+    /* the first is ready to merge: the duplicate stays in the link until it is */
+    assert_int_equal(meeting_poll_link(&g_m, link), 1);
     assert_int_equal(meeting_poll(&g_m, &g_filter, t + 5000, kOrigin, 0.0), COSLAM_OK);
+    assert_int_equal(meeting_poll_link(&g_m, link), 1);
+    assert_int_equal(g_m.ctr.replays, 1);
     meeting_event_t ev = {0};
     assert_int_equal(count_events(MEETING_EV_REFUSED, COSLAM_E_MERGE_REPLAY, &ev), 1);
     assert_int_equal(ev.seq, 5);
@@ -838,8 +844,7 @@ static void test_screening(void **state)
     hal_link_t *link = fake_link_reset(0);
     setup_robot0(NULL);
     const uint64_t t = 2000000;
-    meeting_on_sighting(&g_m, &g_filter, link, t, 1, 2.0, 0.0, t, kOrigin, 0.0);
-    /* a good message becomes pending ... */
+    /* a good message becomes pending (waiting for the own sighting) ... */
     size_t len = make_msg_from1(1, t, t, 2.0, 0.0, (point2_t){1.0, 0.0}, 1U << 1, 0);
     inject(g_buf, len, 1, t + 2000);
     meeting_poll_link(&g_m, link);
@@ -867,8 +872,60 @@ static void test_screening(void **state)
     assert_int_equal(truncated, 1);
     assert_int_equal(degenerate, 1);
     assert_true(g_m.have_pending);
+    meeting_on_sighting(&g_m, &g_filter, link, t + 5500, 1, 2.0, 0.0, t, kOrigin, 0.0);
     assert_int_equal(meeting_poll(&g_m, &g_filter, t + 6000, kOrigin, 0.0), COSLAM_OK);
     assert_int_equal(g_m.ctr.merged, 1);
+}
+
+/* Three robots meet at once: robot 0 sees robots 1 and 2, and their
+ * messages, both ready to merge, arrive in the same poll. Both are merged.
+ * Before, the second took the first's pending slot (pending_replaced) and
+ * robot 1's map was lost; the robots stepping together, each of robot 1's
+ * retries met robot 2's again, so robot 1's map was never merged in that
+ * meeting (found by test_meeting_props, seed 26). */
+static void test_ready_message_not_replaced_by_another_peer(void **state)
+{
+    (void)state;
+    hal_link_t *link = fake_link_reset(0);
+    slam_filter_config_t fc = slam_filter_config_default();
+    fc.kind = SLAM_FILTER_EKF;
+    assert_int_equal(slam_filter_init(&g_filter, &fc, kOrigin), COSLAM_OK);
+    meeting_config_t c = meeting_config_default();
+    c.merge.min_var_m2 = 1e-9;
+    c.merge.min_bearing_var_rad2 = 1e-11;
+    assert_int_equal(meeting_init(&g_m, &c, 0, 3), COSLAM_OK);
+    const pose2_t a = {0.0, 0.0, 0.0};
+    const pose2_t other[3] = {{0.0, 0.0, 0.0}, kMeetB, {-0.8, 1.9, -1.2}};
+    const point2_t lm_rel[3] = {{0.0, 0.0}, {1.5, -0.7}, {1.2, 0.9}};
+    const uint64_t t = kMeetT;
+    for (uint8_t k = 1; k <= 2; ++k) {
+        double r, b_in_a, a_in_b;
+        mutual(a, other[k], &r, &b_in_a, &a_in_b);
+        meeting_on_sighting(&g_m, &g_filter, link, t + 1000, k, r, b_in_a, t, kOrigin, 0.0);
+        (void)make_msg_from1(1, t + 3000, t, r, a_in_b, lm_rel[k], (uint16_t)(1U << k), 0);
+        g_msg.sender_id = k;
+        size_t len = 0;
+        assert_int_equal(map_msg_encode(&g_msg, g_buf, sizeof g_buf, &len), COSLAM_OK);
+        inject(g_buf, len, k, t + 5000);
+    }
+    for (int step = 0; step < 3; ++step) {
+        (void)meeting_poll_link(&g_m, link);
+        (void)meeting_poll(&g_m, &g_filter, t + 6000 + 100000U * (uint64_t)step, kOrigin, 0.0);
+    }
+    assert_int_equal(g_m.ctr.received, 2);
+    assert_int_equal(g_m.ctr.pending_replaced, 0);
+    assert_int_equal(g_m.ctr.merged, 2);
+    assert_true(g_m.peer[1].merged && g_m.peer[2].merged);
+    assert_int_equal(slam_filter_export(&g_filter, &g_est), COSLAM_OK);
+    assert_int_equal(g_est.n_landmarks, 2);
+    for (int k = 1; k <= 2; ++k) {
+        const point2_t want = pose2_apply(other[k], lm_rel[k]);
+        int found = 0;
+        for (uint16_t i = 0; i < g_est.n_landmarks; ++i) {
+            found += hypot(g_est.lm[i].mean.x - want.x, g_est.lm[i].mean.y - want.y) < 1e-6;
+        }
+        assert_int_equal(found, 1);
+    }
 }
 
 static void test_event_queue_overflow_counted(void **state)
@@ -1216,6 +1273,7 @@ int main(void)
         cmocka_unit_test(test_implausible_refused),
         cmocka_unit_test(test_disagreeing_peer_not_retried),
         cmocka_unit_test(test_screening),
+        cmocka_unit_test(test_ready_message_not_replaced_by_another_peer),
         cmocka_unit_test(test_event_queue_overflow_counted),
         cmocka_unit_test(test_merge_waits_for_idle_time),
         cmocka_unit_test(test_send_exported_in_idle_time),

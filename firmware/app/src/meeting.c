@@ -485,6 +485,30 @@ static void accept_message(meeting_t *m, const hal_link_rx_info_t *info)
     m->pending_sender_us = info->stamp_us - latency_us - age_us;
 }
 
+static uint64_t abs_diff(uint64_t a, uint64_t b)
+{
+    return a > b ? a - b : b - a;
+}
+
+/* The own sighting of the pending message's sender nearest to its
+ * sighting time t_s (NULL if none), and their distance in time. */
+static const meeting_sighting_t *pending_nearest(const meeting_t *m, uint64_t *dt_out)
+{
+    const meeting_peer_t *p = &m->peer[m->rx.sender_id];
+    const meeting_sighting_t *best = NULL;
+    uint64_t best_dt = UINT64_MAX;
+    for (unsigned a = 0; a < p->n_hist; ++a) {
+        const meeting_sighting_t *s = hist_at(p, a);
+        const uint64_t dt = abs_diff(s->stamp_us, m->pending_sender_us);
+        if (dt < best_dt) {
+            best_dt = dt;
+            best = s;
+        }
+    }
+    *dt_out = best_dt;
+    return best;
+}
+
 int meeting_poll_link(meeting_t *m, hal_link_t *link)
 {
     if (m == NULL || link == NULL) {
@@ -492,6 +516,16 @@ int meeting_poll_link(meeting_t *m, hal_link_t *link)
     }
     int taken = 0;
     for (int i = 0; i < MEETING_RX_BUDGET; ++i) {
+        uint64_t dt = 0U;
+        if (m->have_pending && pending_nearest(m, &dt) != NULL && dt <= m->cfg.pair_window_us) {
+            /* the pending message pairs with an own sighting: meeting_poll
+             * merges it next. The next datagram could replace it (one
+             * slot), and a message from another peer arriving in the same
+             * poll would then cost this one its merge - with three robots
+             * meeting at once, every time: the link keeps the rest until
+             * it is merged */
+            break;
+        }
         hal_link_rx_info_t info = {0U, 0xFFFFU, 0U};
         const hal_status_t hs = hal_link_recv(link, m->wire, sizeof m->wire, &info, 0U);
         if (hs == HAL_E_TIMEOUT || hs == HAL_E_UNSUPPORTED) {
@@ -518,11 +552,6 @@ int meeting_poll_link(meeting_t *m, hal_link_t *link)
         accept_message(m, &info);
     }
     return taken;
-}
-
-static uint64_t abs_diff(uint64_t a, uint64_t b)
-{
-    return a > b ? a - b : b - a;
 }
 
 /* A merge's outcome, decided at now_us, into the counters and the event
@@ -597,18 +626,9 @@ coslam_status_t meeting_poll(meeting_t *m, slam_filter_t *filter, uint64_t now_u
     }
     const map_msg_t *msg = &m->rx;
     const uint8_t from = msg->sender_id;
-    const meeting_peer_t *p = &m->peer[from];
     const uint64_t t_s = m->pending_sender_us;
-    const meeting_sighting_t *best = NULL;
     uint64_t best_dt = UINT64_MAX;
-    for (unsigned a = 0; a < p->n_hist; ++a) {
-        const meeting_sighting_t *s = hist_at(p, a);
-        const uint64_t dt = abs_diff(s->stamp_us, t_s);
-        if (dt < best_dt) {
-            best_dt = dt;
-            best = s;
-        }
-    }
+    const meeting_sighting_t *best = pending_nearest(m, &best_dt);
     if (best == NULL || best_dt > m->cfg.pair_window_us) {
         if (now_us <= t_s + m->cfg.pair_window_us) {
             return COSLAM_E_EMPTY; /* an own sighting may still come */

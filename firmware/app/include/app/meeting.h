@@ -47,7 +47,10 @@
  *     one from that sender, else refused as a replay (counted);
  *  4. the message waits (one pending slot; a newer one replaces it,
  *     counted) until this robot has its own sighting of the sender close in
- *     time to the sender's sighting. The sender's sighting time in this
+ *     time to the sender's sighting. Once it pairs with one, the link is
+ *     not read until meeting_poll has merged it: another peer's message
+ *     arriving in the same poll would otherwise replace it, and with
+ *     three robots meeting at once one of them could lose every retry. The sender's sighting time in this
  *     robot's clock is estimated as
  *         t_s = arrival_us - link_latency_us - (stamp_us - sighting.stamp_us);
  *     the own sighting nearest to t_s is used if |t_own - t_s| <=
