@@ -1526,6 +1526,50 @@ static void no_can_said_once(void **state)
     remove_dir(dir);
 }
 
+/* One run of a medium whose fsync fails while dir/fsync-fails exists
+ * (fsync_gate.so; with `above`, only for files of more than that many
+ * bytes): a working medium first, then ten snapshot periods failing, then
+ * working again until one more save. */
+typedef struct {
+    char dir[64];
+    char storage[400]; /* the start of the storage's lines */
+    char *bad;         /* the log while fsync failed (malloc'ed) */
+    const char *log;   /* the whole log */
+    size_t before;     /* where the failing part began in the log */
+    long failures;     /* snap_failures while it failed */
+} fsync_run_t;
+
+static void fsync_failing_run(fsync_run_t *r, const char *above)
+{
+    make_dir(r->dir, sizeof r->dir);
+    char store[300];
+    snprintf(store, sizeof store, "%s/store", r->dir);
+    config(r->dir, "no-laser", "0.2", "0.3", "", store, "fastslam2"); /* retry every 0.3 s, snapshot every 0.3 s */
+    char err[300];
+    snprintf(err, sizeof err, "%s/err", r->dir);
+    char fail[300];
+    snprintf(fail, sizeof fail, "%s/fsync-fails", r->dir);
+    if (above != NULL) {
+        setenv("COSLAM_TEST_FSYNC_FAIL_ABOVE", above, 1);
+    }
+    const pid_t pid = spawn_robot_shimmed(r->dir, err, "COSLAM_TEST_FSYNC_FAIL", fail, 0); /* without -v */
+    unsetenv("COSLAM_TEST_FSYNC_FAIL_ABOVE");
+    assert_true(wait_value(err, "snap_saves", 1, 10000) >= 1); /* a working medium first */
+    r->before = strlen(slurp(err));
+    touch(fail);
+    r->failures = wait_value(err, "snap_failures", 10, 15000); /* ten snapshot periods, ten retries */
+    r->bad = strdup(slurp(err) + r->before);
+    assert_non_null(r->bad);
+    assert_int_equal(unlink(fail), 0);
+    const long saves = last_value(r->bad, "snap_saves");
+    assert_true(wait_value(err, "snap_saves", saves + 1, 10000) > saves);
+    r->log = stop_robot(pid, err);
+    snprintf(r->storage, sizeof r->storage, "coslam-robot: storage (snapshots in %s): ", store);
+    if (count_of(r->bad, "back up after ") != 0 || count_of(r->bad, r->storage) > 2) {
+        fprintf(stderr, "%s\n", r->bad);
+    }
+}
+
 /* A medium that takes the bytes but fails their fsync (fsync_gate.so: EIO
  * while dir/fsync-fails exists) goes down once, said with "fsync", and
  * stays down: the retry's probe file is fsync'ed too. Before, the probe
@@ -1535,36 +1579,14 @@ static void no_can_said_once(void **state)
 static void storage_fsync_fails_steady(void **state)
 {
     (void)state;
-    char dir[64];
-    make_dir(dir, sizeof dir);
-    char store[300];
-    snprintf(store, sizeof store, "%s/store", dir);
-    config(dir, "no-laser", "0.2", "0.3", "", store, "fastslam2"); /* retry every 0.3 s, snapshot every 0.3 s */
-    char err[300];
-    snprintf(err, sizeof err, "%s/err", dir);
-    char fail[300];
-    snprintf(fail, sizeof fail, "%s/fsync-fails", dir);
-    const pid_t pid = spawn_robot_shimmed(dir, err, "COSLAM_TEST_FSYNC_FAIL", fail, 0); /* without -v */
-    assert_true(wait_value(err, "snap_saves", 1, 10000) >= 1); /* a working medium first */
-    const size_t before = strlen(slurp(err));
-    touch(fail);
-    const long failures = wait_value(err, "snap_failures", 10, 15000); /* ten snapshot periods, ten retries */
-    char *bad = strdup(slurp(err) + before);
-    assert_non_null(bad);
-    assert_int_equal(unlink(fail), 0);
-    const long saves = last_value(bad, "snap_saves");
-    assert_true(wait_value(err, "snap_saves", saves + 1, 10000) > saves);
-    const char *log = stop_robot(pid, err);
-    char storage[400];
-    snprintf(storage, sizeof storage, "coslam-robot: storage (snapshots in %s): ", store);
+    fsync_run_t r;
+    fsync_failing_run(&r, NULL);
+    const char *bad = r.bad;
     fprintf(stderr, "storage_fsync_fails: %d storage lines while fsync failed (%d back up), snap_failures %ld, "
             "storage_fsync_failures %ld\n",
-            count_of(bad, storage), count_of(bad, "back up after "), failures,
+            count_of(bad, r.storage), count_of(bad, "back up after "), r.failures,
             last_value(bad, "storage_fsync_failures"));
-    if (count_of(bad, "back up after ") != 0 || count_of(bad, storage) > 2) {
-        fprintf(stderr, "%s\n", bad);
-    }
-    assert_true(failures >= 10);
+    assert_true(r.failures >= 10);
     assert_int_equal(count_of(bad, "back up after "), 0); /* no flapping */
     assert_non_null(strstr(bad, "snapshot not written to snapshot."));
     assert_non_null(strstr(bad, ": fsync: Input/output error (HAL_E_IO)"));
@@ -1572,13 +1594,13 @@ static void storage_fsync_fails_steady(void **state)
     /* the first retry says why once; nothing else about it while it lasts */
     assert_int_equal(count_of(bad, "still down (cannot write in the directory: fsync: Input/output error (the "
                                    "probe file .coslam-write-probe)"), 1);
-    assert_true(count_of(bad, storage) <= 2);
+    assert_true(count_of(bad, r.storage) <= 2);
     assert_true(last_value(bad, "storage_fsync_failures") >= 5); /* the write, then every retry's probe */
     assert_non_null(strstr(bad, " storage=down "));
-    assert_int_equal(count_of(log + before, "back up after "), 1); /* fsync works again: back once */
-    assert_true(last_value(log, "storage_fsync_failures") >= last_value(bad, "storage_fsync_failures"));
-    free(bad);
-    remove_dir(dir);
+    assert_int_equal(count_of(r.log + r.before, "back up after "), 1); /* fsync works again: back once */
+    assert_true(last_value(r.log, "storage_fsync_failures") >= last_value(bad, "storage_fsync_failures"));
+    free(r.bad);
+    remove_dir(r.dir);
 }
 
 /* A medium that takes a small write but fails larger ones at fsync
@@ -1592,52 +1614,28 @@ static void storage_fsync_fails_steady(void **state)
 static void storage_big_fsync_fails_steady(void **state)
 {
     (void)state;
-    char dir[64];
-    make_dir(dir, sizeof dir);
-    char store[300];
-    snprintf(store, sizeof store, "%s/store", dir);
-    config(dir, "no-laser", "0.2", "0.3", "", store, "fastslam2"); /* retry every 0.3 s, snapshot every 0.3 s */
-    char err[300];
-    snprintf(err, sizeof err, "%s/err", dir);
-    char fail[300];
-    snprintf(fail, sizeof fail, "%s/fsync-fails", dir);
-    setenv("COSLAM_TEST_FSYNC_FAIL_ABOVE", "64", 1);
-    const pid_t pid = spawn_robot_shimmed(dir, err, "COSLAM_TEST_FSYNC_FAIL", fail, 0); /* without -v */
-    unsetenv("COSLAM_TEST_FSYNC_FAIL_ABOVE");
-    assert_true(wait_value(err, "snap_saves", 1, 10000) >= 1); /* a working medium first */
-    const size_t before = strlen(slurp(err));
-    touch(fail);
-    const long failures = wait_value(err, "snap_failures", 10, 15000); /* ten snapshot periods, ten retries */
-    char *bad = strdup(slurp(err) + before);
-    assert_non_null(bad);
-    assert_int_equal(unlink(fail), 0);
-    const long saves = last_value(bad, "snap_saves");
-    assert_true(wait_value(err, "snap_saves", saves + 1, 10000) > saves);
-    const char *log = stop_robot(pid, err);
-    char storage[400];
-    snprintf(storage, sizeof storage, "coslam-robot: storage (snapshots in %s): ", store);
+    fsync_run_t r;
+    fsync_failing_run(&r, "64");
+    const char *bad = r.bad;
     fprintf(stderr, "storage_big_fsync_fails: %d storage lines while large fsyncs failed (%d back up), "
             "snap_failures %ld, storage_save_probes_failed %ld, storage_fsync_failures %ld\n",
-            count_of(bad, storage), count_of(bad, "back up after "), failures,
+            count_of(bad, r.storage), count_of(bad, "back up after "), r.failures,
             last_value(bad, "storage_save_probes_failed"), last_value(bad, "storage_fsync_failures"));
-    if (count_of(bad, "back up after ") != 0 || count_of(bad, storage) > 2) {
-        fprintf(stderr, "%s\n", bad);
-    }
-    assert_true(failures >= 10);
+    assert_true(r.failures >= 10);
     assert_int_equal(count_of(bad, "back up after "), 0); /* no flapping (5 before) */
     assert_non_null(strstr(bad, "down: the snapshot write failed: fsync: Input/output error"));
     /* the first retry says why once; nothing else about it while it lasts */
     assert_int_equal(count_of(bad, "still down (a save of "), 1);
     assert_non_null(strstr(bad, "(the size of the snapshot that failed) still fails: fsync: Input/output error "
                                 "(HAL_E_IO); the probe file alone works: back when such a save works)"));
-    assert_true(count_of(bad, storage) <= 2);
+    assert_true(count_of(bad, r.storage) <= 2);
     assert_true(last_value(bad, "storage_save_probes_failed") >= 5); /* every retry's save */
     assert_true(last_value(bad, "storage_fsync_failures") >= 5);
     assert_non_null(strstr(bad, " storage=down "));
-    assert_int_equal(count_of(log + before, "back up after "), 1); /* large fsyncs work again: back once */
-    assert_null(strstr(log + before, "coslam-save-probe:")); /* nothing left to say about the probe blob */
-    free(bad);
-    remove_dir(dir);
+    assert_int_equal(count_of(r.log + r.before, "back up after "), 1); /* large fsyncs work again: back once */
+    assert_null(strstr(r.log + r.before, "coslam-save-probe:")); /* nothing left to say about the probe blob */
+    free(r.bad);
+    remove_dir(r.dir);
 }
 
 int main(int argc, char **argv)
