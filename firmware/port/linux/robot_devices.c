@@ -686,6 +686,26 @@ coslam_status_t robot_devices_init(robot_devices_t *d, const robot_config_t *cfg
     return ls;
 }
 
+/* Hand the blocking part of device id's open to its opener thread (the
+ * preparation done): 1 if the opener took it, 0 if it has none or would
+ * not take it (the caller opens in its own thread then). */
+static int opener_submit(robot_devices_t *d, robot_dev_t id, uint64_t now_us)
+{
+    robot_dev_opener_t *o = &d->opener[id];
+    robot_dev_status_t *st = &d->dev[id];
+    if (!o->worker.started) {
+        return 0;
+    }
+    o->reason[0] = '\0';
+    if (robot_worker_submit(&o->worker) != 0) {
+        return 0;
+    }
+    st->opening = 1;
+    st->hung_said = 0;
+    st->open_began_us = now_us;
+    return 1;
+}
+
 /* The report of a slot's first open that ended down (`reason`): the
  * device's consequence and the retry. */
 static void say_first_down(robot_devices_t *d, robot_dev_t id, const char *reason)
@@ -779,17 +799,10 @@ void robot_devices_open_all(robot_devices_t *d, uint64_t now_us)
             continue;
         }
         const robot_dev_t id = (robot_dev_t)i;
-        robot_dev_opener_t *o = &d->opener[i];
         hal_status_t s = open_prepare(d, id, reason[i], sizeof reason[i]);
-        if (s == HAL_OK && o->worker.started) {
-            o->reason[0] = '\0';
-            if (robot_worker_submit(&o->worker) == 0) {
-                handed[i] = 1;
-                st[i].opening = 1;
-                st[i].hung_said = 0;
-                st[i].open_began_us = now_us;
-                continue;
-            }
+        if (s == HAL_OK && opener_submit(d, id, now_us)) {
+            handed[i] = 1;
+            continue;
         }
         if (s == HAL_OK) {
             s = open_backend(d, id, reason[i], sizeof reason[i]);
@@ -809,35 +822,31 @@ void robot_devices_open_all(robot_devices_t *d, uint64_t now_us)
         }
         const robot_dev_t id = (robot_dev_t)i;
         robot_dev_opener_t *o = &d->opener[i];
-        if (handed[i]) {
-            if (robot_worker_take(&o->worker, 0U, NULL) != 1) {
-                /* still blocked: the robot starts without it; the attempt
-                 * goes on, and the loop's service takes its outcome (or
-                 * says it hung) as for a retry. Not a failed attempt yet. */
-                put_text(st[i].reason, sizeof st[i].reason,
-                         "its open has not returned within %u ms of the start (a FIFO without a writer? a hung "
-                         "device?)",
-                         ROBOT_DEVICES_START_OPEN_MS);
-                st[i].last_error = HAL_E_TIMEOUT;
-                st[i].start_open_late = 1;
-                put_text(text, sizeof text,
-                         "down: %s: the robot starts without it; the attempt goes on on the device's opener thread "
-                         "(dev_opening)",
-                         st[i].reason);
-                say(d, dev_names[i], &st[i], text);
-            } else {
+        if (handed[i] && robot_worker_take(&o->worker, 0U, NULL) != 1) {
+            /* still blocked: the robot starts without it; the attempt goes
+             * on, and the loop's service takes its outcome (or says it
+             * hung) as for a retry. Not a failed attempt yet. */
+            put_text(st[i].reason, sizeof st[i].reason,
+                     "its open has not returned within %u ms of the start (a FIFO without a writer? a hung device?)",
+                     ROBOT_DEVICES_START_OPEN_MS);
+            st[i].last_error = HAL_E_TIMEOUT;
+            st[i].start_open_late = 1;
+            put_text(text, sizeof text,
+                     "down: %s: the robot starts without it; the attempt goes on on the device's opener thread "
+                     "(dev_opening)",
+                     st[i].reason);
+            say(d, dev_names[i], &st[i], text);
+        } else {
+            if (handed[i]) { /* returned in time: its outcome, as if opened here */
                 st[i].opening = 0;
                 result[i] = o->result;
                 put_text(reason[i], sizeof reason[i], "%s", o->reason);
-                handed[i] = 0;
             }
-        }
-        if (handed[i]) {
-            /* said above */
-        } else if (open_finish(d, id, result[i], reason[i], now_us)) {
-            say(d, dev_names[i], &st[i], "up");
-        } else {
-            say_first_down(d, id, st[i].reason);
+            if (open_finish(d, id, result[i], reason[i], now_us)) {
+                say(d, dev_names[i], &st[i], "up");
+            } else {
+                say_first_down(d, id, st[i].reason);
+            }
         }
         if (id == ROBOT_DEV_LINK && robot_link_warning(&d->link) != NULL) {
             put_text(text, sizeof text, "WARNING %s: maps from anyone on the topic are merged",
@@ -974,14 +983,8 @@ unsigned robot_devices_service(robot_devices_t *d, uint64_t now_us)
         char why[ROBOT_DEVICES_REASON_MAX];
         why[0] = '\0';
         hal_status_t s = open_prepare(d, id, why, sizeof why);
-        if (s == HAL_OK && o->worker.started) {
-            o->reason[0] = '\0';
-            if (robot_worker_submit(&o->worker) == 0) {
-                st->opening = 1;
-                st->hung_said = 0;
-                st->open_began_us = now_us;
-                continue;
-            }
+        if (s == HAL_OK && opener_submit(d, id, now_us)) {
+            continue;
         }
         /* no opener thread (or the preparation failed: nothing left to do):
          * the attempt runs here, timed, and said if it held the loop */
