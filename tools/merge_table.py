@@ -157,7 +157,8 @@ def main(out, seeds):
             m, a = load(pm), load(pa)  # both there (bad_inputs)
             mg = m["merges"]
             print(f"\n### Dataset {d}, {name}: {mg['merged']} merges, refused {mg.get('refused_disagree', 0)} "
-                  f"(maps disagree) + {mg['refused_range_check']} (ranges disagree); {mg.get('stale', 0)} stale\n")
+                  f"(maps disagree) + {mg.get('refused_lost', 0)} (receiver lost) + {mg['refused_range_check']} "
+                  f"(ranges disagree); {mg.get('stale', 0)} stale\n")
             print("| robot | spurious merge / alone | landmark RMSE (fit) merge / alone [m] | "
                   "pose RMSE merge / alone [m] | pose RMSE in the fitted map merge / alone [m] | "
                   "landmarks merge / alone |")

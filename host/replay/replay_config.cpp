@@ -263,6 +263,7 @@ std::vector<Key> keys_of(ReplayConfig &c)
         dkey("merge", "ambiguous_chi2", &c.merge.core.ambiguous_chi2),
         dkey("merge", "unresolved_chi2", &c.merge.core.unresolved_chi2),
         dkey("merge", "refute_sd_factor", &c.merge.core.refute_sd_factor),
+        dkey("merge", "lost_sd_factor", &c.merge.core.lost_sd_factor),
         ikey("merge", "step_units", &c.merge.core.step_units, 0, 4294967295L),
         dkey("eval", "gate_m", &c.eval.gate_m),
         ikey("eval", "min_seen", &c.eval.min_seen, 0, 1000000),
@@ -461,9 +462,10 @@ void replay_config_validate(const ReplayConfig &c)
     if (!(std::isfinite(c.merge.core.agree_z) && c.merge.core.max_contradict_fraction >= 0.0 &&
           c.merge.core.max_contradict_fraction <= 1.0 && c.merge.core.ambiguous_chi2 >= 0.0 &&
           c.merge.core.unresolved_chi2 >= 0.0 && std::isfinite(c.merge.core.refute_sd_factor) &&
-          c.merge.core.refute_sd_factor >= 0.0)) {
+          c.merge.core.refute_sd_factor >= 0.0 && std::isfinite(c.merge.core.lost_sd_factor) &&
+          c.merge.core.lost_sd_factor >= 0.0)) {
         bad("[merge] agree_z must be finite, 0 <= max_contradict_fraction <= 1, ambiguous_chi2 >= 0, "
-            "unresolved_chi2 >= 0, refute_sd_factor finite and >= 0");
+            "unresolved_chi2 >= 0, refute_sd_factor and lost_sd_factor finite and >= 0");
     }
     if (!(c.eval.gate_m > 0.0)) {
         bad("[eval] gate_m must be > 0");

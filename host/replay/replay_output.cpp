@@ -363,6 +363,8 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
                      {"echoes", e.stats.echoes},
                      {"ambiguous", e.stats.ambiguous},
                      {"unrefutable", e.stats.unrefutable},
+                     // the receiver's best-placed own landmark of the pairs (lost_sd_factor)
+                     {"placed_sd_m", or_null(e.stats.pairs > 0, static_cast<double>(e.stats.placed_sd_m))},
                      {"t_shift", pose_json(e.stats.t_shift)}}},
                    {"map_before", score_json(e.before)},
                    {"map_after", score_json(e.after)},
@@ -389,6 +391,7 @@ void write_run_outputs(const std::string &dir, const Dataset &ds, const ReplayCo
                    {"refused_range_check", res.meetings_refused_range},
                    {"refused_replay", res.merges_refused_replay},
                    {"refused_disagree", res.merges_refused_disagree},
+                   {"refused_lost", res.merges_refused_lost},
                    {"refused_implausible", res.merges_refused_implausible},
                    {"stale", res.merges_stale},
                    {"failed", res.merges_failed},
@@ -503,7 +506,8 @@ void print_summary(std::ostream &out, const ReplayResult &res, const ReplayOptio
         }
     }
     out << "merges: " << n_ok << " (refused: " << res.meetings_refused_range << " range check, "
-        << res.merges_refused_disagree << " maps disagree, " << res.merges_refused_implausible << " implausible, "
+        << res.merges_refused_disagree << " maps disagree, " << res.merges_refused_lost << " receiver lost, "
+        << res.merges_refused_implausible << " implausible, "
         << res.merges_refused_replay << " replay; "
         << res.merges_stale << " stale; failed " << res.merges_failed << ")\n";
     for (const auto &e : res.merges) {
@@ -514,7 +518,8 @@ void print_summary(std::ostream &out, const ReplayResult &res, const ReplayOptio
         }
         out << "  pairs " << e.stats.pairs << " NIS ";
         if (e.stats.pairs > 0) {
-            out << std::setprecision(1) << e.stats.nis << "/" << e.stats.nis_bound << std::setprecision(3);
+            out << std::setprecision(1) << e.stats.nis << "/" << e.stats.nis_bound << std::setprecision(3)
+                << " placed sd " << e.stats.placed_sd_m << " m";
         } else {
             out << "n/a"; // no pairs: nothing measured
         }

@@ -740,6 +740,9 @@ void Replay::record_event(Robot &recv, const meeting_event_t &e, const MapScore 
     case COSLAM_E_MERGE_DISAGREE:
         out_.merges_refused_disagree++;
         break;
+    case COSLAM_E_MERGE_LOST:
+        out_.merges_refused_lost++;
+        break;
     case COSLAM_E_MERGE_IMPLAUSIBLE:
         out_.merges_refused_implausible++;
         break;
@@ -752,7 +755,7 @@ void Replay::record_event(Robot &recv, const meeting_event_t &e, const MapScore 
     }
     const auto tr = recv.truth->at(ev.t_s);
     const auto ts = send.truth->at(ev.t_sender_sighting_s);
-    if (tr && ts && (merged || e.status == COSLAM_E_MERGE_DISAGREE)) {
+    if (tr && ts && (merged || e.status == COSLAM_E_MERGE_DISAGREE || e.status == COSLAM_E_MERGE_LOST)) {
         ev.has_truth = true;
         ev.transform_true = pose2_between(*tr, *ts);
         ev.t_err_m = std::hypot(ev.transform.x - ev.transform_true.x, ev.transform.y - ev.transform_true.y);
@@ -890,6 +893,7 @@ ReplayResult Replay::run()
             res.counters["meeting_merged"] = mc->merged;
             res.counters["meeting_refused_range"] = mc->refused_range;
             res.counters["meeting_refused_disagree"] = mc->refused_disagree;
+            res.counters["meeting_refused_lost"] = mc->refused_lost;
             res.counters["meeting_ignored_disagreed"] = mc->ignored_disagreed;
             res.counters["meeting_replays"] = mc->replays;
             res.counters["meeting_stale"] = mc->stale;

@@ -187,6 +187,7 @@ struct ReplayResult {
     long meetings_refused_range = 0;  ///< mutual sightings whose ranges disagree
     long merges_refused_replay = 0;   ///< merge_session_accept refused
     long merges_refused_disagree = 0; ///< merge_check: the maps disagree
+    long merges_refused_lost = 0;     ///< merge_check: the receiver was lost in its own map
     long merges_refused_implausible = 0; ///< values no robot of the team can produce (merge_prepare step 0)
     long merges_stale = 0;            ///< no own sighting within the window
     long merges_failed = 0;

@@ -147,6 +147,7 @@ nlohmann::json merge_json(const MergeRecord &m)
                       {"echoes", m.stats.echoes},
                       {"ambiguous", m.stats.ambiguous},
                       {"unrefutable", m.stats.unrefutable},
+                      {"placed_sd_m", m.stats.placed_sd_m},
                       {"t_shift", {m.stats.t_shift.x, m.stats.t_shift.y, m.stats.t_shift.theta}}};
         j["map_before"] = eval_json(m.before);
         j["map_after"] = eval_json(m.after);
@@ -242,6 +243,7 @@ nlohmann::json run_metrics(const Simulation &sim)
                          {"merge_failures", rr.meeting.merge_failures},
                          {"refused_range", rr.meeting.refused_range},
                          {"refused_disagree", rr.meeting.refused_disagree},
+                         {"refused_lost", rr.meeting.refused_lost},
                          {"ignored_disagreed", rr.meeting.ignored_disagreed},
                          {"weak_not_sent", rr.meeting.weak_not_sent}}},
             {"laser", {{"scans_ok", rr.laser.scans_ok}, {"err_checksum", rr.laser.err_checksum},

@@ -39,7 +39,7 @@
  *     received == rx_errors + not_for_me + wrong_sender + replays +
  *     refused_implausible + ignored_recent + ignored_disagreed + stale +
  *     pending_replaced + merged + refused_range + refused_disagree +
- *     merge_failures + (a message pending) + (a merge waiting); also
+ *     refused_lost + merge_failures + (a message pending) + (a merge waiting); also
  *     rx_errors, not_for_me + wrong_sender as predicted by decoding the
  *     delivered bytes independently;
  *  P4 no landmark twice: a merge never adds a second landmark near a world
@@ -621,7 +621,7 @@ static void check_robot(int i)
     const uint64_t outcomes = (uint64_t)c->rx_errors + c->not_for_me + c->wrong_sender + c->replays +
                               c->refused_implausible + c->ignored_recent + c->ignored_disagreed + c->stale +
                               c->pending_replaced + c->merged + c->refused_range + c->refused_disagree +
-                              c->merge_failures + m->have_pending + m->merge_waiting;
+                              c->refused_lost + c->merge_failures + m->have_pending + m->merge_waiting;
     if (outcomes != c->received) {
         fail("P3 outcomes != received", i, -1, (long)outcomes, (long)c->received);
     }
@@ -826,7 +826,7 @@ int main(int argc, char **argv)
         stale += c->stale;
         pend += c->pending_replaced;
         ign += c->ignored_recent + c->ignored_disagreed;
-        refused += c->refused_range + c->refused_disagree + c->refused_implausible + c->merge_failures;
+        refused += c->refused_range + c->refused_disagree + c->refused_lost + c->refused_implausible + c->merge_failures;
         rx_err += c->rx_errors;
         screened += c->not_for_me + c->wrong_sender;
     }

@@ -13,6 +13,8 @@
  *    and seen nothing: the merge is refused or the spurious landmarks are
  *    left out; never added;
  *  - a landmark too uncertain for the receiver ever to refute is not added;
+ *  - an EKF-SLAM receiver lost in its own map refuses the merge, its map
+ *    unchanged;
  *  - a chain A -> B -> C -> A adds nothing twice and shrinks no covariance.
  */
 #include <math.h>
@@ -373,6 +375,50 @@ static void test_unrefutable_landmark_is_not_added(void **state)
             assert_int_equal(g_after.n_landmarks, N_WORLD + kept);
             for (int i = 0; i < N_WORLD; ++i) {
                 assert_int_equal(near_count(&g_after, g_world[i], 0.15), 1);
+            }
+        }
+    }
+}
+
+/* A receiver lost in its own map: A drove 400 m with no landmark in view
+ * (heading sd about 20 deg), so it places none of its landmarks within
+ * merge_refute_sd_m. An EKF-SLAM receiver refuses the merge with
+ * COSLAM_E_MERGE_LOST, its map unchanged bit for bit; with lost_sd_factor 0
+ * the merge is not refused for that. A Fast-SLAM receiver does not apply the
+ * rule (slam_filter_merge_map, docs/map-merge.md). */
+static void test_lost_receiver_is_refused_map_unchanged(void **state)
+{
+    (void)state;
+    for (int k = 0; k < 2; ++k) {
+        setup_pair(kKinds[k], SLAM_FILTER_EKF);
+        assert_int_equal(slam_filter_export(&g_b, &g_msg), COSLAM_OK);
+        for (int n = 0; n < 200; ++n) {
+            assert_int_equal(slam_filter_predict(&g_a, (odo_increment_t){1.0, 0.0, 0.0}, 1.0), COSLAM_OK);
+            assert_int_equal(slam_filter_predict(&g_a, (odo_increment_t){-1.0, 0.0, 0.0}, 1.0), COSLAM_OK);
+        }
+        pose2_t pose;
+        cov3_t pc;
+        slam_filter_pose(&g_a, &pose, &pc);
+        assert_true(sqrt(pc.m[2][2]) > 15.0 * kDeg);
+        const double bound = merge_refute_sd_m(slam_filter_params(&g_a));
+        assert_int_equal(slam_filter_export(&g_a, &g_before), COSLAM_OK);
+        for (int variant = 0; variant < 2; ++variant) {
+            merge_config_t mc = merge_config_default();
+            mc.lost_sd_factor = variant == 0 ? 1.0 : 0.0;
+            const merge_geometry_t g = geometry(kPoseA, kPoseB, 0.0);
+            merge_stats_t st;
+            memset(&st, 0, sizeof st);
+            const coslam_status_t got =
+                slam_filter_merge_map(&g_a, &g_msg, &g, &mc, NULL, &g_work, &st, NULL, NULL);
+            if (kKinds[k] == SLAM_FILTER_EKF && variant == 0) {
+                assert_int_equal(got, COSLAM_E_MERGE_LOST);
+                assert_true(st.pairs > 0U);
+                assert_true(st.placed_sd_m > bound);
+                assert_int_equal(slam_filter_export(&g_a, &g_after), COSLAM_OK);
+                assert_true(same_map(&g_before, &g_after));
+            } else {
+                assert_int_not_equal(got, COSLAM_E_MERGE_LOST);
+                break; /* the map has changed: the next variant would not start from the same one */
             }
         }
     }
@@ -887,6 +933,7 @@ int main(void)
         cmocka_unit_test(test_spurious_partner_is_harmless),
         cmocka_unit_test(test_unresolved_pair_is_not_added),
         cmocka_unit_test(test_unrefutable_landmark_is_not_added),
+        cmocka_unit_test(test_lost_receiver_is_refused_map_unchanged),
         cmocka_unit_test(test_merge_line_format),
         cmocka_unit_test(test_chain_adds_nothing_twice),
         cmocka_unit_test(test_fastslam_merge_in_parts),

@@ -700,6 +700,92 @@ static void test_pair_table_full(void **state)
     }
 }
 
+/* A receiver lost in its own map (merge_check step 2, lost_sd_factor): four
+ * incoming landmarks that pair with four own ones, 3 m apart; the merge is
+ * refused with COSLAM_E_MERGE_LOST exactly when the best-placed own landmark
+ * of the pairs is placed worse than lost_sd_factor x merge_refute_sd_m
+ * (largest axis of its relative covariance); stats->placed_sd_m is that sd.
+ * The test comes before the joint test; 0 disables it. */
+static void lost_case(map_whole_t *own, double sd_best, double sd_rest)
+{
+    memset(own, 0, sizeof *own);
+    memset(&g_bm, 0, sizeof g_bm);
+    own->pose = (pose2_t){1.0, -2.0, 0.7};
+    own->n_landmarks = 4;
+    g_bm.n = 4;
+    g_bm.t = (pose2_t){0.0, 0.0, 0.0};
+    g_bm.t_cov = cov3_diag(1e-4, 1e-4, 1e-6);
+    for (uint16_t j = 0; j < 4; ++j) {
+        const point2_t rel = {1.0 + 3.0 * (j % 2), -1.5 + 3.0 * (j / 2)};
+        const double sd = j == 2 ? sd_best : sd_rest;
+        own->lm[j].mean = pose2_apply(own->pose, rel);
+        /* the largest axis along x, a tenth across */
+        own->lm[j].cov_rel = cov2_make(sd * sd, 0.0, 0.01 * sd * sd);
+        own->lm[j].cov = own->lm[j].cov_rel;
+        own->lm[j].signature = 1;
+        own->lm[j].n_obs = 8;
+        own->lm[j].src_mask = 1;
+        g_bm.rel[j] = (point2_t){rel.x + 0.02, rel.y - 0.01};
+        g_bm.rel_cov[j] = cov2_make(0.01, 0.0, 0.01);
+        g_bm.mean[j] = g_bm.rel[j];
+        g_bm.cov[j] = g_bm.rel_cov[j];
+        g_bm.signature[j] = 1;
+        g_bm.n_obs[j] = 8;
+        g_bm.src_mask[j] = 2;
+        g_bm.id[j] = 100U + j;
+    }
+}
+
+static void test_check_lost_receiver(void **state)
+{
+    (void)state;
+    static map_whole_t own;
+    const slam_params_t sp = slam_params_default();
+    const double bound = merge_refute_sd_m(&sp);
+    assert_true(bound > 0.3 && bound < 0.6);
+    merge_config_t mc = merge_config_default();
+    assert_true(mc.lost_sd_factor == 1.0);
+    merge_stats_t st;
+    const struct {
+        double best, rest, factor;
+        coslam_status_t want;
+    } cases[] = {
+        {2.0 * bound, 3.0 * bound, 1.0, COSLAM_E_MERGE_LOST}, /* none placed */
+        {1.01 * bound, 3.0 * bound, 1.0, COSLAM_E_MERGE_LOST},
+        {0.99 * bound, 3.0 * bound, 1.0, COSLAM_OK},           /* one placed is enough */
+        {0.2 * bound, 0.2 * bound, 1.0, COSLAM_OK},
+        {2.0 * bound, 3.0 * bound, 0.0, COSLAM_OK},            /* off */
+        {2.0 * bound, 3.0 * bound, 2.5, COSLAM_OK},            /* the factor scales the bound */
+        {2.6 * bound, 3.0 * bound, 2.5, COSLAM_E_MERGE_LOST},
+    };
+    for (size_t c = 0; c < sizeof cases / sizeof cases[0]; ++c) {
+        lost_case(&own, cases[c].best, cases[c].rest);
+        mc.lost_sd_factor = cases[c].factor;
+        memset(&st, 0, sizeof st);
+        assert_int_equal(merge_check(&own, NULL, NULL, &sp, 0U, &mc, &g_bm, &g_sc, &st), cases[c].want);
+        assert_int_equal(st.pairs, 4);
+        assert_true(fabs(st.placed_sd_m - cases[c].best) < 1e-5 * cases[c].best + 1e-6);
+        if (cases[c].want == COSLAM_OK) {
+            assert_int_equal(g_bm.n, 4); /* all four fused */
+        }
+    }
+    /* no pairs (the incoming map elsewhere): nothing to place, not refused */
+    lost_case(&own, 3.0 * bound, 3.0 * bound);
+    for (uint16_t i = 0; i < g_bm.n; ++i) {
+        g_bm.rel[i].x += 40.0;
+    }
+    mc.lost_sd_factor = 1.0;
+    memset(&st, 0, sizeof st);
+    assert_int_equal(merge_check(&own, NULL, NULL, &sp, 0U, &mc, &g_bm, &g_sc, &st), COSLAM_OK);
+    assert_int_equal(st.pairs, 0);
+    assert_true(st.placed_sd_m == 0.0f);
+    /* a non-finite or negative factor is a bad configuration */
+    mc.lost_sd_factor = -1.0;
+    assert_int_equal(merge_check(&own, NULL, NULL, &sp, 0U, &mc, &g_bm, &g_sc, &st), COSLAM_E_ARG);
+    mc.lost_sd_factor = NAN;
+    assert_int_equal(merge_check(&own, NULL, NULL, &sp, 0U, &mc, &g_bm, &g_sc, &st), COSLAM_E_ARG);
+}
+
 /* The same table in an EKF-SLAM merge in parts: the landmark that lost its
  * candidates is known from the begin, so every part says E_CAPACITY, the
  * first too (the robot reports the merge with that part's status), and the
@@ -1017,6 +1103,7 @@ int main(void)
         cmocka_unit_test(test_merge_into_fastslam),
         cmocka_unit_test(test_fastslam_pairing_brute_force),
         cmocka_unit_test(test_pair_table_full),
+        cmocka_unit_test(test_check_lost_receiver),
         cmocka_unit_test(test_pair_table_full_ekf_in_parts),
         cmocka_unit_test(test_fastslam_merge_in_parts),
         cmocka_unit_test(test_merge_into_ekfslam),

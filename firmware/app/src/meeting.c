@@ -568,6 +568,10 @@ static coslam_status_t merge_outcome(meeting_t *m, const meeting_event_t *ev0, u
             m->ctr.refused_range++;
         } else if (st == COSLAM_E_MERGE_IMPLAUSIBLE) {
             m->ctr.refused_implausible++;
+        } else if (st == COSLAM_E_MERGE_LOST) {
+            /* the receiver's state, not the peer's map: no hold-off, the
+             * next meeting after it is placed again may merge */
+            m->ctr.refused_lost++;
         } else if (st == COSLAM_E_MERGE_DISAGREE) {
             m->ctr.refused_disagree++;
             m->peer[from].disagreed = 1U;

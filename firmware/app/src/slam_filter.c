@@ -535,14 +535,16 @@ static coslam_status_t merge_check_fuse(slam_filter_t *f, slam_merge_work_t *w, 
                                         const occ_grid_t *grid, const pose2_t *at, uint32_t budget,
                                         merge_stats_t *stats)
 {
-    /* unresolved pairs and landmarks too uncertain to refute are refused
-     * for EKF-SLAM receivers only: a Fast-SLAM receiver's per-particle
-     * association resolves them, and on MRCLAM its maps were worse with
-     * either rule (merge_config_t, docs/map-merge.md) */
+    /* unresolved pairs, landmarks too uncertain to refute and a lost
+     * receiver are refused for EKF-SLAM receivers only: a Fast-SLAM
+     * receiver's per-particle association resolves them, and its maps were
+     * worse with each rule (on MRCLAM; the lost receiver's on the held-out
+     * arena teams; merge_config_t, docs/map-merge.md) */
     merge_config_t check_cfg = *cfg;
     if (f->kind != SLAM_FILTER_EKF) {
         check_cfg.unresolved_chi2 = 0.0;
         check_cfg.refute_sd_factor = 0.0;
+        check_cfg.lost_sd_factor = 0.0;
     }
     const coslam_status_t st =
         merge_check(&w->own, &f->coverage, grid, slam_filter_params(f), f->robot_id, &check_cfg, &w->body, &w->scratch, stats);

@@ -29,6 +29,7 @@ merge_config_t merge_config_default(void)
     c.ambiguous_chi2 = 25.0;
     c.unresolved_chi2 = 9.21;
     c.refute_sd_factor = 1.0;
+    c.lost_sd_factor = 1.0;
     c.step_units = 524288U;
     return c;
 }
@@ -601,7 +602,8 @@ static uint32_t pair_and_select(merge_scratch_t *sc, const merge_body_map_t *bm,
 static int config_ok(const merge_config_t *cfg)
 {
     return isfinite(cfg->gate_chi2) && cfg->gate_chi2 > 0.0 && isfinite(cfg->grid_cell_m) && cfg->grid_cell_m > 0.0 &&
-           isfinite(cfg->refute_sd_factor) && cfg->refute_sd_factor >= 0.0;
+           isfinite(cfg->refute_sd_factor) && cfg->refute_sd_factor >= 0.0 && isfinite(cfg->lost_sd_factor) &&
+           cfg->lost_sd_factor >= 0.0;
 }
 
 /* Common start of a merge: statistics sink, grid over the incoming map. */
@@ -1255,6 +1257,27 @@ static double pairs_accumulate(const merge_scratch_t *sc, const merge_body_map_t
     return nis;
 }
 
+/* The smallest variance (largest axis) of the own landmarks paired, in the
+ * receiver's body frame: how well the receiver places the best-placed
+ * landmark the merge acts on. INFINITY with no pairs. */
+static double own_placed_var(const merge_scratch_t *sc, const merge_body_map_t *bm)
+{
+    double best = INFINITY;
+    for (uint16_t i = 0; i < bm->n; ++i) {
+        const int32_t j = sc->match_of_in[i];
+        if (j < 0) {
+            continue;
+        }
+        double lmin;
+        double lmax;
+        cov2_eigenvalues(sc->own_cov[j], &lmin, &lmax);
+        if (lmax < best) {
+            best = lmax;
+        }
+    }
+    return best;
+}
+
 static void keep_landmark(merge_body_map_t *bm, uint16_t from, uint16_t to)
 {
     if (from == to) {
@@ -1354,6 +1377,17 @@ coslam_status_t merge_check(const map_whole_t *own, const merge_coverage_t *cove
     stats->pairs = n_pairs;
     stats->nis = nis;
     stats->nis_bound = n_pairs > 0U ? chi2_bound(2.0 * (double)n_pairs, cfg->agree_z) : 0.0;
+
+    /* 2a. a receiver lost in its own map: the pairs' gates hold its own
+     * uncertainty of where its landmarks are, so with none of them placed
+     * they hold wrong assignments among identical landmarks as well, and
+     * the joint test passes those (docs/map-merge.md) */
+    const double placed = own_placed_var(sc, bm);
+    stats->placed_sd_m = isfinite(placed) ? (float)sqrt(placed) : 0.0f;
+    const double lost_sd = cfg->lost_sd_factor * merge_refute_sd_m(own_params);
+    if (cfg->lost_sd_factor > 0.0 && isfinite(placed) && !(placed <= lost_sd * lost_sd)) {
+        return COSLAM_E_MERGE_LOST;
+    }
     if (n_pairs > 0U && !(nis <= stats->nis_bound)) {
         return COSLAM_E_MERGE_DISAGREE;
     }

@@ -25,6 +25,7 @@ const char *coslam_status_str(coslam_status_t status)
     case COSLAM_E_MERGE_STALE: return "E_MERGE_STALE";
     case COSLAM_E_MERGE_REPLAY: return "E_MERGE_REPLAY";
     case COSLAM_E_MERGE_DISAGREE: return "E_MERGE_DISAGREE";
+    case COSLAM_E_MERGE_LOST: return "E_MERGE_LOST";
     case COSLAM_E_MERGE_RANGE: return "E_MERGE_RANGE";
     case COSLAM_E_MERGE_IMPLAUSIBLE: return "E_MERGE_IMPLAUSIBLE";
     case COSLAM_E_MERGE_BUSY: return "E_MERGE_BUSY";

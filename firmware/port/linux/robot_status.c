@@ -113,6 +113,7 @@ void robot_status_collect(robot_status_t *s, robot_node_t *node, const robot_dev
     u64(s, "mt_merge_failures", m->merge_failures);
     u64(s, "mt_refused_range", m->refused_range);
     u64(s, "mt_refused_disagree", m->refused_disagree);
+    u64(s, "mt_refused_lost", m->refused_lost);
     u64(s, "mt_events_dropped", m->events_dropped);
     u64(s, "mt_pending_replaced", m->pending_replaced);
     u64(s, "mt_refused_implausible", m->refused_implausible);

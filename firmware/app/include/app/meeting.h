@@ -181,6 +181,7 @@ typedef struct {
     uint32_t refused_range;     /**< the mutual ranges disagree (COSLAM_E_MERGE_RANGE) */
     uint32_t refused_implausible; /**< values no robot produces (COSLAM_E_MERGE_IMPLAUSIBLE) */
     uint32_t refused_disagree;  /**< the maps disagree (COSLAM_E_MERGE_DISAGREE) */
+    uint32_t refused_lost;      /**< this robot was lost in its own map (COSLAM_E_MERGE_LOST) */
     uint32_t ignored_disagreed; /**< from a peer whose map disagreed within remerge_period_us */
     uint32_t weak_not_sent;     /**< landmarks left out of sent maps (below export_min_obs) */
     uint32_t send_waits;        /**< sends whose export waited or went in parts (meeting_send_due) */

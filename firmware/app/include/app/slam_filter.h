@@ -291,7 +291,8 @@ void slam_merge_work_init(slam_merge_work_t *w);
  * this filter's coverage, occlusion by `grid` (the laser's occupancy grid
  * in the map frame; NULL: none known), echoes, ambiguity), then the fusion into the
  * filter. A refused merge (COSLAM_E_MERGE_RANGE, COSLAM_E_MERGE_DISAGREE,
- * or any failure before the fusion) leaves the filter unchanged.
+ * COSLAM_E_MERGE_LOST, or any failure before the fusion) leaves the filter
+ * unchanged.
  * COSLAM_E_CAPACITY: merged, some landmarks did not fit (counted).
  * *t_out / *t_cov_out (may be NULL): the transform used (sender at its
  * sighting in the own body frame now), refined by the shared landmarks,

@@ -196,6 +196,20 @@ typedef struct {
      *  unresolved_chi2: with Fast-SLAM receivers it was worse on MRCLAM
      *  (docs/map-merge.md). */
     double refute_sd_factor;
+    /** A receiver lost in its own map is refused the merge
+     *  (COSLAM_E_MERGE_LOST): when none of its own landmarks that the merge
+     *  pairs is placed relative to it within this factor times
+     *  merge_refute_sd_m(receiver's parameters) (largest axis of its
+     *  relative sd), the bound of refute_sd_factor. A landmark placed worse
+     *  than that is one whose absence from the view the receiver cannot
+     *  tell (landmark_miss_is_certain); a receiver that places none of the
+     *  paired ones cannot tell which of its identical landmarks an incoming
+     *  one is, and its wide gates let a consistent wrong assignment pass
+     *  the joint test. Default 1 (derived, not fitted); 0 disables. The
+     *  robot's merge path (slam_filter_merge_map) applies it to EKF-SLAM
+     *  receivers only: with Fast-SLAM receivers it was worse on the
+     *  held-out arena teams (docs/map-merge.md). */
+    double lost_sd_factor;
     /** Work units one call may spend on a Fast-SLAM merge in parts
      *  (merge_fastslam_run; a particle costs one unit per own landmark and
      *  MERGE_UNITS_PER_INCOMING per incoming one): the robot's merge path
@@ -217,7 +231,7 @@ typedef struct {
  *  >= 1e-8 rad^2 (0.006 deg), check on with 3 refinements moving the map
  *  and counting as 2 independent pairs, agree_z 2.33 (99 %), veto_looks 5,
  *  contradict fraction 0.3, ambiguous_chi2 25, unresolved_chi2 9.21,
- *  refute_sd_factor 1, step_units 524,288.
+ *  refute_sd_factor 1, lost_sd_factor 1, step_units 524,288.
  *  docs/map-merge.md says why and on what they were chosen. */
 merge_config_t merge_config_default(void);
 
@@ -333,6 +347,9 @@ typedef struct {
                                  (refute_sd_factor) */
     uint32_t check_lost;    /**< unpaired, a candidate pair beyond MERGE_MAX_PAIRS: left out
                                  by the check (per landmark, as vetoed) */
+    float placed_sd_m;      /**< the smallest relative sd (largest axis) of the own landmarks
+                                 paired [m]: the receiver's best-placed one (lost_sd_factor);
+                                 0 with no pairs */
     double nis;             /**< joint normalised innovation squared of the pairs */
     double nis_bound;       /**< its chi-square bound (0: no pairs) */
     pose2_t t_shift;        /**< refined transform minus the sightings' one */
@@ -575,9 +592,12 @@ uint16_t merge_coverage_looks(const merge_coverage_t *c, const slam_params_t *p,
  *     pairs with the sightings' transform as prior (refine_iters rounds,
  *     re-pairing each time), so one sighting pair's heading error does not
  *     misplace far landmarks;
- *  2. agreement test: the pairs' NIS under the refined transform plus the
- *     shift's own NIS against the prior, below the chi-square bound of
- *     2 n_pairs dof (agree_z);
+ *  2. the receiver lost in its own map: none of the own landmarks paired
+ *     placed within lost_sd_factor x merge_refute_sd_m relative to it
+ *     refuses the merge (COSLAM_E_MERGE_LOST); then the agreement test:
+ *     the pairs' NIS under the refined transform plus the shift's own NIS
+ *     against the prior, below the chi-square bound of 2 n_pairs dof
+ *     (agree_z);
  *  3. each unpaired incoming landmark: refused if it carries own_id's
  *     provenance bit (an echo of the receiver's own information that the
  *     receiver no longer holds), if an unpaired own landmark is within
@@ -592,7 +612,8 @@ uint16_t merge_coverage_looks(const merge_coverage_t *c, const slam_params_t *p,
  * errors are correlated through each robot's pose (the message drops those
  * correlations), so their information on the transform is overcounted and
  * the refinement's posterior is overconfident; the prior is the
- * conservative choice. On COSLAM_E_MERGE_DISAGREE nothing may be merged. Figures in stats.
+ * conservative choice. On COSLAM_E_MERGE_DISAGREE and COSLAM_E_MERGE_LOST
+ * nothing may be merged. Figures in stats.
  * `own` is the receiver's whole map (*_export_whole), not the message-sized
  * export: an own landmark left out of the message must still pair, or its
  * incoming duplicate would be taken as new or vetoed.

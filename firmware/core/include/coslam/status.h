@@ -45,6 +45,9 @@ typedef enum {
     COSLAM_E_MERGE_PENDING = -47,  /**< the merge's check waits for the own export in parts: its
                                         outcome comes later; or an input an EKF-SLAM merge in parts
                                         holds, applied when it is done (app/slam_filter.h) */
+    COSLAM_E_MERGE_LOST = -48,     /**< the receiver places none of the own landmarks the merge
+                                        pairs (lost in its own map): merge refused (map_merge.h
+                                        lost_sd_factor) */
     /* laser range finder driver (urg_scip2.h) */
     COSLAM_E_URG_TIMEOUT = -60,   /**< no reply / reply stopped arriving within the timeout */
     COSLAM_E_URG_IO = -61,        /**< the serial HAL reported an error (closed, I/O) */
