@@ -444,6 +444,7 @@ static void two_robots_merge_over_dds(void **state)
         assert_int_equal(json_value(j, "mt_merge_failures"), 0);
         assert_int_equal(json_value(j, "mt_refused_range"), 0);
         assert_int_equal(json_value(j, "mt_refused_disagree"), 0);
+        assert_int_equal(json_value(j, "mt_refused_lost"), 0);
         assert_int_equal(json_value(j, "mt_rx_errors"), 0);
         assert_int_equal(json_value(j, "mt_wrong_sender"), 0);
         /* the rogue: every kind refused and counted by its reason */

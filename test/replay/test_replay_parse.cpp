@@ -489,6 +489,11 @@ TEST(Config, RefuteKeyIsRead)
     EXPECT_EQ(c.merge.core.refute_sd_factor, 1.0);
     replay_config_load_string(c, "[merge]\nrefute_sd_factor = 0\n", "r.ini");
     EXPECT_EQ(c.merge.core.refute_sd_factor, 0.0);
+    // and lost_sd_factor (the lost receiver's bound, the same refute sd)
+    EXPECT_EQ(c.merge.core.lost_sd_factor, merge_config_default().lost_sd_factor);
+    EXPECT_EQ(c.merge.core.lost_sd_factor, 1.0);
+    replay_config_load_string(c, "[merge]\nlost_sd_factor = 2.5\n", "r.ini");
+    EXPECT_EQ(c.merge.core.lost_sd_factor, 2.5);
 }
 
 // The Fast-SLAM revisit keys and EKF-SLAM's innovation monitor default to the
@@ -537,6 +542,8 @@ TEST(Config, ErrorsNameFileLineAndKey)
     EXPECT_TRUE(has(err("[filter]\nactive_spread_madds = -1\n"), "[filter] active_spread_madds"));
     EXPECT_TRUE(has(err("[merge]\nenabled = maybe\n"), "expected a boolean"));
     EXPECT_TRUE(has(err("[merge]\nrefute_sd_factor = -0.5\n"), "[merge] agree_z"));
+    EXPECT_TRUE(has(err("[merge]\nlost_sd_factor = -1\n"), "lost_sd_factor finite and >= 0"));
+    EXPECT_TRUE(has(err("[merge]\nlost_sd_factor = nan\n"), "[merge] lost_sd_factor: not a finite number"));
     EXPECT_TRUE(has(err("[robot2]\nfoo = 1\n"), "x.ini:2: unknown key 'foo' in [robot2]"));
     EXPECT_TRUE(has(err("this is not ini\n"), "x.ini:1:"));
     // values that parse but are out of their domain
