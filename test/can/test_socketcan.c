@@ -47,6 +47,7 @@ static struct {
     int n_filters;
     uint32_t inject_drops; /* recvmsg: report this SO_RXQ_OVFL counter (0: none) */
     int if_down;           /* SIOCGIFFLAGS: the interface is down */
+    int64_t stamp_shift_us; /* recvmsg: move the kernel's SCM_TIMESTAMP by this (a wall-clock step) */
 } W;
 
 int __real_socket(int domain, int type, int protocol);
@@ -137,6 +138,18 @@ ssize_t __wrap_recvmsg(int fd, struct msghdr *msg, int flags)
 {
     const size_t cap = msg->msg_controllen;
     const ssize_t n = __real_recvmsg(fd, msg, flags);
+    if (n > 0 && W.stamp_shift_us != 0) {
+        for (struct cmsghdr *c = CMSG_FIRSTHDR(msg); c != NULL; c = CMSG_NXTHDR(msg, c)) {
+            if (c->cmsg_level == SOL_SOCKET && c->cmsg_type == SCM_TIMESTAMP) {
+                struct timeval tv;
+                memcpy(&tv, CMSG_DATA(c), sizeof tv);
+                const int64_t us = (int64_t)tv.tv_sec * 1000000 + tv.tv_usec + W.stamp_shift_us;
+                tv.tv_sec = (time_t)(us / 1000000);
+                tv.tv_usec = (suseconds_t)(us % 1000000);
+                memcpy(CMSG_DATA(c), &tv, sizeof tv);
+            }
+        }
+    }
     if (n > 0 && W.inject_drops != 0) {
         const size_t used = CMSG_ALIGN(msg->msg_controllen);
         if (used + CMSG_SPACE(sizeof(uint32_t)) <= cap) {
@@ -481,6 +494,37 @@ static void test_receive_formats_and_stamps(void **state)
     assert_true(f.stamp_us <= written + 5000);
 }
 
+/* A wall-clock step between a frame's reception and its read-out: the
+ * kernel's stamp (CLOCK_REALTIME) then says the frame is an hour old, or
+ * from the future. Not believed: the read-out time, counted; a believable
+ * age (0.5 s) is still taken from the kernel's stamp. */
+static void test_receive_stamp_across_clock_step(void **state)
+{
+    (void)state;
+    /* the believable one first: stamps never decrease, so after a read-out
+     * stamp a 0.5 s old one would be clamped */
+    const int64_t shifts[] = {-500000, -3600LL * 1000000, 3600LL * 1000000, -2500000, 1000};
+    const int believed[] = {1, 0, 0, 0, 0};
+    uint32_t unbelieved = 0;
+    for (size_t k = 0; k < sizeof shifts / sizeof shifts[0]; ++k) {
+        W.stamp_shift_us = shifts[k];
+        peer_write(0x181, 0, NULL);
+        const uint64_t before = mono_us();
+        hal_can_frame_t f;
+        assert_int_equal(hal_can_receive(&g_sc.can, &f, 0), HAL_OK);
+        const uint64_t after = mono_us();
+        if (believed[k]) {
+            assert_true(f.stamp_us + 450000 <= after && f.stamp_us + 550000 >= before);
+        } else {
+            unbelieved++;
+            assert_true(f.stamp_us <= after);
+            assert_true(f.stamp_us + 20000 >= before); /* about the read-out time */
+        }
+        assert_int_equal(g_sc.stamps_unbelieved, unbelieved);
+    }
+    W.stamp_shift_us = 0;
+}
+
 static void test_receive_timeouts(void **state)
 {
     (void)state;
@@ -687,6 +731,7 @@ int main(void)
         cmocka_unit_test(test_real_kernel),
         cmocka_unit_test_setup_teardown(test_send_formats, setup_pair, teardown_pair),
         cmocka_unit_test_setup_teardown(test_receive_formats_and_stamps, setup_pair, teardown_pair),
+        cmocka_unit_test_setup_teardown(test_receive_stamp_across_clock_step, setup_pair, teardown_pair),
         cmocka_unit_test_setup_teardown(test_receive_timeouts, setup_pair, teardown_pair),
         cmocka_unit_test_setup_teardown(test_send_timeout, setup_pair, teardown_pair),
         cmocka_unit_test_setup_teardown(test_error_frames, setup_pair, teardown_pair),

@@ -195,8 +195,15 @@ static hal_status_t read_one(hal_can_socketcan_t *sc, hal_can_frame_t *f, int *l
             struct timeval tv;
             memcpy(&tv, CMSG_DATA(c), sizeof tv);
             const uint64_t rx_real = (uint64_t)tv.tv_sec * 1000000u + (uint64_t)tv.tv_usec;
-            const uint64_t age = now_real > rx_real ? now_real - rx_real : 0u;
-            stamp = age < now_mono ? now_mono - age : 0u;
+            if (rx_real > now_real || now_real - rx_real > HAL_CAN_SOCKETCAN_MAX_AGE_US) {
+                /* received after now, or queued longer than believable:
+                 * the wall clock stepped between the reception and now
+                 * (or the loop stalled); the read-out time, counted */
+                sc->stamps_unbelieved++;
+            } else {
+                const uint64_t age = now_real - rx_real;
+                stamp = age < now_mono ? now_mono - age : 0u;
+            }
         } else if (c->cmsg_type == SO_RXQ_OVFL && c->cmsg_len >= CMSG_LEN(sizeof(uint32_t))) {
             uint32_t drops;
             memcpy(&drops, CMSG_DATA(c), sizeof drops);

@@ -12,7 +12,11 @@
  *    turned into CLOCK_MONOTONIC microseconds by subtracting the frame's
  *    age from the monotonic time at read-out (so a wall-clock step cannot
  *    jump the stamps); without a kernel stamp the read-out time is used.
- *    Stamps are clamped to never decrease.
+ *    A wall-clock step between a frame's reception and its read-out would
+ *    still move that frame's age: a kernel stamp later than the read-out
+ *    or older than HAL_CAN_SOCKETCAN_MAX_AGE_US is not believed, the
+ *    read-out time is used and `stamps_unbelieved` counts it. Stamps are
+ *    clamped to never decrease.
  *  - error state: controller error frames (CAN_ERR_CRTL, CAN_ERR_BUSOFF,
  *    CAN_ERR_RESTARTED, with TEC/REC when the driver sets CAN_ERR_CNT) are
  *    consumed by receive() to track hal_can_status_t; they are never
@@ -32,6 +36,12 @@
 extern "C" {
 #endif
 
+/** The oldest kernel receive stamp believed at read-out [us]: a frame
+ *  waits in the socket queue for the next read (a control period, a few
+ *  ms); an age beyond 2 s is a wall-clock step (NTP, the operator), or a
+ *  stalled loop whose stamps mean nothing for the drive anyway. */
+#define HAL_CAN_SOCKETCAN_MAX_AGE_US 2000000u
+
 typedef struct {
     hal_can_t can;                   /**< the handle; can.backend points back here */
     int fd;                          /**< the socket, -1 when closed */
@@ -41,6 +51,8 @@ typedef struct {
     hal_can_status_t status;
     uint32_t kernel_drops;           /**< last SO_RXQ_OVFL counter seen */
     uint64_t last_stamp_us;          /**< for the non-decreasing stamp guarantee */
+    uint32_t stamps_unbelieved;      /**< kernel stamps in the future or older than
+                                          HAL_CAN_SOCKETCAN_MAX_AGE_US (read-out time used) */
     hal_can_frame_t pending;         /**< frame held back while an overflow is reported */
     int has_pending;
 } hal_can_socketcan_t;
