@@ -838,6 +838,61 @@ static void test_disagreeing_peer_not_retried(void **state)
     assert_true(g_m.have_pending);
 }
 
+/* A receiver lost in its own map (COSLAM_E_MERGE_LOST; here every
+ * receiver, lost_sd_factor tiny): the merge is refused and counted once, in
+ * refused_lost only; the event carries the check's figures; the map is
+ * unchanged; and, the refusal being about the receiver, not the peer's map,
+ * no hold-off: the peer's next message is merged again at once. */
+static void test_lost_receiver_refused_without_hold_off(void **state)
+{
+    (void)state;
+    hal_link_t *link = fake_link_reset(0);
+    setup_robot0(NULL);
+    g_m.cfg.merge.lost_sd_factor = 1e-6;
+    /* robot 0 holds the landmark robot 1 sends, where it is */
+    const point2_t at = pose2_apply(kMeetB, kMeetLm);
+    ekfslam_meta_t meta = {g_filter.u.ekf.next_id, g_filter.u.ekf.cfg.slam.exist_max, 20, 1U, 0, 0};
+    meta.signature = 2;
+    assert_int_equal(ekfslam_add_landmark_body(&g_filter.u.ekf, at, cov2_make(0.004, 0.0, 0.004), &meta), COSLAM_OK);
+    (void)ekfslam_new_id(&g_filter.u.ekf);
+    static map_estimate_t before;
+    static map_estimate_t after;
+    assert_int_equal(slam_filter_export(&g_filter, &before), COSLAM_OK);
+    assert_int_equal(before.n_landmarks, 1);
+
+    meet_robot1(link);
+    const uint64_t t1 = kMeetT + 10000;
+    assert_int_equal(meeting_poll(&g_m, &g_filter, t1, kOrigin, 0.0), COSLAM_E_MERGE_LOST);
+    assert_int_equal(g_m.ctr.refused_lost, 1);
+    assert_int_equal(g_m.ctr.refused_disagree + g_m.ctr.refused_range + g_m.ctr.merge_failures + g_m.ctr.merged, 0);
+    assert_false(g_m.peer[1].disagreed);
+    assert_false(g_m.peer[1].merged);
+    meeting_event_t ev;
+    assert_int_equal(count_events(MEETING_EV_REFUSED, COSLAM_E_MERGE_LOST, &ev), 1);
+    assert_int_equal(ev.peer, 1);
+    assert_int_equal(ev.stats.pairs, 1);
+    assert_true(fabs(ev.stats.placed_sd_m - sqrt(0.004)) < 1e-3);
+    assert_int_equal(slam_filter_export(&g_filter, &after), COSLAM_OK);
+    assert_int_equal(after.n_landmarks, 1);
+    assert_true(memcmp(&after.lm[0].mean, &before.lm[0].mean, sizeof before.lm[0].mean) == 0);
+    assert_true(memcmp(&after.lm[0].cov, &before.lm[0].cov, sizeof before.lm[0].cov) == 0);
+
+    /* the next message, well within the remerge period: not held off */
+    const uint64_t t2 = t1 + 1000000;
+    double r, b1, b2;
+    mutual(kOrigin, kMeetB, &r, &b1, &b2);
+    meeting_on_sighting(&g_m, &g_filter, link, t2 + 4000, 1, r, b1, t2, kOrigin, 0.0);
+    const size_t len = make_msg_from1(2, t2 + 3000, t2, r, b2, kMeetLm, 1U << 1, 0);
+    inject(g_buf, len, 1, t2 + 3000 + g_m.cfg.link_latency_us);
+    assert_int_equal(meeting_poll_link(&g_m, link), 1);
+    assert_int_equal(g_m.ctr.ignored_recent + g_m.ctr.ignored_disagreed, 0);
+    assert_true(g_m.have_pending);
+    g_m.cfg.merge.lost_sd_factor = 1.0; /* placed again (within merge_refute_sd_m) */
+    assert_int_equal(meeting_poll(&g_m, &g_filter, t2 + 10000, kOrigin, 0.0), COSLAM_OK);
+    assert_int_equal(g_m.ctr.merged, 1);
+    assert_int_equal(g_m.ctr.refused_lost, 1);
+}
+
 static void test_screening(void **state)
 {
     (void)state;
@@ -1272,6 +1327,7 @@ int main(void)
         cmocka_unit_test(test_replay_refused),
         cmocka_unit_test(test_implausible_refused),
         cmocka_unit_test(test_disagreeing_peer_not_retried),
+        cmocka_unit_test(test_lost_receiver_refused_without_hold_off),
         cmocka_unit_test(test_screening),
         cmocka_unit_test(test_ready_message_not_replaced_by_another_peer),
         cmocka_unit_test(test_event_queue_overflow_counted),
