@@ -356,6 +356,77 @@ static void merge_path_case(int variant)
     assert_close_filters(&g_fa, &g_fb);
 }
 
+/* The same merge path refused as lost (COSLAM_E_MERGE_LOST; every receiver
+ * lost under a tiny lost_sd_factor), its check waiting for the phase: the
+ * outcome taken later is the refusal, with the check's figures; nothing of
+ * the merge is left held (merge_due, the working memory's outcome), the
+ * held inputs follow, and the filter ends where the same inputs without the
+ * merge put it, up to rounding; the next merge begins. */
+static void test_merge_path_lost_in_a_local_phase(void **state)
+{
+    (void)state;
+    local_phase_filter(&g_fa);
+    memcpy(&g_fb, &g_fa, sizeof g_fa);
+    memcpy(&g_whole, &g_fa.u.ekf, sizeof g_whole);
+    assert_int_equal(ekfslam_export(&g_whole, &g_msg), COSLAM_OK);
+    pose2_t pa;
+    cov3_t ca;
+    slam_filter_pose(&g_fa, &pa, &ca);
+    const pose2_t po = pose2_compose(pa, (pose2_t){1.5, 0.0, COSLAM_PI});
+    g_msg.pose = po;
+    for (uint16_t i = 0; i < g_msg.n_landmarks; ++i) {
+        g_msg.lm[i].src_mask = 0x2U;
+    }
+    merge_geometry_t g;
+    memset(&g, 0, sizeof g);
+    const point2_t o_in_s = pose2_apply_inverse(pa, (point2_t){po.x, po.y});
+    const point2_t s_in_o = pose2_apply_inverse(po, (point2_t){pa.x, pa.y});
+    const double deg = COSLAM_PI / 180.0;
+    g.self_sees_other = (robot_sighting_t){hypot(o_in_s.x, o_in_s.y), atan2(o_in_s.y, o_in_s.x), 0.05 * 0.05,
+                                           (2.0 * deg) * (2.0 * deg)};
+    g.other_sees_self = (robot_sighting_t){hypot(s_in_o.x, s_in_o.y), atan2(s_in_o.y, s_in_o.x), 0.05 * 0.05,
+                                           (2.0 * deg) * (2.0 * deg)};
+    merge_config_t mc = merge_config_default();
+    mc.lost_sd_factor = 1e-6;
+    mc.step_units = 1000U;
+    merge_stats_t sb;
+    memset(&sb, 0, sizeof sb);
+    slam_merge_work_init(&g_work);
+    assert_int_equal(slam_filter_merge_map(&g_fb, &g_msg, &g, &mc, NULL, &g_work, &sb, NULL, NULL),
+                     COSLAM_E_MERGE_PENDING);
+    assert_int_equal(g_fb.checks_waited, 1U);
+    robot_inputs(&g_fb, 12, 1);
+    robot_inputs(&g_fa, 12, 0);
+    int idles = 0;
+    while ((g_fb.merge_due != NULL || g_fb.held_next < g_fb.n_held) && idles < 100000) {
+        (void)slam_filter_idle(&g_fb);
+        idles++;
+    }
+    assert_null(g_fb.merge_due);
+    assert_null(g_work.due);
+    coslam_status_t outcome = COSLAM_E_ARG;
+    merge_stats_t so;
+    assert_int_equal(slam_merge_work_outcome(&g_work, &outcome, &so, NULL, NULL), 1);
+    assert_int_equal(outcome, COSLAM_E_MERGE_LOST);
+    assert_true(so.pairs > 10U);
+    assert_true(so.placed_sd_m > 0.0f);
+    assert_int_equal(so.fused + so.added + g_fb.merge_late.fused + g_fb.merge_late.added, 0);
+    assert_int_equal(slam_merge_work_outcome(&g_work, NULL, NULL, NULL, NULL), 0); /* taken once */
+    assert_int_equal(g_fb.inputs_held, 12U);
+    assert_int_equal(g_fb.held_failures, 0U);
+    assert_int_equal(g_fb.merges_forced, 0U);
+    assert_close_filters(&g_fa, &g_fb);
+    /* nothing held: the next merge begins (and is refused again) */
+    memset(&sb, 0, sizeof sb);
+    const coslam_status_t st = slam_filter_merge_map(&g_fb, &g_msg, &g, &mc, NULL, &g_work, &sb, NULL, NULL);
+    assert_true(st == COSLAM_E_MERGE_LOST || st == COSLAM_E_MERGE_PENDING);
+    slam_merge_work_finish(&g_work);
+    if (st == COSLAM_E_MERGE_PENDING) {
+        assert_int_equal(slam_merge_work_outcome(&g_work, &outcome, NULL, NULL, NULL), 1);
+        assert_int_equal(outcome, COSLAM_E_MERGE_LOST);
+    }
+}
+
 /* The robot's merge path in a local phase: plain, with an observer's
  * export under way when the message comes, and without the check. */
 static void test_merge_path_in_a_local_phase(void **state)
@@ -423,6 +494,7 @@ int main(void)
         cmocka_unit_test(test_parts_are_the_whole_merge),
         cmocka_unit_test(test_small_batch_and_duplicates_only),
         cmocka_unit_test(test_merge_path_in_a_local_phase),
+        cmocka_unit_test(test_merge_path_lost_in_a_local_phase),
         cmocka_unit_test(test_exports_in_a_local_phase),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
