@@ -119,6 +119,8 @@ nlohmann::json eval_json(const MapSnapshot &m)
             {"nees_mean", std::isfinite(m.eval.nees_mean) ? nlohmann::json(m.eval.nees_mean) : nlohmann::json(nullptr)}};
 }
 
+}  // namespace
+
 nlohmann::json merge_json(const MergeRecord &m)
 {
     nlohmann::json j = {{"t_s", m.t_s},
@@ -140,6 +142,12 @@ nlohmann::json merge_json(const MergeRecord &m)
         j["fused_ci_particle_sum"] = m.stats.fused_ci;
         j["added_particle_sum"] = m.stats.added;
         j["capacity_drops_particle_sum"] = m.stats.capacity_drops;
+        j["map_before"] = eval_json(m.before);
+        j["map_after"] = eval_json(m.after);
+    }
+    // the check's figures: of every merge, and of the refusals the check
+    // made (for those they are the reason, e.g. placed_sd_m of a lost one)
+    if (m.kind == MEETING_EV_MERGED || m.status == COSLAM_E_MERGE_DISAGREE || m.status == COSLAM_E_MERGE_LOST) {
         j["check"] = {{"pairs", m.stats.pairs},
                       {"nis", m.stats.nis},
                       {"nis_bound", m.stats.nis_bound},
@@ -149,13 +157,9 @@ nlohmann::json merge_json(const MergeRecord &m)
                       {"unrefutable", m.stats.unrefutable},
                       {"placed_sd_m", m.stats.placed_sd_m},
                       {"t_shift", {m.stats.t_shift.x, m.stats.t_shift.y, m.stats.t_shift.theta}}};
-        j["map_before"] = eval_json(m.before);
-        j["map_after"] = eval_json(m.after);
     }
     return j;
 }
-
-}  // namespace
 
 nlohmann::json run_metrics(const Simulation &sim)
 {

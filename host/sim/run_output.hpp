@@ -23,6 +23,11 @@ void write_run_outputs(const Simulation &sim, const std::string &dir);
 /// metrics.json content.
 nlohmann::json run_metrics(const Simulation &sim);
 
+/// One event of metrics.json's "merges": the check's figures ("check") for
+/// every merge and for the refusals the check made (maps disagree,
+/// receiver lost), the transform and the maps around it for merges.
+nlohmann::json merge_json(const MergeRecord &m);
+
 /// One merge of the summary, without a newline: "  merge t=52.3 s: robot0 <-
 /// robot1 (16 landmarks: 7.0 fused, 9.0 added (per particle, mean of 100);
 /// not added: ...), transform error ..., sightings 100 ms apart (robot1's

@@ -652,6 +652,33 @@ TEST(RunOutput, FaultNotReachedInAShortenedRun)
     EXPECT_TRUE(m["faults"][1]["end_s"].is_null());
 }
 
+// A refusal by the check carries the check's figures, its reason among them
+// (a lost receiver's placed_sd_m); one before the check (the range check)
+// has none; a merge has them and its maps.
+TEST(RunOutput, CheckFiguresOfRefusalsByTheCheck)
+{
+    MergeRecord m;
+    m.kind = MEETING_EV_REFUSED;
+    m.status = COSLAM_E_MERGE_LOST;
+    m.stats.pairs = 9;
+    m.stats.placed_sd_m = 1.63f;
+    nlohmann::json j = merge_json(m);
+    EXPECT_EQ(j["status"], "E_MERGE_LOST");
+    ASSERT_TRUE(j.contains("check"));
+    EXPECT_EQ(j["check"]["pairs"].get<int>(), 9);
+    EXPECT_NEAR(j["check"]["placed_sd_m"].get<double>(), 1.63, 1e-6);
+    EXPECT_FALSE(j.contains("map_after"));
+    m.status = COSLAM_E_MERGE_DISAGREE;
+    EXPECT_TRUE(merge_json(m).contains("check"));
+    m.status = COSLAM_E_MERGE_RANGE;
+    EXPECT_FALSE(merge_json(m).contains("check"));
+    m.kind = MEETING_EV_MERGED;
+    m.status = COSLAM_OK;
+    j = merge_json(m);
+    EXPECT_TRUE(j.contains("check"));
+    EXPECT_TRUE(j.contains("map_after"));
+}
+
 TEST(RunOutput, AFullDiskIsAnErrorNamingTheFile)
 {
     if (!std::filesystem::exists("/dev/full")) GTEST_SKIP() << "no /dev/full";
