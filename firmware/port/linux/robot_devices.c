@@ -538,20 +538,29 @@ static void opener_run(void *ctx)
     o->result = open_backend(o->d, o->id, o->reason, sizeof o->reason);
 }
 
-/* Start slot id's opener; on failure the slot's retries open in the loop. */
-static void opener_start(robot_devices_t *d, robot_dev_t id)
+/* Start slot id's opener if its thread is not running (at start-up, and
+ * again at each retry after a start failed). Returns 0; otherwise the
+ * errno of the failed start, said in `reason`: the device then stays down
+ * (counted, retried at the retry period). Its open never runs in the
+ * caller's thread instead: a hung V4L2, serial or CAN open would hold the
+ * start-up or the control loop for ever (docs/robot.md "Known trips"). */
+static int opener_start(robot_devices_t *d, robot_dev_t id, char *reason, size_t reason_cap)
 {
     robot_dev_opener_t *o = &d->opener[id];
+    if (o->worker.started) {
+        return 0;
+    }
     o->d = d;
     o->id = id;
     const int e = robot_worker_start(&o->worker, opener_run, o);
     if (e != 0) {
-        char text[320];
-        put_text(text, sizeof text,
-                 "no opener thread (%s): its reopen attempts will hold the control loop while they block",
+        d->dev[id].opener_start_failures++;
+        put_text(reason, reason_cap,
+                 "its opener thread could not be started (%s): not opened in the control loop's thread, which a "
+                 "hung open would hold (HAL_E_BUSY)",
                  strerror(e));
-        say(d, d->dev[id].name, &d->dev[id], text);
     }
+    return e;
 }
 
 /* Stop every opener (close_all): all are told to quit first, then each is
@@ -686,18 +695,20 @@ coslam_status_t robot_devices_init(robot_devices_t *d, const robot_config_t *cfg
     return ls;
 }
 
-/* Hand the blocking part of device id's open to its opener thread (the
- * preparation done): 1 if the opener took it, 0 if it has none or would
- * not take it (the caller opens in its own thread then). */
-static int opener_submit(robot_devices_t *d, robot_dev_t id, uint64_t now_us)
+/* Hand the blocking part of device id's open to its opener thread (started
+ * by opener_start; the preparation done): 1 if the opener took it, 0 if it
+ * would not (the reason in `reason`: the attempt has failed, the caller
+ * never opens in its own thread). */
+static int opener_submit(robot_devices_t *d, robot_dev_t id, uint64_t now_us, char *reason, size_t reason_cap)
 {
     robot_dev_opener_t *o = &d->opener[id];
     robot_dev_status_t *st = &d->dev[id];
-    if (!o->worker.started) {
-        return 0;
-    }
     o->reason[0] = '\0';
-    if (robot_worker_submit(&o->worker) != 0) {
+    const int e = robot_worker_submit(&o->worker);
+    if (e != 0) {
+        /* not reached: a slot hands over only with its opener started and
+         * idle (`opening` clear); said, never run here, if it ever is */
+        put_text(reason, reason_cap, "its opener thread would not take the open (%s) (HAL_E_BUSY)", strerror(e));
         return 0;
     }
     st->opening = 1;
@@ -783,15 +794,17 @@ void robot_devices_open_all(robot_devices_t *d, uint64_t now_us)
      * blocks (a FIFO without a writer as the landmark log, a hung driver)
      * used to hold the start-up in this thread until a signal; now the
      * start waits for them until one deadline (docs/robot.md "Known
-     * trips"). A slot without an opener thread opens here, as before. */
+     * trips"). A slot whose opener thread cannot be started is down
+     * (said with why, retried); it is never opened here. */
     int handed[ROBOT_DEV_COUNT] = {0};
+    int no_thread[ROBOT_DEV_COUNT] = {0};
     hal_status_t result[ROBOT_DEV_COUNT];
     char reason[ROBOT_DEV_COUNT][ROBOT_DEVICES_REASON_MAX];
     for (int i = 0; i < ROBOT_DEV_COUNT; ++i) {
         result[i] = HAL_E_UNSUPPORTED;
         reason[i][0] = '\0';
         if (want[i]) {
-            opener_start(d, (robot_dev_t)i);
+            no_thread[i] = opener_start(d, (robot_dev_t)i, reason[i], sizeof reason[i]) != 0;
         }
     }
     for (int i = 0; i < ROBOT_DEV_COUNT; ++i) {
@@ -799,15 +812,16 @@ void robot_devices_open_all(robot_devices_t *d, uint64_t now_us)
             continue;
         }
         const robot_dev_t id = (robot_dev_t)i;
+        if (no_thread[i]) {
+            result[i] = HAL_E_BUSY;
+            continue;
+        }
         hal_status_t s = open_prepare(d, id, reason[i], sizeof reason[i]);
-        if (s == HAL_OK && opener_submit(d, id, now_us)) {
+        if (s == HAL_OK && opener_submit(d, id, now_us, reason[i], sizeof reason[i])) {
             handed[i] = 1;
             continue;
         }
-        if (s == HAL_OK) {
-            s = open_backend(d, id, reason[i], sizeof reason[i]);
-        }
-        result[i] = s;
+        result[i] = s == HAL_OK ? HAL_E_BUSY : s;
     }
     const struct timespec end = robot_worker_deadline(ROBOT_DEVICES_START_OPEN_MS);
     for (int i = 0; i < ROBOT_DEV_COUNT; ++i) {
@@ -881,10 +895,9 @@ void robot_devices_storage_save_failed(robot_devices_t *d, size_t bytes, hal_sta
     robot_devices_fail(d, ROBOT_DEV_STORAGE, ws, reason, now_us);
 }
 
-/* An open attempt of the loop's retries took took_ms: kept, and said when
- * slow (on_thread: on the slot's opener, the loop went on; else the loop
- * waited for it, and the drives may have stopped the base meanwhile). */
-static void note_open_time(robot_devices_t *d, robot_dev_t id, uint64_t took_ms, int on_thread)
+/* An open attempt of the loop's retries took took_ms on the slot's opener
+ * thread (the loop went on): kept, and said when slow. */
+static void note_open_time(robot_devices_t *d, robot_dev_t id, uint64_t took_ms)
 {
     robot_dev_status_t *st = &d->dev[id];
     if (took_ms > st->open_max_ms) {
@@ -895,16 +908,9 @@ static void note_open_time(robot_devices_t *d, robot_dev_t id, uint64_t took_ms,
     }
     st->slow_opens++;
     char text[320];
-    if (on_thread) {
-        put_text(text, sizeof text,
-                 "this open attempt took %llu ms (on the device's opener thread: the control loop went on)",
-                 (unsigned long long)took_ms);
-    } else {
-        put_text(text, sizeof text,
-                 "this open attempt held the control loop for %llu ms (no opener thread; docs/robot.md "
-                 "\"Known trips\")",
-                 (unsigned long long)took_ms);
-    }
+    put_text(text, sizeof text,
+             "this open attempt took %llu ms (on the device's opener thread: the control loop went on)",
+             (unsigned long long)took_ms);
     say(d, st->name, st, text);
 }
 
@@ -963,7 +969,7 @@ unsigned robot_devices_service(robot_devices_t *d, uint64_t now_us)
             uint64_t took_us = 0U;
             if (robot_worker_take(&o->worker, 0U, &took_us) == 1) {
                 st->opening = 0;
-                note_open_time(d, id, took_us / 1000U, 1);
+                note_open_time(d, id, took_us / 1000U);
                 changed |= open_outcome(d, id, o->result, o->reason, now_us);
             } else if (!st->hung_said && now_us - st->open_began_us >= ROBOT_DEVICES_HUNG_OPEN_MS * 1000ULL) {
                 /* limits are loud: the device stays down until it returns */
@@ -982,20 +988,17 @@ unsigned robot_devices_service(robot_devices_t *d, uint64_t now_us)
         }
         char why[ROBOT_DEVICES_REASON_MAX];
         why[0] = '\0';
-        hal_status_t s = open_prepare(d, id, why, sizeof why);
-        if (s == HAL_OK && opener_submit(d, id, now_us)) {
-            continue;
-        }
-        /* no opener thread (or the preparation failed: nothing left to do):
-         * the attempt runs here, timed, and said if it held the loop */
-        uint64_t t0 = now_us;
-        (void)hal_clock_now_us(d->clock, &t0);
+        /* a slot whose opener thread could not be started tries again now;
+         * still none: a failed attempt, retried at the next period. The
+         * open never runs here: the loop must not wait for a device. */
+        hal_status_t s = opener_start(d, id, why, sizeof why) == 0 ? HAL_OK : HAL_E_BUSY;
         if (s == HAL_OK) {
-            s = open_backend(d, id, why, sizeof why);
+            s = open_prepare(d, id, why, sizeof why);
+            if (s == HAL_OK && opener_submit(d, id, now_us, why, sizeof why)) {
+                continue;
+            }
+            s = s == HAL_OK ? HAL_E_BUSY : s;
         }
-        uint64_t t1 = t0;
-        (void)hal_clock_now_us(d->clock, &t1);
-        note_open_time(d, id, t1 > t0 ? (t1 - t0) / 1000U : 0U, 0);
         changed |= open_outcome(d, id, s, why, now_us);
     }
     return changed;
@@ -1008,7 +1011,7 @@ int robot_devices_reopen_now(robot_devices_t *d, robot_dev_t id, uint64_t now_us
         return st->state == ROBOT_DEV_UP && !st->lost;
     }
     if (!st->opening) {
-        st->next_try_us = now_us; /* due now: handed over (or opened here) by the service */
+        st->next_try_us = now_us; /* due now: handed over by the service */
     }
     (void)robot_devices_service(d, now_us);
     if (st->opening) {

@@ -34,7 +34,9 @@
  * "not configured" and never tried.
  *
  * Opens in the loop's retries run on a thread per device (the opener) so
- * that a slow or hung open never holds the control loop: while the slot is
+ * that a slow or hung open never holds the control loop (a device whose
+ * opener thread cannot be started is not opened at all, but down with
+ * that reason and retried, the thread started again first): while the slot is
  * not up no proxy touches the device's backend, so the opener owns it for
  * the attempt; the loop takes the outcome at a later service and does the
  * bookkeeping (docs/robot.md "Devices"). What the opener writes is only
@@ -82,9 +84,9 @@ extern "C" {
 /** Consecutive HAL_E_IO answers after which a device counts as gone. */
 #define ROBOT_DEVICES_IO_LIMIT 50u
 
-/** A device open in the loop's service (a retry) that takes at least this
- *  long [ms] is reported: opens block, and the control loop waited for it
- *  (a quarter of the drives' 200 ms watchdog; docs/robot.md "Known
+/** A retry's open attempt that takes at least this long [ms] on its
+ *  opener thread is reported (a quarter of the drives' 200 ms watchdog,
+ *  from when the loop itself waited for it; docs/robot.md "Known
  *  trips"). */
 #define ROBOT_DEVICES_SLOW_OPEN_MS 50u
 
@@ -142,6 +144,8 @@ typedef struct {
     uint32_t open_max_ms;        /**< the longest open attempt of the loop's retries [ms] */
     uint32_t slow_opens;         /**< those of ROBOT_DEVICES_SLOW_OPEN_MS or more (reported) */
     uint32_t hung_opens;         /**< attempts still running after ROBOT_DEVICES_HUNG_OPEN_MS (reported) */
+    uint32_t opener_start_failures; /**< attempts that found no opener thread and could not start one
+                                         (reported; each a failed attempt, never opened in the loop) */
     int opening;                 /**< an attempt runs on the slot's opener thread (the slot is DOWN) */
     int hung_said;               /**< ... and has been said to hang */
     int start_open_late;         /**< ... the first one, begun at start-up (robot_devices_open_all) */
@@ -215,9 +219,11 @@ coslam_status_t robot_devices_init(robot_devices_t *d, const robot_config_t *cfg
                                    int verbose, char *msg, size_t msg_cap);
 
 /** First attempt at every device (start-up: the loop does not run yet).
- *  Starts an opener thread for every configured device (one that cannot
- *  be started is said; that device opens in the caller's thread, its
- *  retries in the loop, as before) and hands each first attempt to it;
+ *  Starts an opener thread for every configured device and hands each
+ *  first attempt to it (a device whose opener cannot be started, e.g.
+ *  pthread_create fails, is down with that reason, HAL_E_BUSY, counted in
+ *  opener_start_failures; it is never opened in the caller's thread, and
+ *  each retry tries to start the opener again before its open);
  *  waits for them all until one deadline, ROBOT_DEVICES_START_OPEN_MS
  *  after the hand-over. Each device is reported by name (up, down with the
  *  reason, not configured). An attempt still running at the deadline

@@ -197,16 +197,19 @@ void robot_status_collect(robot_status_t *s, robot_node_t *node, const robot_dev
     u64(s, "dds_rx_io", lc.dds_rx_io);
     uint64_t slow = 0U;
     uint64_t hung = 0U;
+    uint64_t no_opener = 0U;
     uint64_t open_max = 0U;
     for (int i = 0; i < ROBOT_DEV_COUNT; ++i) {
         slow += dev->dev[i].slow_opens;
         hung += dev->dev[i].hung_opens;
+        no_opener += dev->dev[i].opener_start_failures;
         open_max = dev->dev[i].open_max_ms > open_max ? dev->dev[i].open_max_ms : open_max;
     }
     u64(s, "dev_slow_opens", slow);
     u64(s, "dev_open_max_ms", open_max);
     u64(s, "dev_opening", robot_devices_opening(dev));
     u64(s, "dev_hung_opens", hung);
+    u64(s, "dev_opener_failures", no_opener);
     u64(s, "link_opens", dev->dev[ROBOT_DEV_LINK].opens);
     u64(s, "link_open_failures", dev->dev[ROBOT_DEV_LINK].open_failures);
     u64(s, "link_losses", dev->dev[ROBOT_DEV_LINK].losses);

@@ -44,7 +44,11 @@ typedef struct {
 } robot_worker_t;
 
 /** Start the thread that will call run(ctx) for each job. Returns 0, or an
- *  errno value (no thread: the owner does the work itself). */
+ *  errno value (pthread_create's, or the mutex's or a condition variable's
+ *  init's): no thread, nothing left made, and the owner decides (the device
+ *  openers leave their device down and call this again at its retry; the
+ *  snapshot writer's owner writes in its own thread). May be called again
+ *  after a failure; 0 at once when the thread runs. */
 int robot_worker_start(robot_worker_t *w, void (*run)(void *ctx), void *ctx);
 
 /** Hand a job over (its inputs written). Returns 0; EBUSY (the last job's
