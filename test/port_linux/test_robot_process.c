@@ -23,6 +23,10 @@
  *                 fall due meanwhile are skipped and counted), the write
  *                 lands when the gate opens, and a write that never returns
  *                 costs the final snapshot but not the clean stop.
+ *   no_opener_thread  pthread_create fails while a file exists
+ *                 (thread_gate.so): the devices are down with that reason,
+ *                 never opened in the loop's thread, the loop steps, and
+ *                 they come up once threads can be made.
  * Usage: test_robot_process <case> (one CTest entry per case).
  */
 #include <dirent.h>
@@ -1263,10 +1267,10 @@ static void touch(const char *path)
     fclose(f);
 }
 
-/* spawn_robot with fsync held while `gate` exists (fsync_gate.so). */
-/* The robot with fsync_gate.so preloaded, its variable `var` set to `path`
- * (verbose: with -v). */
-static pid_t spawn_robot_shimmed(const char *dir, const char *err, const char *var, const char *path, int verbose)
+/* The robot with the shim `so` preloaded (fsync_gate.so, thread_gate.so),
+ * its variable `var` set to `path` (verbose: with -v). */
+static pid_t spawn_robot_preloaded(const char *dir, const char *err, const char *so, const char *var,
+                                   const char *path, int verbose)
 {
     static char asan[512];
     const char *old = getenv("ASAN_OPTIONS");
@@ -1275,7 +1279,7 @@ static pid_t spawn_robot_shimmed(const char *dir, const char *err, const char *v
     static char old_asan[512];
     snprintf(old_asan, sizeof old_asan, "%s", old != NULL ? old : "");
     setenv("ASAN_OPTIONS", asan, 1);
-    setenv("LD_PRELOAD", COSLAM_FSYNC_GATE, 1);
+    setenv("LD_PRELOAD", so, 1);
     setenv(var, path, 1);
     const pid_t pid = spawn_robot_as(dir, err, NULL, NULL, verbose, (uid_t)-1);
     unsetenv("LD_PRELOAD");
@@ -1288,6 +1292,13 @@ static pid_t spawn_robot_shimmed(const char *dir, const char *err, const char *v
     return pid;
 }
 
+/* spawn_robot with fsync_gate.so preloaded, its variable `var` set to `path`. */
+static pid_t spawn_robot_shimmed(const char *dir, const char *err, const char *var, const char *path, int verbose)
+{
+    return spawn_robot_preloaded(dir, err, COSLAM_FSYNC_GATE, var, path, verbose);
+}
+
+/* spawn_robot with fsync held while `gate` exists (fsync_gate.so). */
 static pid_t spawn_robot_gated(const char *dir, const char *err, const char *gate)
 {
     return spawn_robot_shimmed(dir, err, "COSLAM_TEST_FSYNC_GATE", gate, 1);
@@ -1638,6 +1649,105 @@ static void storage_big_fsync_fails_steady(void **state)
     remove_dir(r.dir);
 }
 
+/* ---- no thread can be made ------------------------------------------------- */
+
+/* 1 if the last status line of `log` holds `needle` (" camera=up"). */
+static int last_status_has(const char *log, const char *needle)
+{
+    const char *line = NULL;
+    for (const char *p = strstr(log, "coslam-robot: status "); p != NULL; p = strstr(p + 1, "coslam-robot: status ")) {
+        line = p;
+    }
+    if (line == NULL) {
+        return 0;
+    }
+    const char *end = strchr(line, '\n');
+    const char *at = strstr(line, needle);
+    return at != NULL && (end == NULL || at < end);
+}
+
+/* No thread can be made from the start (thread_gate.so: pthread_create
+ * fails with EAGAIN while dir/no-threads exists), so no device's opener
+ * thread starts, and the camera's landmark log is a FIFO that never gets a
+ * writer (an open that never returns). Before, a slot whose opener could
+ * not be started opened in the caller's thread: the FIFO's open held the
+ * start-up, no step ever ran. Now each such device is down, said with the
+ * thread's failure, counted (dev_opener_failures) and tried again every
+ * retry period without ever opening in the loop's thread; the loop steps.
+ * The log then becomes a file and threads can be made again: the openers
+ * start at the next retry, and the camera and the storage come up. */
+static void no_opener_thread(void **state)
+{
+    (void)state;
+    char dir[64];
+    make_dir(dir, sizeof dir);
+    char fifo[300];
+    snprintf(fifo, sizeof fifo, "%s/lm.fifo", dir);
+    assert_int_equal(mkfifo(fifo, 0600), 0);
+    char camera[400];
+    snprintf(camera, sizeof camera, "replay_log = %s\nreplay_loop = true", fifo);
+    char store[300];
+    snprintf(store, sizeof store, "%s/store", dir);
+    config(dir, "no-laser", "0.2", "30", camera, store, "fastslam2");
+    char gate[300];
+    snprintf(gate, sizeof gate, "%s/no-threads", dir);
+    touch(gate);
+    char err[300];
+    snprintf(err, sizeof err, "%s/err", dir);
+    const uint64_t t0 = now_ms();
+    const pid_t pid = spawn_robot_preloaded(dir, err, COSLAM_THREAD_GATE, "COSLAM_TEST_THREAD_FAIL", gate, 1);
+    const long steps = wait_value(err, "steps", 20, 8000);
+    const uint64_t took_ms = now_ms() - t0;
+    const long failed_first = wait_value(err, "dev_opener_failures", 1, 2000);
+    sleep_ms(1000); /* three retry periods (0.3 s), still no thread */
+    const long failed_later = wait_value(err, "dev_opener_failures", failed_first + 1, 2000);
+    char *gated = strdup(slurp(err));
+    assert_non_null(gated);
+    /* the log a file, then threads again: the next retries open on the openers */
+    char tmp[300];
+    snprintf(tmp, sizeof tmp, "%s/lm.tmp", dir);
+    write_log(tmp);
+    assert_int_equal(rename(tmp, fifo), 0);
+    assert_int_equal(unlink(gate), 0);
+    const long frames = wait_value(err, "frames", 3, 5000);
+    const long failed_end = wait_value(err, "dev_opener_failures", 0, 0);
+    sleep_ms(500); /* a status line after the storage's return */
+    uint64_t stop_ms = 0U;
+    const char *log = stop_robot_within(pid, err, 5000, &stop_ms);
+    fprintf(stderr,
+            "no_opener_thread: %ld steps %llu ms after the spawn; dev_opener_failures %ld, %ld 1 s later, %ld at the "
+            "end; frames %ld; stop %llu ms\n",
+            steps, (unsigned long long)took_ms, failed_first, failed_later, failed_end, frames,
+            (unsigned long long)stop_ms);
+    if (steps < 20 || strstr(log, ": back up after ") == NULL) {
+        fprintf(stderr, "%s\n", log);
+    }
+    assert_true(steps >= 20); /* the loop runs: no open held it (before: no step at all) */
+    assert_true(took_ms < 8000);
+    /* down, said with the thread's failure, while no thread can be made */
+    assert_non_null(strstr(gated, "coslam-robot: camera (landmark-log replay "));
+    assert_non_null(strstr(gated, "down: its opener thread could not be started (Resource temporarily "
+                                  "unavailable): not opened in the control loop's thread"));
+    assert_non_null(strstr(gated, "/store): down: its opener thread could not be started (Resource temporarily "
+                                  "unavailable)"));
+    assert_true(last_status_has(gated, " camera=down"));
+    assert_true(last_status_has(gated, " storage=down"));
+    assert_true(failed_first >= 2);           /* the camera's and the storage's at least */
+    assert_true(failed_later > failed_first); /* tried again at the retry period */
+    assert_int_equal(last_value(gated, "frames"), 0);
+    free(gated);
+    /* and up once threads can be made */
+    assert_true(frames >= 3);
+    assert_non_null(strstr(log, "coslam-robot: camera (landmark-log replay "));
+    assert_non_null(strstr(log, ": back up after "));
+    assert_true(last_status_has(log, " camera=up"));
+    assert_true(last_status_has(log, " storage=up"));
+    assert_null(strstr(log, "held the control loop"));
+    assert_true(last_value(log, "late_max_us") < 500000);
+    assert_true(stop_ms < 4000);
+    remove_dir(dir);
+}
+
 int main(int argc, char **argv)
 {
     if (argc > 1) {
@@ -1665,6 +1775,7 @@ int main(int argc, char **argv)
         cmocka_unit_test(storage_fsync_fails_steady),
         cmocka_unit_test(storage_big_fsync_fails_steady),
         cmocka_unit_test(no_can_said_once),
+        cmocka_unit_test(no_opener_thread),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
