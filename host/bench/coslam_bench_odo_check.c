@@ -149,7 +149,7 @@ static int bench_odo_check_main(int argc, char **argv)
         return kExitWrite;
     }
     fputs(table, f);
-    if (bench_file_close("coslam-bench-odo-check", f, path) != 0) {
+    if (checked_file_close("coslam-bench-odo-check", f, path) != 0) {
         return kExitWrite;
     }
     if (c.disagreements + c.mismatches != 0U) {

@@ -4,11 +4,10 @@
 #ifndef COSLAM_BENCH_REPORT_H
 #define COSLAM_BENCH_REPORT_H
 
-#include <errno.h>
 #include <stdio.h>
-#include <string.h>
 
 #include "app/profile.h"
+#include "checked_file.h"
 
 /* Opens both files (0) or neither (-1, "<tool>: cannot write <path>: <OS
  * reason>" on stderr). */
@@ -18,10 +17,8 @@ static inline int bench_report_open(const char *tool, const char *out, const cha
     *md = *js = NULL;
     for (int k = 0; k < 2; ++k) {
         snprintf(path, sizeof path, "%s/%s.%s", out, stem, k == 0 ? "md" : "json");
-        errno = 0;
-        FILE *f = fopen(path, "w");
+        FILE *f = checked_file_open(tool, path);
         if (f == NULL) {
-            fprintf(stderr, "%s: cannot write %s: %s\n", tool, path, strerror(errno));
             if (*md != NULL) {
                 fclose(*md);
             }
@@ -36,32 +33,16 @@ static inline int bench_report_open(const char *tool, const char *out, const cha
     return 0;
 }
 
-/* Closes f, written to path: a write or the final flush that failed (a full
- * disk) is said as "<tool>: cannot write <path>: <OS reason>". Returns 0, or
- * -1 on an error (the benches then exit 1). f NULL: nothing to do. */
-static inline int bench_file_close(const char *tool, FILE *f, const char *path)
-{
-    if (f == NULL) {
-        return 0;
-    }
-    const int bad = ferror(f);
-    errno = 0;
-    const int rc = fclose(f);
-    if (rc != 0 || bad) {
-        fprintf(stderr, "%s: cannot write %s: %s\n", tool, path, errno != 0 ? strerror(errno) : "a write failed");
-        return -1;
-    }
-    return 0;
-}
-
-/* Closes both report files of bench_report_open (or opened alike), checked. */
+/* Closes both report files of bench_report_open (or opened alike), checked
+ * (checked_file_close): 0, or -1 if either failed (the benches then exit
+ * 1). */
 static inline int bench_report_close(const char *tool, const char *out, const char *stem, FILE *md, FILE *js)
 {
     char path[1024];
     snprintf(path, sizeof path, "%s/%s.md", out, stem);
-    const int a = bench_file_close(tool, md, path);
+    const int a = checked_file_close(tool, md, path);
     snprintf(path, sizeof path, "%s/%s.json", out, stem);
-    const int b = bench_file_close(tool, js, path);
+    const int b = checked_file_close(tool, js, path);
     return a != 0 || b != 0 ? -1 : 0;
 }
 
