@@ -3,6 +3,10 @@
  * simulator lands): one seeded synthetic loop, run through EKF-SLAM and
  * Fast-SLAM; writes TUM paths, map CSVs, metrics.json and a figure.
  *   coslam-demo [--out DIR] [--seed N] [--landmarks N]
+ * Exit status: 0 done; 1 DIR not created, an output file not written whole
+ * ("coslam-demo: cannot write <path>: <OS reason>", checked_file.h; the
+ * run stops there) or standard output lost (stdout_check.h), or a run
+ * failed; 2 usage.
  */
 #define _POSIX_C_SOURCE 200809L
 #include <errno.h>
@@ -14,8 +18,11 @@
 #include <math.h>
 
 #include "slam_run.h"
+#include "checked_file.h"
 #include "profile_print.h"
 #include "stdout_check.h"
+
+#define DEMO_TOOL "coslam-demo"
 
 static int mkdir_p(const char *path)
 {
@@ -31,28 +38,29 @@ static int mkdir_p(const char *path)
     return (mkdir(tmp, 0775) != 0 && errno != EEXIST) ? -1 : 0;
 }
 
-static void write_tum(const char *path, const pose2_t *poses, const double *t, int n)
+/* write_tum, write_map: 0, or -1 with the file named on stderr */
+static int write_tum(const char *path, const pose2_t *poses, const double *t, int n)
 {
-    FILE *f = fopen(path, "w");
-    if (!f) { fprintf(stderr, "coslam-demo: cannot write %s: %s\n", path, strerror(errno)); return; }
+    FILE *f = checked_file_open(DEMO_TOOL, path);
+    if (!f) return -1;
     fprintf(f, "# t x y z qx qy qz qw\n");
     for (int i = 0; i < n; ++i) {
         fprintf(f, "%.3f %.6f %.6f 0 0 0 %.9f %.9f\n", t[i], poses[i].x, poses[i].y, sin(0.5 * poses[i].theta),
                 cos(0.5 * poses[i].theta));
     }
-    fclose(f);
+    return checked_file_close(DEMO_TOOL, f, path);
 }
 
-static void write_map(const char *path, const map_estimate_t *m)
+static int write_map(const char *path, const map_estimate_t *m)
 {
-    FILE *f = fopen(path, "w");
-    if (!f) { fprintf(stderr, "coslam-demo: cannot write %s: %s\n", path, strerror(errno)); return; }
+    FILE *f = checked_file_open(DEMO_TOOL, path);
+    if (!f) return -1;
     fprintf(f, "id,x,y,cxx,cxy,cyy\n");
     for (int i = 0; i < m->n_landmarks; ++i) {
         const map_landmark_t *l = &m->lm[i];
         fprintf(f, "%u,%.6f,%.6f,%.9g,%.9g,%.9g\n", l->id, l->mean.x, l->mean.y, l->cov.xx, l->cov.xy, l->cov.yy);
     }
-    fclose(f);
+    return checked_file_close(DEMO_TOOL, f, path);
 }
 
 static int demo_main(int argc, char **argv)
@@ -75,22 +83,36 @@ static int demo_main(int argc, char **argv)
     const run_filter_t filters[2] = {RUN_EKFSLAM, RUN_FASTSLAM2};
     const char *names[2] = {"ekfslam", "fastslam2"};
     char path[1200];
-    snprintf(path, sizeof path, "%s/metrics.json", out);
-    FILE *mj = fopen(path, "w");
-    if (!mj) { fprintf(stderr, "coslam-demo: cannot write %s\n", path); return 1; }
+    char mj_path[1200];
+    snprintf(mj_path, sizeof mj_path, "%s/metrics.json", out);
+    FILE *mj = checked_file_open(DEMO_TOOL, mj_path);
+    if (!mj) return 1;
     fprintf(mj, "{\n  \"seed\": %llu,\n  \"landmarks\": %d,\n  \"filters\": {\n", (unsigned long long)seed, n_lm);
     for (int k = 0; k < 2; ++k) {
         run_opts_t o = run_opts_default(filters[k]);
         o.params = sc.truth;
         run_result_t *r = malloc(sizeof *r);
         run_trace_t tr = {0};
-        if (!r || run_synth_traced(&sc, &o, r, &tr) != 0) { fprintf(stderr, "coslam-demo: run failed\n"); return 1; }
+        if (!r || run_synth_traced(&sc, &o, r, &tr) != 0) {
+            fprintf(stderr, "coslam-demo: run failed\n");
+            run_trace_free(&tr);
+            free(r);
+            fclose(mj);
+            return 1;
+        }
+        int bad = 0;
         snprintf(path, sizeof path, "%s/robot0_%s_path.tum", out, names[k]);
-        write_tum(path, tr.est, tr.t, tr.n);
+        bad = bad || write_tum(path, tr.est, tr.t, tr.n) != 0;
         snprintf(path, sizeof path, "%s/robot0_truth_path.tum", out);
-        write_tum(path, tr.truth, tr.t, tr.n);
+        bad = bad || write_tum(path, tr.truth, tr.t, tr.n) != 0;
         snprintf(path, sizeof path, "%s/robot0_%s_map.csv", out, names[k]);
-        write_map(path, &r->estimate);
+        bad = bad || write_map(path, &r->estimate) != 0;
+        if (bad) {
+            run_trace_free(&tr);
+            free(r);
+            fclose(mj);
+            return 1;
+        }
         fprintf(mj, "    \"%s\": {\"pose_rmse_m\": %.4f, \"heading_rmse_rad\": %.4f, \"odometry_rmse_m\": %.4f, "
                     "\"landmark_rmse_m\": %.4f, \"landmarks\": %d, \"spurious\": %d, \"missed\": %d, "
                     "\"landmark_nees\": %.3f, \"pose_nees\": %.3f, \"step_us\": %.2f}%s\n",
@@ -103,18 +125,18 @@ static int demo_main(int argc, char **argv)
         free(r);
     }
     fprintf(mj, "  }\n}\n");
-    fclose(mj);
+    if (checked_file_close(DEMO_TOOL, mj, mj_path) != 0) return 1;
     /* the truth map */
     synth_world_t *w = malloc(sizeof *w);
+    if (!w) { fprintf(stderr, "coslam-demo: out of memory\n"); return 1; }
     synth_init(w, &sc);
     snprintf(path, sizeof path, "%s/truth_map.csv", out);
-    FILE *f = fopen(path, "w");
-    if (f) {
-        fprintf(f, "id,x,y\n");
-        for (int j = 0; j < w->n_lm; ++j) fprintf(f, "%d,%.6f,%.6f\n", j, w->lm[j].x, w->lm[j].y);
-        fclose(f);
-    }
+    FILE *f = checked_file_open(DEMO_TOOL, path);
+    if (!f) { free(w); return 1; }
+    fprintf(f, "id,x,y\n");
+    for (int j = 0; j < w->n_lm; ++j) fprintf(f, "%d,%.6f,%.6f\n", j, w->lm[j].x, w->lm[j].y);
     free(w);
+    if (checked_file_close(DEMO_TOOL, f, path) != 0) return 1;
     printf("results in %s/\n", out);
     return 0;
 }
@@ -122,5 +144,5 @@ static int demo_main(int argc, char **argv)
 /* exit status with standard output checked (stdout_check.h) */
 int main(int argc, char **argv)
 {
-    return stdout_check_exit("coslam-demo", demo_main(argc, argv));
+    return stdout_check_exit(DEMO_TOOL, demo_main(argc, argv));
 }
