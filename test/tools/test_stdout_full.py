@@ -11,7 +11,8 @@ pipe") rather than a silent exit 0.
 
 usage: test_stdout_full.py WORK NAME=BINARY...
 A NAME with an empty BINARY (not built in this configuration) is skipped.
-Each run is short (a second of simulation, one seed, one frame); the
+Each run is short (a second of simulation, half a second of
+coslam-sim-devices in real time, one seed, one frame); the
 whole test takes about 15 s, most of it coslam-bench-merge's one
 repetition (it has no smaller workload)."""
 import os
@@ -94,6 +95,12 @@ CASES = {
                           ("--help", ["--help"], 1)],
     "coslam-vision-eval": [("two frames", ["--frames", "2"], 1),
                            ("--help", ["--help"], 1)],
+    # half a second in real time, two stand-in robots (a sleeping script,
+    # not coslam-robot: only the server's summary line is under test); no
+    # --help, its usage goes to stderr: exit 2, nothing to say
+    "coslam-sim-devices": [("0.5 s run", ["--scenario", w("two.toml"), "--robot", w("robot.sh"), "--duration", "0.5",
+                                          "--out", w("devices")], 1),
+                           ("bad option", ["--no-such-option"], 2, False)],
 }
 # stdout a pipe whose reader has gone, SIGPIPE ignored (inherited: python
 # ignores it): EPIPE, the same error
@@ -114,6 +121,16 @@ def check(ok, what):
 shutil.rmtree(WORK, ignore_errors=True)
 os.makedirs(w("bench"))
 png(w("grey.png"))
+# coslam-sim-devices: the smallest scenario it takes (two robots) and a
+# robot that waits for its SIGTERM
+with open(w("two.toml"), "w") as f:
+    f.write('name = "two"\nduration_s = 0.5\nseed = 1\n\n[world]\n'
+            'arena = [[-2.0, -2.0], [2.0, -2.0], [2.0, 2.0], [-2.0, 2.0]]\n\n'
+            '[[robot]]\nname = "robot0"\nstart = [-0.8, 0.0, 0.0]\n\n'
+            '[[robot]]\nname = "robot1"\nstart = [0.8, 0.0, 0.0]\n')
+with open(w("robot.sh"), "w") as f:
+    f.write("#!/bin/sh\nexec sleep 10\n")
+os.chmod(w("robot.sh"), 0o755)
 unknown = sorted(set(BINS) - set(CASES))
 check(not unknown, f"a case for every tool given ({unknown or 'all'})")
 for name, cases in CASES.items():
