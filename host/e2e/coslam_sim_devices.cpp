@@ -811,9 +811,18 @@ static int sim_devices_main(int argc, char **argv)
         }
         res["robots"].push_back(rj);
     }
-    std::ofstream(out + "/result.json") << res.dump(2) << "\n";
-    std::printf("coslam-sim-devices: %.1f s simulated in %.1f s wall (late max %.1f ms); result in %s/result.json\n",
-                static_cast<double>(t_sim) * 1e-6, wall_s, static_cast<double>(late_max_us) * 1e-3, out.c_str());
+    int wrote = 1;
+    try {
+        coslam::cli::write_text_file(out + "/result.json", res.dump(2) + "\n");
+    } catch (const coslam::cli::WriteError &e) {
+        // the run's numbers are in that file only: an exit 0 would hide them lost
+        std::fprintf(stderr, "coslam-sim-devices: %s\n", e.what());
+        wrote = 0;
+    }
+    if (wrote) {
+        std::printf("coslam-sim-devices: %.1f s simulated in %.1f s wall (late max %.1f ms); result in %s/result.json\n",
+                    static_cast<double>(t_sim) * 1e-6, wall_s, static_cast<double>(late_max_us) * 1e-3, out.c_str());
+    }
     for (auto &p : ports) {
         close(p.pty_master);
         close(p.pty_slave);
@@ -821,7 +830,7 @@ static int sim_devices_main(int argc, char **argv)
         close(p.sight_srv);
         close(p.gpio_srv);
     }
-    return robot_died ? 1 : 0;
+    return robot_died || !wrote ? 1 : 0;
 }
 
 // exit status with standard output checked (stdout_check.h)

@@ -39,27 +39,16 @@
 #include <sys/stat.h>
 
 #include "bench_args.h"
+#include "checked_file.h"
 #include "eval_worlds.h"
 #include "profile_print.h"
 #include "stdout_check.h"
 
 /* Closes f (NULL: nothing to do); a write error or a failed close is said
- * with the file's path. Returns 0, or 1 on an error. */
+ * with the file's path (checked_file.h). Returns 0, or 1 on an error. */
 static int close_checked(FILE *f, const char *path)
 {
-    if (f == NULL) {
-        return 0;
-    }
-    const int bad = ferror(f);
-    if (fclose(f) != 0) {
-        fprintf(stderr, "coslam-eval-worlds: error writing %s: %s\n", path, strerror(errno));
-        return 1;
-    }
-    if (bad) {
-        fprintf(stderr, "coslam-eval-worlds: error writing %s\n", path);
-        return 1;
-    }
-    return 0;
+    return checked_file_close("coslam-eval-worlds", f, path) != 0 ? 1 : 0;
 }
 
 /* The world of `seed` as a landmark log (docs/replay.md: robot<k>.log with

@@ -43,18 +43,18 @@ if [ -e /dev/full ]; then
   mkdir -p "$WORK/md"
   ln -s /dev/full "$WORK/md/paper_ekf_0.md"
   out=$("$BIN" --world paper --seeds 1 --out "$WORK/md" 2>&1); rc=$?
-  if [ $rc -eq 0 ] || ! echo "$out" | grep -q "error writing $WORK/md/paper_ekf_0.md"; then
+  if [ $rc -eq 0 ] || ! echo "$out" | grep -q "cannot write $WORK/md/paper_ekf_0.md"; then
     echo "FAIL: a full disk gave exit $rc: $(echo "$out" | tail -2)"; fail=1
   else
-    echo "ok: full disk -> $(echo "$out" | grep 'error writing')"
+    echo "ok: full disk -> $(echo "$out" | grep 'cannot write')"
   fi
   mkdir -p "$WORK/log"
   ln -s /dev/full "$WORK/log/robot1.log"
   out=$("$BIN" --world paper --write-log "$WORK/log" 2>&1); rc=$?
-  if [ $rc -eq 0 ] || ! echo "$out" | grep -q "error writing $WORK/log/robot1.log"; then
+  if [ $rc -eq 0 ] || ! echo "$out" | grep -q "cannot write $WORK/log/robot1.log"; then
     echo "FAIL: a full disk (--write-log) gave exit $rc: $(echo "$out" | tail -2)"; fail=1
   else
-    echo "ok: full disk (--write-log) -> $(echo "$out" | grep 'error writing')"
+    echo "ok: full disk (--write-log) -> $(echo "$out" | grep 'cannot write')"
   fi
 fi
 exit $fail

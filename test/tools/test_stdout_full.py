@@ -165,6 +165,22 @@ for name, args in PIPE_CASES.items():
     check(rc == 1 and line in err,
           f"{name} {' '.join(args)} to a closed pipe, SIGPIPE ignored: exit {rc} (want 1), "
           + (line if line in err else f"no '{line}': {err.strip()[-300:]!r}"))
+# coslam-sim-devices' numbers are in its result.json only: that file on a
+# full disk is an error naming it, exit 1, and no "result in" line
+if BINS.get("coslam-sim-devices"):
+    os.makedirs(w("devices_full"), exist_ok=True)
+    res = w("devices_full") + "/result.json"
+    if os.path.lexists(res):
+        os.remove(res)
+    os.symlink("/dev/full", res)
+    p = subprocess.run([BINS["coslam-sim-devices"], "--scenario", w("two.toml"), "--robot", w("robot.sh"),
+                        "--duration", "0.5", "--out", w("devices_full")],
+                       stdout=subprocess.PIPE, stderr=subprocess.PIPE, cwd=WORK, timeout=120)
+    err = p.stderr.decode(errors="replace")
+    line = f"coslam-sim-devices: cannot write {res}: No space left on device"
+    check(p.returncode == 1 and line in err and b"result in" not in p.stdout,
+          f"coslam-sim-devices, result.json on /dev/full: exit {p.returncode} (want 1), "
+          + (line if line in err else f"no '{line}': {err.strip()[-300:]!r}"))
 if failures:
     print(f"{len(failures)} case(s) failed")
     sys.exit(1)
