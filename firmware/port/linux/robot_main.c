@@ -164,8 +164,20 @@ static robot_snapshot_t snap;
  * (robot_snapshot_writer.h): an fsync on a slow card never holds the
  * control loop. One write at a time; its outcome is taken and committed on
  * a later step (finish_snapshot_write). Without the thread (it could not be
- * started) the loop writes them itself, as the final one always is. */
+ * started) a snapshot is not written, but counted and said (the loop never
+ * writes one itself: a hung medium would hold it for ever), and the thread
+ * is started again every retry period (writer_running). The final one is
+ * written by the stop (or, when the thread did not run, handed to it
+ * started once more, or skipped: final_snapshot_no_writer). */
 static robot_snapshot_writer_t writer;
+/* The writer thread's starts that failed: the last one's errno (0: it
+ * runs, or none failed yet), when the next is due, and how many failed
+ * since it last ran. */
+static struct {
+    int err;
+    uint64_t next_try_us;
+    uint32_t failing;
+} writer_retry;
 typedef struct {
     int active;                /* a write (or the read below) handed over, outcome not taken */
     int is_read;               /* ... the read of the newest generation when the storage came back */
@@ -304,9 +316,13 @@ static int save_snapshot_map(int verbose, const char *why, uint64_t now_us, int 
     const int e = to_writer ? robot_snapshot_writer_submit(&writer, st, job.name, snaps.buf, job.len) : ESRCH;
     if (e != 0) {
         if (to_writer) {
-            /* never while a write is in flight (the caller checked) */
-            fprintf(stderr, "coslam-robot: snapshot: writer thread refused the %s snapshot (%s): written here\n", why,
+            /* not reached: the caller hands over only with the thread
+             * running and no write in flight. Never written here instead
+             * (the loop's thread: a hung medium would hold it) */
+            snaps.save_failures++;
+            fprintf(stderr, "coslam-robot: snapshot: writer thread refused the %s snapshot (%s): not written\n", why,
                     strerror(e));
+            return -1;
         }
         uint64_t t0 = now_us;
         (void)hal_clock_now_us(dev.clock, &t0);
@@ -393,8 +409,8 @@ static int finish_snapshot_write(int verbose, uint32_t wait_ms, uint64_t now_us)
 }
 
 /* Export now (whole, in this step) and save the next generation: the final
- * snapshot. */
-static int save_snapshot(int verbose, const char *why, uint64_t now_us)
+ * snapshot (written here, or handed to the writer thread: `to_writer`). */
+static int save_snapshot(int verbose, const char *why, uint64_t now_us, int to_writer)
 {
     memset(&snap, 0, sizeof snap);
     snap.clean_stop = 1U; /* the final snapshot: nothing is sent after it (snap_seq_to_save) */
@@ -407,7 +423,124 @@ static int save_snapshot(int verbose, const char *why, uint64_t now_us)
     }
     (void)robot_node_export_poll(&node, &snap.map, NULL); /* the observer's, finished above: taken */
     observer.landmarks = snap.map.n_landmarks;
-    return save_snapshot_map(verbose, why, now_us, 0);
+    return save_snapshot_map(verbose, why, now_us, to_writer);
+}
+
+/* The writer thread runs, or is started again once its retry is due
+ * (every retry_period_s, as a device's opener). A start that fails is
+ * counted (snap_writer_start_failures), said when its reason is new, and
+ * the snapshots meanwhile are not written (no_writer_skip). Returns 1 if
+ * the thread runs. */
+static int writer_running(uint64_t now_us)
+{
+    if (robot_snapshot_writer_started(&writer)) {
+        return 1;
+    }
+    if (now_us < writer_retry.next_try_us) {
+        return 0;
+    }
+    writer_retry.next_try_us = now_us + dev.retry_us;
+    const int e = robot_snapshot_writer_start(&writer);
+    if (e != 0) {
+        snaps.writer_start_failures++;
+        writer_retry.failing++;
+        if (e != writer_retry.err) {
+            fprintf(stderr,
+                    "coslam-robot: snapshot: no writer thread (%s): snapshots are not written until one can be "
+                    "started (never in the control loop's thread, which a slow or hung medium would hold); tried "
+                    "again every %.1f s; the snapshots not written are counted (snap_no_writer_skips)\n",
+                    strerror(e), (double)dev.retry_us * 1e-6);
+        }
+        writer_retry.err = e;
+        return 0;
+    }
+    if (writer_retry.failing > 0U) {
+        fprintf(stderr,
+                "coslam-robot: snapshot: writer thread started after %lu failed attempts: snapshots are written "
+                "again (%lu not written meanwhile, snap_no_writer_skips)\n",
+                (unsigned long)writer_retry.failing, (unsigned long)snaps.no_writer_skips);
+    }
+    writer_retry.err = 0;
+    writer_retry.failing = 0U;
+    return 1;
+}
+
+/* A snapshot not written because the writer thread does not run: counted;
+ * said with -v (the thread's failure itself was said, writer_running). */
+static void no_writer_skip(int verbose, const char *why)
+{
+    snaps.no_writer_skips++;
+    if (verbose) {
+        fprintf(stderr, "coslam-robot: snapshot: no writer thread (%s): %s snapshot not written "
+                        "(snap_no_writer_skips=%lu)\n",
+                strerror(writer_retry.err), why, (unsigned long)snaps.no_writer_skips);
+    }
+}
+
+/* The stop: the snapshot job handed over (writing) has not returned
+ * within its wait (storage stuck): said, the thread left to it. */
+static void final_stuck(hal_clock_t *clock)
+{
+    uint64_t now = writing.since_us;
+    (void)hal_clock_now_us(clock, &now);
+    fprintf(stderr,
+            "coslam-robot: snapshot: a snapshot %s has run for %.1f s and does not return (storage stuck): "
+            "no final snapshot\n",
+            writing.is_read ? "read" : "write", (double)(now - writing.since_us) * 1e-6);
+    (void)robot_snapshot_writer_stop(&writer, 0U);
+    /* the thread still uses the storage: left open to it until exit */
+    dev.dev[ROBOT_DEV_STORAGE].state = ROBOT_DEV_DOWN;
+}
+
+/* The stop's final snapshot when the writer thread did not run at the end
+ * of the loop (it could not be started). It is started once more, at once;
+ * if it starts, the read of a storage that came back (read_due, or the
+ * storage reopened now) and the final snapshot go to it, each waited for
+ * at most FINAL_SNAPSHOT_WAIT_MS (storage stuck: said, left to the thread,
+ * as a periodic write held at the stop). If it does not, there is no final
+ * snapshot: it is not written in this thread, which a hung medium would
+ * hold for ever (the stop must end: the drives are released, and a service
+ * manager would kill the process anyway); said and counted. The
+ * generations on disk stay as they were. Returns 0 if it was saved. */
+static int final_snapshot_no_writer(hal_clock_t *clock, int read_due)
+{
+    uint64_t now = 0U;
+    (void)hal_clock_now_us(clock, &now);
+    writer_retry.next_try_us = now; /* due now, whatever the retry period */
+    if (!writer_running(now)) {
+        snaps.no_writer_skips++;
+        fprintf(stderr,
+                "coslam-robot: snapshot: no writer thread at the stop (%s): no final snapshot (not written in "
+                "this thread, which a slow or hung medium would hold; snap_no_writer_skips=%lu); the newest on "
+                "disk stays seq=%llu\n",
+                strerror(writer_retry.err), (unsigned long)snaps.no_writer_skips,
+                (unsigned long long)snaps.newest_seq);
+        return -1;
+    }
+    if (robot_devices_storage(&dev) == NULL &&
+        robot_devices_reopen_now(&dev, ROBOT_DEV_STORAGE, now, FINAL_REOPEN_WAIT_MS)) {
+        fprintf(stderr, "coslam-robot: snapshot: storage back for the final snapshot\n");
+        read_due = 1;
+    }
+    (void)hal_clock_now_us(clock, &now);
+    if (read_due && robot_devices_storage(&dev) != NULL) {
+        storage_back(now, 1); /* on the thread: nothing is in flight */
+        if (!finish_snapshot_write(1, FINAL_SNAPSHOT_WAIT_MS, now)) {
+            final_stuck(clock);
+            return -1;
+        }
+        (void)hal_clock_now_us(clock, &now);
+    }
+    const uint32_t saves = snaps.saves;
+    if (save_snapshot(1, "final", now, 1) == 0) {
+        (void)hal_clock_now_us(clock, &now);
+        if (!finish_snapshot_write(1, FINAL_SNAPSHOT_WAIT_MS, now)) {
+            final_stuck(clock);
+            return -1;
+        }
+    }
+    (void)robot_snapshot_writer_stop(&writer, FINAL_SNAPSHOT_WAIT_MS);
+    return snaps.saves > saves ? 0 : -1;
 }
 
 /* The observers' export: begin it, or see whether it is done. Returns 1
@@ -840,11 +973,7 @@ int main(int argc, char **argv)
         return 0;
     }
 
-    const int werr = robot_snapshot_writer_start(&writer);
-    if (werr != 0) {
-        fprintf(stderr, "coslam-robot: snapshot: no writer thread (%s): snapshots are written in the control loop\n",
-                strerror(werr));
-    }
+    (void)writer_running(now); /* said if it cannot be started; tried again at the retry period */
     const uint64_t period = cfg.step_period_us;
     /* a positive period below a microsecond is a microsecond, not 0 (off) */
     const uint64_t status_us = cfg.status_period_s > 0.0 ? (uint64_t)fmax(1.0, cfg.status_period_s * 1e6) : 0U;
@@ -861,6 +990,7 @@ int main(int argc, char **argv)
     double cpu_mark = cpu_seconds();
     uint64_t cpu_mark_us = now;
     int storage_was_up = robot_devices_storage(&dev) != NULL;
+    int storage_read_due = 0; /* the storage came back: its newest generation is read (on the writer) */
     coslam_status_t last_step = COSLAM_OK;
 
     while (!stop_signal && (opt.once < 0 || loop.steps < (uint64_t)opt.once)) {
@@ -881,7 +1011,14 @@ int main(int argc, char **argv)
         }
         const int storage_up = robot_devices_storage(&dev) != NULL;
         if (storage_up && !storage_was_up) {
-            storage_back(now, werr == 0);
+            storage_read_due = 1;
+        }
+        storage_read_due = storage_read_due && storage_up;
+        if (storage_read_due && writer_running(now)) {
+            /* without the thread the read waits for it (never in the loop);
+             * the snapshots it orders are not written meanwhile either */
+            storage_back(now, 1);
+            storage_read_due = 0;
         }
         storage_was_up = storage_up;
 
@@ -907,6 +1044,8 @@ int main(int argc, char **argv)
                         "snapshot skipped (snap_busy_skips=%lu)\n",
                         writing.is_read ? "read of the storage that came back" : "last snapshot's write",
                         (double)(now - writing.since_us) * 1e-6, (unsigned long)snaps.busy_skips);
+            } else if (!writer_running(now)) {
+                no_writer_skip(opt.verbose, "periodic");
             } else {
                 observer.want_snap = 1;
             }
@@ -941,7 +1080,7 @@ int main(int argc, char **argv)
                 } else {
                     observer.landmarks = snap.map.n_landmarks;
                     if (observer.want_snap) {
-                        (void)save_snapshot_map(opt.verbose, "periodic", now, werr == 0);
+                        (void)save_snapshot_map(opt.verbose, "periodic", now, 1);
                     }
                 }
                 observer.want_snap = 0;
@@ -1019,14 +1158,13 @@ int main(int argc, char **argv)
      * one the final snapshot must come after) */
     int saved = -1;
     if (!finish_snapshot_write(1, FINAL_SNAPSHOT_WAIT_MS, now)) {
+        final_stuck(clock);
         (void)hal_clock_now_us(clock, &now);
-        fprintf(stderr,
-                "coslam-robot: snapshot: a snapshot %s has run for %.1f s and does not return (storage stuck): "
-                "no final snapshot\n",
-                writing.is_read ? "read" : "write", (double)(now - writing.since_us) * 1e-6);
-        (void)robot_snapshot_writer_stop(&writer, 0U);
-        /* the thread still uses the storage: left open to it until exit */
-        dev.dev[ROBOT_DEV_STORAGE].state = ROBOT_DEV_DOWN;
+    } else if (!robot_snapshot_writer_started(&writer)) {
+        /* no writer thread at the end of the loop (it could not be
+         * started): bounded, never a write in this thread */
+        saved = final_snapshot_no_writer(clock, storage_read_due);
+        (void)hal_clock_now_us(clock, &now);
     } else {
         (void)robot_snapshot_writer_stop(&writer, FINAL_SNAPSHOT_WAIT_MS);
         (void)hal_clock_now_us(clock, &now);
@@ -1040,7 +1178,7 @@ int main(int argc, char **argv)
             storage_back(now, 0);
         }
         (void)hal_clock_now_us(clock, &now);
-        saved = save_snapshot(1, "final", now);
+        saved = save_snapshot(1, "final", now, 0);
     }
     loop.uptime_s = (double)(now - t_start) * 1e-6;
     loop.landmarks = observer.landmarks;

@@ -141,6 +141,10 @@ typedef struct {
     uint32_t busy_skips;      /**< periodic snapshots not taken: the last one's write still ran
                                    (robot_snapshot_writer.h; set by the caller) */
     uint64_t write_max_us;    /**< longest storage write seen (set by the caller) */
+    uint32_t no_writer_skips; /**< snapshots not written: the writer thread was not running
+                                   (robot_snapshot_writer.h; set by the caller) */
+    uint32_t writer_start_failures; /**< attempts to start the writer thread that failed (set by
+                                         the caller) */
     uint8_t buf[ROBOT_SNAPSHOT_MAX_BYTES];
 } robot_snapshots_t;
 

@@ -21,6 +21,11 @@ int robot_snapshot_writer_start(robot_snapshot_writer_t *w)
     return w == NULL ? EINVAL : robot_worker_start(&w->worker, run_job, w);
 }
 
+int robot_snapshot_writer_started(const robot_snapshot_writer_t *w)
+{
+    return w != NULL && w->worker.started;
+}
+
 int robot_snapshot_writer_submit(robot_snapshot_writer_t *w, hal_storage_t *storage, const char *name,
                                  const uint8_t *data, size_t len)
 {

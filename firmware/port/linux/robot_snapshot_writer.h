@@ -53,9 +53,15 @@ typedef struct {
     uint8_t buf[ROBOT_SNAPSHOT_MAX_BYTES];
 } robot_snapshot_writer_t;
 
-/** Start the thread. Returns 0, or an errno value (no thread: the caller
- *  writes in its own thread). */
+/** Start the thread. Returns 0 (also when it runs already), or an errno
+ *  value (no thread: nothing can be handed over; the caller does not write
+ *  in its own thread, which a slow or hung medium would hold, but counts
+ *  the snapshots not written and calls this again later: docs/robot.md
+ *  "Map snapshots"). May be called again after a failure. */
 int robot_snapshot_writer_start(robot_snapshot_writer_t *w);
+
+/** 1 while the thread runs (started, not stopped). */
+int robot_snapshot_writer_started(const robot_snapshot_writer_t *w);
 
 /**
  * Hand a write over: `len` bytes of `data` (copied) to blob `name` of

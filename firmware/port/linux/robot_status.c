@@ -241,6 +241,8 @@ void robot_status_collect(robot_status_t *s, robot_node_t *node, const robot_dev
     u64(s, "snap_writing_ms", loop->snap_writing_ms);
     u64(s, "snap_write_max_ms", (snaps->write_max_us + 999U) / 1000U);
     u64(s, "snap_busy_skips", snaps->busy_skips);
+    u64(s, "snap_no_writer_skips", snaps->no_writer_skips);
+    u64(s, "snap_writer_start_failures", snaps->writer_start_failures);
     u64(s, "status_file_failures", loop->status_file_failures);
     if (dev->camera_kind == ROBOT_SIGHTINGS_LIVE) {
         /* the e2e live stream (--sightings-fd): its refusals */

@@ -30,7 +30,9 @@
  *   snap_seq snap_saves snap_failures; snap_writing_ms (how long the
  *     snapshot write in flight has taken so far, 0 if none),
  *     snap_write_max_ms, snap_busy_skips (periodic snapshots not taken
- *     because the last write still ran);
+ *     because the last write still ran), snap_no_writer_skips (snapshots
+ *     not written because the writer thread was not running: it could not
+ *     be started), snap_writer_start_failures (its starts that failed);
  *   status_file_failures (--status-file writes that failed);
  *   cam_* the camera's counters (robot_camera_counters_t names) when a
  *     V4L2 camera is configured.

@@ -47,7 +47,8 @@ typedef struct {
  *  errno value (pthread_create's, or the mutex's or a condition variable's
  *  init's): no thread, nothing left made, and the owner decides (the device
  *  openers leave their device down and call this again at its retry; the
- *  snapshot writer's owner writes in its own thread). May be called again
+ *  snapshot writer's owner counts the snapshots it could not hand over and
+ *  calls this again at the retry period). May be called again
  *  after a failure; 0 at once when the thread runs. */
 int robot_worker_start(robot_worker_t *w, void (*run)(void *ctx), void *ctx);
 
