@@ -27,6 +27,13 @@
  *                 (thread_gate.so): the devices are down with that reason,
  *                 never opened in the loop's thread, the loop steps, and
  *                 they come up once threads can be made.
+ *   no_writer_thread  the snapshot writer's thread cannot be started
+ *                 (thread_gate.so) while fsync is held (fsync_gate.so): no
+ *                 snapshot is written in the loop's thread (counted and
+ *                 said instead), the loop steps, the thread is started
+ *                 again at the retry period and the snapshots resume; the
+ *                 final one without a thread is skipped, said, or written
+ *                 on a thread made at the stop.
  * Usage: test_robot_process <case> (one CTest entry per case).
  */
 #include <dirent.h>
@@ -1748,6 +1755,154 @@ static void no_opener_thread(void **state)
     remove_dir(dir);
 }
 
+/* ---- no thread for the snapshot writer ------------------------------------ */
+
+/* The robot with fsync_gate.so and thread_gate.so preloaded, its start-up
+ * held in the read of snapshot.a (COSLAM_TEST_READ_GATE) until its storage
+ * is up; then `threads` is made (pthread_create fails), and `fsync` too if
+ * not NULL (fsync waits while it exists), and the read goes on. So the
+ * device openers, started before the read, run, and the snapshot writer,
+ * started after it, cannot be started. */
+static pid_t spawn_robot_no_writer(const char *dir, const char *err, const char *threads, const char *fsync)
+{
+    char read_gate[300];
+    snprintf(read_gate, sizeof read_gate, "%s/read.gate", dir);
+    touch(read_gate);
+    char so[1024];
+    snprintf(so, sizeof so, "%s %s", COSLAM_FSYNC_GATE, COSLAM_THREAD_GATE);
+    setenv("COSLAM_TEST_READ_GATE", read_gate, 1);
+    setenv("COSLAM_TEST_FSYNC_GATE", fsync != NULL ? fsync : "/nonexistent/coslam-fsync-gate", 1);
+    (void)unlink(err); /* not the last run's line */
+    const pid_t pid = spawn_robot_preloaded(dir, err, so, "COSLAM_TEST_THREAD_FAIL", threads, 1);
+    unsetenv("COSLAM_TEST_READ_GATE");
+    unsetenv("COSLAM_TEST_FSYNC_GATE");
+    int up = 0;
+    for (int i = 0; i < 2000 && !up; ++i) {
+        FILE *f = fopen(err, "r");
+        if (f != NULL) {
+            fclose(f);
+            up = strstr(slurp(err), "/store): up\n") != NULL;
+        }
+        if (!up) {
+            sleep_ms(2);
+        }
+    }
+    assert_true(up);
+    touch(threads);
+    if (fsync != NULL) {
+        touch(fsync);
+    }
+    assert_int_equal(unlink(read_gate), 0);
+    return pid;
+}
+
+/* The snapshot writer's thread cannot be started (thread_gate.so; the
+ * devices' openers, started before, run) and fsync is held (fsync_gate.so:
+ * a slow or hung medium). Before, the robot said so once and then wrote
+ * every snapshot in the control loop's thread: the first periodic one held
+ * the loop in fsync for as long as the medium did (here no step after
+ * 0.3 s). Now no snapshot is written without the thread: each is counted
+ * (snap_no_writer_skips), the failure is said once, the thread is started
+ * again every retry period (snap_writer_start_failures), the loop steps on;
+ * once a thread can be made the snapshots resume (the next one waits in
+ * fsync on the thread, the loop still stepping). At the stop with no
+ * thread: no final snapshot, said, the stop bounded, the generations as
+ * they were; with a thread to be had at the stop: the final snapshot is
+ * written on it. */
+static void no_writer_thread(void **state)
+{
+    (void)state;
+    char dir[64];
+    char err[300];
+    replay_robot_dir(dir, "0.2", "0.3", "", err);
+    /* a first run leaves both generations on disk (the next start reads them) */
+    pid_t pid = spawn_robot(dir, err, NULL, NULL);
+    assert_true(wait_value(err, "snap_saves", 1, 8000) >= 1);
+    (void)stop_robot(pid, err);
+    const disk_t d0 = scan_disk(dir);
+    assert_int_equal(d0.present, 2);
+    assert_int_equal(d0.invalid, 0);
+    char threads[300];
+    snprintf(threads, sizeof threads, "%s/no-threads", dir);
+    char fsync[300];
+    snprintf(fsync, sizeof fsync, "%s/fsync.gate", dir);
+
+    /* no writer thread, fsync held: the loop steps, nothing is written */
+    pid = spawn_robot_no_writer(dir, err, threads, fsync);
+    const long steps = wait_value(err, "steps", 150, 6000);
+    if (steps < 150) {
+        fprintf(stderr, "%s\n", slurp(err));
+    }
+    assert_true(steps >= 150); /* before: stuck at about 30, the loop in fsync */
+    const long skipped = wait_value(err, "snap_no_writer_skips", 3, 3000);
+    const long failed = wait_value(err, "snap_writer_start_failures", 3, 3000);
+    char *gated = strdup(slurp(err));
+    assert_non_null(gated);
+    /* threads again, fsync still held: the writer starts at its next retry,
+     * the next snapshot goes to it and waits in fsync, the loop steps on */
+    assert_int_equal(unlink(threads), 0);
+    const long writing = wait_value(err, "snap_writing_ms", 500, 5000);
+    assert_int_equal(unlink(fsync), 0);
+    const long saves = wait_value(err, "snap_saves", 1, 5000);
+    uint64_t stop_ms = 0U;
+    const char *log = stop_robot_within(pid, err, 5000, &stop_ms);
+    fprintf(stderr,
+            "no_writer_thread: %ld steps, snap_no_writer_skips %ld, snap_writer_start_failures %ld, late_max_us %ld "
+            "without a thread; snap_writing_ms %ld once it started (fsync held), snap_saves %ld, late_max_us %ld; "
+            "stop %llu ms\n",
+            steps, skipped, failed, last_value(gated, "late_max_us"), writing, saves, last_value(log, "late_max_us"),
+            (unsigned long long)stop_ms);
+    const char *said = "coslam-robot: snapshot: no writer thread (Resource temporarily unavailable): snapshots are "
+                       "not written until one can be started";
+    assert_non_null(strstr(gated, said));
+    assert_int_equal(count_of(gated, said), 1); /* said once, then counted */
+    assert_non_null(strstr(gated, "periodic snapshot not written (snap_no_writer_skips="));
+    assert_true(skipped >= 3);
+    assert_true(failed >= 3); /* started again at the retry period (0.3 s) */
+    assert_int_equal(last_value(gated, "snap_saves"), 0);
+    assert_true(last_status_has(gated, " storage=up"));
+    assert_true(last_value(gated, "late_max_us") < 500000);
+    free(gated);
+    assert_non_null(strstr(log, "coslam-robot: snapshot: writer thread started after "));
+    assert_true(writing >= 500); /* the write on the thread, held in fsync */
+    assert_true(saves >= 1);
+    assert_non_null(strstr(log, "(final) in "));
+    assert_true(last_value(log, "late_max_us") < 500000);
+    const disk_t d1 = scan_disk(dir);
+    assert_int_equal(d1.invalid, 0);
+    assert_true(d1.newest >= d0.newest + 2);
+
+    /* no thread at the stop, fsync held: no final snapshot, said, a bounded stop */
+    pid = spawn_robot_no_writer(dir, err, threads, fsync);
+    assert_true(wait_value(err, "snap_no_writer_skips", 1, 4000) >= 1);
+    log = stop_robot_within(pid, err, 4000, &stop_ms);
+    fprintf(stderr, "no_writer_thread: no thread at the stop: exit after %llu ms\n", (unsigned long long)stop_ms);
+    assert_non_null(strstr(log, "no writer thread at the stop (Resource temporarily unavailable): no final snapshot"));
+    assert_non_null(strstr(log, "(no final snapshot)"));
+    assert_true(stop_ms < 3000); /* before: the final snapshot's fsync held the stop */
+    assert_int_equal(unlink(threads), 0);
+    assert_int_equal(unlink(fsync), 0);
+    const disk_t d2 = scan_disk(dir);
+    assert_int_equal(d2.invalid, 0);
+    assert_true(d2.newest == d1.newest); /* the generations on disk as they were */
+
+    /* a thread to be had at the stop (none in the loop: its retry 30 s away):
+     * the final snapshot is written on it */
+    set_retry_period(dir, "30");
+    pid = spawn_robot_no_writer(dir, err, threads, NULL);
+    assert_true(wait_value(err, "snap_no_writer_skips", 1, 4000) >= 1);
+    assert_int_equal(unlink(threads), 0);
+    log = stop_robot_within(pid, err, 4000, &stop_ms);
+    assert_non_null(strstr(log, "coslam-robot: snapshot: writer thread started after 1 failed attempts"));
+    assert_non_null(strstr(log, "(final) in "));
+    assert_null(strstr(log, "(no final snapshot)"));
+    const disk_t d3 = scan_disk(dir);
+    assert_int_equal(d3.invalid, 0);
+    assert_true(d3.newest == d2.newest + 1);
+    assert_true(d3.clean_stop);
+    remove_dir(dir);
+}
+
 int main(int argc, char **argv)
 {
     if (argc > 1) {
@@ -1776,6 +1931,7 @@ int main(int argc, char **argv)
         cmocka_unit_test(storage_big_fsync_fails_steady),
         cmocka_unit_test(no_can_said_once),
         cmocka_unit_test(no_opener_thread),
+        cmocka_unit_test(no_writer_thread),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
