@@ -165,6 +165,11 @@ const urg_scip2_stats_t *urg_scip2_stats(const urg_scip2_t *u)
     return u != NULL ? &u->stats : NULL;
 }
 
+uint32_t urg_scip2_rx_search_bytes(const urg_scip2_t *u)
+{
+    return u != NULL ? u->rx_searched : 0U;
+}
+
 const urg_scip2_params_t *urg_scip2_params(const urg_scip2_t *u)
 {
     return u != NULL ? &u->params : NULL;
@@ -257,10 +262,11 @@ static coslam_status_t fail_resync(urg_scip2_t *u, coslam_status_t st)
 
 /* The receive buffer holds the end of a message: an empty line (an LF at the
  * start of a line) at or after rx_pos. */
-static int message_end_buffered(const urg_scip2_t *u)
+static int message_end_buffered(urg_scip2_t *u)
 {
     int at_line_start = u->last_byte_lf;
     for (size_t i = u->rx_pos; i < u->rx_len; ++i) {
+        u->rx_searched++;
         if (u->rx[i] == LF) {
             if (at_line_start) {
                 return 1;
@@ -276,9 +282,10 @@ static int message_end_buffered(const urg_scip2_t *u)
 /* The line at rx_pos is whole in the buffer, printable and at most
  * URG_SCIP2_LINE_MAX long: its length, or -1 (not whole yet, or a line
  * first_line will refuse as garbage). */
-static long buffered_line(const urg_scip2_t *u)
+static long buffered_line(urg_scip2_t *u)
 {
     for (size_t i = u->rx_pos; i < u->rx_len; ++i) {
+        u->rx_searched++;
         const uint8_t b = u->rx[i];
         if (b == LF) {
             return (long)(i - u->rx_pos);

@@ -184,6 +184,7 @@ typedef struct {
     int resync_pending; /* discard up to the next empty line before parsing */
     int resync_skip;    /* ... and it is a stale message being skipped (counted in
                            messages_skipped, not as a resync) */
+    uint32_t rx_searched; /* urg_scip2_rx_search_bytes() */
     /* the line being assembled */
     char line[URG_SCIP2_LINE_MAX + 1];
     size_t line_len;
@@ -352,6 +353,16 @@ void urg_scip2_abandon(urg_scip2_t *u);
 
 /** Counters of this instance. */
 const urg_scip2_stats_t *urg_scip2_stats(const urg_scip2_t *u);
+
+/**
+ * Bytes of the receive buffer examined since urg_scip2_init while waiting
+ * for a whole message: the search for its empty line and, while a begun
+ * command is polled, for its first line. A measure of the receive path's
+ * cost, not an event, so it is kept apart from urg_scip2_stats_t (whose
+ * counters stay still while a message is only arriving); wraps at 2^32.
+ * 0 for NULL.
+ */
+uint32_t urg_scip2_rx_search_bytes(const urg_scip2_t *u);
 
 /** Parameters in use (PP values once read, URG-04LX defaults before). */
 const urg_scip2_params_t *urg_scip2_params(const urg_scip2_t *u);
