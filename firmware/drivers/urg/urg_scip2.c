@@ -189,6 +189,14 @@ int urg_scip2_is_streaming(const urg_scip2_t *u)
  * Byte and line input
  * --------------------------------------------------------------------- */
 
+/* The buffer's contents were replaced: nothing of them has been looked at. */
+static void rx_marks_reset(urg_scip2_t *u)
+{
+    u->rx_scan = 0U;
+    u->rx_line = 0U;
+    u->rx_echo_ok = 0;
+}
+
 /* Next received byte, reading the HAL (waiting at most timeout_us) when the
  * buffer is empty. Returns COSLAM_OK, COSLAM_E_URG_TIMEOUT or COSLAM_E_URG_IO
  * (counted). */
@@ -206,6 +214,7 @@ static coslam_status_t next_byte(urg_scip2_t *u, uint32_t timeout_us, uint8_t *b
         }
         u->rx_pos = 0;
         u->rx_len = n;
+        rx_marks_reset(u);
     }
     *b = u->rx[u->rx_pos++];
     u->last_byte_lf = (*b == LF);
@@ -260,41 +269,56 @@ static coslam_status_t fail_resync(urg_scip2_t *u, coslam_status_t st)
     return st;
 }
 
-/* The receive buffer holds the end of a message: an empty line (an LF at the
- * start of a line) at or after rx_pos. */
+/*
+ * The receive buffer holds the end of a message: an empty line (an LF at the
+ * start of a line) at or after rx_pos. Whether byte i ends a message depends
+ * only on it and the byte before it (last_byte_lf, the last byte consumed, at
+ * rx_pos), so what an earlier call found stays true as bytes are consumed or
+ * appended: the search resumes at rx_scan and each byte is examined once per
+ * message (it stops on the end it found, which a repeated call looks at
+ * again). O(bytes new since the last call).
+ */
 static int message_end_buffered(urg_scip2_t *u)
 {
-    int at_line_start = u->last_byte_lf;
-    for (size_t i = u->rx_pos; i < u->rx_len; ++i) {
+    size_t i = u->rx_scan > u->rx_pos ? u->rx_scan : u->rx_pos;
+    for (; i < u->rx_len; ++i) {
         u->rx_searched++;
-        if (u->rx[i] == LF) {
-            if (at_line_start) {
-                return 1;
-            }
-            at_line_start = 1;
-        } else {
-            at_line_start = 0;
+        if (u->rx[i] == LF && (i == u->rx_pos ? u->last_byte_lf : u->rx[i - 1U] == LF)) {
+            break;
         }
     }
-    return 0;
+    u->rx_scan = i;
+    return i < u->rx_len;
 }
 
-/* The line at rx_pos is whole in the buffer, printable and at most
- * URG_SCIP2_LINE_MAX long: its length, or -1 (not whole yet, or a line
- * first_line will refuse as garbage). */
+/*
+ * The line at rx_pos (a line start) is whole in the buffer, printable and at
+ * most URG_SCIP2_LINE_MAX long: its length, or -1 (not whole yet, or a line
+ * first_line will refuse as garbage). Resumes at rx_line: [rx_pos, rx_line),
+ * when not empty, is a start of this same line (it holds no LF, so rx_pos
+ * cannot have moved to another line start inside it) found printable and
+ * short enough, and it still is (offsets from rx_pos only shrink). Stops on
+ * the byte that decides, which a repeated call looks at again. O(bytes new
+ * since the last call).
+ */
 static long buffered_line(urg_scip2_t *u)
 {
-    for (size_t i = u->rx_pos; i < u->rx_len; ++i) {
+    u->rx_echo_ok = 0;
+    size_t i = u->rx_line > u->rx_pos ? u->rx_line : u->rx_pos;
+    long len = -1;
+    for (; i < u->rx_len; ++i) {
         u->rx_searched++;
         const uint8_t b = u->rx[i];
         if (b == LF) {
-            return (long)(i - u->rx_pos);
+            len = (long)(i - u->rx_pos);
+            break;
         }
         if (b < 0x20U || b > 0x7EU || i - u->rx_pos >= URG_SCIP2_LINE_MAX) {
-            return -1;
+            break;
         }
     }
-    return -1;
+    u->rx_line = i;
+    return len;
 }
 
 /*
@@ -330,7 +354,9 @@ static coslam_status_t gather_message(urg_scip2_t *u, uint32_t timeout_us, const
                 u->stats.bytes_discarded++;
             }
         }
-        if (!u->resync_pending && echo != NULL && u->last_byte_lf) {
+        /* the first line once: found whole and the echo, it is not looked
+         * at again while more of its message comes (rx_pos stays on it) */
+        if (!u->resync_pending && echo != NULL && u->last_byte_lf && !(u->rx_echo_ok && u->rx_line >= u->rx_pos)) {
             const long len = buffered_line(u);
             if (len == 0) {
                 u->rx_pos++; /* a stray empty line: nothing to skip */
@@ -344,6 +370,7 @@ static coslam_status_t gather_message(urg_scip2_t *u, uint32_t timeout_us, const
                 (*skipped)++;
                 continue;
             }
+            u->rx_echo_ok = len > 0;
         }
         if (!u->resync_pending && message_end_buffered(u)) {
             return COSLAM_OK;
@@ -351,6 +378,9 @@ static coslam_status_t gather_message(urg_scip2_t *u, uint32_t timeout_us, const
         if (u->rx_pos > 0U) {
             memmove(u->rx, u->rx + u->rx_pos, u->rx_len - u->rx_pos);
             u->rx_len -= u->rx_pos;
+            /* the marks move with the bytes (below rx_pos they meant rx_pos) */
+            u->rx_scan = u->rx_scan > u->rx_pos ? u->rx_scan - u->rx_pos : 0U;
+            u->rx_line = u->rx_line > u->rx_pos ? u->rx_line - u->rx_pos : 0U;
             u->rx_pos = 0U;
         }
         if (u->rx_len == sizeof u->rx) {
@@ -359,6 +389,7 @@ static coslam_status_t gather_message(urg_scip2_t *u, uint32_t timeout_us, const
             u->stats.bytes_discarded += (uint32_t)u->rx_len;
             u->last_byte_lf = (u->rx[u->rx_len - 1U] == LF);
             u->rx_len = 0U;
+            rx_marks_reset(u);
             return fail_resync(u, COSLAM_E_URG_GARBAGE);
         }
         size_t n = 0;
@@ -627,6 +658,7 @@ static void reset_input(urg_scip2_t *u)
 {
     (void)hal_serial_flush_input(u->serial); /* unsupported flush is harmless */
     u->rx_pos = u->rx_len = 0;
+    rx_marks_reset(u);
     u->last_byte_lf = 1;
     u->resync_pending = 0;
     u->resync_skip = 0;
@@ -1097,6 +1129,7 @@ static coslam_status_t begin(urg_scip2_t *u, uint8_t kind, const char *cmd, size
     }
     u->stats.bytes_discarded += (uint32_t)(u->rx_len - u->rx_pos);
     u->rx_pos = u->rx_len = 0U;
+    rx_marks_reset(u);
     u->last_byte_lf = 1;
     u->resync_pending = 0;
     u->resync_skip = 0;

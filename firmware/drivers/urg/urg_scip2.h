@@ -184,6 +184,16 @@ typedef struct {
     int resync_pending; /* discard up to the next empty line before parsing */
     int resync_skip;    /* ... and it is a stale message being skipped (counted in
                            messages_skipped, not as a resync) */
+    /* How far the wait for a whole message (gather_message) has looked, so
+     * that each call and each read resumes there instead of starting again
+     * at rx_pos (which made a message fed in small reads cost the square of
+     * its length). Indices into rx, kept right by the compaction and reset
+     * with the buffer; below rx_pos they mean rx_pos. */
+    size_t rx_scan;       /* [rx_pos, rx_scan) holds no message end */
+    size_t rx_line;       /* [rx_pos, rx_line) is a printable start of the
+                             first line, without LF (polls only) */
+    int rx_echo_ok;       /* the first line ends at rx_line and is the
+                             command's echo (valid while rx_line >= rx_pos) */
     uint32_t rx_searched; /* urg_scip2_rx_search_bytes() */
     /* the line being assembled */
     char line[URG_SCIP2_LINE_MAX + 1];
