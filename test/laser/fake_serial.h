@@ -2,7 +2,9 @@
  * fixed array; replies are script segments that become readable once the
  * driver has made `gate` writes (or the test released them). Reads are cut
  * at `max_chunk` bytes and never cross the absolute stream offset `cut`, so
- * a test can split a reply at any byte. No heap. */
+ * a test can split a reply at any byte; with `rand_chunk` each read is also
+ * cut at 1..rand_chunk bytes drawn from `chunk_state` (a seeded LCG, so a
+ * run repeats). No heap. */
 #ifndef COSLAM_TEST_FAKE_SERIAL_H
 #define COSLAM_TEST_FAKE_SERIAL_H
 
@@ -29,6 +31,8 @@ typedef struct {
     unsigned released;  /* extra gate credit granted by the test */
     size_t max_chunk;   /* 0: unlimited */
     size_t cut;         /* reads stop at this stream offset once (0: none) */
+    size_t rand_chunk;  /* 0: off; else each read takes at most 1..rand_chunk bytes */
+    uint32_t chunk_state; /* the LCG drawing those sizes (the test seeds it) */
     unsigned n_reads;
     unsigned n_flushes;
     hal_status_t write_result; /* HAL_OK or an error to inject */
@@ -81,6 +85,11 @@ static hal_status_t fake_read(hal_serial_t *d, uint8_t *buf, size_t cap, size_t 
     size_t n = end - f->pos;
     if (n > cap) n = cap;
     if (f->max_chunk != 0 && n > f->max_chunk) n = f->max_chunk;
+    if (f->rand_chunk != 0) {
+        f->chunk_state = f->chunk_state * 1664525U + 1013904223U; /* Numerical Recipes LCG */
+        const size_t lim = 1U + (size_t)(f->chunk_state >> 8) % f->rand_chunk;
+        if (n > lim) n = lim;
+    }
     memcpy(buf, f->stream + f->pos, n);
     f->pos += n;
     *n_read = n;

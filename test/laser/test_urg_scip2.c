@@ -979,6 +979,256 @@ static void test_fuzz_poll_mutated_replies(void **state)
     assert_true(failed > 0 && a->err_checksum > 0 && a->err_line + a->err_field > 0);
 }
 
+/* ---------------------------------------------------------------------------
+ * The wait for a whole message with small reads
+ * ------------------------------------------------------------------------ */
+
+/* The wait for a whole message resumes where the last read left off: a
+ * 682-point MD scan (2137 bytes) fed one byte per read costs each byte about
+ * one look (urg_scip2_rx_search_bytes), not one per read after it. Before,
+ * every read rescanned the buffer from the message's start: about n^2/2 =
+ * 2.3 million looks for this scan. The same for a broken scan resynchronised
+ * before a good one, and for the poll of a begun MD, which also checks the
+ * first line of what comes (a stale scan with another echo skipped as it
+ * streams, one with this very echo skipped once whole, then the
+ * acknowledgement). */
+static void test_wait_for_message_linear_in_small_reads(void **state)
+{
+    fixture_t *f = *state;
+    start_md04(f, 0);
+    f->fake.max_chunk = 1;
+    size_t n = build_scan(msg, "MD0044072501000", "99", 77, vals04, N04, CORRUPT_NONE, 0);
+    fake_add(&f->fake, 1, msg, n);
+    uint32_t before = urg_scip2_rx_search_bytes(&f->urg);
+    assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_OK);
+    expect_scan04(&f->scan, 77);
+    uint32_t looked = urg_scip2_rx_search_bytes(&f->urg) - before;
+    print_message("one byte per read: %u bytes looked at for a %zu-byte scan\n", looked, n);
+    ASSERT_TRUE_MSG(looked <= 2U * n, "%u bytes looked at for a %zu-byte scan\n", looked, n);
+
+    /* a bad sum in line 5, then a good scan: the rest of the first is
+     * discarded, not searched again */
+    size_t total = build_scan(msg, "MD0044072501000", "99", 78, vals04, N04, CORRUPT_SUM, 5);
+    fake_add(&f->fake, 1, msg, total);
+    n = build_scan(msg2, "MD0044072501000", "99", 79, vals04, N04, CORRUPT_NONE, 0);
+    fake_add(&f->fake, 1, msg2, n);
+    total += n;
+    before = urg_scip2_rx_search_bytes(&f->urg);
+    assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_E_URG_CHECKSUM);
+    assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_OK);
+    expect_scan04(&f->scan, 79);
+    looked = urg_scip2_rx_search_bytes(&f->urg) - before;
+    ASSERT_TRUE_MSG(looked <= 2U * total, "%u bytes looked at for %zu bytes\n", looked, total);
+    assert_int_equal(urg_scip2_read_scan(&f->urg, &f->scan, 0), COSLAM_E_URG_TIMEOUT);
+
+    /* the poll of a begun MD */
+    assert_int_equal(urg_scip2_begin_start_md(&f->urg, 44, 725, 1, 0, 0), COSLAM_OK);
+    total = build_scan(msg, "MD0044072001000", "99", 80, vals04, N04 - 5U, CORRUPT_NONE, 0);
+    fake_add(&f->fake, 0, msg, total);
+    n = build_scan(msg2, "MD0044072501000", "99", 81, vals04, N04, CORRUPT_NONE, 0);
+    fake_add(&f->fake, 0, msg2, n);
+    total += n;
+    fake_add_str(&f->fake, 0, "MD0044072501000\n00P\n\n");
+    total += 21U;
+    const urg_scip2_stats_t s0 = *urg_scip2_stats(&f->urg);
+    before = urg_scip2_rx_search_bytes(&f->urg);
+    assert_int_equal(urg_scip2_poll(&f->urg), COSLAM_OK);
+    looked = urg_scip2_rx_search_bytes(&f->urg) - before;
+    print_message("one byte per read, polled: %u bytes looked at for %zu bytes\n", looked, total);
+    ASSERT_TRUE_MSG(looked <= 2U * total, "%u bytes looked at for %zu bytes\n", looked, total);
+    assert_int_equal(urg_scip2_stats(&f->urg)->messages_skipped, s0.messages_skipped + 2U);
+    assert_true(urg_scip2_is_streaming(&f->urg));
+    assert_int_equal(f->fake.pos, f->fake.stream_len);
+}
+
+/* What one run of a stream through a fresh driver gave: the MD start's
+ * result, then every urg_scip2_read_scan call until the stream ran dry. */
+#define PROP_CALLS_MAX 64
+typedef struct {
+    coslam_status_t st;
+    uint32_t raw_stamp_ms;
+    uint16_t remaining;
+    uint16_t n_points;
+    uint32_t ranges_hash; /* FNV-1a of range_mm[0..n_points) */
+} prop_call_t;
+
+typedef struct {
+    coslam_status_t start;
+    prop_call_t call[PROP_CALLS_MAX];
+    size_t n_calls;
+    urg_scip2_stats_t stats;
+    size_t consumed;
+    uint32_t searched;
+} prop_run_t;
+
+static uint32_t ranges_hash(const urg_scip2_scan_t *s)
+{
+    uint32_t h = 2166136261U;
+    for (size_t i = 0; i < s->n_points; ++i) {
+        h = (h ^ s->range_mm[i]) * 16777619U;
+    }
+    return h;
+}
+
+/* Feed `n` bytes of `s` (readable after the MD command) to a fresh driver:
+ * the MD started waiting or begun and polled, then scans read until none
+ * is left. rand_chunk 0: every read takes all that is there (the stream
+ * "whole"); else 1..rand_chunk bytes per read, drawn from `seed`. */
+static void prop_feed(fixture_t *f, const char *s, size_t n, int polled, size_t rand_chunk, uint32_t seed,
+                      prop_run_t *out)
+{
+    memset(out, 0, sizeof *out);
+    fake_init(&f->fake);
+    assert_int_equal(urg_scip2_init(&f->urg, &f->fake.dev, NULL), COSLAM_OK);
+    fake_add(&f->fake, 1, s, n);
+    f->fake.rand_chunk = rand_chunk;
+    f->fake.chunk_state = seed;
+    if (polled) {
+        assert_int_equal(urg_scip2_begin_start_md(&f->urg, 44, 725, 1, 0, 0), COSLAM_OK);
+        out->start = poll_to_end(f);
+    } else {
+        out->start = urg_scip2_start_md(&f->urg, 44, 725, 1, 0, 0);
+    }
+    for (;;) {
+        assert_true(out->n_calls < PROP_CALLS_MAX);
+        prop_call_t *c = &out->call[out->n_calls++];
+        c->st = urg_scip2_read_scan(&f->urg, &f->scan, 0);
+        if (c->st == COSLAM_E_URG_TIMEOUT || c->st == COSLAM_E_EMPTY) {
+            break;
+        }
+        c->n_points = f->scan.n_points;
+        if (c->st == COSLAM_OK) {
+            c->raw_stamp_ms = f->scan.raw_stamp_ms;
+            c->remaining = f->scan.remaining;
+            c->ranges_hash = ranges_hash(&f->scan);
+        }
+    }
+    out->stats = *urg_scip2_stats(&f->urg);
+    out->consumed = f->fake.pos;
+    out->searched = urg_scip2_rx_search_bytes(&f->urg);
+}
+
+static char prop_stream[FAKE_STREAM_CAP];
+
+/* One scan message of 1..682 random readings (of 44..725: its echo), with
+ * the given damage, at the end of prop_stream. */
+static size_t prop_scan(size_t k, rng_t *rng, const char *echo, corrupt_t c, uint32_t stamp)
+{
+    const size_t n_pts = rng_below(rng, 2) ? N04 : 1U + rng_below(rng, N04);
+    uint32_t v[N04];
+    for (size_t i = 0; i < n_pts; ++i) v[i] = rng_below(rng, 6000U);
+    return k + build_scan(prop_stream + k, echo, "99", stamp, v, n_pts, c, rng_below(rng, 33U));
+}
+
+/* A random stream: up to two stale replies, MD's acknowledgement, then 4-11
+ * items: good scans, scans with each kind of damage, mutated scans, scans
+ * broken off, scans of another MD, stray empty lines, random bytes, and now
+ * and then bytes without a message end that fill the buffer. */
+static size_t prop_stream_make(rng_t *rng)
+{
+    size_t k = 0;
+    uint32_t stamp = rng_below(rng, 1000U);
+    for (uint32_t i = rng_below(rng, 3U); i > 0; --i) {
+        switch (rng_below(rng, 3U)) {
+        case 0: k = prop_scan(k, rng, "MD0044072001000", CORRUPT_NONE, stamp += 100U); break;
+        case 1: k = prop_scan(k, rng, "MD0044072501000", CORRUPT_NONE, stamp += 100U); break;
+        default: prop_stream[k++] = '\n'; break;
+        }
+    }
+    memcpy(prop_stream + k, "MD0044072501000\n00P\n\n", 21U);
+    k += 21U;
+    for (uint32_t i = 4U + rng_below(rng, 8U); i > 0 && k < 40000U; --i) {
+        stamp += 100U;
+        switch (rng_below(rng, 10U)) {
+        case 0:
+        case 1:
+        case 2: k = prop_scan(k, rng, "MD0044072501000", CORRUPT_NONE, stamp); break;
+        case 3: k = prop_scan(k, rng, "MD0044072501000", (corrupt_t)(1U + rng_below(rng, 6U)), stamp); break;
+        case 4: {
+            const size_t at = k;
+            k = prop_scan(k, rng, "MD0044072501000", CORRUPT_NONE, stamp);
+            k = at + mutate(prop_stream + at, k - at, rng);
+            break;
+        }
+        case 5: {
+            const size_t at = k;
+            k = prop_scan(k, rng, "MD0044072501000", CORRUPT_NONE, stamp);
+            k = at + 1U + rng_below(rng, (uint32_t)(k - at - 1U)); /* broken off */
+            break;
+        }
+        case 6: k = prop_scan(k, rng, "MD0044072001000", CORRUPT_NONE, stamp); break;
+        case 7: prop_stream[k++] = '\n'; break;
+        case 8:
+            for (uint32_t j = 1U + rng_below(rng, 40U); j > 0; --j) {
+                prop_stream[k++] = (char)rng_below(rng, 256U);
+            }
+            break;
+        default:
+            if (rng_below(rng, 4U) == 0U) {
+                memset(prop_stream + k, 'A', URG_SCIP2_RX_CAP + 10U);
+                k += URG_SCIP2_RX_CAP + 10U;
+            }
+            break;
+        }
+    }
+    return k;
+}
+
+/* The parse does not depend on how the bytes are cut into reads: the same
+ * random stream fed whole and in random reads of 1..N bytes (N from 1 to
+ * 700, seeded) gives the same results call for call (status, stamp,
+ * remaining scans, readings), the same counters and the same bytes taken
+ * from the port; the MD started waiting or begun and polled. And in both,
+ * the wait for whole messages looks at each byte about once. */
+static void test_chunked_reads_parse_as_whole(void **state)
+{
+    fixture_t *f = *state;
+    static const size_t chunk_max[] = {1U, 2U, 3U, 7U, 64U, 700U};
+    rng_t rng;
+    rng_seed(&rng, 0xC4A2);
+    static prop_run_t whole, cut;
+    urg_scip2_stats_t sum;
+    memset(&sum, 0, sizeof sum);
+    uint32_t calls = 0U;
+    const int rounds = COSLAM_TEST_FULL ? 1500 : 150;
+    for (int round = 0; round < rounds; ++round) {
+        const size_t n = prop_stream_make(&rng);
+        const int polled = (int)rng_below(&rng, 2U);
+        const size_t cmax = chunk_max[rng_below(&rng, sizeof chunk_max / sizeof chunk_max[0])];
+        prop_feed(f, prop_stream, n, polled, 0U, 0U, &whole);
+        prop_feed(f, prop_stream, n, polled, cmax, (uint32_t)round * 2654435761U, &cut);
+        ASSERT_TRUE_MSG(cut.start == whole.start, "round %d (reads of 1..%zu%s): start %s, whole %s\n", round, cmax,
+                        polled ? ", polled" : "", coslam_status_str(cut.start), coslam_status_str(whole.start));
+        ASSERT_TRUE_MSG(cut.n_calls == whole.n_calls, "round %d (reads of 1..%zu): %zu calls, whole %zu\n", round,
+                        cmax, cut.n_calls, whole.n_calls);
+        for (size_t i = 0; i < whole.n_calls; ++i) {
+            ASSERT_TRUE_MSG(memcmp(&cut.call[i], &whole.call[i], sizeof whole.call[i]) == 0,
+                            "round %d (reads of 1..%zu) call %zu: %s, whole %s\n", round, cmax, i,
+                            coslam_status_str(cut.call[i].st), coslam_status_str(whole.call[i].st));
+        }
+        ASSERT_TRUE_MSG(memcmp(&cut.stats, &whole.stats, sizeof whole.stats) == 0,
+                        "round %d (reads of 1..%zu): counters differ\n", round, cmax);
+        assert_int_equal(cut.consumed, whole.consumed);
+        ASSERT_TRUE_MSG(whole.searched <= 2U * n && cut.searched <= 2U * n,
+                        "round %d: %u and %u bytes looked at for %zu\n", round, whole.searched, cut.searched, n);
+        calls += (uint32_t)whole.n_calls;
+        sum.scans_ok += whole.stats.scans_ok;
+        sum.err_checksum += whole.stats.err_checksum;
+        sum.err_line += whole.stats.err_line;
+        sum.err_garbage += whole.stats.err_garbage;
+        sum.err_echo += whole.stats.err_echo;
+        sum.resyncs += whole.stats.resyncs;
+        sum.messages_skipped += whole.stats.messages_skipped;
+    }
+    print_message("chunked = whole: %d rounds, %u calls; ok %u, checksum %u, line %u, garbage %u, echo %u, "
+                  "resyncs %u, skipped %u\n",
+                  rounds, calls, sum.scans_ok, sum.err_checksum, sum.err_line, sum.err_garbage, sum.err_echo,
+                  sum.resyncs, sum.messages_skipped);
+    /* the streams reached every path they are meant to */
+    assert_true(sum.scans_ok > 0U && sum.err_checksum > 0U && sum.err_line > 0U && sum.err_garbage > 0U &&
+                sum.err_echo > 0U && sum.resyncs > 0U && sum.messages_skipped > 0U);
+}
+
 static void test_init_args(void **state)
 {
     (void)state;
@@ -1271,6 +1521,8 @@ int main(void)
         T(test_poll_skips_what_a_waiting_command_skips),
         T(test_one_command_at_a_time),
         T(test_fuzz_poll_mutated_replies),
+        T(test_wait_for_message_linear_in_small_reads),
+        T(test_chunked_reads_parse_as_whole),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
