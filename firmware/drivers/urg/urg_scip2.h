@@ -47,6 +47,10 @@
  * once, by what the parse meets, or as garbage when the two overflow the
  * buffer) and the driver resynchronises after them;
  * a sensor gone silent is for the caller's clock to notice.
+ * The wait for a whole message resumes where the last read left off, so a
+ * message costs O(its length) however small the reads are (one byte per
+ * read from a USB-serial adapter included); urg_scip2_rx_search_bytes()
+ * counts the bytes it looked at.
  *
  * Memory: sizeof(urg_scip2_t) is about URG_SCIP2_RX_CAP + 0.4 KB (3.8 KB
  * with COSLAM_MAX_SCAN_POINTS 1081); sizeof(urg_scip2_scan_t) is
