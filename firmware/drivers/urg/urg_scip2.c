@@ -378,9 +378,15 @@ static coslam_status_t gather_message(urg_scip2_t *u, uint32_t timeout_us, const
         if (u->rx_pos > 0U) {
             memmove(u->rx, u->rx + u->rx_pos, u->rx_len - u->rx_pos);
             u->rx_len -= u->rx_pos;
-            /* the marks move with the bytes (below rx_pos they meant rx_pos) */
+            /* the marks move with the bytes (below rx_pos they meant rx_pos,
+             * and an echo verdict there was about a line now consumed) */
             u->rx_scan = u->rx_scan > u->rx_pos ? u->rx_scan - u->rx_pos : 0U;
-            u->rx_line = u->rx_line > u->rx_pos ? u->rx_line - u->rx_pos : 0U;
+            if (u->rx_line >= u->rx_pos) {
+                u->rx_line -= u->rx_pos;
+            } else {
+                u->rx_line = 0U;
+                u->rx_echo_ok = 0;
+            }
             u->rx_pos = 0U;
         }
         if (u->rx_len == sizeof u->rx) {
