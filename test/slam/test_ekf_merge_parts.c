@@ -275,6 +275,22 @@ static void robot_inputs(slam_filter_t *f, int n, int idle)
     }
 }
 
+/* Exact mutual sightings of robots at `self` and `other` (map frame): range
+ * sd 5 cm, bearing sd 2 deg. */
+static merge_geometry_t mutual_geometry(pose2_t self, pose2_t other)
+{
+    merge_geometry_t g;
+    memset(&g, 0, sizeof g);
+    const point2_t o_in_s = pose2_apply_inverse(self, (point2_t){other.x, other.y});
+    const point2_t s_in_o = pose2_apply_inverse(other, (point2_t){self.x, self.y});
+    const double deg = COSLAM_PI / 180.0;
+    g.self_sees_other = (robot_sighting_t){hypot(o_in_s.x, o_in_s.y), atan2(o_in_s.y, o_in_s.x), 0.05 * 0.05,
+                                           (2.0 * deg) * (2.0 * deg)};
+    g.other_sees_self = (robot_sighting_t){hypot(s_in_o.x, s_in_o.y), atan2(s_in_o.y, s_in_o.x), 0.05 * 0.05,
+                                           (2.0 * deg) * (2.0 * deg)};
+    return g;
+}
+
 /* A robot whose compressed EKF is in a local phase, rows of an earlier one
  * pending, merges a partner's map (its own, seen from a partner 1.5 m
  * ahead facing it, the provenance the partner's) through
@@ -304,15 +320,7 @@ static void merge_path_case(int variant)
         g_msg.lm[i].src_mask = 0x2U;
         g_msg.lm[i].mean.x += 0.02; /* a little off: the fusion moves the map */
     }
-    merge_geometry_t g;
-    memset(&g, 0, sizeof g);
-    const point2_t o_in_s = pose2_apply_inverse(pa, (point2_t){po.x, po.y});
-    const point2_t s_in_o = pose2_apply_inverse(po, (point2_t){pa.x, pa.y});
-    const double deg = COSLAM_PI / 180.0;
-    g.self_sees_other = (robot_sighting_t){hypot(o_in_s.x, o_in_s.y), atan2(o_in_s.y, o_in_s.x), 0.05 * 0.05,
-                                           (2.0 * deg) * (2.0 * deg)};
-    g.other_sees_self = (robot_sighting_t){hypot(s_in_o.x, s_in_o.y), atan2(s_in_o.y, s_in_o.x), 0.05 * 0.05,
-                                           (2.0 * deg) * (2.0 * deg)};
+    const merge_geometry_t g = mutual_geometry(pa, po);
     merge_config_t mc = merge_config_default();
     mc.check = variant == 2 ? 0U : mc.check;
     merge_stats_t sa;
@@ -377,15 +385,7 @@ static void test_merge_path_lost_in_a_local_phase(void **state)
     for (uint16_t i = 0; i < g_msg.n_landmarks; ++i) {
         g_msg.lm[i].src_mask = 0x2U;
     }
-    merge_geometry_t g;
-    memset(&g, 0, sizeof g);
-    const point2_t o_in_s = pose2_apply_inverse(pa, (point2_t){po.x, po.y});
-    const point2_t s_in_o = pose2_apply_inverse(po, (point2_t){pa.x, pa.y});
-    const double deg = COSLAM_PI / 180.0;
-    g.self_sees_other = (robot_sighting_t){hypot(o_in_s.x, o_in_s.y), atan2(o_in_s.y, o_in_s.x), 0.05 * 0.05,
-                                           (2.0 * deg) * (2.0 * deg)};
-    g.other_sees_self = (robot_sighting_t){hypot(s_in_o.x, s_in_o.y), atan2(s_in_o.y, s_in_o.x), 0.05 * 0.05,
-                                           (2.0 * deg) * (2.0 * deg)};
+    const merge_geometry_t g = mutual_geometry(pa, po);
     merge_config_t mc = merge_config_default();
     mc.lost_sd_factor = 1e-6;
     mc.step_units = 1000U;
