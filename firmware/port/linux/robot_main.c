@@ -17,7 +17,10 @@
  *
  * Exit status: 0 after a clean stop (SIGTERM, SIGINT, SIGHUP, SIGQUIT,
  * SIGUSR1, SIGUSR2, SIGALRM, --once, --dry-run; SIGPIPE and SIGXFSZ are
- * ignored); 2 for a bad command line or
+ * ignored), also one whose final snapshot was given up because the storage
+ * did not return within FINAL_SNAPSHOT_WAIT_MS (said, counted in
+ * snap_final_timeouts, the last line ends "(no final snapshot)"; the drives
+ * were stopped and released all the same); 2 for a bad command line or
  * configuration (including a configured fleet key file that is missing,
  * unreadable, too open or invalid); 1 when the node cannot start, or when
  * the clock failed while it ran (after the same clean stop).
@@ -160,15 +163,17 @@ static robot_node_t node;
 static robot_snapshots_t snaps;
 static robot_snapshot_t snap;
 
-/* The periodic snapshots' storage write runs on the writer thread
+/* The snapshots' storage writes and reads run on the writer thread
  * (robot_snapshot_writer.h): an fsync on a slow card never holds the
- * control loop. One write at a time; its outcome is taken and committed on
+ * control loop. One job at a time; its outcome is taken and committed on
  * a later step (finish_snapshot_write). Without the thread (it could not be
  * started) a snapshot is not written, but counted and said (the loop never
  * writes one itself: a hung medium would hold it for ever), and the thread
  * is started again every retry period (writer_running). The final one is
- * written by the stop (or, when the thread did not run, handed to it
- * started once more, or skipped: final_snapshot_no_writer). */
+ * handed to it by the stop and waited for at most FINAL_SNAPSHOT_WAIT_MS
+ * (final_snapshot_on_writer; when the thread did not run, it is started
+ * once more, or the final snapshot is skipped: final_snapshot_no_writer).
+ * No snapshot is read or written in the main thread. */
 static robot_snapshot_writer_t writer;
 /* The writer thread's starts that failed: the last one's errno (0: it
  * runs, or none failed yet), when the next is due, and how many failed
@@ -181,16 +186,46 @@ static struct {
 typedef struct {
     int active;                /* a write (or the read below) handed over, outcome not taken */
     int is_read;               /* ... the read of the newest generation when the storage came back */
+    int at_start;              /* ... the start-up read, on start_reader (not the writer): it did not
+                                  return within START_READ_WAIT_MS */
     robot_snapshot_job_t job;
     uint16_t landmarks;
     uint64_t since_us;         /* handed over at (monotonic) */
     const char *why;
 } snapshot_write_t;
 static snapshot_write_t writing;
-/* How long the final snapshot waits for a periodic one still being written. */
+/* How long the stop waits for each snapshot job on the writer thread: a
+ * periodic one still being written, the read of a storage that came back,
+ * the final snapshot's write. One that has not returned by then is left to
+ * the thread and the process exits without a final snapshot. */
 #define FINAL_SNAPSHOT_WAIT_MS 5000U
+/* How long the start waits for the read of the snapshots (load_snapshot). */
+#define START_READ_WAIT_MS 5000U
 /* How long the stop waits for the storage to reopen for the final snapshot. */
 #define FINAL_REOPEN_WAIT_MS 1000U
+
+/* The start-up read of the snapshots runs on a thread of its own
+ * (robot_worker.h), waited for at most START_READ_WAIT_MS, so that a hung
+ * medium at start-up does not hold the robot before it ever runs
+ * (load_snapshot). Not the writer: its start, its retries and what happens
+ * without it stay as they were. Started first thing, before the devices'
+ * openers, and ended once its read is taken. A read that has not returned
+ * in time is the snapshot job in flight (writing.at_start): it owns snaps'
+ * buffer and the storage until it returns, the snapshots wait for it, and
+ * its outcome becomes the generation bookkeeping then (start_read_taken). */
+static robot_worker_t start_reader;
+static struct {
+    robot_snapshot_t loaded;
+    robot_snapshot_found_t found;
+    coslam_status_t result;
+} start_read;
+
+/* The start-up read, on start_reader. */
+static void start_read_job(void *ctx)
+{
+    (void)ctx;
+    start_read.result = robot_snapshots_read_newest(&snaps, &start_read.loaded, &start_read.found, stderr);
+}
 static robot_status_t status;
 
 /* Map-message sequence numbers across restarts. A snapshot carries the
@@ -279,10 +314,9 @@ static int commit_snapshot(int verbose, const char *why, const robot_snapshot_jo
 }
 
 /* Save snap.map, the export just made, as the next generation: handed to
- * the writer thread (`to_writer`; the outcome comes with
- * finish_snapshot_write) or written here. Returns 0 if handed over or
- * saved. */
-static int save_snapshot_map(int verbose, const char *why, uint64_t now_us, int to_writer)
+ * the writer thread (the outcome comes with finish_snapshot_write; never
+ * written here). Returns 0 if handed over. */
+static int save_snapshot_map(int verbose, const char *why, uint64_t now_us)
 {
     if (writing.active) {
         /* the writer owns snaps' buffer until its outcome is taken (the
@@ -313,23 +347,15 @@ static int save_snapshot_map(int verbose, const char *why, uint64_t now_us, int 
         fprintf(stderr, "coslam-robot: snapshot: %s snapshot not written (%s)\n", why, coslam_status_str(ps));
         return -1;
     }
-    const int e = to_writer ? robot_snapshot_writer_submit(&writer, st, job.name, snaps.buf, job.len) : ESRCH;
+    const int e = robot_snapshot_writer_submit(&writer, st, job.name, snaps.buf, job.len);
     if (e != 0) {
-        if (to_writer) {
-            /* not reached: the caller hands over only with the thread
-             * running and no write in flight. Never written here instead
-             * (the loop's thread: a hung medium would hold it) */
-            snaps.save_failures++;
-            fprintf(stderr, "coslam-robot: snapshot: writer thread refused the %s snapshot (%s): not written\n", why,
-                    strerror(e));
-            return -1;
-        }
-        uint64_t t0 = now_us;
-        (void)hal_clock_now_us(dev.clock, &t0);
-        const hal_status_t ws = hal_storage_write(st, job.name, snaps.buf, job.len);
-        uint64_t t1 = t0;
-        (void)hal_clock_now_us(dev.clock, &t1);
-        return commit_snapshot(verbose, why, &job, snap.map.n_landmarks, ws, t1 - t0, t1);
+        /* not reached: the callers hand over only with the thread running
+         * and no job in flight. Never written here instead (the loop's or
+         * the stop's thread: a hung medium would hold it) */
+        snaps.save_failures++;
+        fprintf(stderr, "coslam-robot: snapshot: writer thread refused the %s snapshot (%s): not written\n", why,
+                strerror(e));
+        return -1;
     }
     writing.active = 1;
     writing.job = job;
@@ -362,27 +388,47 @@ static void newest_read(coslam_status_t rs, const robot_snapshot_found_t *found,
     }
 }
 
-/* The storage came back (to_writer: the writer thread runs): its newest
- * generation is read on the writer thread, which owns snaps' buffer until
- * the outcome is taken (finish_snapshot_write); else here, as at start. */
-static void storage_back(uint64_t now_us, int to_writer)
+/* The storage came back: its newest generation is read on the writer
+ * thread, which owns snaps' buffer until the outcome is taken
+ * (finish_snapshot_write); never here (a medium that has just come back
+ * may hang). The caller has the thread running and no job in flight.
+ * Returns 0 if handed over, else -1 (not read: the caller tries again). */
+static int storage_back(uint64_t now_us)
 {
     static robot_snapshot_t newest;
     robot_snapshots_set_storage(&snaps, robot_devices_storage(&dev));
-    if (to_writer && !writing.active && robot_snapshot_writer_submit_read(&writer, &snaps, &newest) == 0) {
-        writing.active = 1;
-        writing.is_read = 1;
-        writing.since_us = now_us;
-        writing.why = "read";
-        return;
+    if (writing.active || robot_snapshot_writer_submit_read(&writer, &snaps, &newest) != 0) {
+        return -1;
     }
-    robot_snapshot_found_t found;
-    uint64_t t0 = now_us;
-    (void)hal_clock_now_us(dev.clock, &t0);
-    const coslam_status_t rs = robot_snapshots_read_newest(&snaps, &newest, &found, stderr);
-    uint64_t t1 = t0;
-    (void)hal_clock_now_us(dev.clock, &t1);
-    newest_read(rs, &found, t1 - t0);
+    writing.active = 1;
+    writing.is_read = 1;
+    writing.since_us = now_us;
+    writing.why = "read";
+    return 0;
+}
+
+/* The start-up read that did not return in time has returned (after
+ * read_us): what it found becomes the generation bookkeeping, so that this
+ * run's saves come after the snapshots on disk; reported. The map is not
+ * loaded: the run has begun a new one. */
+static void start_read_taken(uint64_t read_us)
+{
+    const coslam_status_t rs = start_read.result;
+    const char *name = NULL;
+    if (rs == COSLAM_OK || rs == COSLAM_E_EMPTY) {
+        name = robot_snapshots_found(&snaps, &start_read.found); /* as robot_snapshots_load */
+    }
+    if (rs == COSLAM_OK && name != NULL) {
+        fprintf(stderr, "coslam-robot: snapshot: the start-up read has returned after %.1f s: newest on disk %s "
+                        "seq=%llu kept, not loaded (this run began a new map), which is saved after it\n",
+                (double)read_us * 1e-6, name, (unsigned long long)start_read.found.seq);
+    } else if (rs == COSLAM_E_EMPTY) {
+        fprintf(stderr, "coslam-robot: snapshot: the start-up read has returned after %.1f s: none on disk\n",
+                (double)read_us * 1e-6);
+    } else {
+        fprintf(stderr, "coslam-robot: snapshot: the start-up read has returned after %.1f s: cannot read (%s)\n",
+                (double)read_us * 1e-6, coslam_status_str(rs));
+    }
 }
 
 /* The periodic write in flight: its outcome, if it is there (waiting at
@@ -395,6 +441,18 @@ static int finish_snapshot_write(int verbose, uint32_t wait_ms, uint64_t now_us)
     }
     hal_status_t ws = HAL_OK;
     uint64_t write_us = 0U;
+    if (writing.at_start) {
+        /* the start-up read, on its own thread */
+        if (robot_worker_take(&start_reader, wait_ms, &write_us) == 0) {
+            return 0;
+        }
+        writing.active = 0;
+        writing.is_read = 0;
+        writing.at_start = 0;
+        (void)robot_worker_stop(&start_reader, 0U); /* idle: joined at once */
+        start_read_taken(write_us);
+        return 1;
+    }
     if (robot_snapshot_writer_take(&writer, wait_ms, &ws, &write_us) == 0) {
         return 0;
     }
@@ -408,9 +466,9 @@ static int finish_snapshot_write(int verbose, uint32_t wait_ms, uint64_t now_us)
     return 1;
 }
 
-/* Export now (whole, in this step) and save the next generation: the final
- * snapshot (written here, or handed to the writer thread: `to_writer`). */
-static int save_snapshot(int verbose, const char *why, uint64_t now_us, int to_writer)
+/* Export now (whole, in this step) and hand the next generation to the
+ * writer thread: the final snapshot. */
+static int save_snapshot(int verbose, const char *why, uint64_t now_us)
 {
     memset(&snap, 0, sizeof snap);
     snap.clean_stop = 1U; /* the final snapshot: nothing is sent after it (snap_seq_to_save) */
@@ -423,7 +481,7 @@ static int save_snapshot(int verbose, const char *why, uint64_t now_us, int to_w
     }
     (void)robot_node_export_poll(&node, &snap.map, NULL); /* the observer's, finished above: taken */
     observer.landmarks = snap.map.n_landmarks;
-    return save_snapshot_map(verbose, why, now_us, to_writer);
+    return save_snapshot_map(verbose, why, now_us);
 }
 
 /* The writer thread runs, or is started again once its retry is due
@@ -478,30 +536,95 @@ static void no_writer_skip(int verbose, const char *why)
 }
 
 /* The stop: the snapshot job handed over (writing) has not returned
- * within its wait (storage stuck): said, the thread left to it. */
+ * within its wait (storage stuck): said, counted (snap_final_timeouts),
+ * the thread left to it; the process exits without a final snapshot. The
+ * generations on disk stay whole: a write goes to a temporary file that
+ * is renamed over the older generation only once written and fsync'ed
+ * (hal_storage_linux), so the exit cuts at most that temporary file. */
 static void final_stuck(hal_clock_t *clock)
 {
     uint64_t now = writing.since_us;
     (void)hal_clock_now_us(clock, &now);
-    fprintf(stderr,
-            "coslam-robot: snapshot: a snapshot %s has run for %.1f s and does not return (storage stuck): "
-            "no final snapshot\n",
-            writing.is_read ? "read" : "write", (double)(now - writing.since_us) * 1e-6);
+    snaps.final_timeouts++;
+    if (!writing.is_read && writing.why != NULL && strcmp(writing.why, "final") == 0) {
+        fprintf(stderr,
+                "coslam-robot: snapshot: final snapshot still being written after %.1f s (storage stuck): not "
+                "waited for any longer, the process exits without it (snap_final_timeouts=%lu); the newest "
+                "complete generation on disk stays seq=%llu (the write goes to a temporary file, renamed over %s "
+                "only once written whole)\n",
+                (double)(now - writing.since_us) * 1e-6, (unsigned long)snaps.final_timeouts,
+                (unsigned long long)snaps.newest_seq, writing.job.name);
+    } else {
+        fprintf(stderr,
+                "coslam-robot: snapshot: a snapshot %s has run for %.1f s and does not return (storage stuck): "
+                "no final snapshot\n",
+                writing.is_read ? "read" : "write", (double)(now - writing.since_us) * 1e-6);
+    }
     (void)robot_snapshot_writer_stop(&writer, 0U);
+    if (writing.at_start) {
+        (void)robot_worker_stop(&start_reader, 0U); /* the start-up read: left to its thread */
+    }
     /* the thread still uses the storage: left open to it until exit */
     dev.dev[ROBOT_DEV_STORAGE].state = ROBOT_DEV_DOWN;
 }
 
+/* The stop's final snapshot with the writer thread running and nothing in
+ * flight: the storage tried again if it is down (robot_devices_reopen_now,
+ * at most FINAL_REOPEN_WAIT_MS), the read of a storage that came back
+ * (read_due, or reopened now) and the final snapshot's write go to the
+ * thread, each waited for at most FINAL_SNAPSHOT_WAIT_MS; one that has not
+ * returned by then is said, counted and left to the thread (final_stuck),
+ * and the stop goes on without a final snapshot. Neither runs in this
+ * thread: a medium that hangs at the stop (an NFS mount gone, an SD card
+ * whose fsync never returns) would keep the process from ever exiting.
+ * Returns 0 if it was saved. */
+static int final_snapshot_on_writer(hal_clock_t *clock, int read_due)
+{
+    uint64_t now = 0U;
+    (void)hal_clock_now_us(clock, &now);
+    if (robot_devices_storage(&dev) == NULL &&
+        robot_devices_reopen_now(&dev, ROBOT_DEV_STORAGE, now, FINAL_REOPEN_WAIT_MS)) {
+        /* down since a failed write or a lost medium, and back: the final
+         * snapshot is not skipped for a retry not yet due; the generations
+         * on disk first, so that it comes after them */
+        fprintf(stderr, "coslam-robot: snapshot: storage back for the final snapshot\n");
+        read_due = 1;
+    }
+    (void)hal_clock_now_us(clock, &now);
+    if (read_due && robot_devices_storage(&dev) != NULL) {
+        if (storage_back(now) != 0) {
+            /* not reached: the thread runs, nothing is in flight */
+            (void)robot_snapshot_writer_stop(&writer, FINAL_SNAPSHOT_WAIT_MS);
+            return -1;
+        }
+        if (!finish_snapshot_write(1, FINAL_SNAPSHOT_WAIT_MS, now)) {
+            final_stuck(clock);
+            return -1;
+        }
+        (void)hal_clock_now_us(clock, &now);
+    }
+    const uint32_t saves = snaps.saves;
+    if (save_snapshot(1, "final", now) == 0) {
+        (void)hal_clock_now_us(clock, &now);
+        if (!finish_snapshot_write(1, FINAL_SNAPSHOT_WAIT_MS, now)) {
+            final_stuck(clock);
+            return -1;
+        }
+    }
+    (void)robot_snapshot_writer_stop(&writer, FINAL_SNAPSHOT_WAIT_MS);
+    return snaps.saves > saves ? 0 : -1;
+}
+
 /* The stop's final snapshot when the writer thread did not run at the end
  * of the loop (it could not be started). It is started once more, at once;
- * if it starts, the read of a storage that came back (read_due, or the
- * storage reopened now) and the final snapshot go to it, each waited for
- * at most FINAL_SNAPSHOT_WAIT_MS (storage stuck: said, left to the thread,
- * as a periodic write held at the stop). If it does not, there is no final
- * snapshot: it is not written in this thread, which a hung medium would
- * hold for ever (the stop must end: the drives are released, and a service
- * manager would kill the process anyway); said and counted. The
- * generations on disk stay as they were. Returns 0 if it was saved. */
+ * if it starts, the final snapshot goes to it as with the thread running
+ * all along (final_snapshot_on_writer: the read of a storage that came
+ * back, read_due, first; each waited for at most FINAL_SNAPSHOT_WAIT_MS).
+ * If it does not, there is no final snapshot: it is not written in this
+ * thread, which a hung medium would hold for ever (the stop must end: the
+ * drives are released, and a service manager would kill the process
+ * anyway); said and counted. The generations on disk stay as they were.
+ * Returns 0 if it was saved. */
 static int final_snapshot_no_writer(hal_clock_t *clock, int read_due)
 {
     uint64_t now = 0U;
@@ -517,30 +640,7 @@ static int final_snapshot_no_writer(hal_clock_t *clock, int read_due)
                 (unsigned long long)snaps.newest_seq);
         return -1;
     }
-    if (robot_devices_storage(&dev) == NULL &&
-        robot_devices_reopen_now(&dev, ROBOT_DEV_STORAGE, now, FINAL_REOPEN_WAIT_MS)) {
-        fprintf(stderr, "coslam-robot: snapshot: storage back for the final snapshot\n");
-        read_due = 1;
-    }
-    (void)hal_clock_now_us(clock, &now);
-    if (read_due && robot_devices_storage(&dev) != NULL) {
-        storage_back(now, 1); /* on the thread: nothing is in flight */
-        if (!finish_snapshot_write(1, FINAL_SNAPSHOT_WAIT_MS, now)) {
-            final_stuck(clock);
-            return -1;
-        }
-        (void)hal_clock_now_us(clock, &now);
-    }
-    const uint32_t saves = snaps.saves;
-    if (save_snapshot(1, "final", now, 1) == 0) {
-        (void)hal_clock_now_us(clock, &now);
-        if (!finish_snapshot_write(1, FINAL_SNAPSHOT_WAIT_MS, now)) {
-            final_stuck(clock);
-            return -1;
-        }
-    }
-    (void)robot_snapshot_writer_stop(&writer, FINAL_SNAPSHOT_WAIT_MS);
-    return snaps.saves > saves ? 0 : -1;
+    return final_snapshot_on_writer(clock, read_due);
 }
 
 /* The observers' export: begin it, or see whether it is done. Returns 1
@@ -567,61 +667,103 @@ static int observe_map(coslam_status_t *es)
     return *es != COSLAM_E_MERGE_BUSY; /* busy: the export table is taken, try next step */
 }
 
-/* At start: the newest generation. With `restore` the node starts from it;
- * else (a dry run) it is only named. */
-static void load_snapshot(int restore)
+/* At start: the newest generation, read on start_reader and waited for at
+ * most START_READ_WAIT_MS. With `restore` the node starts from it; else (a
+ * dry run) it is only named. A read that has not returned by then: a new
+ * map, said and counted (snap_start_read_timeouts), the read left in
+ * flight (writing.at_start: the loop takes it when the medium answers, and
+ * this run's snapshots come after what it found). No thread for the read:
+ * not read here (a hung medium would hold the start for ever), a new map,
+ * said and counted (snap_no_writer_skips). Returns 1 if the generations
+ * are still to be read then: the loop reads them on the writer thread, as
+ * for a storage that came back (storage_back). */
+static int load_snapshot(int restore)
 {
     hal_storage_t *st = robot_devices_storage(&dev);
     robot_snapshots_set_storage(&snaps, st);
     if (st == NULL) {
+        (void)robot_worker_stop(&start_reader, 0U); /* idle: nothing to read */
         fprintf(stderr, "coslam-robot: snapshot: storage down: starting a new map\n");
-        return;
+        return 0;
     }
-    static robot_snapshot_t loaded;
+    const int started = robot_worker_start(&start_reader, start_read_job, NULL); /* 0 at once if it runs */
+    if (started != 0 || robot_worker_submit(&start_reader) != 0) {
+        snaps.no_writer_skips++;
+        fprintf(stderr,
+                "coslam-robot: snapshot: no thread for the start-up read (%s): the snapshots are not read in this "
+                "thread, which a hung medium would hold: starting a new map; they are read on the writer thread "
+                "once it runs, and this run's snapshots are saved after them (snap_no_writer_skips=%lu)\n",
+                strerror(started != 0 ? started : ESRCH),
+                (unsigned long)snaps.no_writer_skips);
+        return 1;
+    }
+    uint64_t handed_us = 0U;
+    (void)hal_clock_now_us(dev.clock, &handed_us);
+    uint64_t read_us = 0U;
+    if (robot_worker_take(&start_reader, START_READ_WAIT_MS, &read_us) != 1) {
+        snaps.start_read_timeouts++;
+        fprintf(stderr,
+                "coslam-robot: snapshot: the start-up read of the snapshots has not returned within %.1f s (a hung "
+                "medium?): starting a new map, not restored (snap_start_read_timeouts=%lu); the read goes on on its "
+                "own thread, the snapshots wait for it and are saved after what it finds\n",
+                (double)START_READ_WAIT_MS * 1e-3, (unsigned long)snaps.start_read_timeouts);
+        writing.active = 1;
+        writing.is_read = 1;
+        writing.at_start = 1;
+        writing.since_us = handed_us;
+        writing.why = "read";
+        return 0;
+    }
+    (void)robot_worker_stop(&start_reader, 0U); /* idle: joined at once */
+    robot_snapshot_t *loaded = &start_read.loaded;
     const char *name = NULL;
-    const coslam_status_t ls = robot_snapshots_load(&snaps, &loaded, &name, stderr);
+    const coslam_status_t ls = start_read.result;
+    if (ls == COSLAM_OK || ls == COSLAM_E_EMPTY) {
+        name = robot_snapshots_found(&snaps, &start_read.found); /* as robot_snapshots_load */
+    }
     if (ls == COSLAM_E_EMPTY) {
         fprintf(stderr, "coslam-robot: snapshot: none found: starting a new map\n");
-        return;
+        return 0;
     }
     if (ls != COSLAM_OK) {
         fprintf(stderr, "coslam-robot: snapshot: cannot read (%s): starting a new map\n", coslam_status_str(ls));
-        return;
+        return 0;
     }
     if (!restore) {
         fprintf(stderr, "coslam-robot: snapshot: newest on disk %s seq=%llu (dry run: not loaded)\n", name,
-                (unsigned long long)loaded.seq);
-        return;
+                (unsigned long long)loaded->seq);
+        return 0;
     }
-    if (loaded.robot_id != cfg.robot_id) {
+    if (loaded->robot_id != cfg.robot_id) {
         fprintf(stderr, "coslam-robot: snapshot: %s seq=%llu was saved by robot %u, this is robot %u: not loaded, "
                         "starting a new map\n",
-                name, (unsigned long long)loaded.seq, (unsigned)loaded.robot_id, (unsigned)cfg.robot_id);
-        return;
+                name, (unsigned long long)loaded->seq, (unsigned)loaded->robot_id, (unsigned)cfg.robot_id);
+        return 0;
     }
     /* after a crash, maps sent since this snapshot have later sequence
      * numbers that the peers remember: go on beyond them */
-    const uint32_t msg_seq = loaded.msg_seq + (loaded.clean_stop ? 0U : ROBOT_SNAPSHOT_SEQ_MARGIN);
-    const coslam_status_t rs = robot_node_restore(&node, &loaded.map, msg_seq);
+    const uint32_t msg_seq = loaded->msg_seq + (loaded->clean_stop ? 0U : ROBOT_SNAPSHOT_SEQ_MARGIN);
+    const coslam_status_t rs = robot_node_restore(&node, &loaded->map, msg_seq);
     /* the message numbers go on either way (robot_node_restore) */
-    seq_book.base = loaded.msg_seq;
+    seq_book.base = loaded->msg_seq;
     seq_book.resumed = msg_seq;
-    seq_book.unknown = !loaded.clean_stop;
+    seq_book.unknown = !loaded->clean_stop;
     if (rs != COSLAM_OK && rs != COSLAM_E_CAPACITY) {
         fprintf(stderr, "coslam-robot: snapshot: %s seq=%llu refused by the filter (%s): starting a new map; map "
                         "messages numbered on from %lu\n",
-                name, (unsigned long long)loaded.seq, coslam_status_str(rs), (unsigned long)msg_seq);
-        return;
+                name, (unsigned long long)loaded->seq, coslam_status_str(rs), (unsigned long)msg_seq);
+        return 0;
     }
     char restart[96] = "";
-    if (!loaded.clean_stop) {
+    if (!loaded->clean_stop) {
         (void)snprintf(restart, sizeof restart, " (not from a clean stop: map messages numbered on from %lu)",
                        (unsigned long)msg_seq);
     }
     fprintf(stderr,
             "coslam-robot: snapshot: loaded %s seq=%llu landmarks=%u pose=(%.3f, %.3f, %.4f)%s%s\n", name,
-            (unsigned long long)loaded.seq, (unsigned)loaded.map.n_landmarks, loaded.map.pose.x, loaded.map.pose.y,
-            loaded.map.pose.theta, rs == COSLAM_E_CAPACITY ? " (cut to this build's capacity)" : "", restart);
+            (unsigned long long)loaded->seq, (unsigned)loaded->map.n_landmarks, loaded->map.pose.x, loaded->map.pose.y,
+            loaded->map.pose.theta, rs == COSLAM_E_CAPACITY ? " (cut to this build's capacity)" : "", restart);
+    return 0;
 }
 
 /* The meeting's events: merges and refusals always (they change or keep
@@ -911,6 +1053,9 @@ int main(int argc, char **argv)
         robot_devices_close_all(&dev);
         return ds == COSLAM_E_ARG ? 2 : 1;
     }
+    /* the start-up read's thread before the devices' openers (load_snapshot
+     * starts it again if this fails) */
+    (void)robot_worker_start(&start_reader, start_read_job, NULL);
     robot_devices_open_all(&dev, now);
     robot_snapshots_init(&snaps, robot_devices_storage(&dev));
 
@@ -962,13 +1107,19 @@ int main(int argc, char **argv)
                             "process dies or hangs, the wheels keep their last command\n");
         }
     }
-    load_snapshot(!opt.dry_run);
+    const int start_unread = load_snapshot(!opt.dry_run);
 
     if (opt.dry_run) {
         printf("coslam-robot dry run: robot %u of %u, config %s\n", (unsigned)cfg.robot_id, (unsigned)cfg.fleet_size,
                opt.config_path);
         print_devices(stdout);
         printf("snapshot newest seq %llu\n", (unsigned long long)snaps.newest_seq);
+        if (writing.active) {
+            /* the start-up read did not return (said): left to its thread,
+             * and the storage left open to it until the exit */
+            (void)robot_worker_stop(&start_reader, 0U);
+            dev.dev[ROBOT_DEV_STORAGE].state = ROBOT_DEV_DOWN;
+        }
         robot_devices_close_all(&dev);
         return 0;
     }
@@ -990,7 +1141,9 @@ int main(int argc, char **argv)
     double cpu_mark = cpu_seconds();
     uint64_t cpu_mark_us = now;
     int storage_was_up = robot_devices_storage(&dev) != NULL;
-    int storage_read_due = 0; /* the storage came back: its newest generation is read (on the writer) */
+    /* the storage came back, or the start could not read it: its newest
+     * generation is read (on the writer) */
+    int storage_read_due = start_unread;
     coslam_status_t last_step = COSLAM_OK;
 
     while (!stop_signal && (opt.once < 0 || loop.steps < (uint64_t)opt.once)) {
@@ -1014,10 +1167,10 @@ int main(int argc, char **argv)
             storage_read_due = 1;
         }
         storage_read_due = storage_read_due && storage_up;
-        if (storage_read_due && writer_running(now)) {
+        if (storage_read_due && writer_running(now) && storage_back(now) == 0) {
             /* without the thread the read waits for it (never in the loop);
-             * the snapshots it orders are not written meanwhile either */
-            storage_back(now, 1);
+             * the snapshots it orders are not written meanwhile either; a
+             * job in flight (the start-up read) is waited for too */
             storage_read_due = 0;
         }
         storage_was_up = storage_up;
@@ -1042,7 +1195,9 @@ int main(int argc, char **argv)
                 fprintf(stderr,
                         "coslam-robot: snapshot: the %s has run for %.1f s (slow or stuck storage): periodic "
                         "snapshot skipped (snap_busy_skips=%lu)\n",
-                        writing.is_read ? "read of the storage that came back" : "last snapshot's write",
+                        writing.at_start  ? "start-up read of the snapshots"
+                        : writing.is_read ? "read of the storage that came back"
+                                          : "last snapshot's write",
                         (double)(now - writing.since_us) * 1e-6, (unsigned long)snaps.busy_skips);
             } else if (!writer_running(now)) {
                 no_writer_skip(opt.verbose, "periodic");
@@ -1080,7 +1235,7 @@ int main(int argc, char **argv)
                 } else {
                     observer.landmarks = snap.map.n_landmarks;
                     if (observer.want_snap) {
-                        (void)save_snapshot_map(opt.verbose, "periodic", now, 1);
+                        (void)save_snapshot_map(opt.verbose, "periodic", now);
                     }
                 }
                 observer.want_snap = 0;
@@ -1166,19 +1321,11 @@ int main(int argc, char **argv)
         saved = final_snapshot_no_writer(clock, storage_read_due);
         (void)hal_clock_now_us(clock, &now);
     } else {
-        (void)robot_snapshot_writer_stop(&writer, FINAL_SNAPSHOT_WAIT_MS);
+        /* on the writer thread, each job waited for at most
+         * FINAL_SNAPSHOT_WAIT_MS (was: the thread ended, then the read and
+         * the write here, unbounded) */
+        saved = final_snapshot_on_writer(clock, storage_read_due);
         (void)hal_clock_now_us(clock, &now);
-        if (robot_devices_storage(&dev) == NULL &&
-            robot_devices_reopen_now(&dev, ROBOT_DEV_STORAGE, now, FINAL_REOPEN_WAIT_MS)) {
-            /* down since a failed write or a lost medium, and back: the
-             * final snapshot is not skipped for a retry not yet due; the
-             * generations on disk first, so that it comes after them */
-            fprintf(stderr, "coslam-robot: snapshot: storage back for the final snapshot\n");
-            (void)hal_clock_now_us(clock, &now);
-            storage_back(now, 0);
-        }
-        (void)hal_clock_now_us(clock, &now);
-        saved = save_snapshot(1, "final", now, 0);
     }
     loop.uptime_s = (double)(now - t_start) * 1e-6;
     loop.landmarks = observer.landmarks;

@@ -145,6 +145,10 @@ typedef struct {
                                    (robot_snapshot_writer.h; set by the caller) */
     uint32_t writer_start_failures; /**< attempts to start the writer thread that failed (set by
                                          the caller) */
+    uint32_t final_timeouts;  /**< the stop's snapshot jobs given up: not returned within the
+                                   stop's wait, no final snapshot (set by the caller) */
+    uint32_t start_read_timeouts; /**< start-up reads not returned within the start's wait: a
+                                       new map begun (set by the caller) */
     uint8_t buf[ROBOT_SNAPSHOT_MAX_BYTES];
 } robot_snapshots_t;
 

@@ -243,6 +243,8 @@ void robot_status_collect(robot_status_t *s, robot_node_t *node, const robot_dev
     u64(s, "snap_busy_skips", snaps->busy_skips);
     u64(s, "snap_no_writer_skips", snaps->no_writer_skips);
     u64(s, "snap_writer_start_failures", snaps->writer_start_failures);
+    u64(s, "snap_final_timeouts", snaps->final_timeouts);
+    u64(s, "snap_start_read_timeouts", snaps->start_read_timeouts);
     u64(s, "status_file_failures", loop->status_file_failures);
     if (dev->camera_kind == ROBOT_SIGHTINGS_LIVE) {
         /* the e2e live stream (--sightings-fd): its refusals */

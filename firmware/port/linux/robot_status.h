@@ -32,7 +32,10 @@
  *     snap_write_max_ms, snap_busy_skips (periodic snapshots not taken
  *     because the last write still ran), snap_no_writer_skips (snapshots
  *     not written because the writer thread was not running: it could not
- *     be started), snap_writer_start_failures (its starts that failed);
+ *     be started), snap_writer_start_failures (its starts that failed),
+ *     snap_final_timeouts (the stop's snapshot jobs not returned within
+ *     its 5 s wait: no final snapshot), snap_start_read_timeouts (the
+ *     start-up read of the snapshots not returned within 5 s: a new map);
  *   status_file_failures (--status-file writes that failed);
  *   cam_* the camera's counters (robot_camera_counters_t names) when a
  *     V4L2 camera is configured.
