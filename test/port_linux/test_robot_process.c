@@ -34,6 +34,14 @@
  *                 again at the retry period and the snapshots resume; the
  *                 final one without a thread is skipped, said, or written
  *                 on a thread made at the stop.
+ *   final_stuck   the writer thread runs all along and fsync hangs at the
+ *                 stop (fsync_gate.so): the final snapshot waited for at
+ *                 most 5 s, said, counted, exit 0, the generations intact.
+ *   start_read_stuck  the start-up read of snapshot.a hangs (fsync_gate.so's
+ *                 read gate): the robot starts within 5 s and a margin
+ *                 with a new map, said and counted; the read's outcome is
+ *                 taken when it returns and the snapshots are saved after
+ *                 it; still hung at the stop: a bounded stop.
  * Usage: test_robot_process <case> (one CTest entry per case).
  */
 #include <dirent.h>
@@ -1903,6 +1911,185 @@ static void no_writer_thread(void **state)
     remove_dir(dir);
 }
 
+/* ---- a medium that hangs at the stop, or at the start ---------------------- */
+
+/* The stop's wait for each snapshot job (robot_main.c FINAL_SNAPSHOT_WAIT_MS),
+ * and the start's for its read (START_READ_WAIT_MS). */
+#define STOP_JOB_WAIT_MS 5000u
+#define START_READ_WAIT_MS 5000u
+
+/* SIGTERM to the robot; its wait status within timeout_ms (-1: killed
+ * then), *dt_ms how long it took, its log into *log. */
+static int term_robot(pid_t pid, const char *err, uint64_t timeout_ms, uint64_t *dt_ms, const char **log)
+{
+    const uint64_t t0 = now_ms();
+    kill(pid, SIGTERM);
+    const int st = wait_exit(pid, timeout_ms);
+    *dt_ms = now_ms() - t0;
+    *log = slurp(err);
+    return st;
+}
+
+/* The writer thread runs all along; fsync hangs from just before the
+ * SIGTERM (fsync_gate.so: an SD card whose fsync never returns, an NFS
+ * mount gone). Before, the stop ended the writer thread and wrote the
+ * final snapshot itself: the process hung in fsync for as long as the
+ * medium did (here until the shim's 30 s). Now the final snapshot goes to
+ * the writer thread and is waited for at most 5 s: said, counted
+ * (snap_final_timeouts), exit 0, and the generations on disk are as they
+ * were (the cut write was a temporary file); the next start loads the
+ * newest. No periodic snapshot (snapshot_period_s = 0): the write held is
+ * the final one, not a periodic one in flight at the stop. */
+static void final_stuck(void **state)
+{
+    (void)state;
+    char dir[64];
+    char err[300];
+    replay_robot_dir(dir, "0.2", "0", "", err);
+    /* two short runs leave both generations on disk (their final snapshots) */
+    for (int k = 0; k < 2; ++k) {
+        const pid_t first = spawn_robot(dir, err, "--once", "30");
+        const int st = wait_exit(first, 8000);
+        assert_true(WIFEXITED(st) && WEXITSTATUS(st) == 0);
+    }
+    const disk_t d0 = scan_disk(dir);
+    assert_int_equal(d0.present, 2);
+    assert_int_equal(d0.invalid, 0);
+    assert_int_equal(d0.newest, 2);
+    char gate[300];
+    snprintf(gate, sizeof gate, "%s/fsync.gate", dir);
+    const pid_t pid = spawn_robot_gated(dir, err, gate); /* no gate yet: fsync works */
+    assert_true(wait_value(err, "steps", 50, 8000) >= 50);
+    touch(gate);
+    uint64_t dt = 0U;
+    const char *log = NULL;
+    const int st = term_robot(pid, err, STOP_JOB_WAIT_MS + 4000u, &dt, &log);
+    fprintf(stderr, "final_stuck: fsync held at the stop: exit after %llu ms (wait status %d), snap_final_timeouts %ld\n",
+            (unsigned long long)dt, st, last_value(log, "snap_final_timeouts"));
+    if (!(st != -1 && WIFEXITED(st) && WEXITSTATUS(st) == 0) || strstr(log, "final snapshot still being") == NULL) {
+        fprintf(stderr, "%s\n", log);
+    }
+    assert_true(st != -1); /* before: still in fsync when killed */
+    assert_true(WIFEXITED(st));
+    assert_int_equal(WEXITSTATUS(st), 0);
+    assert_true(dt >= STOP_JOB_WAIT_MS - 100u); /* it did wait for the write */
+    assert_true(dt < STOP_JOB_WAIT_MS + 2000u);
+    assert_true(loaded_seq(log) == d0.newest);
+    assert_non_null(strstr(log, "coslam-robot: snapshot: final snapshot still being written after 5."));
+    char want[128];
+    snprintf(want, sizeof want, "the newest complete generation on disk stays seq=%llu", (unsigned long long)d0.newest);
+    assert_non_null(strstr(log, want));
+    assert_non_null(strstr(log, "(no final snapshot)"));
+    assert_null(strstr(log, "(final) in "));
+    assert_int_equal(last_value(log, "snap_final_timeouts"), 1);
+    assert_int_equal(unlink(gate), 0);
+    const disk_t d1 = scan_disk(dir);
+    assert_int_equal(d1.present, 2);
+    assert_int_equal(d1.invalid, 0);
+    assert_true(d1.newest == d0.newest); /* the generations on disk as they were */
+    /* and the next start loads the newest */
+    const pid_t next = spawn_robot(dir, err, "--once", "1");
+    const int st2 = wait_exit(next, 8000);
+    assert_true(WIFEXITED(st2) && WEXITSTATUS(st2) == 0);
+    assert_true(loaded_seq(slurp(err)) == d0.newest);
+    remove_dir(dir);
+}
+
+/* The start-up read of the snapshots hangs (snapshot.a held in the read's
+ * fstat while a gate file exists, fsync_gate.so's read gate). Before, it
+ * ran in the main thread before the loop: no step until the medium
+ * answered. Now it runs on a thread of its own and is waited for at most
+ * 5 s: the robot starts with a new map, said and counted
+ * (snap_start_read_timeouts); the read stays in flight (snap_writing_ms,
+ * periodic snapshots skipped and said), and once it returns what it found
+ * is taken, so this run's snapshots are saved after the generations on
+ * disk. A read still hung at the stop: waited for 5 s, no final snapshot,
+ * exit 0, the generations as they were. */
+static void start_read_stuck(void **state)
+{
+    (void)state;
+    char dir[64];
+    char err[300];
+    replay_robot_dir(dir, "0.2", "0.3", "", err);
+    pid_t pid = spawn_robot(dir, err, NULL, NULL);
+    assert_true(wait_value(err, "snap_saves", 2, 8000) >= 2);
+    (void)stop_robot(pid, err);
+    const disk_t d0 = scan_disk(dir);
+    assert_int_equal(d0.present, 2);
+    assert_int_equal(d0.invalid, 0);
+    char gate[300];
+    snprintf(gate, sizeof gate, "%s/read.gate", dir);
+
+    /* the start-up read held: the robot starts without the map */
+    touch(gate);
+    (void)unlink(err);
+    const uint64_t t0 = now_ms();
+    pid = spawn_robot_shimmed(dir, err, "COSLAM_TEST_READ_GATE", gate, 1);
+    const long steps = wait_value(err, "steps", 20, START_READ_WAIT_MS + 4000u);
+    const uint64_t took_ms = now_ms() - t0;
+    const long skips = wait_value(err, "snap_busy_skips", 1, 3000);
+    /* the loop steps on while the read is held (late_max_us holds the
+     * start itself: the first step is due from before the start-up) */
+    const long steps_now = last_value(slurp(err), "steps");
+    const long steps_later = wait_value(err, "steps", steps_now + 50, 2000);
+    char *held = strdup(slurp(err));
+    assert_non_null(held);
+    fprintf(stderr,
+            "start_read_stuck: %ld steps %llu ms after the spawn, %ld later, snap_busy_skips %ld, snap_writing_ms "
+            "%ld\n",
+            steps, (unsigned long long)took_ms, steps_later, skips, last_value(held, "snap_writing_ms"));
+    if (steps < 20 || strstr(held, "start-up read of the snapshots has not returned") == NULL) {
+        fprintf(stderr, "%s\n", held);
+    }
+    assert_true(steps >= 20); /* before: no step while the read was held */
+    assert_true(took_ms < START_READ_WAIT_MS + 4000u);
+    assert_non_null(strstr(held, "coslam-robot: snapshot: the start-up read of the snapshots has not returned "
+                                 "within 5.0 s"));
+    assert_null(strstr(held, "snapshot: loaded "));
+    assert_int_equal(last_value(held, "snap_start_read_timeouts"), 1);
+    assert_true(skips >= 1);
+    assert_non_null(strstr(held, "the start-up read of the snapshots has run for"));
+    assert_int_equal(last_value(held, "snap_saves"), 0);
+    assert_true(last_value(held, "snap_writing_ms") >= 1000);
+    assert_true(last_status_has(held, " storage=up"));
+    assert_true(steps_later >= steps_now + 50);
+    free(held);
+    /* the medium answers: the read taken, the snapshots saved after it */
+    assert_int_equal(unlink(gate), 0);
+    const long saves = wait_value(err, "snap_saves", 1, 5000);
+    const char *log = stop_robot(pid, err);
+    assert_true(saves >= 1);
+    char want[160];
+    snprintf(want, sizeof want, "seq=%llu kept, not loaded (this run began a new map)", (unsigned long long)d0.newest);
+    assert_non_null(strstr(log, "coslam-robot: snapshot: the start-up read has returned after "));
+    assert_non_null(strstr(log, want));
+    assert_non_null(strstr(log, "(final) in "));
+    const disk_t d1 = scan_disk(dir);
+    assert_int_equal(d1.invalid, 0);
+    assert_true(d1.newest >= d0.newest + 2); /* after the generations on disk, not over them */
+    assert_true(d1.clean_stop);
+
+    /* still held at the stop: a bounded stop, no final snapshot */
+    touch(gate);
+    (void)unlink(err);
+    pid = spawn_robot_shimmed(dir, err, "COSLAM_TEST_READ_GATE", gate, 1);
+    assert_true(wait_value(err, "snap_start_read_timeouts", 1, START_READ_WAIT_MS + 4000u) >= 1);
+    uint64_t dt = 0U;
+    log = stop_robot_within(pid, err, STOP_JOB_WAIT_MS + 4000u, &dt);
+    fprintf(stderr, "start_read_stuck: the read still held at the stop: exit after %llu ms\n",
+            (unsigned long long)dt);
+    assert_true(dt < STOP_JOB_WAIT_MS + 2000u);
+    assert_non_null(strstr(log, "a snapshot read has run for "));
+    assert_non_null(strstr(log, "does not return (storage stuck): no final snapshot"));
+    assert_non_null(strstr(log, "(no final snapshot)"));
+    assert_int_equal(last_value(log, "snap_final_timeouts"), 1);
+    assert_int_equal(unlink(gate), 0);
+    const disk_t d2 = scan_disk(dir);
+    assert_int_equal(d2.invalid, 0);
+    assert_true(d2.newest == d1.newest);
+    remove_dir(dir);
+}
+
 int main(int argc, char **argv)
 {
     if (argc > 1) {
@@ -1932,6 +2119,8 @@ int main(int argc, char **argv)
         cmocka_unit_test(no_can_said_once),
         cmocka_unit_test(no_opener_thread),
         cmocka_unit_test(no_writer_thread),
+        cmocka_unit_test(final_stuck),
+        cmocka_unit_test(start_read_stuck),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
