@@ -303,19 +303,26 @@ static merge_geometry_t mutual_geometry(pose2_t self, pose2_t other)
 static map_estimate_t g_out_a;
 static map_estimate_t g_out_b;
 
-static void merge_path_case(int variant)
+/* Two copies of a robot in a local phase (g_fa, g_fb) and the message: A's
+ * own map (exported from a copy: an export syncs) as seen from a partner
+ * 1.5 m ahead facing it (*po); *pa is A's pose. */
+static void pair_in_local_phase(pose2_t *pa, pose2_t *po)
 {
     local_phase_filter(&g_fa);
     memcpy(&g_fb, &g_fa, sizeof g_fa);
-    /* the message: A's own map (exported from a copy: an export syncs) */
     memcpy(&g_whole, &g_fa.u.ekf, sizeof g_whole);
     assert_int_equal(ekfslam_export(&g_whole, &g_msg), COSLAM_OK);
-    pose2_t pa;
     cov3_t ca;
-    slam_filter_pose(&g_fa, &pa, &ca);
-    const pose2_t rel = {1.5, 0.0, COSLAM_PI};
-    const pose2_t po = pose2_compose(pa, rel);
-    g_msg.pose = po;
+    slam_filter_pose(&g_fa, pa, &ca);
+    *po = pose2_compose(*pa, (pose2_t){1.5, 0.0, COSLAM_PI});
+    g_msg.pose = *po;
+}
+
+static void merge_path_case(int variant)
+{
+    pose2_t pa;
+    pose2_t po;
+    pair_in_local_phase(&pa, &po);
     for (uint16_t i = 0; i < g_msg.n_landmarks; ++i) {
         g_msg.lm[i].src_mask = 0x2U;
         g_msg.lm[i].mean.x += 0.02; /* a little off: the fusion moves the map */
@@ -373,15 +380,9 @@ static void merge_path_case(int variant)
 static void test_merge_path_lost_in_a_local_phase(void **state)
 {
     (void)state;
-    local_phase_filter(&g_fa);
-    memcpy(&g_fb, &g_fa, sizeof g_fa);
-    memcpy(&g_whole, &g_fa.u.ekf, sizeof g_whole);
-    assert_int_equal(ekfslam_export(&g_whole, &g_msg), COSLAM_OK);
     pose2_t pa;
-    cov3_t ca;
-    slam_filter_pose(&g_fa, &pa, &ca);
-    const pose2_t po = pose2_compose(pa, (pose2_t){1.5, 0.0, COSLAM_PI});
-    g_msg.pose = po;
+    pose2_t po;
+    pair_in_local_phase(&pa, &po);
     for (uint16_t i = 0; i < g_msg.n_landmarks; ++i) {
         g_msg.lm[i].src_mask = 0x2U;
     }
