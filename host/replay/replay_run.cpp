@@ -755,7 +755,7 @@ void Replay::record_event(Robot &recv, const meeting_event_t &e, const MapScore 
     }
     const auto tr = recv.truth->at(ev.t_s);
     const auto ts = send.truth->at(ev.t_sender_sighting_s);
-    if (tr && ts && (merged || e.status == COSLAM_E_MERGE_DISAGREE || e.status == COSLAM_E_MERGE_LOST)) {
+    if (tr && ts && (merged || merge_refused_by_check(e.status))) {
         ev.has_truth = true;
         ev.transform_true = pose2_between(*tr, *ts);
         ev.t_err_m = std::hypot(ev.transform.x - ev.transform_true.x, ev.transform.y - ev.transform_true.y);

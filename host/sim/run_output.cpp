@@ -147,7 +147,7 @@ nlohmann::json merge_json(const MergeRecord &m)
     }
     // the check's figures: of every merge, and of the refusals the check
     // made (for those they are the reason, e.g. placed_sd_m of a lost one)
-    if (m.kind == MEETING_EV_MERGED || m.status == COSLAM_E_MERGE_DISAGREE || m.status == COSLAM_E_MERGE_LOST) {
+    if (m.kind == MEETING_EV_MERGED || merge_refused_by_check(m.status)) {
         j["check"] = {{"pairs", m.stats.pairs},
                       {"nis", m.stats.nis},
                       {"nis_bound", m.stats.nis_bound},

@@ -76,7 +76,7 @@ static void run_many(run_filter_t a, run_filter_t b, int n_signatures, uint8_t t
             if (!r->merged) {
                 /* only the check may refuse these meetings (maps that
                  * disagree, or a receiver lost in its own map) */
-                assert_true(r->status == COSLAM_E_MERGE_DISAGREE || r->status == COSLAM_E_MERGE_LOST);
+                assert_true(merge_refused_by_check(r->status));
                 g->refused++;
                 continue;
             }

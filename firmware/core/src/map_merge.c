@@ -1257,6 +1257,11 @@ static double pairs_accumulate(const merge_scratch_t *sc, const merge_body_map_t
     return nis;
 }
 
+int merge_refused_by_check(coslam_status_t st)
+{
+    return st == COSLAM_E_MERGE_DISAGREE || st == COSLAM_E_MERGE_LOST;
+}
+
 /* The smallest variance (largest axis) of the own landmarks paired, in the
  * receiver's body frame: how well the receiver places the best-placed
  * landmark the merge acts on. INFINITY with no pairs. */

@@ -623,6 +623,10 @@ coslam_status_t merge_check(const map_whole_t *own, const merge_coverage_t *cove
                             const slam_params_t *own_params, uint8_t own_id, const merge_config_t *cfg, merge_body_map_t *bm, merge_scratch_t *scratch,
                             merge_stats_t *stats);
 
+/** 1 if st is a refusal merge_check made (COSLAM_E_MERGE_DISAGREE,
+ *  COSLAM_E_MERGE_LOST): its stats hold the check's figures, the reason. */
+int merge_refused_by_check(coslam_status_t st);
+
 /**
  * Paper eqs. 4-5, the Kalman form of fusing two estimates of one point:
  *   K = S_a (S_a + S_b)^-1,  x = a + K (b - a),  S = S_a - K S_a.
