@@ -867,7 +867,7 @@ static void test_lost_receiver_refused_without_hold_off(void **state)
     assert_int_equal(g_m.ctr.refused_disagree + g_m.ctr.refused_range + g_m.ctr.merge_failures + g_m.ctr.merged, 0);
     assert_false(g_m.peer[1].disagreed);
     assert_false(g_m.peer[1].merged);
-    meeting_event_t ev;
+    meeting_event_t ev = {0};
     assert_int_equal(count_events(MEETING_EV_REFUSED, COSLAM_E_MERGE_LOST, &ev), 1);
     assert_int_equal(ev.peer, 1);
     assert_int_equal(ev.stats.pairs, 1);
