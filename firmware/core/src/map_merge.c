@@ -325,9 +325,13 @@ coslam_status_t merge_fuse_ci(point2_t a, cov2_t sa, point2_t b, cov2_t sb, poin
 
 /* ---- the grid hash over the incoming body map --------------------------- */
 
-static uint32_t cell_hash(int32_t cx, int32_t cy)
+/* Bucket of (cell, signature): every lookup wants one signature, so a
+ * chain holds (collisions aside) only the landmarks it may visit; the
+ * order within one (cell, signature) is the same as with any hash
+ * (descending index: entries are prepended). */
+static uint32_t cell_hash(int32_t cx, int32_t cy, uint8_t sig)
 {
-    const uint32_t h = ((uint32_t)cx * 73856093U) ^ ((uint32_t)cy * 19349663U);
+    const uint32_t h = ((uint32_t)cx * 73856093U) ^ ((uint32_t)cy * 19349663U) ^ ((uint32_t)sig * 83492791U);
     return h % (uint32_t)COSLAM_MERGE_GRID_BUCKETS;
 }
 
@@ -375,7 +379,7 @@ static void grid_build(merge_scratch_t *sc, const merge_body_map_t *bm, double c
     for (uint16_t i = 0; i < bm->n; ++i) {
         const int32_t cx = cell_of(bm->mean[i].x, cell);
         const int32_t cy = cell_of(bm->mean[i].y, cell);
-        const uint32_t h = cell_hash(cx, cy);
+        const uint32_t h = cell_hash(cx, cy, bm->signature[i]);
         sc->cell_x[i] = cx;
         sc->cell_y[i] = cy;
         sc->next[i] = sc->bucket_head[h];
@@ -431,7 +435,16 @@ static int grid_may_pair(const merge_scratch_t *sc, point2_t q)
     if (dx < 0 || dy < 0 || dx >= lim || dy >= lim) {
         return 0;
     }
-    return (int)((sc->occ[dy / sc->occ_bin] >> (dx / sc->occ_bin)) & 1U);
+    /* 0 <= dx, dy < 2^32 (cells are clamped to +-1e9): the same quotient
+     * in 32 bits, and none for bins of one cell (the 64-bit division was
+     * a third of the merge's per own landmark time) */
+    uint32_t bx = (uint32_t)dx;
+    uint32_t by = (uint32_t)dy;
+    if (sc->occ_bin > 1) {
+        bx /= (uint32_t)sc->occ_bin;
+        by /= (uint32_t)sc->occ_bin;
+    }
+    return (int)((sc->occ[by] >> bx) & 1U);
 }
 
 /* Max-heap on d2: the entry at root moved down within p[0..end-1]. The
@@ -483,7 +496,7 @@ static void grid_gated_at(merge_scratch_t *sc, const merge_body_map_t *bm, point
     const int32_t cy = cell_of(q.y, sc->cell_m);
     for (int32_t dx = -1; dx <= 1; ++dx) {
         for (int32_t dy = -1; dy <= 1; ++dy) {
-            for (int32_t i = sc->bucket_head[cell_hash(cx + dx, cy + dy)]; i >= 0; i = sc->next[i]) {
+            for (int32_t i = sc->bucket_head[cell_hash(cx + dx, cy + dy, sig)]; i >= 0; i = sc->next[i]) {
                 double d2;
                 if (sc->cell_x[i] != cx + dx || sc->cell_y[i] != cy + dy || bm->signature[i] != sig) {
                     continue;
@@ -718,8 +731,12 @@ static coslam_status_t merge_particle(fastslam_t *fs, uint16_t k, const merge_bo
         /* a duplicate's information scaled by dup_w: its covariance by 1 / dup_w */
         const cov2_t wc = cov2_scale(cov2_congruence(r, bm->cov[i]), j >= 0 ? 1.0 / dup_w : 1.0);
         if (j >= 0) {
-            landmark_t fused = *fastslam_particle_lm(fs, k, (uint16_t)j); /* maps are shared: */
-            landmark_t *lm = &fused;                                      /* written back below */
+            /* own[j] is still slot j as it was: each slot is written once
+             * (the pairing is one to one), and a write leaves a leaf other
+             * maps share unchanged. Maps are shared: the copy is written
+             * back below */
+            landmark_t fused = *own[j];
+            landmark_t *lm = &fused;
             point2_t xm;
             cov2_t xc;
             coslam_status_t st;
