@@ -322,12 +322,49 @@ static void set_needs(const lm_tree_pool_t *p, lm_tree_idx_t root, uint32_t slot
     *leaves = (n == LM_TREE_NIL || p->leaf_ref[n] > 1U) ? 1U : 0U;
 }
 
-coslam_status_t lm_tree_set(lm_tree_pool_t *p, lm_tree_idx_t *root, uint32_t slot, const landmark_t *lm)
+/*
+ * lm_tree_set where the whole path to `slot` is already private to the map
+ * (every node present, reference count 1), the common case once a map has
+ * been written since it was last shared: one walk instead of three
+ * (set_needs, private_path, mark_path), the same effect on the pools and
+ * the boxes. Returns 0, having changed nothing, where the path is not
+ * private or the pool has no leaf for an empty or shared slot; the caller
+ * then takes the general path.
+ */
+static int set_private(lm_tree_pool_t *p, lm_tree_idx_t root, uint32_t slot, const landmark_t *lm)
 {
     lm_tree_idx_t path[LM_TREE_DEPTH];
-    if (slot >= (uint32_t)COSLAM_MAX_LANDMARKS) {
-        return COSLAM_E_ARG;
+    lm_tree_idx_t n = root;
+    for (int l = 0; l < D_; ++l) {
+        if (n == LM_TREE_NIL || p->node[n].ref != 1U) {
+            return 0;
+        }
+        path[l] = n;
+        n = p->node[n].child[digit(slot, l)];
     }
+    lm_tree_idx_t *link = &p->node[path[D_ - 1]].child[digit(slot, D_ - 1)];
+    if (*link != LM_TREE_NIL && p->leaf_ref[*link] == 1U) {
+        p->leaf[*link].lm = *lm;
+    } else {
+        if (p->leaves_live >= p->leaf_limit) {
+            return 0; /* the general path counts the refusal */
+        }
+        const lm_tree_idx_t c = leaf_alloc(p);
+        COSLAM_ASSERT(c != LM_TREE_NIL);
+        p->leaf[c].lm = *lm;
+        if (*link != LM_TREE_NIL) {
+            leaf_unref(p, *link);
+        }
+        *link = c;
+    }
+    mark_path(p, path);
+    return 1;
+}
+
+/* lm_tree_set for any path (slot in range). */
+static coslam_status_t set_general(lm_tree_pool_t *p, lm_tree_idx_t *root, uint32_t slot, const landmark_t *lm)
+{
+    lm_tree_idx_t path[LM_TREE_DEPTH];
     /* all or nothing: a set the pools cannot finish changes no node (it
      * would otherwise leave the empty nodes it had made in the map) */
     uint32_t need_nodes;
@@ -356,6 +393,17 @@ coslam_status_t lm_tree_set(lm_tree_pool_t *p, lm_tree_idx_t *root, uint32_t slo
     }
     mark_path(p, path);
     return COSLAM_OK;
+}
+
+coslam_status_t lm_tree_set(lm_tree_pool_t *p, lm_tree_idx_t *root, uint32_t slot, const landmark_t *lm)
+{
+    if (slot >= (uint32_t)COSLAM_MAX_LANDMARKS) {
+        return COSLAM_E_ARG;
+    }
+    if (set_private(p, *root, slot, lm)) {
+        return COSLAM_OK;
+    }
+    return set_general(p, root, slot, lm);
 }
 
 /* Empty the leaf link of a private path and free the nodes left empty. */
