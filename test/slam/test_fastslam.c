@@ -407,6 +407,7 @@ static void revisit_setup(fastslam_config_t *c, int with_twin)
 {
     *c = config(1);
     c->proposal = FASTSLAM_PROPOSAL_OPTIMAL;
+    c->closure_unsupported_every = 1U; /* every particle closes: the formulas alone */
     c->slam.noise.range_var_m2 = 0.0004;
     c->slam.noise.range_var_per_m2 = 0.0;
     c->slam.noise.bearing_var_rad2 = 0.0004;
@@ -555,6 +556,128 @@ static void test_revisit_closes_the_loop(void **state)
     assert_int_equal(fastslam_init(&g_fs2, &c, (pose2_t){0.0, 0.0, 0.0}, 1U), COSLAM_E_ARG);
     c = config(1);
     c.closure_ambiguity_ll = NAN;
+    assert_int_equal(fastslam_init(&g_fs2, &c, (pose2_t){0.0, 0.0, 0.0}, 1U), COSLAM_E_ARG);
+    c = config(1);
+    c.closure_misses_per_support = -1.0;
+    assert_int_equal(fastslam_init(&g_fs2, &c, (pose2_t){0.0, 0.0, 0.0}, 1U), COSLAM_E_ARG);
+}
+
+/* An old landmark of class `sig`, started exactly (the closure does not move it). */
+static void add_old(double x, double y, uint8_t sig)
+{
+    const cov3_t exact = cov3_zero();
+    landmark_t l = make_lm(x, y, cov2_make(1e-4, 0.0, 1e-4), 20U + g_fs.particles[0].n_lm, 5.0f);
+    l.signature = sig;
+    landmark_set_anchor(&l, &exact, (point2_t){0.0, 0.0});
+    assert_int_equal(fastslam_particle_add(&g_fs, 0, &l), COSLAM_OK);
+}
+
+/* A lone sighting of O (revisit_setup) with closure_unsupported_every
+ * `every` and closure_chance_max `chance`, optionally with a recent
+ * landmark of O's class at (3.0, 0.6): the closures and refusals counted. */
+static void lone_revisit(uint16_t every, double chance, int neighbour, uint32_t closures, uint32_t unsupported)
+{
+    fastslam_config_t c;
+    const sighting_t z = {3.5, 0.0, 0};
+    revisit_setup(&c, 0);
+    g_fs.cfg.closure_unsupported_every = every;
+    g_fs.cfg.closure_chance_max = chance;
+    if (neighbour) {
+        add_old(3.0, 0.6, 0U);
+        const uint16_t last = (uint16_t)(g_fs.particles[0].n_lm - 1U);
+        landmark_t nb = *fastslam_particle_lm(&g_fs, 0, last);
+        nb.last_seen = 99U; /* recent: not a revisit itself */
+        assert_int_equal(fastslam_particle_set(&g_fs, 0, last, &nb), COSLAM_OK);
+    }
+    assert_int_equal(fastslam_update(&g_fs, &z, 1), COSLAM_OK);
+    assert_int_equal(g_fs.ctr.closures, closures);
+    assert_int_equal(g_fs.ctr.closures_unsupported, unsupported);
+}
+
+/* Revisits the frame supports (closure_misses_per_support): the set-up of
+ * test_revisit_closes_the_loop with the check on for its one particle. A
+ * lone sighting of O is not closed: the particle starts a landmark and
+ * waits. With a second old landmark S that, from the corrected pose,
+ * explains a second sighting, it closes as before. With, besides, three
+ * confirmed old landmarks that only the corrected pose puts in view (just
+ * outside the field of view from the present one) and nothing sights, 3
+ * misses > 2 x 1 support: not closed. A particle with k % N == N - 1 closes
+ * without support. */
+static void test_revisit_needs_support(void **state)
+{
+    (void)state;
+    fastslam_config_t c;
+    const sighting_t z = {3.5, 0.0, 0};
+    /* the corrected pose, from the closure with the check off */
+    revisit_setup(&c, 0);
+    assert_int_equal(fastslam_update(&g_fs, &z, 1), COSLAM_OK);
+    assert_int_equal(g_fs.ctr.closures, 1U);
+    const pose2_t q = g_fs.particles[0].pose;
+    assert_true(q.x < -0.4);
+
+    /* alone: unsupported, a landmark is started, nothing moves */
+    revisit_setup(&c, 0);
+    g_fs.cfg.closure_unsupported_every = 2U; /* particle 0 of 1: checks */
+    g_fs.cfg.closure_chance_max = 0.0;       /* support asked always */
+    assert_int_equal(fastslam_update(&g_fs, &z, 1), COSLAM_OK);
+    assert_int_equal(g_fs.ctr.closures, 0U);
+    assert_int_equal(g_fs.ctr.closures_unsupported, 1U);
+    assert_int_equal(g_fs.particles[0].n_lm, 5);
+    ASSERT_NEAR(g_fs.particles[0].pose.x, 0.0, 1e-12);
+    ASSERT_NEAR(fastslam_particle_lm(&g_fs, 0, 1)->mean.x, -5.0, 1e-12);
+
+    /* supported by S (class 2), sighted from the corrected pose: both
+     * sightings close (each supports the other), no copy */
+    const point2_t s_at = {2.0, 0.8};
+    sighting_t zz[2] = {z, observe_predict(q, s_at)};
+    zz[1].signature = 2U;
+    revisit_setup(&c, 0);
+    g_fs.cfg.closure_unsupported_every = 2U;
+    g_fs.cfg.closure_chance_max = 0.0;
+    add_old(s_at.x, s_at.y, 2U);
+    assert_int_equal(fastslam_update(&g_fs, zz, 2), COSLAM_OK);
+    assert_int_equal(g_fs.ctr.closures_unsupported, 0U);
+    assert_int_equal(g_fs.ctr.closures, 2U);
+    assert_int_equal(g_fs.particles[0].n_lm, 5);
+    assert_true(hypot(g_fs.particles[0].pose.x - q.x, g_fs.particles[0].pose.y - q.y) < 0.02);
+
+    /* ... and three certain misses that only the corrected pose makes:
+     * each closure has 1 support and 3 misses, refused */
+    revisit_setup(&c, 0);
+    g_fs.cfg.closure_unsupported_every = 2U;
+    g_fs.cfg.closure_chance_max = 0.0;
+    add_old(s_at.x, s_at.y, 2U);
+    add_old(1.0, 0.55, 3U);  /* bearing 0.50 rad from the present pose, 0.36 from q */
+    add_old(1.2, -0.6, 3U);  /* -0.46 and -0.35 */
+    add_old(0.8, 0.45, 3U);  /* 0.51 and 0.35 (in view: |bearing| <= 0.39) */
+    assert_int_equal(fastslam_update(&g_fs, zz, 2), COSLAM_OK);
+    assert_int_equal(g_fs.ctr.closures, 0U);
+    assert_int_equal(g_fs.ctr.closures_unsupported, 2U);
+    ASSERT_NEAR(g_fs.particles[0].pose.x, 0.0, 0.05); /* the proposal's small step only */
+    /* two misses would be allowed (2 x 1 support); a landmark missed from
+     * the present pose as well is not the closure's miss */
+    revisit_setup(&c, 0);
+    g_fs.cfg.closure_unsupported_every = 2U;
+    g_fs.cfg.closure_chance_max = 0.0;
+    add_old(s_at.x, s_at.y, 2U);
+    add_old(1.0, 0.55, 3U);
+    add_old(1.2, -0.6, 3U);
+    add_old(2.0, -0.3, 3U); /* in view from both poses, never sighted */
+    assert_int_equal(fastslam_update(&g_fs, zz, 2), COSLAM_OK);
+    assert_int_equal(g_fs.ctr.closures_unsupported, 0U);
+    assert_int_equal(g_fs.ctr.closures, 2U);
+
+    /* a lone sighting of O: N = 1 closes it (k % 1 == 0), N = 0 does not;
+     * closure_chance_max (1, the default): with no other landmark of the
+     * class in the widened gate a chance pairing is unlikely and it
+     * closes; a recent one at (3.0, 0.6) (d2 about 5 in the widened gate,
+     * far outside the ordinary one) asks for support */
+    lone_revisit(1U, 0.0, 0, 1U, 0U);
+    lone_revisit(0U, 0.0, 0, 0U, 1U);
+    lone_revisit(0U, 1.0, 0, 1U, 0U);
+    lone_revisit(0U, 1.0, 1, 0U, 1U);
+    c = config(1);
+    c.closure_chance_max = NAN;
     assert_int_equal(fastslam_init(&g_fs2, &c, (pose2_t){0.0, 0.0, 0.0}, 1U), COSLAM_E_ARG);
 }
 
@@ -747,6 +870,7 @@ int main(void)
         cmocka_unit_test(test_capacity_and_bad_input),
         cmocka_unit_test(test_fs2_proposal_matches_ekf),
         cmocka_unit_test(test_revisit_closes_the_loop),
+        cmocka_unit_test(test_revisit_needs_support),
         cmocka_unit_test(test_reproducible),
         cmocka_unit_test(test_export_in_parts),
     };

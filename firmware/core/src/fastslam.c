@@ -17,6 +17,9 @@ fastslam_config_t fastslam_config_default(void)
     c.closure_drift_ratio = 4.0;
     c.closure_gap = 25U;
     c.closure_ambiguity_ll = 2.302585093; /* ln 10 */
+    c.closure_misses_per_support = 2.0;
+    c.closure_chance_max = 1.0;
+    c.closure_unsupported_every = 2U;
     return c;
 }
 
@@ -36,7 +39,9 @@ static coslam_status_t config_validate(const fastslam_config_t *c)
         return COSLAM_E_ARG;
     }
     if (!(c->closure_drift_ratio >= 0.0 && c->closure_drift_ratio < 1e12) ||
-        !(c->closure_ambiguity_ll >= 0.0 && c->closure_ambiguity_ll < 1e12)) {
+        !(c->closure_ambiguity_ll >= 0.0 && c->closure_ambiguity_ll < 1e12) ||
+        !(c->closure_misses_per_support >= 0.0 && c->closure_misses_per_support < 1e12) ||
+        !(c->closure_chance_max >= 0.0 && c->closure_chance_max < 1e12)) {
         return COSLAM_E_ARG;
     }
     return COSLAM_OK;
@@ -372,6 +377,31 @@ void fastslam_particle_clear(fastslam_t *fs, uint16_t k)
  * closures in one frame (never happens on the long loop).
  */
 
+/* Revisits the frame supports (closure_misses_per_support,
+ * closure_unsupported_every; docs/consistency.md). Traced on the long loop's
+ * held-out seeds, most closures of the runs that failed were wrong: a
+ * sighting of a landmark never mapped closed on an old one of its class
+ * 1-2 m away, inside a gate the drift had widened, and moved the pose by
+ * that much. No single-sighting statistic (likelihood, d2, drift, size of
+ * the move) told them from the right ones. What does is the rest of the
+ * frame: from the pose a right closure gives, the old landmarks around the
+ * revisit explain other sightings, and those it puts in view are sighted.
+ * So a particle closes a revisit only if, from that pose (every landmark
+ * where the closure would move it), a landmark not sighted for closure_gap
+ * updates explains at least one other sighting of the frame (gate_chi2),
+ * and the confirmed landmarks it puts certainly in view with no sighting
+ * near them, and that were not so from the present pose, number at most
+ * closure_misses_per_support per supporting sighting. A right closure at
+ * the edge of the old map has no support yet; so every
+ * closure_unsupported_every-th particle closes without it, the others
+ * start a landmark and wait, and the frames that follow weigh the two.
+ * Support is asked only where a chance pairing is likely: where the
+ * widened gate holds closure_chance_max other landmarks of the class.
+ * Elsewhere (small drift, sparse classes) a lone sighting closes as
+ * before: asked everywhere, the split left the particle set divided at
+ * the merges that follow a revisit, and the merged maps were worse.
+ */
+
 /* A sighting's noise about the drift (marginal.h): Hm cov Hm^T + Q. */
 static cov2_t sighting_noise(const lm_expect_t *e, const landmark_t *lm, const slam_params_t *sp)
 {
@@ -465,40 +495,190 @@ static void find_revisits(const fastslam_t *fs, const fastslam_particle_t *p, co
     }
 }
 
+/* A revisit's correction: sighting z on old landmark `old` at the
+ * particle's pose (with its pending motion), the drift D since the old
+ * anchor, g = Hp^T (S + Hp D Hp^T)^-1 nu, and the corrected pose. */
+typedef struct {
+    lm_expect_t e;    /* at the present pose, drift not included */
+    cov3_t d;         /* drift since the old anchor */
+    cov3_t a_old;     /* the old landmark's anchor */
+    point2_t at_old;
+    double g[3];
+    double ll;        /* the sighting's log-likelihood under the drift */
+    cov2_t s_inv;     /* inverse of the widened innovation covariance */
+    pose2_t pose;     /* the corrected pose */
+} revisit_fix_t;
+
+/* 0 if the geometry failed (nothing is changed then). */
+static int revisit_fix(const fastslam_t *fs, const fastslam_particle_t *p, const landmark_t *old, sighting_t z,
+                       revisit_fix_t *f)
+{
+    const slam_params_t *sp = &fs->cfg.slam;
+    f->a_old = landmark_anchor(old);
+    f->at_old = (point2_t){old->anchor_xy[0], old->anchor_xy[1]};
+    if (landmark_expect(old, sp, p->pose, &p->pending_cov, &f->e) != COSLAM_OK) {
+        return 0;
+    }
+    f->d = marginal_drift(&p->pose_marg, p->pose, &f->a_old, f->at_old);
+    lm_expect_t ew = f->e;
+    if (!expect_widened(&ew, cov2_from_3x3(f->e.h_pose, (double(*)[3])f->d.m))) {
+        return 0;
+    }
+    double nu[2];
+    observe_innovation(z, ew.zhat, nu);
+    f->ll = landmark_log_lik(&ew, landmark_mahalanobis2(&ew, z));
+    f->s_inv = ew.s_inv;
+    const double sn0 = ew.s_inv.xx * nu[0] + ew.s_inv.xy * nu[1];
+    const double sn1 = ew.s_inv.xy * nu[0] + ew.s_inv.yy * nu[1];
+    for (int i = 0; i < 3; ++i) {
+        f->g[i] = f->e.h_pose[0][i] * sn0 + f->e.h_pose[1][i] * sn1;
+    }
+    const cov3_t *d = &f->d;
+    f->pose = p->pose;
+    f->pose.x += d->m[0][0] * f->g[0] + d->m[0][1] * f->g[1] + d->m[0][2] * f->g[2];
+    f->pose.y += d->m[1][0] * f->g[0] + d->m[1][1] * f->g[1] + d->m[1][2] * f->g[2];
+    f->pose.theta = angle_wrap(p->pose.theta + d->m[2][0] * f->g[0] + d->m[2][1] * f->g[1] + d->m[2][2] * f->g[2]);
+    return 1;
+}
+
+/* How the closure moves own landmark lc (its anchor's share of the drift,
+ * see "Revisits" above; at_now is the pose before the closure): 1 and the
+ * move in *dx, *dy, or 0 where it does not move (started before the old
+ * anchor, or by under 0.1 mm). */
+static int revisit_move(const landmark_t *lc, const revisit_fix_t *f, point2_t at_now, double *dx, double *dy)
+{
+    const point2_t al = {lc->anchor_xy[0], lc->anchor_xy[1]};
+    /* W_l: the drift from the old anchor to l's (marginal.h) */
+    const cov3_t al_cov = landmark_anchor(lc);
+    const cov3_t w = marginal_drift(&al_cov, (pose2_t){al.x, al.y, 0.0}, &f->a_old, f->at_old);
+    if (!(w.m[0][0] + w.m[1][1] + w.m[2][2] > 1e-12)) {
+        return 0;
+    }
+    /* Phi_l^T g, Phi_l carrying a_l's heading error to the pose */
+    const double *g = f->g;
+    const double pg[3] = {g[0], g[1], -(at_now.y - al.y) * g[0] + (at_now.x - al.x) * g[1] + g[2]};
+    double da[3];
+    for (int r = 0; r < 3; ++r) {
+        da[r] = w.m[r][0] * pg[0] + w.m[r][1] * pg[1] + w.m[r][2] * pg[2];
+    }
+    *dx = da[0] - (lc->mean.y - al.y) * da[2];
+    *dy = da[1] + (lc->mean.x - al.x) * da[2];
+    return (*dx * *dx + *dy * *dy > 1e-8) && isfinite(*dx) && isfinite(*dy);
+}
+
+/* 1 if some sighting of the frame other than `skip`, of lm's class, lies
+ * within chi2 of the expectation e. */
+static int sighting_near(const sighting_t *z, int ns, int skip, const landmark_t *lm, const lm_expect_t *e, double chi2)
+{
+    for (int k = 0; k < ns; ++k) {
+        if (k != skip && z[k].signature == lm->signature && landmark_mahalanobis2(e, z[k]) < chi2) {
+            return 1;
+        }
+    }
+    return 0;
+}
+
+/* A certain miss from expectation e: in view, well placed, no sighting near. */
+static int certain_miss(const slam_params_t *sp, const sighting_t *z, int ns, int skip, const landmark_t *lm,
+                        const lm_expect_t *e)
+{
+    return landmark_should_be_seen(sp, e->zhat) && landmark_miss_is_certain(sp, e) &&
+           !sighting_near(z, ns, skip, lm, e, sp->new_landmark_chi2);
+}
+
+/* Does the frame support closing sighting i on old landmark j (see
+ * closure_misses_per_support)? Checked from the pose the closure would
+ * give, with the particle's landmarks of the query (scratch view, n_view)
+ * where the closure would move them. A landmark out of the query's reach
+ * is neither support nor a miss. */
+static int revisit_supported(const fastslam_t *fs, const fastslam_particle_t *p, const sighting_t *z, int ns, int i,
+                             uint16_t j, uint32_t n_view)
+{
+    const fastslam_scratch_t *sc = &fs->scratch;
+    const slam_params_t *sp = &fs->cfg.slam;
+    revisit_fix_t f;
+    if (!revisit_fix(fs, p, lm_tree_get(&fs->lm_pool, p->lm_root, j), z[i], &f)) {
+        return 0;
+    }
+    const point2_t at_now = {p->pose.x, p->pose.y};
+    /* the other landmarks of the class that the gate widened by the drift
+     * holds (the particle's, in the query's view, against S + Hp D Hp^T of
+     * the candidate): where there are none, a chance pairing is unlikely
+     * and a lone sighting is trusted as before */
+    {
+        uint32_t n_other = 0U;
+        for (uint32_t c = 0; c < n_view; ++c) {
+            const landmark_t *lm = sc->view[c];
+            if (sc->view_slot[c] == j || lm->signature != z[i].signature) {
+                continue;
+            }
+            const sighting_t zc = observe_predict(p->pose, lm->mean);
+            double nu[2];
+            observe_innovation(z[i], zc, nu);
+            const double d2 = f.s_inv.xx * nu[0] * nu[0] + 2.0 * f.s_inv.xy * nu[0] * nu[1] + f.s_inv.yy * nu[1] * nu[1];
+            n_other += d2 < sp->gate_chi2;
+        }
+        if (!((double)n_other >= fs->cfg.closure_chance_max)) {
+            return 1;
+        }
+    }
+    const uint16_t own = (uint16_t)(1U << fs->cfg.robot_id);
+    uint8_t supports[COSLAM_MAX_SIGHTINGS];
+    memset(supports, 0, sizeof supports);
+    uint32_t misses = 0U;
+    for (uint32_t c = 0; c < n_view; ++c) {
+        const landmark_t *lm = sc->view[c];
+        if (sc->view_slot[c] == j || lm->src_mask != own) {
+            continue;
+        }
+        landmark_t moved = *lm;
+        double dx;
+        double dy;
+        if (revisit_move(lm, &f, at_now, &dx, &dy)) {
+            moved.mean.x += dx;
+            moved.mean.y += dy;
+        }
+        lm_expect_t eq;
+        if (landmark_expect(&moved, sp, f.pose, 0, &eq) != COSLAM_OK) {
+            continue;
+        }
+        /* support: an old landmark explains another sighting */
+        if ((uint16_t)((uint16_t)fs->ctr.updates - lm->last_seen) > fs->cfg.closure_gap) {
+            for (int k = 0; k < ns; ++k) {
+                if (k != i && !supports[k] && z[k].signature == lm->signature &&
+                    landmark_mahalanobis2(&eq, z[k]) < sp->gate_chi2) {
+                    supports[k] = 1U;
+                }
+            }
+        }
+        /* a miss the closure makes (not one from the present pose) */
+        if (lm->exist >= sp->exist_confirm && certain_miss(sp, z, ns, i, lm, &eq)) {
+            lm_expect_t e0;
+            if (landmark_expect(lm, sp, p->pose, 0, &e0) != COSLAM_OK || !certain_miss(sp, z, ns, i, lm, &e0)) {
+                misses++;
+            }
+        }
+    }
+    uint32_t support = 0U;
+    for (int k = 0; k < ns; ++k) {
+        support += supports[k];
+    }
+    return support > 0U && !((double)misses > fs->cfg.closure_misses_per_support * (double)support);
+}
+
 /* Close the loop on old landmark j with sighting z (see above); returns the
  * sighting's log-likelihood under the drift, or new_landmark_log_lik if the
  * geometry failed (nothing changed then). */
 static double close_revisit(fastslam_t *fs, fastslam_particle_t *p, uint16_t j, sighting_t z)
 {
     const slam_params_t *sp = &fs->cfg.slam;
-    const landmark_t *old = lm_tree_get(&fs->lm_pool, p->lm_root, j);
-    const cov3_t a_old = landmark_anchor(old);
-    const point2_t at_old = {old->anchor_xy[0], old->anchor_xy[1]};
-    lm_expect_t e;
-    if (landmark_expect(old, sp, p->pose, &p->pending_cov, &e) != COSLAM_OK) {
+    revisit_fix_t f;
+    if (!revisit_fix(fs, p, lm_tree_get(&fs->lm_pool, p->lm_root, j), z, &f)) {
         fs->ctr.numeric_faults++;
         return sp->new_landmark_log_lik;
-    }
-    const cov3_t d = marginal_drift(&p->pose_marg, p->pose, &a_old, at_old);
-    lm_expect_t ew = e;
-    if (!expect_widened(&ew, cov2_from_3x3(e.h_pose, (double(*)[3])d.m))) {
-        fs->ctr.numeric_faults++;
-        return sp->new_landmark_log_lik;
-    }
-    double nu[2];
-    observe_innovation(z, ew.zhat, nu);
-    const double ll = landmark_log_lik(&ew, landmark_mahalanobis2(&ew, z));
-    /* g = Hp^T S_w^-1 nu; the pose moves by D g */
-    const double sn0 = ew.s_inv.xx * nu[0] + ew.s_inv.xy * nu[1];
-    const double sn1 = ew.s_inv.xy * nu[0] + ew.s_inv.yy * nu[1];
-    double g[3];
-    for (int i = 0; i < 3; ++i) {
-        g[i] = e.h_pose[0][i] * sn0 + e.h_pose[1][i] * sn1;
     }
     const point2_t at_now = {p->pose.x, p->pose.y};
-    p->pose.x += d.m[0][0] * g[0] + d.m[0][1] * g[1] + d.m[0][2] * g[2];
-    p->pose.y += d.m[1][0] * g[0] + d.m[1][1] * g[1] + d.m[1][2] * g[2];
-    p->pose.theta = angle_wrap(p->pose.theta + d.m[2][0] * g[0] + d.m[2][1] * g[1] + d.m[2][2] * g[2]);
+    p->pose = f.pose;
     fs->ctr.closures++;
     /* every own landmark by its anchor's share of the drift */
     const uint16_t own = (uint16_t)(1U << fs->cfg.robot_id);
@@ -510,23 +690,10 @@ static double close_revisit(fastslam_t *fs, fastslam_particle_t *p, uint16_t j, 
         if (lc->src_mask != own) {
             continue; /* a partner's errors, not this drift */
         }
-        const point2_t al = {lc->anchor_xy[0], lc->anchor_xy[1]};
-        /* W_l: the drift from the old anchor to l's (marginal.h) */
-        const cov3_t al_cov = landmark_anchor(lc);
-        const cov3_t w = marginal_drift(&al_cov, (pose2_t){al.x, al.y, 0.0}, &a_old, at_old);
-        if (!(w.m[0][0] + w.m[1][1] + w.m[2][2] > 1e-12)) {
+        double dx;
+        double dy;
+        if (!revisit_move(lc, &f, at_now, &dx, &dy)) {
             continue;
-        }
-        /* Phi_l^T g, Phi_l carrying a_l's heading error to the pose */
-        const double pg[3] = {g[0], g[1], -(at_now.y - al.y) * g[0] + (at_now.x - al.x) * g[1] + g[2]};
-        double da[3];
-        for (int r = 0; r < 3; ++r) {
-            da[r] = w.m[r][0] * pg[0] + w.m[r][1] * pg[1] + w.m[r][2] * pg[2];
-        }
-        const double dx = da[0] - (lc->mean.y - al.y) * da[2];
-        const double dy = da[1] + (lc->mean.x - al.x) * da[2];
-        if (!(dx * dx + dy * dy > 1e-8) || !isfinite(dx) || !isfinite(dy)) {
-            continue; /* under 0.1 mm */
         }
         landmark_t *lw = lm_tree_write(&fs->lm_pool, &p->lm_root, l);
         if (lw == 0) {
@@ -542,12 +709,12 @@ static double close_revisit(fastslam_t *fs, fastslam_particle_t *p, uint16_t j, 
     const landmark_t *o2 = lm_tree_get(&fs->lm_pool, p->lm_root, j);
     lm_expect_t e2;
     if (landmark_expect(o2, sp, p->pose, 0, &e2) == COSLAM_OK) {
-        if (marginal_pose_observe(&p->pose_marg, p->pose, &a_old, at_old, e2.h_pose, sighting_noise(&e2, o2, sp)) !=
+        if (marginal_pose_observe(&p->pose_marg, p->pose, &f.a_old, f.at_old, e2.h_pose, sighting_noise(&e2, o2, sp)) !=
             COSLAM_OK) {
             fs->ctr.numeric_faults++;
         }
     }
-    return ll;
+    return f.ll;
 }
 
 /* One particle's share of an update. Returns COSLAM_E_CAPACITY if its map filled up. */
@@ -642,6 +809,16 @@ static coslam_status_t update_particle(fastslam_t *fs, uint16_t k, const sightin
     }
     if (fs2 && fs->cfg.closure_drift_ratio > 0.0) {
         find_revisits(fs, p, z, ns, make_new, n_near_list, closure_j);
+        /* support from the frame, checked before any closure moves the
+         * particle (and while the query's view is the scratch) */
+        const uint16_t every = fs->cfg.closure_unsupported_every;
+        const int closes_anyway = every > 0U && k % every == (uint16_t)(every - 1U);
+        for (int i = 0; i < ns && !closes_anyway; ++i) {
+            if (closure_j[i] >= 0 && !revisit_supported(fs, p, z, ns, i, (uint16_t)closure_j[i], n_cand)) {
+                closure_j[i] = -1; /* make_new[i] still set: a landmark is started */
+                fs->ctr.closures_unsupported++;
+            }
+        }
     }
     for (int i = 0; i < ns; ++i) {
         proposal_assign[i] = sc->assign[i];

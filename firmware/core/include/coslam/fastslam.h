@@ -105,6 +105,25 @@ typedef struct {
     /** ... and only if no other such landmark explains the sighting within
      *  this log-likelihood (ln 10 = 2.3, the default: 10:1). >= 0. */
     double closure_ambiguity_ll;
+    /** A revisit is supported by its frame when, from the pose its closure
+     *  would give (every own landmark moved as the closure would move it),
+     *  a landmark not sighted for closure_gap updates explains at least one
+     *  other sighting of the frame (gate_chi2), and the confirmed landmarks
+     *  that pose puts certainly in view with no sighting near them, misses
+     *  the closure makes, are at most this many per supporting sighting.
+     *  Default 2. >= 0 (docs/consistency.md "Revisits the frame supports"). */
+    double closure_misses_per_support;
+    /** ... support is asked only where the gate widened by the drift holds
+     *  at least this many of the class's landmarks by chance (lambda A:
+     *  the particle's landmarks of the class within sensor range per m^2,
+     *  times the gate's area in the plane). Default 1; 0: always. */
+    double closure_chance_max;
+    /** Particles k with k % N == N - 1 close an unsupported revisit anyway;
+     *  the others start a landmark and wait for support, and the weights
+     *  choose between the two. Resampling puts an ancestor's copies at
+     *  neighbouring indices, so N = 2 (the default) splits each family in
+     *  half. 1: every particle closes, the check is off; 0: none does. */
+    uint16_t closure_unsupported_every;
 } fastslam_config_t;
 
 typedef struct {
@@ -143,6 +162,9 @@ typedef struct {
     uint32_t closures;              /**< revisits closed by the drift (closure_drift_ratio),
                                          all particles */
     uint32_t closure_moves;         /**< landmark copies moved by those closures */
+    uint32_t closures_unsupported;  /**< revisits a particle did not close for want of
+                                         support in the frame (closure_misses_per_support);
+                                         it started a landmark instead */
 } fastslam_counters_t;
 
 /* Scratch for one update; contents are meaningless between calls. */
