@@ -215,6 +215,9 @@ std::vector<Key> keys_of(ReplayConfig &c)
         dkey("filter", "closure_drift_ratio", &c.filter.closure_drift_ratio),
         ikey("filter", "closure_gap", &c.filter.closure_gap, 0, 65535),
         dkey("filter", "closure_ambiguity_ll", &c.filter.closure_ambiguity_ll),
+        dkey("filter", "closure_misses_per_support", &c.filter.closure_misses_per_support),
+        dkey("filter", "closure_chance_max", &c.filter.closure_chance_max),
+        ikey("filter", "closure_unsupported_every", &c.filter.closure_unsupported_every, 0, 65535),
         {"filter", "assoc",
          [&c](const std::string &s) {
              if (s == "jcbb") {
@@ -422,8 +425,11 @@ void replay_config_validate(const ReplayConfig &c)
         bad("[filter] export_min_weight must be in (0, 1]");
     }
     if (!(c.filter.closure_drift_ratio >= 0.0 && c.filter.closure_drift_ratio < 1e12 &&
-          c.filter.closure_ambiguity_ll >= 0.0 && c.filter.closure_ambiguity_ll < 1e12)) {
-        bad("[filter] closure_drift_ratio and closure_ambiguity_ll must be finite and >= 0");
+          c.filter.closure_ambiguity_ll >= 0.0 && c.filter.closure_ambiguity_ll < 1e12 &&
+          c.filter.closure_misses_per_support >= 0.0 && c.filter.closure_misses_per_support < 1e12 &&
+          c.filter.closure_chance_max >= 0.0 && c.filter.closure_chance_max < 1e12)) {
+        bad("[filter] closure_drift_ratio, closure_ambiguity_ll, closure_misses_per_support and closure_chance_max must "
+            "be finite and >= 0");
     }
     if (!(c.filter.nis_inflate >= 0.0 && c.filter.nis_inflate < 1e6)) {
         bad("[filter] nis_inflate must be in [0, 1e6) (0: off)");

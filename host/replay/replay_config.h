@@ -13,7 +13,8 @@
 //   [odometry]  scale_v, scale_w, delay_s (OdoModel)
 //   [filter]    type (fastslam1 | fastslam2 | ekf), particles, ess_fraction,
 //               export_min_weight, closure_drift_ratio, closure_gap,
-//               closure_ambiguity_ll, assoc (jcbb | nn), jcbb_max_nodes, fej,
+//               closure_ambiguity_ll, closure_misses_per_support,
+//               closure_chance_max, closure_unsupported_every, assoc (jcbb | nn), jcbb_max_nodes, fej,
 //               iekf_max_iters, nis_inflate, active_spread_madds, seed,
 //               predict_period_s
 //   [input]     min_range_m, max_range_m (sightings outside are dropped, counted),
@@ -56,6 +57,9 @@ struct FilterConfig {
     double closure_drift_ratio = 4.0;
     int closure_gap = 25;
     double closure_ambiguity_ll = 2.302585093;
+    double closure_misses_per_support = 2.0;
+    double closure_chance_max = 1.0;
+    int closure_unsupported_every = 2;
     ekfslam_assoc_t assoc = EKFSLAM_ASSOC_JCBB;
     uint32_t jcbb_max_nodes = 20000;
     int fej = 1;

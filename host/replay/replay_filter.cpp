@@ -27,6 +27,9 @@ RobotFilter::RobotFilter(FilterKind kind, const ReplayConfig &cfg, uint8_t core_
     c.closure_drift_ratio = cfg.filter.closure_drift_ratio;
     c.closure_gap = static_cast<uint16_t>(cfg.filter.closure_gap);
     c.closure_ambiguity_ll = cfg.filter.closure_ambiguity_ll;
+    c.closure_misses_per_support = cfg.filter.closure_misses_per_support;
+    c.closure_chance_max = cfg.filter.closure_chance_max;
+    c.closure_unsupported_every = static_cast<uint16_t>(cfg.filter.closure_unsupported_every);
     c.assoc = cfg.filter.assoc;
     c.jcbb_max_nodes = cfg.filter.jcbb_max_nodes;
     c.fej = static_cast<uint8_t>(cfg.filter.fej);
@@ -143,6 +146,7 @@ std::map<std::string, long> RobotFilter::counters() const
         m["merge_pair_drops"] = c.merge_pair_drops;
         m["closures"] = c.closures;
         m["closure_moves"] = c.closure_moves;
+        m["closures_unsupported"] = c.closures_unsupported;
         m["resamples_deferred"] = c.resamples_deferred;
         m["merges_in_parts"] = f_->merges_in_parts;
         m["merges_late_partial"] = f_->merges_late_partial;

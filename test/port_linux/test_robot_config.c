@@ -182,10 +182,13 @@ static void closure_keys_reach_the_filter(void **state)
     assert_true(cfg.node.filter.closure_drift_ratio == fc.closure_drift_ratio);
     assert_int_equal(cfg.node.filter.closure_gap, fc.closure_gap);
     assert_true(cfg.node.filter.closure_ambiguity_ll == fc.closure_ambiguity_ll);
+    assert_true(cfg.node.filter.closure_misses_per_support == fc.closure_misses_per_support);
+    assert_int_equal(cfg.node.filter.closure_unsupported_every, fc.closure_unsupported_every);
+    assert_true(cfg.node.filter.closure_chance_max == fc.closure_chance_max);
     assert_true(cfg.node.filter.nis_inflate == ekfslam_config_default().nis_inflate);
     assert_true(cfg.node.filter.active_spread_madds == ekfslam_config_default().active_spread_madds);
     const char *text = "[filter]\nclosure_drift_ratio = 0\nclosure_gap = 7\nclosure_ambiguity_ll = 1.5\nnis_inflate = 0\n"
-                       "active_spread_madds = 2000000\n";
+                       "active_spread_madds = 2000000\nclosure_misses_per_support = 3.5\nclosure_unsupported_every = 5\nclosure_chance_max = 0.5\n";
     assert_int_equal(robot_config_load_string(&cfg, text, "c.ini", msg, sizeof msg), COSLAM_OK);
     assert_true(cfg.node.filter.closure_drift_ratio == 0.0);
     assert_int_equal(cfg.node.filter.closure_gap, 7);
@@ -197,6 +200,9 @@ static void closure_keys_reach_the_filter(void **state)
     assert_true(f.u.fs.cfg.closure_drift_ratio == 0.0);
     assert_int_equal(f.u.fs.cfg.closure_gap, 7);
     assert_true(f.u.fs.cfg.closure_ambiguity_ll == 1.5);
+    assert_true(f.u.fs.cfg.closure_misses_per_support == 3.5);
+    assert_int_equal(f.u.fs.cfg.closure_unsupported_every, 5);
+    assert_true(f.u.fs.cfg.closure_chance_max == 0.5);
     cfg.node.filter.kind = SLAM_FILTER_EKF;
     assert_int_equal(slam_filter_init(&f, &cfg.node.filter, (pose2_t){0.0, 0.0, 0.0}), COSLAM_OK);
     assert_true(f.u.ekf.cfg.nis_inflate == 0.0);

@@ -505,13 +505,20 @@ TEST(Config, ClosureKeysReachTheFilter)
     EXPECT_EQ(c.filter.closure_drift_ratio, fc.closure_drift_ratio);
     EXPECT_EQ(c.filter.closure_gap, fc.closure_gap);
     EXPECT_EQ(c.filter.closure_ambiguity_ll, fc.closure_ambiguity_ll);
+    EXPECT_EQ(c.filter.closure_misses_per_support, fc.closure_misses_per_support);
+    EXPECT_EQ(c.filter.closure_unsupported_every, fc.closure_unsupported_every);
+    EXPECT_EQ(c.filter.closure_chance_max, fc.closure_chance_max);
     EXPECT_EQ(c.filter.nis_inflate, ekfslam_config_default().nis_inflate);
-    replay_config_load_string(c, "[filter]\nclosure_drift_ratio = 0\nclosure_gap = 7\nclosure_ambiguity_ll = 1.5\n",
+    replay_config_load_string(c, "[filter]\nclosure_drift_ratio = 0\nclosure_gap = 7\nclosure_ambiguity_ll = 1.5\n"
+                              "closure_misses_per_support = 3.5\nclosure_unsupported_every = 5\nclosure_chance_max = 0.5\n",
                               "c.ini");
     RobotFilter f(FilterKind::FastSlam2, c, 0, pose2_t{0.0, 0.0, 0.0}, 1);
     EXPECT_EQ(f.app()->u.fs.cfg.closure_drift_ratio, 0.0);
     EXPECT_EQ(f.app()->u.fs.cfg.closure_gap, 7);
     EXPECT_EQ(f.app()->u.fs.cfg.closure_ambiguity_ll, 1.5);
+    EXPECT_EQ(f.app()->u.fs.cfg.closure_misses_per_support, 3.5);
+    EXPECT_EQ(f.app()->u.fs.cfg.closure_unsupported_every, 5);
+    EXPECT_EQ(f.app()->u.fs.cfg.closure_chance_max, 0.5);
     EXPECT_EQ(c.filter.active_spread_madds, ekfslam_config_default().active_spread_madds);
     replay_config_load_string(c, "[filter]\nnis_inflate = 0\nactive_spread_madds = 2000000\n", "n.ini");
     RobotFilter e(FilterKind::Ekf, c, 0, pose2_t{0.0, 0.0, 0.0}, 1);

@@ -21,6 +21,9 @@ slam_filter_config_t slam_filter_config_default(void)
     c.closure_drift_ratio = fc.closure_drift_ratio;
     c.closure_gap = fc.closure_gap;
     c.closure_ambiguity_ll = fc.closure_ambiguity_ll;
+    c.closure_misses_per_support = fc.closure_misses_per_support;
+    c.closure_chance_max = fc.closure_chance_max;
+    c.closure_unsupported_every = fc.closure_unsupported_every;
     c.assoc = ec.assoc;
     c.jcbb_max_nodes = ec.jcbb_max_nodes;
     c.fej = ec.fej;
@@ -75,6 +78,9 @@ coslam_status_t slam_filter_init(slam_filter_t *f, const slam_filter_config_t *c
         c.closure_drift_ratio = cfg->closure_drift_ratio;
         c.closure_gap = cfg->closure_gap;
         c.closure_ambiguity_ll = cfg->closure_ambiguity_ll;
+        c.closure_misses_per_support = cfg->closure_misses_per_support;
+        c.closure_chance_max = cfg->closure_chance_max;
+        c.closure_unsupported_every = cfg->closure_unsupported_every;
         return fastslam_init(&f->u.fs, &c, pose0, cfg->seed);
     }
     case SLAM_FILTER_EKF: {

@@ -46,6 +46,9 @@ typedef struct {
     double closure_drift_ratio;   /**< Fast-SLAM 2.0 revisits: fastslam_config_t (0: off) */
     uint16_t closure_gap;         /**< Fast-SLAM 2.0 revisits: fastslam_config_t */
     double closure_ambiguity_ll;  /**< Fast-SLAM 2.0 revisits: fastslam_config_t */
+    double closure_misses_per_support;  /**< Fast-SLAM 2.0 revisits: fastslam_config_t */
+    double closure_chance_max;          /**< Fast-SLAM 2.0 revisits: fastslam_config_t */
+    uint16_t closure_unsupported_every; /**< Fast-SLAM 2.0 revisits: fastslam_config_t */
     ekfslam_assoc_t assoc;        /**< EKF-SLAM: ekfslam_config_t */
     uint32_t jcbb_max_nodes;      /**< EKF-SLAM: ekfslam_config_t */
     uint8_t fej;                  /**< EKF-SLAM: ekfslam_config_t */
