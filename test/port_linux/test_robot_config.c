@@ -256,6 +256,11 @@ static void bad_files_name_file_and_line(void **state)
     (void)state;
     refused("[filter]\nclosure_drift_ratio = -1\n", "bad.ini:2: [filter] closure_drift_ratio: -1 is outside its domain");
     refused("[filter]\nclosure_gap = 70000\n", "bad.ini:2: [filter] closure_gap: 70000 is outside its domain");
+    refused("[filter]\nclosure_misses_per_support = -1\n",
+            "bad.ini:2: [filter] closure_misses_per_support: -1 is outside its domain");
+    refused("[filter]\nclosure_chance_max = -0.5\n", "bad.ini:2: [filter] closure_chance_max: -0.5 is outside its domain");
+    refused("[filter]\nclosure_unsupported_every = 70000\n",
+            "bad.ini:2: [filter] closure_unsupported_every: 70000 is outside its domain");
     refused("[filter]\nnis_inflate = -1\n", "bad.ini:2: [filter] nis_inflate: -1 is outside its domain");
     refused("[filter]\nactive_spread_madds = -1\n",
             "bad.ini:2: [filter] active_spread_madds: -1 is outside its domain");

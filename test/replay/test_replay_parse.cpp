@@ -544,6 +544,9 @@ TEST(Config, ErrorsNameFileLineAndKey)
     EXPECT_TRUE(has(err("[filter]\nparticles = 2.5\n"), "x.ini:2: [filter] particles: expected an integer"));
     EXPECT_TRUE(has(err("[filter]\ntype = kalman\n"), "unknown filter 'kalman'"));
     EXPECT_TRUE(has(err("[filter]\nclosure_drift_ratio = -1\n"), "[filter] closure_drift_ratio"));
+    EXPECT_TRUE(has(err("[filter]\nclosure_misses_per_support = -1\n"), "closure_misses_per_support"));
+    EXPECT_TRUE(has(err("[filter]\nclosure_chance_max = -0.5\n"), "closure_chance_max"));
+    EXPECT_TRUE(has(err("[filter]\nclosure_unsupported_every = 70000\n"), "closure_unsupported_every"));
     EXPECT_TRUE(has(err("[filter]\nclosure_gap = 70000\n"), "[filter] closure_gap"));
     EXPECT_TRUE(has(err("[filter]\nnis_inflate = -1\n"), "[filter] nis_inflate"));
     EXPECT_TRUE(has(err("[filter]\nactive_spread_madds = -1\n"), "[filter] active_spread_madds"));
