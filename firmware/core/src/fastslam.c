@@ -422,6 +422,12 @@ static int expect_widened(lm_expect_t *e, cov2_t add)
     return 1;
 }
 
+/* Updates since landmark lm was last sighted (modulo 2^16, as last_seen). */
+static uint16_t unseen_for(const fastslam_t *fs, const landmark_t *lm)
+{
+    return (uint16_t)((uint16_t)fs->ctr.updates - lm->last_seen);
+}
+
 /* Landmark lm (at the predicted pose: expectation e) as a revisit: its
  * expectation widened by the drift since its anchor into *ew. 0 if it is not
  * one (seen recently, holding a partner's information, a merge happened, or
@@ -429,8 +435,8 @@ static int expect_widened(lm_expect_t *e, cov2_t add)
 static int revisit_expect(const fastslam_t *fs, const fastslam_particle_t *p, const landmark_t *lm,
                           const lm_expect_t *e, lm_expect_t *ew)
 {
-    const uint16_t gap = (uint16_t)((uint16_t)fs->ctr.updates - lm->last_seen);
-    if (gap <= fs->cfg.closure_gap || lm->src_mask != (uint16_t)(1U << fs->cfg.robot_id) || fs->merges > 0U) {
+    if (unseen_for(fs, lm) <= fs->cfg.closure_gap || lm->src_mask != (uint16_t)(1U << fs->cfg.robot_id) ||
+        fs->merges > 0U) {
         return 0;
     }
     const cov3_t a = landmark_anchor(lm);
@@ -586,6 +592,27 @@ static int certain_miss(const slam_params_t *sp, const sighting_t *z, int ns, in
            !sighting_near(z, ns, skip, lm, e, sp->new_landmark_chi2);
 }
 
+/* The particle's other landmarks of sighting z's class (in the query's
+ * view, n_view) that the gate of revisit f (old landmark j, S + Hp D Hp^T)
+ * holds: the pairings a lone sighting could make by chance. */
+static uint32_t chance_pairings(const fastslam_t *fs, const fastslam_particle_t *p, sighting_t z, uint16_t j,
+                                const revisit_fix_t *f, uint32_t n_view)
+{
+    const fastslam_scratch_t *sc = &fs->scratch;
+    uint32_t n = 0U;
+    for (uint32_t c = 0; c < n_view; ++c) {
+        const landmark_t *lm = sc->view[c];
+        if (sc->view_slot[c] == j || lm->signature != z.signature) {
+            continue;
+        }
+        double nu[2];
+        observe_innovation(z, observe_predict(p->pose, lm->mean), nu);
+        const cov2_t *si = &f->s_inv;
+        n += si->xx * nu[0] * nu[0] + 2.0 * si->xy * nu[0] * nu[1] + si->yy * nu[1] * nu[1] < fs->cfg.slam.gate_chi2;
+    }
+    return n;
+}
+
 /* Does the frame support closing sighting i on old landmark j (see
  * closure_misses_per_support)? Checked from the pose the closure would
  * give, with the particle's landmarks of the query (scratch view, n_view)
@@ -601,26 +628,10 @@ static int revisit_supported(const fastslam_t *fs, const fastslam_particle_t *p,
         return 0;
     }
     const point2_t at_now = {p->pose.x, p->pose.y};
-    /* the other landmarks of the class that the gate widened by the drift
-     * holds (the particle's, in the query's view, against S + Hp D Hp^T of
-     * the candidate): where there are none, a chance pairing is unlikely
-     * and a lone sighting is trusted as before */
-    {
-        uint32_t n_other = 0U;
-        for (uint32_t c = 0; c < n_view; ++c) {
-            const landmark_t *lm = sc->view[c];
-            if (sc->view_slot[c] == j || lm->signature != z[i].signature) {
-                continue;
-            }
-            const sighting_t zc = observe_predict(p->pose, lm->mean);
-            double nu[2];
-            observe_innovation(z[i], zc, nu);
-            const double d2 = f.s_inv.xx * nu[0] * nu[0] + 2.0 * f.s_inv.xy * nu[0] * nu[1] + f.s_inv.yy * nu[1] * nu[1];
-            n_other += d2 < sp->gate_chi2;
-        }
-        if (!((double)n_other >= fs->cfg.closure_chance_max)) {
-            return 1;
-        }
+    /* where no other landmark of the class is in the widened gate, a
+     * chance pairing is unlikely and a lone sighting is trusted as before */
+    if (!((double)chance_pairings(fs, p, z[i], j, &f, n_view) >= fs->cfg.closure_chance_max)) {
+        return 1;
     }
     const uint16_t own = (uint16_t)(1U << fs->cfg.robot_id);
     uint8_t supports[COSLAM_MAX_SIGHTINGS];
@@ -643,7 +654,7 @@ static int revisit_supported(const fastslam_t *fs, const fastslam_particle_t *p,
             continue;
         }
         /* support: an old landmark explains another sighting */
-        if ((uint16_t)((uint16_t)fs->ctr.updates - lm->last_seen) > fs->cfg.closure_gap) {
+        if (unseen_for(fs, lm) > fs->cfg.closure_gap) {
             for (int k = 0; k < ns; ++k) {
                 if (k != i && !supports[k] && z[k].signature == lm->signature &&
                     landmark_mahalanobis2(&eq, z[k]) < sp->gate_chi2) {
