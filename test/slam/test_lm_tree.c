@@ -354,6 +354,58 @@ static void check_query(lm_tree_pool_t *p, lm_tree_idx_t root, int k, double x, 
     g_pruned += n < (uint32_t)g_n[k];
 }
 
+/* lm_tree_select with a window test: every landmark whose mean lies in
+ * the window must come back, in slot order, as it is; run before the
+ * query cleans the map, so its boxes are often stale (a new or changed
+ * path), and a stale box tested would miss a moved landmark. */
+typedef struct {
+    double x0, y0, x1, y1;
+    int calls;
+} window_t;
+
+static int window_may_hold(const float box[4], void *ctx)
+{
+    window_t *w = (window_t *)ctx;
+    w->calls++;
+    return !((double)box[2] < w->x0 || (double)box[0] > w->x1 || (double)box[3] < w->y0 || (double)box[1] > w->y1);
+}
+
+static int g_select_pruned; /* selections that skipped part of a map */
+static int g_select_stale;  /* selections on a map with stale boxes */
+
+static void check_select(lm_tree_pool_t *p, lm_tree_idx_t root, int k, window_t *w)
+{
+    static const landmark_t *out[COSLAM_MAX_LANDMARKS];
+    static uint16_t slots[COSLAM_MAX_LANDMARKS];
+    const uint32_t n = lm_tree_select(p, root, (uint32_t)g_n[k], window_may_hold, w, out, slots);
+    uint32_t c = 0;
+    for (int j = 0; j < g_n[k]; ++j) {
+        const landmark_t *lm = &g_ref[k][j];
+        const int wanted = lm->mean.x >= w->x0 && lm->mean.x <= w->x1 && lm->mean.y >= w->y0 && lm->mean.y <= w->y1;
+        while (c < n && slots[c] < j) {
+            ++c;
+        }
+        const int returned = c < n && slots[c] == j;
+        if (wanted) {
+            ASSERT_TRUE_MSG(returned, "map %d slot %d at (%g, %g) missing from select [%g, %g] x [%g, %g]\n", k, j,
+                            lm->mean.x, lm->mean.y, w->x0, w->x1, w->y0, w->y1);
+        }
+        if (returned) {
+            assert_memory_equal(out[c], lm, sizeof *lm);
+            assert_ptr_equal(out[c], lm_tree_get(p, root, (uint32_t)j));
+        }
+    }
+    assert_true(c <= n);
+    for (uint32_t i = 1; i < n; ++i) {
+        assert_true(slots[i] > slots[i - 1]);
+    }
+    if (n > 0U) {
+        assert_true(slots[n - 1] < (uint32_t)g_n[k]);
+    }
+    g_select_pruned += n < (uint32_t)g_n[k];
+    g_select_stale += root != LM_TREE_NIL && p->node[root].dirty;
+}
+
 static landmark_t random_lm(rng_t *rng, uint32_t id)
 {
     /* coherent in space by slot, as a robot's map is, with outliers */
@@ -373,6 +425,8 @@ static void test_randomized_against_flat(void **state)
     (void)state;
     rng_t rng;
     rng_seed(&rng, 12345U);
+    rng_t wrng;
+    rng_seed(&wrng, 54321U);
     lm_tree_pool_init(&g_pool, 0U, 0U);
     lm_tree_idx_t root[N_MAPS];
     for (int k = 0; k < N_MAPS; ++k) {
@@ -453,6 +507,15 @@ static void test_randomized_against_flat(void **state)
         }
         largest = g_n[k] > largest ? g_n[k] : largest;
         check_map(&g_pool, root[k], k);
+        {
+            /* its own generator: the operations stay those of before */
+            const double cx = 200.0 * rng_uniform(&wrng) - 10.0;
+            const double cy = 10.0 * rng_uniform(&wrng) - 5.0;
+            const double hx = 10.0 * rng_uniform(&wrng);
+            const double hy = 3.0 * rng_uniform(&wrng);
+            window_t w = {cx - hx, cy - hy, cx + hx, cy + hy, 0};
+            check_select(&g_pool, root[k], k, &w);
+        }
         check_query(&g_pool, root[k], k, 200.0 * rng_uniform(&rng) - 10.0, 10.0 * rng_uniform(&rng) - 5.0,
                     5.0 * rng_uniform(&rng));
         if (t % 97 == 0) {
@@ -467,6 +530,8 @@ static void test_randomized_against_flat(void **state)
     }
     assert_true(largest >= M_CAP - M_CAP / 8); /* the maps grew deep into the tree */
     assert_true(g_pruned > ops / 2);           /* and the boxes do prune */
+    assert_true(g_select_pruned > ops / 4);    /* in lm_tree_select too (about half) */
+    assert_true(g_select_stale > ops / 4);     /* which often met stale boxes (about half) */
     check_refcounts(&g_pool, root, N_MAPS);
     /* the high-water mark stays far below the worst case: nodes are reused */
     assert_true(g_pool.node_used <= (uint32_t)(N_MAPS * LM_TREE_NODES_PER_MAP));

@@ -582,3 +582,56 @@ uint32_t lm_tree_gather(const lm_tree_pool_t *p, lm_tree_idx_t root, uint32_t n_
 {
     return walk(p, root, n_slots, 0.0, 0.0, -1.0, out, slot_out);
 }
+
+uint32_t lm_tree_select(const lm_tree_pool_t *p, lm_tree_idx_t root, uint32_t n_slots, lm_tree_box_fn may_hold,
+                        void *ctx, const landmark_t **out, uint16_t *slot_out)
+{
+    /* walk()'s traversal with a caller's box test, tested only where the
+     * box is clean (a stale one may no longer enclose what is below) */
+    if (root == LM_TREE_NIL || n_slots == 0U) {
+        return 0U;
+    }
+    if (!p->node[root].dirty && !may_hold(p->node[root].box, ctx)) {
+        return 0U;
+    }
+    lm_tree_idx_t cur[LM_TREE_DEPTH];
+    uint32_t pos[LM_TREE_DEPTH];
+    uint32_t base[LM_TREE_DEPTH];
+    uint32_t n = 0U;
+    int l = 0;
+    cur[0] = root;
+    pos[0] = 0U;
+    base[0] = 0U;
+    while (l >= 0) {
+        if (pos[l] == F_) {
+            --l;
+            continue;
+        }
+        const uint32_t q = pos[l]++;
+        const uint32_t first = base[l] + (q << (LM_TREE_FANOUT_LOG2 * (unsigned)(D_ - 1 - l)));
+        if (first >= n_slots) {
+            pos[l] = F_; /* slots are dense: nothing further right */
+            continue;
+        }
+        const lm_tree_idx_t ch = p->node[cur[l]].child[q];
+        if (ch == LM_TREE_NIL) {
+            continue;
+        }
+        if (l == D_ - 1) {
+            out[n] = &p->leaf[ch].lm;
+            if (slot_out != 0) {
+                slot_out[n] = (uint16_t)first;
+            }
+            ++n;
+            continue;
+        }
+        if (!p->node[ch].dirty && !may_hold(p->node[ch].box, ctx)) {
+            continue;
+        }
+        ++l;
+        cur[l] = ch;
+        pos[l] = 0U;
+        base[l] = first;
+    }
+    return n;
+}
