@@ -447,6 +447,77 @@ static int grid_may_pair(const merge_scratch_t *sc, point2_t q)
     return (int)((sc->occ[by] >> bx) & 1U);
 }
 
+/* What box_may_pair needs: the scratch's bitmap and a particle's pose
+ * with its cos and sin (the ones its landmarks are moved with). */
+typedef struct {
+    const merge_scratch_t *sc;
+    pose2_t pose;
+    double c;
+    double s;
+} own_box_ctx_t;
+
+/*
+ * grid_may_pair for a whole tree box at once (lm_tree_box_fn): 0 only if
+ * no point of world box b, moved into the particle's body frame, can pair.
+ * The body box is the axis-aligned one around the rotated box, widened by
+ * 1 mm plus 1e-9 of the coordinates' size (the rounding of the rotation
+ * here and in pose2_apply_inverse_cs is about 1e-16 of it); its cells span
+ * every cell a point inside can have (floor and the clamp of cell_of are
+ * monotone), so its bins every bin, and any occupied bin among them keeps
+ * the subtree. A box not finite (or empty) is always looked into. The
+ * landmarks' means also lie 0.5 m or more inside the box (lm_tree.h): a
+ * further margin, not relied on.
+ */
+static int box_may_pair(const float b[4], void *ctx)
+{
+    const own_box_ctx_t *o = (const own_box_ctx_t *)ctx;
+    const merge_scratch_t *sc = o->sc;
+    if (sc->occ_bin <= 0) {
+        return 0;
+    }
+    const double lx = (double)b[0];
+    const double ly = (double)b[1];
+    const double hx = (double)b[2];
+    const double hy = (double)b[3];
+    const double big = 1e30;
+    if (!(lx <= hx && ly <= hy && fabs(lx) < big && fabs(ly) < big && fabs(hx) < big && fabs(hy) < big)) {
+        return 1;
+    }
+    const point2_t mid = {0.5 * (lx + hx), 0.5 * (ly + hy)};
+    const double ex = 0.5 * (hx - lx);
+    const double ey = 0.5 * (hy - ly);
+    const point2_t q = pose2_apply_inverse_cs(o->pose, o->c, o->s, mid);
+    const double ac = fabs(o->c);
+    const double as = fabs(o->s);
+    const double slack =
+        1e-3 + 1e-9 * (fabs(mid.x) + fabs(mid.y) + fabs(o->pose.x) + fabs(o->pose.y) + ex + ey);
+    const double wx = ac * ex + as * ey + slack;
+    const double wy = as * ex + ac * ey + slack;
+    const int64_t lim = (int64_t)sc->occ_bin * MERGE_OCC_BINS;
+    int64_t dx_lo = (int64_t)cell_of(q.x - wx, sc->cell_m) - sc->occ_x0;
+    int64_t dx_hi = (int64_t)cell_of(q.x + wx, sc->cell_m) - sc->occ_x0;
+    int64_t dy_lo = (int64_t)cell_of(q.y - wy, sc->cell_m) - sc->occ_y0;
+    int64_t dy_hi = (int64_t)cell_of(q.y + wy, sc->cell_m) - sc->occ_y0;
+    if (dx_hi < 0 || dy_hi < 0 || dx_lo >= lim || dy_lo >= lim) {
+        return 0;
+    }
+    dx_lo = dx_lo < 0 ? 0 : dx_lo;
+    dy_lo = dy_lo < 0 ? 0 : dy_lo;
+    dx_hi = dx_hi >= lim ? lim - 1 : dx_hi;
+    dy_hi = dy_hi >= lim ? lim - 1 : dy_hi;
+    const unsigned bx_lo = (unsigned)(dx_lo / sc->occ_bin);
+    const unsigned bx_hi = (unsigned)(dx_hi / sc->occ_bin);
+    const unsigned by_lo = (unsigned)(dy_lo / sc->occ_bin);
+    const unsigned by_hi = (unsigned)(dy_hi / sc->occ_bin);
+    const uint64_t mask = (~(uint64_t)0 << bx_lo) & (~(uint64_t)0 >> (MERGE_OCC_BINS - 1U - bx_hi));
+    for (unsigned y = by_lo; y <= by_hi; ++y) {
+        if ((sc->occ[y] & mask) != 0U) {
+            return 1;
+        }
+    }
+    return 0;
+}
+
 /* Max-heap on d2: the entry at root moved down within p[0..end-1]. The
  * greedy one-to-one selection needs the pairs sorted by d2 (heap sort), and
  * the full pair table keeps its nearest pairs in this heap (collect_pair). */
@@ -702,18 +773,26 @@ static coslam_status_t merge_particle(fastslam_t *fs, uint16_t k, const merge_bo
     double r[2][2] = {{c, -s}, {s, c}};  /* body -> world */
     /* own map in this particle's body frame: the landmarks that can
      * pair with an incoming one (the others have none in their grid
-     * neighbourhood), in slot order; own_idx maps them back */
-    const landmark_t *const *own = fastslam_particle_landmarks(fs, k);
+     * neighbourhood), in slot order; own_idx maps them back and own[]
+     * (compacted in place) holds them. Subtrees whose box has no point
+     * that can pair are not read (box_may_pair); the rest is tested
+     * landmark by landmark, so the candidates are the same as testing
+     * every landmark */
+    own_box_ctx_t bctx = {sc, pose, c, s};
+    uint16_t n_sel = 0U;
+    const landmark_t **own = fastslam_particle_select(fs, k, box_may_pair, &bctx, sc->own_idx, &n_sel);
     int n_cand = 0;
-    for (uint16_t j = 0; j < p->n_lm; ++j) {
-        const point2_t body = pose2_apply_inverse_cs(pose, c, s, own[j]->mean);
+    for (uint16_t t = 0; t < n_sel; ++t) {
+        const landmark_t *lm = own[t];
+        const point2_t body = pose2_apply_inverse_cs(pose, c, s, lm->mean);
         if (!grid_may_pair(sc, body)) {
             continue;
         }
         sc->own_body[n_cand] = body;
-        sc->own_cov[n_cand] = cov2_congruence(rt, own[j]->cov);
-        sc->own_sig[n_cand] = own[j]->signature;
-        sc->own_idx[n_cand] = j;
+        sc->own_cov[n_cand] = cov2_congruence(rt, lm->cov);
+        sc->own_sig[n_cand] = lm->signature;
+        sc->own_idx[n_cand] = sc->own_idx[t];
+        own[n_cand] = lm;
         n_cand++;
     }
     if (pair_and_select(sc, bm, cfg, n_cand, stats) > 0U) {
@@ -727,15 +806,16 @@ static coslam_status_t merge_particle(fastslam_t *fs, uint16_t k, const merge_bo
             continue;
         }
         const point2_t wm = pose2_apply_cs(pose, c, s, bm->mean[i]);
-        const int32_t j = sc->match_of_in[i] >= 0 ? (int32_t)sc->own_idx[sc->match_of_in[i]] : -1;
+        const int32_t m = sc->match_of_in[i];
+        const int32_t j = m >= 0 ? (int32_t)sc->own_idx[m] : -1;
         /* a duplicate's information scaled by dup_w: its covariance by 1 / dup_w */
         const cov2_t wc = cov2_scale(cov2_congruence(r, bm->cov[i]), j >= 0 ? 1.0 / dup_w : 1.0);
         if (j >= 0) {
-            /* own[j] is still slot j as it was: each slot is written once
+            /* own[m] is still slot j as it was: each slot is written once
              * (the pairing is one to one), and a write leaves a leaf other
              * maps share unchanged. Maps are shared: the copy is written
              * back below */
-            landmark_t fused = *own[j];
+            landmark_t fused = *own[m];
             landmark_t *lm = &fused;
             point2_t xm;
             cov2_t xc;
