@@ -10,7 +10,9 @@
  * robot runs it (the first part with the transform and the check in the
  * step the message arrives, the rest in idle time): its calls and the
  * largest one. Built against a core with 2048 landmarks per map and 1024
- * per message. Writes <out>/merge_time.{md,json}.
+ * per message. The own maps are built just before each merge, untimed, and
+ * their trees' boxes cleaned, as the robot's are when a message comes (its
+ * filter's update queries clean them). Writes <out>/merge_time.{md,json}.
  *   coslam-bench-merge [--out DIR] [--reps N] [--no-naive]
  * --no-naive leaves out the naive search (most of the run's time; for
  * profiling the merge).
@@ -125,6 +127,10 @@ static void build_own_maps(int n, int m, rng_t *r)
             lm.signature = (uint8_t)(j % 4);
             fastslam_particle_add(&g_fs, k, &lm);
         }
+        /* the tree's boxes clean, as the robot's are when a message comes
+         * (each update's query cleans them; the merge skips subtrees by
+         * them and looks into every stale one) */
+        lm_tree_clean(&g_fs.lm_pool, g_fs.particles[k].lm_root);
     }
 }
 
