@@ -505,12 +505,21 @@ static int box_may_pair(const float b[4], void *ctx)
     dy_lo = dy_lo < 0 ? 0 : dy_lo;
     dx_hi = dx_hi >= lim ? lim - 1 : dx_hi;
     dy_hi = dy_hi >= lim ? lim - 1 : dy_hi;
-    const unsigned bx_lo = (unsigned)(dx_lo / sc->occ_bin);
-    const unsigned bx_hi = (unsigned)(dx_hi / sc->occ_bin);
-    const unsigned by_lo = (unsigned)(dy_lo / sc->occ_bin);
-    const unsigned by_hi = (unsigned)(dy_hi / sc->occ_bin);
+    /* 0 <= d < 2^32 as in grid_may_pair: 32-bit quotients, none for bins
+     * of one cell */
+    uint32_t bx_lo = (uint32_t)dx_lo;
+    uint32_t bx_hi = (uint32_t)dx_hi;
+    uint32_t by_lo = (uint32_t)dy_lo;
+    uint32_t by_hi = (uint32_t)dy_hi;
+    if (sc->occ_bin > 1) {
+        const uint32_t bin = (uint32_t)sc->occ_bin;
+        bx_lo /= bin;
+        bx_hi /= bin;
+        by_lo /= bin;
+        by_hi /= bin;
+    }
     const uint64_t mask = (~(uint64_t)0 << bx_lo) & (~(uint64_t)0 >> (MERGE_OCC_BINS - 1U - bx_hi));
-    for (unsigned y = by_lo; y <= by_hi; ++y) {
+    for (uint32_t y = by_lo; y <= by_hi; ++y) {
         if ((sc->occ[y] & mask) != 0U) {
             return 1;
         }
