@@ -367,17 +367,25 @@ static int window_may_hold(const float box[4], void *ctx)
 {
     window_t *w = (window_t *)ctx;
     w->calls++;
-    return !((double)box[2] < w->x0 || (double)box[0] > w->x1 || (double)box[3] < w->y0 || (double)box[1] > w->y1);
+    if ((double)box[2] < w->x0 || (double)box[0] > w->x1 || (double)box[3] < w->y0 || (double)box[1] > w->y1) {
+        return LM_TREE_BOX_NONE;
+    }
+    if ((double)box[0] >= w->x0 && (double)box[2] <= w->x1 && (double)box[1] >= w->y0 && (double)box[3] <= w->y1) {
+        return LM_TREE_BOX_ALL;
+    }
+    return LM_TREE_BOX_SOME;
 }
 
 static int g_select_pruned; /* selections that skipped part of a map */
+static int g_select_all;    /* landmarks taken under an LM_TREE_BOX_ALL answer */
 static int g_select_stale;  /* selections on a map with stale boxes */
 
 static void check_select(lm_tree_pool_t *p, lm_tree_idx_t root, int k, window_t *w)
 {
     static const landmark_t *out[COSLAM_MAX_LANDMARKS];
     static uint16_t slots[COSLAM_MAX_LANDMARKS];
-    const uint32_t n = lm_tree_select(p, root, (uint32_t)g_n[k], window_may_hold, w, out, slots);
+    static uint8_t all[COSLAM_MAX_LANDMARKS];
+    const uint32_t n = lm_tree_select(p, root, (uint32_t)g_n[k], window_may_hold, w, out, slots, all);
     uint32_t c = 0;
     for (int j = 0; j < g_n[k]; ++j) {
         const landmark_t *lm = &g_ref[k][j];
@@ -393,6 +401,13 @@ static void check_select(lm_tree_pool_t *p, lm_tree_idx_t root, int k, window_t 
         if (returned) {
             assert_memory_equal(out[c], lm, sizeof *lm);
             assert_ptr_equal(out[c], lm_tree_get(p, root, (uint32_t)j));
+            assert_true(all[c] <= 1U);
+            if (all[c]) {
+                /* taken untested: it must be wanted */
+                ASSERT_TRUE_MSG(wanted, "map %d slot %d at (%g, %g) flagged, outside [%g, %g] x [%g, %g]\n", k, j,
+                                lm->mean.x, lm->mean.y, w->x0, w->x1, w->y0, w->y1);
+                g_select_all++;
+            }
         }
     }
     assert_true(c <= n);
@@ -511,8 +526,9 @@ static void test_randomized_against_flat(void **state)
             /* its own generator: the operations stay those of before */
             const double cx = 200.0 * rng_uniform(&wrng) - 10.0;
             const double cy = 10.0 * rng_uniform(&wrng) - 5.0;
-            const double hx = 10.0 * rng_uniform(&wrng);
-            const double hy = 3.0 * rng_uniform(&wrng);
+            const int large = rng_below(&wrng, 4) == 0; /* subtrees inside it */
+            const double hx = (large ? 100.0 : 10.0) * rng_uniform(&wrng);
+            const double hy = (large ? 10.0 : 3.0) * rng_uniform(&wrng);
             window_t w = {cx - hx, cy - hy, cx + hx, cy + hy, 0};
             check_select(&g_pool, root[k], k, &w);
         }
@@ -532,6 +548,7 @@ static void test_randomized_against_flat(void **state)
     assert_true(g_pruned > ops / 2);           /* and the boxes do prune */
     assert_true(g_select_pruned > ops / 4);    /* in lm_tree_select too (about half) */
     assert_true(g_select_stale > ops / 4);     /* which often met stale boxes (about half) */
+    assert_true(g_select_all > ops / 100);     /* and took subtrees whole (701) */
     check_refcounts(&g_pool, root, N_MAPS);
     /* the high-water mark stays far below the worst case: nodes are reused */
     assert_true(g_pool.node_used <= (uint32_t)(N_MAPS * LM_TREE_NODES_PER_MAP));

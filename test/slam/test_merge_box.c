@@ -4,8 +4,9 @@
  * particle poses (any heading, far from the origin too) and random world
  * boxes; wherever a point of a box (its corners, its edges, points inside)
  * moved into the body frame may pair, the box must not be rejected, or the
- * merge would lose a candidate. The boxes must also be rejected often
- * enough for the test to mean something. */
+ * merge would lose a candidate; where a box is taken whole, every such
+ * point must pair, or the merge would gain one. Each answer must also be
+ * common enough for the test to mean something. */
 #include "test_util.h"
 
 #include <string.h>
@@ -39,6 +40,7 @@ static void test_box_may_pair_covers_grid_may_pair(void **state)
     const merge_config_t mc = merge_config_default();
     int rejected = 0;
     int kept = 0;
+    int whole = 0;
     int points_may_pair = 0;
     for (int trial = 0; trial < 400; ++trial) {
         /* a large spread makes bins of several cells */
@@ -61,7 +63,9 @@ static void test_box_may_pair_covers_grid_may_pair(void **state)
             const double wy = 6.0 * rng_uniform(&r) * rng_uniform(&r);
             const float box[4] = {(float)(at.x - wx), (float)(at.y - wy), (float)(at.x + wx), (float)(at.y + wy)};
             const int may = box_may_pair(box, &ctx);
-            may ? ++kept : ++rejected;
+            rejected += may == LM_TREE_BOX_NONE;
+            kept += may == LM_TREE_BOX_SOME;
+            whole += may == LM_TREE_BOX_ALL;
             for (int q = 0; q < 40; ++q) {
                 double u;
                 double v;
@@ -84,7 +88,12 @@ static void test_box_may_pair_covers_grid_may_pair(void **state)
                                     (double)box[1] + v * ((double)box[3] - (double)box[1])};
                 if (grid_may_pair(&g_sc, pose2_apply_inverse_cs(pose, c, s, w))) {
                     points_may_pair++;
-                    ASSERT_TRUE_MSG(may, "trial %d: box [%g, %g] x [%g, %g] rejected, its point (%g, %g) may pair\n",
+                    ASSERT_TRUE_MSG(may != LM_TREE_BOX_NONE,
+                                    "trial %d: box [%g, %g] x [%g, %g] rejected, its point (%g, %g) may pair\n", trial,
+                                    (double)box[0], (double)box[2], (double)box[1], (double)box[3], w.x, w.y);
+                } else {
+                    ASSERT_TRUE_MSG(may != LM_TREE_BOX_ALL,
+                                    "trial %d: box [%g, %g] x [%g, %g] taken whole, its point (%g, %g) cannot pair\n",
                                     trial, (double)box[0], (double)box[2], (double)box[1], (double)box[3], w.x, w.y);
                 }
             }
@@ -93,15 +102,16 @@ static void test_box_may_pair_covers_grid_may_pair(void **state)
     /* not vacuous: both answers are common, and many points may pair */
     assert_true(rejected > 400 * 200 / 10); /* 47,600 of 80,000 */
     assert_true(kept > 400 * 200 / 10);     /* 32,400 */
+    assert_true(whole > 400 * 200 / 40);    /* 4,012 */
     assert_true(points_may_pair > 400 * 200);
     /* a box not finite or empty is always looked into */
     own_box_ctx_t ctx = {&g_sc, (pose2_t){0.0, 0.0, 0.0}, 1.0, 0.0};
     const float inf_box[4] = {-INFINITY, -INFINITY, INFINITY, INFINITY};
     const float empty_box[4] = {INFINITY, INFINITY, -INFINITY, -INFINITY};
     const float nan_box[4] = {NAN, 0.0f, 1.0f, 1.0f};
-    assert_true(box_may_pair(inf_box, &ctx));
-    assert_true(box_may_pair(empty_box, &ctx));
-    assert_true(box_may_pair(nan_box, &ctx));
+    assert_int_equal(box_may_pair(inf_box, &ctx), LM_TREE_BOX_SOME);
+    assert_int_equal(box_may_pair(empty_box, &ctx), LM_TREE_BOX_SOME);
+    assert_int_equal(box_may_pair(nan_box, &ctx), LM_TREE_BOX_SOME);
 }
 
 int main(void)

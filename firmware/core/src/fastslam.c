@@ -304,10 +304,11 @@ const landmark_t *const *fastslam_particle_landmarks(fastslam_t *fs, uint16_t k)
 }
 
 const landmark_t **fastslam_particle_select(fastslam_t *fs, uint16_t k, lm_tree_box_fn may_hold, void *ctx,
-                                            uint16_t *slot_out, uint16_t *n)
+                                            uint16_t *slot_out, uint8_t *all_out, uint16_t *n)
 {
     const fastslam_particle_t *p = &fs->particles[k];
-    *n = (uint16_t)lm_tree_select(&fs->lm_pool, p->lm_root, p->n_lm, may_hold, ctx, fs->scratch.view, slot_out);
+    *n = (uint16_t)lm_tree_select(&fs->lm_pool, p->lm_root, p->n_lm, may_hold, ctx, fs->scratch.view, slot_out,
+                                  all_out);
     return fs->scratch.view;
 }
 

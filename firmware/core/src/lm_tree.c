@@ -584,15 +584,22 @@ uint32_t lm_tree_gather(const lm_tree_pool_t *p, lm_tree_idx_t root, uint32_t n_
 }
 
 uint32_t lm_tree_select(const lm_tree_pool_t *p, lm_tree_idx_t root, uint32_t n_slots, lm_tree_box_fn may_hold,
-                        void *ctx, const landmark_t **out, uint16_t *slot_out)
+                        void *ctx, const landmark_t **out, uint16_t *slot_out, uint8_t *all_out)
 {
     /* walk()'s traversal with a caller's box test, tested only where the
-     * box is clean (a stale one may no longer enclose what is below) */
+     * box is clean (a stale one may no longer enclose what is below), and
+     * not below an LM_TREE_BOX_ALL answer */
     if (root == LM_TREE_NIL || n_slots == 0U) {
         return 0U;
     }
-    if (!p->node[root].dirty && !may_hold(p->node[root].box, ctx)) {
-        return 0U;
+    uint8_t all[LM_TREE_DEPTH];
+    all[0] = 0U;
+    if (!p->node[root].dirty) {
+        const int a = may_hold(p->node[root].box, ctx);
+        if (a == LM_TREE_BOX_NONE) {
+            return 0U;
+        }
+        all[0] = a == LM_TREE_BOX_ALL ? 1U : 0U;
     }
     lm_tree_idx_t cur[LM_TREE_DEPTH];
     uint32_t pos[LM_TREE_DEPTH];
@@ -622,16 +629,25 @@ uint32_t lm_tree_select(const lm_tree_pool_t *p, lm_tree_idx_t root, uint32_t n_
             if (slot_out != 0) {
                 slot_out[n] = (uint16_t)first;
             }
+            if (all_out != 0) {
+                all_out[n] = all[l];
+            }
             ++n;
             continue;
         }
-        if (!p->node[ch].dirty && !may_hold(p->node[ch].box, ctx)) {
-            continue;
+        uint8_t below = all[l];
+        if (!below && !p->node[ch].dirty) {
+            const int a = may_hold(p->node[ch].box, ctx);
+            if (a == LM_TREE_BOX_NONE) {
+                continue;
+            }
+            below = a == LM_TREE_BOX_ALL ? 1U : 0U;
         }
         ++l;
         cur[l] = ch;
         pos[l] = 0U;
         base[l] = first;
+        all[l] = below;
     }
     return n;
 }

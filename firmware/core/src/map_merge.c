@@ -457,23 +457,25 @@ typedef struct {
 } own_box_ctx_t;
 
 /*
- * grid_may_pair for a whole tree box at once (lm_tree_box_fn): 0 only if
- * no point of world box b, moved into the particle's body frame, can pair.
- * The body box is the axis-aligned one around the rotated box, widened by
- * 1 mm plus 1e-9 of the coordinates' size (the rounding of the rotation
- * here and in pose2_apply_inverse_cs is about 1e-16 of it); its cells span
- * every cell a point inside can have (floor and the clamp of cell_of are
- * monotone), so its bins every bin, and any occupied bin among them keeps
- * the subtree. A box not finite (or empty) is always looked into. The
- * landmarks' means also lie 0.5 m or more inside the box (lm_tree.h): a
- * further margin, not relied on.
+ * grid_may_pair for a whole tree box at once (lm_tree_box_fn): NONE only
+ * if no point of world box b, moved into the particle's body frame, can
+ * pair; ALL only if every point can. The body box is the axis-aligned one
+ * around the rotated box, widened by 1 mm plus 1e-9 of the coordinates'
+ * size (the rounding of the rotation here and in pose2_apply_inverse_cs is
+ * about 1e-16 of it); its cells span every cell a point inside can have
+ * (floor and the clamp of cell_of are monotone), so its bins every bin a
+ * point can fall in. Any occupied bin among them keeps the subtree; all of
+ * them occupied, and none outside the bitmap, takes it whole. A box not
+ * finite (or empty) is always looked into. The landmarks' means also lie
+ * 0.5 m or more inside the box (lm_tree.h): a further margin, not relied
+ * on.
  */
 static int box_may_pair(const float b[4], void *ctx)
 {
     const own_box_ctx_t *o = (const own_box_ctx_t *)ctx;
     const merge_scratch_t *sc = o->sc;
     if (sc->occ_bin <= 0) {
-        return 0;
+        return LM_TREE_BOX_NONE;
     }
     const double lx = (double)b[0];
     const double ly = (double)b[1];
@@ -481,7 +483,7 @@ static int box_may_pair(const float b[4], void *ctx)
     const double hy = (double)b[3];
     const double big = 1e30;
     if (!(lx <= hx && ly <= hy && fabs(lx) < big && fabs(ly) < big && fabs(hx) < big && fabs(hy) < big)) {
-        return 1;
+        return LM_TREE_BOX_SOME;
     }
     const point2_t mid = {0.5 * (lx + hx), 0.5 * (ly + hy)};
     const double ex = 0.5 * (hx - lx);
@@ -499,8 +501,10 @@ static int box_may_pair(const float b[4], void *ctx)
     int64_t dy_lo = (int64_t)cell_of(q.y - wy, sc->cell_m) - sc->occ_y0;
     int64_t dy_hi = (int64_t)cell_of(q.y + wy, sc->cell_m) - sc->occ_y0;
     if (dx_hi < 0 || dy_hi < 0 || dx_lo >= lim || dy_lo >= lim) {
-        return 0;
+        return LM_TREE_BOX_NONE;
     }
+    /* part of the box off the bitmap: some points there cannot pair */
+    int all = dx_lo >= 0 && dy_lo >= 0 && dx_hi < lim && dy_hi < lim;
     dx_lo = dx_lo < 0 ? 0 : dx_lo;
     dy_lo = dy_lo < 0 ? 0 : dy_lo;
     dx_hi = dx_hi >= lim ? lim - 1 : dx_hi;
@@ -519,12 +523,16 @@ static int box_may_pair(const float b[4], void *ctx)
         by_hi /= bin;
     }
     const uint64_t mask = (~(uint64_t)0 << bx_lo) & (~(uint64_t)0 >> (MERGE_OCC_BINS - 1U - bx_hi));
+    int some = 0;
     for (uint32_t y = by_lo; y <= by_hi; ++y) {
-        if ((sc->occ[y] & mask) != 0U) {
-            return 1;
+        const uint64_t hit = sc->occ[y] & mask;
+        some |= hit != 0U;
+        all &= hit == mask;
+        if (some && !all) {
+            return LM_TREE_BOX_SOME;
         }
     }
-    return 0;
+    return all ? LM_TREE_BOX_ALL : some ? LM_TREE_BOX_SOME : LM_TREE_BOX_NONE;
 }
 
 /* Max-heap on d2: the entry at root moved down within p[0..end-1]. The
@@ -789,12 +797,15 @@ static coslam_status_t merge_particle(fastslam_t *fs, uint16_t k, const merge_bo
      * every landmark */
     own_box_ctx_t bctx = {sc, pose, c, s};
     uint16_t n_sel = 0U;
-    const landmark_t **own = fastslam_particle_select(fs, k, box_may_pair, &bctx, sc->own_idx, &n_sel);
+    /* own_used (pair_and_select's, set there) holds meanwhile whether a
+     * landmark lies in a box every point of which may pair */
+    const landmark_t **own =
+        fastslam_particle_select(fs, k, box_may_pair, &bctx, sc->own_idx, sc->own_used, &n_sel);
     int n_cand = 0;
     for (uint16_t t = 0; t < n_sel; ++t) {
         const landmark_t *lm = own[t];
         const point2_t body = pose2_apply_inverse_cs(pose, c, s, lm->mean);
-        if (!grid_may_pair(sc, body)) {
+        if (!sc->own_used[t] && !grid_may_pair(sc, body)) {
             continue;
         }
         sc->own_body[n_cand] = body;

@@ -391,12 +391,13 @@ const landmark_t *const *fastslam_particle_landmarks(fastslam_t *fs, uint16_t k)
  * Particle k's landmarks in slot order but for whole subtrees of its map
  * whose box may_hold rejects (lm_tree_select: stale boxes are never
  * tested), read-only, in fs->scratch.view (the caller may reorder or
- * overwrite the array); their slots into slot_out
- * (n_lm entries, may be NULL), their count into *n. Valid until the next
- * call into the filter. O(M) at most.
+ * overwrite the array); their slots into slot_out and lm_tree_select's
+ * all_out flags into all_out (n_lm entries each, either may be NULL),
+ * their count into *n. Valid until the next call into the filter. O(M) at
+ * most.
  */
 const landmark_t **fastslam_particle_select(fastslam_t *fs, uint16_t k, lm_tree_box_fn may_hold, void *ctx,
-                                            uint16_t *slot_out, uint16_t *n);
+                                            uint16_t *slot_out, uint8_t *all_out, uint16_t *n);
 
 /**
  * Replace landmark j (< n_lm) of particle k by *lm (copy-on-write: other

@@ -238,23 +238,31 @@ uint32_t lm_tree_query(lm_tree_pool_t *p, lm_tree_idx_t root, uint32_t n_slots, 
 
 /** Box test of lm_tree_select: box is (lo_x, lo_y, hi_x, hi_y) [m], world
  *  frame, enclosing the reach square (see above) of every landmark below a
- *  node, so their means too. Returns 0 only if no landmark whose mean lies
- *  in the box is wanted (the subtree is skipped), nonzero to look inside. */
+ *  node, so their means too. Returns one of LM_TREE_BOX_*. */
 typedef int (*lm_tree_box_fn)(const float box[4], void *ctx);
+/** No landmark whose mean lies in the box is wanted: the subtree is skipped. */
+#define LM_TREE_BOX_NONE 0
+/** Some may be: look inside. */
+#define LM_TREE_BOX_SOME 1
+/** Every landmark whose mean lies in the box is wanted: the subtree is
+ *  taken without further tests, its landmarks flagged in all_out. */
+#define LM_TREE_BOX_ALL 2
 
 /**
  * Landmarks of slots 0 .. n_slots-1 in slot order into out[] and their
  * slots into slot_out[] (may be NULL), but for whole subtrees whose box
- * may_hold(box, ctx) rejects; returns how many. A stale box (changed since
- * the last lm_tree_clean) is never tested: its subtree is looked into, and
- * its children's boxes tested as they are. So the result is a superset, in
- * slot order, of the landmarks may_hold would not rule out, whether or not
- * the map was cleaned; the pool is not changed. O(M) at most; with clean
- * boxes and a spatially coherent map O(F D K) for K landmarks kept, plus
- * one may_hold call per node looked at.
+ * may_hold answers LM_TREE_BOX_NONE; returns how many. all_out[] (may be
+ * NULL) gets 1 for a landmark taken under an LM_TREE_BOX_ALL answer, else
+ * 0. A stale box (changed since the last lm_tree_clean) is never tested:
+ * its subtree is looked into, and its children's boxes tested as they are
+ * (a clean box encloses its subtree whatever lies below it). So the result
+ * is a superset, in slot order, of the landmarks may_hold would not rule
+ * out, whether or not the map was cleaned; the pool is not changed. O(M)
+ * at most; with clean boxes and a spatially coherent map O(F D K) for K
+ * landmarks kept, plus one may_hold call per node looked at.
  */
 uint32_t lm_tree_select(const lm_tree_pool_t *p, lm_tree_idx_t root, uint32_t n_slots, lm_tree_box_fn may_hold,
-                        void *ctx, const landmark_t **out, uint16_t *slot_out);
+                        void *ctx, const landmark_t **out, uint16_t *slot_out, uint8_t *all_out);
 
 /** All landmarks of slots 0 .. n_slots-1 in slot order (out[], slot_out[]
  *  may be NULL); returns how many. O(M). */
