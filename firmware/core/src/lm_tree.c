@@ -592,8 +592,7 @@ uint32_t lm_tree_select(const lm_tree_pool_t *p, lm_tree_idx_t root, uint32_t n_
     if (root == LM_TREE_NIL || n_slots == 0U) {
         return 0U;
     }
-    uint8_t all[LM_TREE_DEPTH];
-    all[0] = 0U;
+    uint8_t all[LM_TREE_DEPTH] = {0U}; /* all of it: gcc (arm, -O2) cannot see each level set before read */
     if (!p->node[root].dirty) {
         const int a = may_hold(p->node[root].box, ctx);
         if (a == LM_TREE_BOX_NONE) {
