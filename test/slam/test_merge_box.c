@@ -61,7 +61,11 @@ static void test_box_may_pair_covers_grid_may_pair(void **state)
                                                              near.y + 16.0 * rng_uniform(&r) - 8.0});
             const double wx = 6.0 * rng_uniform(&r) * rng_uniform(&r);
             const double wy = 6.0 * rng_uniform(&r) * rng_uniform(&r);
-            const float box[4] = {(float)(at.x - wx), (float)(at.y - wy), (float)(at.x + wx), (float)(at.y + wy)};
+            /* through volatile: gcc 12.2 -O3 (the host profile's Release
+             * test build) used the unrounded doubles for the box's points
+             * below, not the floats box_may_pair reads */
+            volatile float vbox[4] = {(float)(at.x - wx), (float)(at.y - wy), (float)(at.x + wx), (float)(at.y + wy)};
+            const float box[4] = {vbox[0], vbox[1], vbox[2], vbox[3]};
             const int may = box_may_pair(box, &ctx);
             rejected += may == LM_TREE_BOX_NONE;
             kept += may == LM_TREE_BOX_SOME;
@@ -100,9 +104,10 @@ static void test_box_may_pair_covers_grid_may_pair(void **state)
         }
     }
     /* not vacuous: both answers are common, and many points may pair */
-    assert_true(rejected > 400 * 200 / 10); /* 47,600 of 80,000 */
-    assert_true(kept > 400 * 200 / 10);     /* 32,400 */
-    assert_true(whole > 400 * 200 / 40);    /* 4,012 */
+    /* default profile: 47,600 of 80,000 rejected, 28,388 kept, 4,012 whole */
+    assert_true(rejected > 400 * 200 / 10);
+    assert_true(kept > 400 * 200 / 10);
+    assert_true(whole > 400 * 200 / 40);
     assert_true(points_may_pair > 400 * 200);
     /* a box not finite or empty is always looked into */
     own_box_ctx_t ctx = {&g_sc, (pose2_t){0.0, 0.0, 0.0}, 1.0, 0.0};
