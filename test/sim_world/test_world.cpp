@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -472,6 +473,31 @@ TEST(Simulation, NodesStartUpAndTheEstopStopsTheRobot)
     const pose2_t q = sim.robot(0).pose();
     sim.advance_to(9.0);
     EXPECT_GT(std::hypot(sim.robot(0).pose().x - q.x, sim.robot(0).pose().y - q.y), 0.1);
+}
+
+// The laser tells the filters what stands around the robot (view.h): every
+// frame after the laser is up has a view profile, and among the boxes of
+// the paper scenario some landmarks are hidden behind them rather than
+// missed (misses_hidden, both filters: robot 0 Fast-SLAM 2.0, robot 1
+// EKF-SLAM). Without the profile (no laser) the count would stay 0.
+TEST(Simulation, TheLaserHidesMarkersBehindBoxesFromTheMissCount)
+{
+    Scenario sc = load_scenario_file(kPaper);
+    Simulation sim(sc, SimulationOptions{std::nullopt, 120.0});
+    sim.run();
+    for (size_t k = 0; k < 2; ++k) {
+        const robot_node_counters_t *c = robot_node_counters(&sim.node(k));
+        EXPECT_GT(c->frames, 550u);
+        EXPECT_GE(c->views + 10u, c->frames) << "robot " << k; // all but the first second's
+    }
+    const slam_filter_t &f0 = sim.node(0).filter;
+    const slam_filter_t &f1 = sim.node(1).filter;
+    ASSERT_EQ(f0.kind, SLAM_FILTER_FASTSLAM2);
+    ASSERT_EQ(f1.kind, SLAM_FILTER_EKF);
+    std::printf("misses hidden: %u (Fast-SLAM, all particles), %u (EKF-SLAM)\n", f0.u.fs.ctr.misses_hidden,
+                f1.u.ekf.ctr.misses_hidden);
+    EXPECT_GT(f0.u.fs.ctr.misses_hidden, 0u);
+    EXPECT_GT(f1.u.ekf.ctr.misses_hidden, 0u);
 }
 
 TEST(RunOutput, FilesAreWrittenAndParse)

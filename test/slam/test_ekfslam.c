@@ -895,10 +895,14 @@ static void test_innovation_monitor(void **state)
     ekfslam_pose(&g_ekf, &on, &c_on);
     ekfslam_pose(&g_twin, &off, &c_off3);
     const double turn = 0.1 * sb * (tripped + 39 - 9);
-    fprintf(stderr, "after 39 more frames: landmarks %d / %d (monitor on / off), heading %.4f / %.4f rad (true %.4f), "
-                    "inflations %u\n", g_ekf.n_lm, g_twin.n_lm, on.theta, off.theta, turn, (unsigned)g_ekf.ctr.nis_inflations);
+    fprintf(stderr, "after 39 more frames: landmarks %d / %d, started %u / %u (monitor on / off), heading %.4f / %.4f "
+                    "rad (true %.4f), inflations %u\n", g_ekf.n_lm, g_twin.n_lm, (unsigned)g_ekf.ctr.landmarks_added,
+            (unsigned)g_twin.ctr.landmarks_added, on.theta, off.theta, turn, (unsigned)g_ekf.ctr.nis_inflations);
     assert_int_equal(g_ekf.n_lm, 1);
-    assert_true(g_twin.n_lm > 1);
+    assert_int_equal(g_ekf.ctr.landmarks_added, 1U);
+    /* started (the first may since have died of its misses: the paper
+     * camera's miss weight removes an unseen landmark after 18 frames) */
+    assert_true(g_twin.ctr.landmarks_added > 1U);
     assert_true(fabs(on.theta - turn) < fabs(off.theta - turn));
 }
 

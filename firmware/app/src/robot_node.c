@@ -349,6 +349,25 @@ static void use_scan(robot_node_t *n)
     n->scan_n = np;
     n->scan_us = n->now_us;
     n->scan_heading_rad = n->odo_pose.theta;
+    n->scan_odo_pose = n->odo_pose;
+}
+
+/* What the camera could see this frame (view.h): the last scan's obstacle
+ * points moved by the odometry since, if the scan is at most
+ * scan_max_age_us old; otherwise no profile and every miss counts. */
+static void set_view(robot_node_t *n)
+{
+    view_profile_clear(&n->view);
+    if (n->scan_n > 0U && n->now_us - n->scan_us <= n->cfg.scan_max_age_us) {
+        const pose2_t since = pose2_compose(pose2_inverse(n->odo_pose), n->scan_odo_pose);
+        if (view_profile_build(&n->view, n->scan_points_m, n->scan_n_points, since) != COSLAM_OK) {
+            view_profile_clear(&n->view);
+        }
+    }
+    if (n->view.valid) {
+        n->ctr.views++;
+    }
+    slam_filter_set_view(&n->filter, &n->view);
 }
 
 /* Every scan that arrived since the last step (normally none or one). A
@@ -388,6 +407,7 @@ static void read_sightings(robot_node_t *n)
     if (!slam_filter_update_prepare(&n->filter, nz)) {
         health_before_update(&n->health, &n->filter, &n->grid);
     }
+    set_view(n);
     const coslam_status_t st = slam_filter_update_apply(&n->filter, n->frame.landmarks, nz);
     /* held while an EKF-SLAM merge runs in parts (slam_filter inputs_held):
      * no update to judge yet */

@@ -11,6 +11,7 @@ slam_filter_config_t slam_filter_config_default(void)
     slam_filter_config_t c;
     c.kind = SLAM_FILTER_FASTSLAM2;
     c.slam = slam_params_default();
+    c.slam.exist_miss_confirmed = SLAM_EXIST_MISS_FLAT_MARKERS; /* the robot's markers are flat */
     c.n_particles = (uint16_t)(COSLAM_MAX_PARTICLES < 100 ? COSLAM_MAX_PARTICLES : 100);
     c.seed = 1U;
     c.robot_id = 0U;
@@ -41,6 +42,7 @@ coslam_status_t slam_filter_init(slam_filter_t *f, const slam_filter_config_t *c
     f->kind = cfg->kind;
     f->robot_id = cfg->robot_id;
     merge_coverage_init(&f->coverage);
+    view_profile_clear(&f->view);
     f->merge_due = NULL;
     memset(&f->merge_late, 0, sizeof f->merge_late);
     f->merges_in_parts = 0U;
@@ -449,18 +451,38 @@ int slam_filter_update_prepare(slam_filter_t *f, int n)
     return 0;
 }
 
+void slam_filter_set_view(slam_filter_t *f, const view_profile_t *v)
+{
+    if (v != NULL && v->valid) {
+        f->view = *v;
+    } else {
+        view_profile_clear(&f->view);
+    }
+}
+
 coslam_status_t slam_filter_update_apply(slam_filter_t *f, const sighting_t *z, int n)
 {
     if (ekf_holding(f)) {
         if (ekf_hold(f, 1, (odo_increment_t){0.0, 0.0, 0.0}, z, n)) {
+            view_profile_clear(&f->view); /* the held frame applies later without it */
             return COSLAM_E_MERGE_PENDING; /* applied once the merge is done (held_failures) */
         }
         ekf_finish_now(f); /* not prepared: it did not fit after all */
     }
+    /* this frame's view, to the core just before its update (held frames
+     * applied above went without it); the core keeps the pointer until
+     * the update, then this copy is spent */
     if (f->kind == SLAM_FILTER_EKF) {
-        return ekf_update_now(f, z, n);
+        ekfslam_set_view(&f->u.ekf, &f->view);
+        const coslam_status_t est = ekf_update_now(f, z, n);
+        ekfslam_set_view(&f->u.ekf, NULL);
+        view_profile_clear(&f->view);
+        return est;
     }
+    fastslam_set_view(&f->u.fs, &f->view);
     const coslam_status_t st = fastslam_update(&f->u.fs, z, n);
+    fastslam_set_view(&f->u.fs, NULL);
+    view_profile_clear(&f->view);
     pose2_t pose;
     cov3_t cov;
     slam_filter_pose(f, &pose, &cov);

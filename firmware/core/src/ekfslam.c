@@ -1468,6 +1468,7 @@ coslam_status_t ekfslam_init(ekfslam_t *ekf, const ekfslam_config_t *cfg, pose2_
     }
     ekf->next_id = 1U;
     memset(&ekf->ctr, 0, sizeof ekf->ctr);
+    ekf->view = 0;
     ekf->x[0] = pose0.x;
     ekf->x[1] = pose0.y;
     ekf->x[2] = angle_wrap(pose0.theta);
@@ -2164,6 +2165,21 @@ static void jcbb_leaf(ekfslam_t *ekf, int ns, int k, double score)
     }
 }
 
+/* 1 if landmark j is the one candidate, loop-closing, of a sighting that
+ * the association held back as a possible revisit (held[i] == 1; JCBB
+ * only). A held sighting with two or more candidates (a map that holds an
+ * area twice) protects none of them. */
+static int held_revisit_of(const ekfslam_scratch_t *sc, int ns, int32_t j)
+{
+    for (int i = 0; i < ns; ++i) {
+        const int q = sc->cand_begin[i];
+        if (sc->held[i] == 1U && sc->cand_begin[i + 1] == q + 1 && sc->pairs[q].landmark == j && sc->closure[j]) {
+            return 1;
+        }
+    }
+    return 0;
+}
+
 /* A pairing is a loop closure if its landmark was not sighted for a while
  * (a revisit) and the robot-landmark uncertainty, not the sensor, dominates
  * its innovation: det S > 4 det Q (its error ellipse more than twice the
@@ -2445,7 +2461,7 @@ static void jcbb_associate(ekfslam_t *ekf, const sighting_t *z, int ns, int n_pa
              * a revisit; any pairing once the pose has lost its landmarks
              * (an inflated pose block, opened gates) */
             sc->assign[i] = -1;
-            sc->held[i] = 1U;
+            sc->held[i] = sc->closure[sc->best[i]] ? 1U : 2U; /* 2: not a revisit */
             nonlinear |= sc->closure[sc->best[i]] ? 1 : 2;
         }
         if (sc->assign[i] < 0 && !sc->held[i]) {
@@ -2474,6 +2490,7 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
 {
     COSLAM_ASSERT(ekf != 0 && (z_in != 0 || n_in == 0));
     if (ekf->merging) {
+        ekf->view = 0; /* the frame's view goes with the frame */
         return COSLAM_E_MERGE_BUSY; /* a merge in parts runs on the state as it was */
     }
     const slam_params_t *sp = &ekf->cfg.slam;
@@ -2633,8 +2650,22 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
             continue;
         }
         const lm_expect_t *ep = &sc->expect[j];
-        if (landmark_should_be_seen(sp, ep->zhat) &&
-            exist_miss(&ekf->meta[j].exist, &ekf->lm_confirmed_once[j], landmark_miss_is_certain(sp, ep), sp)) {
+        if (!landmark_should_be_seen(sp, ep->zhat)) {
+            continue;
+        }
+        if (landmark_hidden(ekf->view, ep)) {
+            ekf->ctr.misses_hidden++; /* behind an obstacle the laser saw: not missed */
+            continue;
+        }
+        if (held_revisit_of(sc, ns, j)) {
+            /* a sighting held back as a possible revisit of it: the frame
+             * does not say it is gone (without this, at the paper camera's
+             * miss weight the old map died in the frames before a revisit
+             * was recognised) */
+            ekf->ctr.misses_held++;
+            continue;
+        }
+        if (exist_miss(&ekf->meta[j].exist, &ekf->lm_confirmed_once[j], landmark_miss_is_certain(sp, ep), sp)) {
             ekfslam_remove_landmark(ekf, (uint16_t)j);
             ekf->ctr.landmarks_removed++;
         }
@@ -2666,7 +2697,14 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
         }
     }
     cekf_drift(ekf); /* theta moved: x_now's sums */
+    ekf->view = 0; /* one frame's */
     return result;
+}
+
+void ekfslam_set_view(ekfslam_t *ekf, const view_profile_t *v)
+{
+    COSLAM_ASSERT(ekf != 0);
+    ekf->view = v != 0 && v->valid ? v : 0;
 }
 
 /* Jacobian of rel = R^T (m_j - p) w.r.t. (x, y, theta, m_jx, m_jy). */

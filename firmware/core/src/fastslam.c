@@ -92,6 +92,7 @@ coslam_status_t fastslam_init(fastslam_t *fs, const fastslam_config_t *cfg, pose
         return COSLAM_E_ARG;
     }
     memset(&fs->ctr, 0, sizeof fs->ctr);
+    fs->view = 0;
     fs->cfg = *cfg;
     rng_seed(&fs->rng, seed);
     fs->next_id = 1U;
@@ -581,24 +582,13 @@ static int revisit_move(const landmark_t *lc, const revisit_fix_t *f, point2_t a
     return (*dx * *dx + *dy * *dy > 1e-8) && isfinite(*dx) && isfinite(*dy);
 }
 
-/* 1 if some sighting of the frame other than `skip`, of lm's class, lies
- * within chi2 of the expectation e. */
-static int sighting_near(const sighting_t *z, int ns, int skip, const landmark_t *lm, const lm_expect_t *e, double chi2)
-{
-    for (int k = 0; k < ns; ++k) {
-        if (k != skip && z[k].signature == lm->signature && landmark_mahalanobis2(e, z[k]) < chi2) {
-            return 1;
-        }
-    }
-    return 0;
-}
-
 /* A certain miss from expectation e: in view, well placed, no sighting near. */
-static int certain_miss(const slam_params_t *sp, const sighting_t *z, int ns, int skip, const landmark_t *lm,
+static int certain_miss(const fastslam_t *fs, const sighting_t *z, int ns, int skip, const landmark_t *lm,
                         const lm_expect_t *e)
 {
-    return landmark_should_be_seen(sp, e->zhat) && landmark_miss_is_certain(sp, e) &&
-           !sighting_near(z, ns, skip, lm, e, sp->new_landmark_chi2);
+    const slam_params_t *sp = &fs->cfg.slam;
+    return landmark_should_be_seen(sp, e->zhat) && landmark_miss_is_certain(sp, e) && !landmark_hidden(fs->view, e) &&
+           !landmark_sighting_near(e, lm->signature, z, ns, skip, sp->new_landmark_chi2);
 }
 
 /* The particle's other landmarks of sighting z's class (in the query's
@@ -672,9 +662,9 @@ static int revisit_supported(const fastslam_t *fs, const fastslam_particle_t *p,
             }
         }
         /* a miss the closure makes (not one from the present pose) */
-        if (lm->exist >= sp->exist_confirm && certain_miss(sp, z, ns, i, lm, &eq)) {
+        if (lm->exist >= sp->exist_confirm && certain_miss(fs, z, ns, i, lm, &eq)) {
             lm_expect_t e0;
-            if (landmark_expect(lm, sp, p->pose, 0, &e0) != COSLAM_OK || !certain_miss(sp, z, ns, i, lm, &e0)) {
+            if (landmark_expect(lm, sp, p->pose, 0, &e0) != COSLAM_OK || !certain_miss(fs, z, ns, i, lm, &e0)) {
                 misses++;
             }
         }
@@ -945,6 +935,10 @@ static coslam_status_t update_particle(fastslam_t *fs, uint16_t k, const sightin
         if (!landmark_should_be_seen(sp, ep->zhat)) {
             continue;
         }
+        if (landmark_hidden(fs->view, ep)) {
+            fs->ctr.misses_hidden++; /* behind an obstacle the laser saw: not missed */
+            continue;
+        }
         /* on a copy: the shared landmark is written only if it changed */
         const landmark_t *lmc = lm_tree_get(&fs->lm_pool, p->lm_root, j);
         float exist = lmc->exist;
@@ -1149,8 +1143,15 @@ coslam_status_t fastslam_update(fastslam_t *fs, const sighting_t *z_in, int n_in
             result = COSLAM_E_CAPACITY;
         }
     }
+    fs->view = 0; /* one frame's */
     fastslam_reweighted(fs);
     return result;
+}
+
+void fastslam_set_view(fastslam_t *fs, const view_profile_t *v)
+{
+    COSLAM_ASSERT(fs != 0);
+    fs->view = v != 0 && v->valid ? v : 0;
 }
 
 uint16_t fastslam_best_particle(const fastslam_t *fs)

@@ -53,14 +53,24 @@ slam_params_t slam_params_default(void)
     p.exist_miss = 1.0f;
     p.exist_confirm = 5.0f;
     p.exist_max = 10.0f;
-    /* a landmark at exist_max stays exported through K = 40 certain misses
-     * (8 s at 5 Hz), is removed at the 81st (slam_params.h) */
-    p.exist_miss_confirmed = 0.125f;
+    /* the paper's camera detects a marker in view with probability 0.9:
+     * 0.5587, a landmark at exist_max exported through 8 certain misses
+     * and removed at the 18th (slam_params.h) */
+    p.exist_miss_confirmed = (float)slam_exist_miss_for_detection(0.9);
     p.exist_miss_bearing_sd_frac = 0.25;
     p.max_speed_mps = 3.0;
     p.max_turn_radps = 2.0 * 3.14159265358979323846;
     p.sighting_max_range_m = 20.0;
     return p;
+}
+
+double slam_exist_miss_for_detection(double p_detect)
+{
+    const double pf = SLAM_EXIST_P_FALSE;
+    if (!(p_detect > pf && p_detect < 1.0)) {
+        return -1.0;
+    }
+    return log((1.0 - pf) / (1.0 - p_detect)) / log(p_detect / pf);
 }
 
 static int finite_nonneg(double v)

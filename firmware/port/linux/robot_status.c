@@ -79,6 +79,7 @@ void robot_status_collect(robot_status_t *s, robot_node_t *node, const robot_dev
     u64(s, "laser_lost", c->laser_lost);
     u64(s, "grid_out_of_grid", c->grid_out_of_grid);
     u64(s, "frames", c->frames);
+    u64(s, "views", c->views);
     u64(s, "frame_errors", c->frame_errors);
     u64(s, "sightings_dropped", c->sightings_dropped);
     u64(s, "robot_sightings_refused", c->robot_sightings_refused);

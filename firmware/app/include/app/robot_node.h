@@ -153,6 +153,9 @@ typedef struct {
     uint32_t laser_connect_failures;
     uint32_t grid_out_of_grid;    /**< scans with returns outside the grid */
     uint32_t frames;              /**< sighting frames used */
+    uint32_t views;               /**< of them, with a view profile from a scan at most
+                                       scan_max_age_us old (set_view; the others count
+                                       every miss) */
     uint32_t frame_errors;        /**< sighting source errors */
     uint32_t sightings_dropped;   /**< reported by the source (frame full) */
     uint32_t filter_errors;       /**< predict/update returned an error */
@@ -208,6 +211,9 @@ typedef struct {
     size_t scan_n;                /**< points of the last good scan (0: none yet) */
     uint64_t scan_us;             /**< when it was read */
     double scan_heading_rad;      /**< odometry heading then */
+    pose2_t scan_odo_pose;        /**< odometry pose then (the view profile moves the
+                                       scan's points to the camera frame's pose) */
+    view_profile_t view;          /**< the last frame's view profile (slam_filter_set_view) */
     occ_grid_t grid;
     /* odometry */
     pose2_t odo_pose;

@@ -171,6 +171,13 @@
 #define COSLAM_MAX_SCAN_POINTS 1081
 #endif
 
+/** Bearing bins of the view profile (view.h): the obstacles around the robot
+ *  that the laser saw, so that a landmark behind one is not counted as
+ *  missed. 128 bins of 2.8 deg; 4 bytes each, one profile per filter. */
+#ifndef COSLAM_VIEW_BINS
+#define COSLAM_VIEW_BINS 128
+#endif
+
 /** Robots in a team; bounds robot ids and the per-landmark provenance mask. */
 #ifndef COSLAM_MAX_ROBOTS
 #define COSLAM_MAX_ROBOTS 16
@@ -225,6 +232,9 @@
 #endif
 #if COSLAM_MAX_EXPORT_IDS < COSLAM_MAX_LANDMARKS
 #error "COSLAM_MAX_EXPORT_IDS must be at least COSLAM_MAX_LANDMARKS"
+#endif
+#if COSLAM_VIEW_BINS < 8 || COSLAM_VIEW_BINS > 4096
+#error "COSLAM_VIEW_BINS must be in [8, 4096]"
 #endif
 #if COSLAM_GRID_CELLS_X < 8 || COSLAM_GRID_CELLS_X > 4096 || COSLAM_GRID_CELLS_Y < 8 || COSLAM_GRID_CELLS_Y > 4096
 #error "COSLAM_GRID_CELLS_X/Y must be in [8, 4096]"

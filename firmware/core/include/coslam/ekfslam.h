@@ -199,6 +199,12 @@ typedef struct {
     uint32_t updates;
     uint32_t landmarks_added;
     uint32_t landmarks_removed;
+    uint32_t misses_hidden;           /**< landmarks in view not counted as missed because the
+                                           view profile (ekfslam_set_view) put an obstacle in
+                                           front of them */
+    uint32_t misses_held;             /**< landmarks in view not counted as missed because a
+                                           sighting held back as a possible revisit of them
+                                           (a loop-closing candidate of it) was in the frame */
     uint32_t lm_capacity_drops;       /**< state full: sighting not mapped */
     uint32_t sighting_capacity_drops; /**< sightings beyond COSLAM_MAX_SIGHTINGS */
     uint32_t export_capacity_drops;
@@ -257,7 +263,10 @@ typedef struct {
     int32_t second[COSLAM_MAX_SIGHTINGS];         /**< the runner-up hypothesis */
     int second_pairings;
     double second_score;
-    uint8_t held[COSLAM_MAX_SIGHTINGS];           /**< sighting held back: ambiguous */
+    uint8_t held[COSLAM_MAX_SIGHTINGS];           /**< sighting held back: 1 as a possible
+                                                       revisit (ambiguous, or its loop-closing
+                                                       pairing nonlinear), 2 its other pairing
+                                                       nonlinear (the pose has lost its landmarks) */
     uint32_t closures_short;                      /**< leaves refused: too few closure pairings */
     uint32_t pass;                                /**< 0: find the best; 1: the alternatives */
     double alt_other[COSLAM_MAX_SIGHTINGS];       /**< best score found pairing sighting i elsewhere */
@@ -380,6 +389,7 @@ typedef struct {
     uint16_t n_lm;
     uint32_t next_id;
     ekfslam_counters_t ctr;
+    const view_profile_t *view;              /**< the next update's view profile (ekfslam_set_view), or NULL */
     double x[EKFSLAM_DIM];
     point2_t lm_first[COSLAM_EKF_MAX_LANDMARKS]; /**< first estimate of each landmark (FEJ) */
     uint8_t merging;                         /**< 1 between ekfslam_merge_begin and _end */
@@ -430,8 +440,14 @@ void ekfslam_idle(ekfslam_t *ekf, uint32_t shares);
 coslam_status_t ekfslam_predict(ekfslam_t *ekf, odo_increment_t u);
 
 /** Update with one camera frame's sightings; return codes as fastslam_update().
- *  E_MERGE_BUSY, no change, while a merge runs (as ekfslam_predict). */
+ *  E_MERGE_BUSY, no change, while a merge runs (as ekfslam_predict); the
+ *  frame's view profile (ekfslam_set_view) is forgotten either way. */
 coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z, int n);
+
+/** The obstacles around the robot for the next update only; as
+ *  fastslam_set_view (a landmark the profile hides is not missed; the
+ *  pointer is kept until the update). */
+void ekfslam_set_view(ekfslam_t *ekf, const view_profile_t *v);
 
 /** Robot pose and its covariance. O(1). */
 void ekfslam_pose(const ekfslam_t *ekf, pose2_t *pose, cov3_t *cov);

@@ -64,6 +64,7 @@
 #include "coslam/config.h"
 #include "coslam/cov3.h"
 #include "coslam/landmark.h"
+#include "coslam/view.h"
 #include "coslam/lm_tree.h"
 #include "coslam/map_estimate.h"
 #include "coslam/motion.h"
@@ -152,6 +153,9 @@ typedef struct {
     uint32_t resamples;
     uint32_t landmarks_added;       /**< counted once per identity */
     uint32_t landmarks_removed;     /**< removals by negative evidence, all particles */
+    uint32_t misses_hidden;         /**< landmarks in view not counted as missed because the
+                                         view profile (fastslam_set_view) put an obstacle in
+                                         front of them, all particles */
     uint32_t lm_capacity_drops;     /**< a particle's map was full: sighting not mapped */
     uint32_t sighting_capacity_drops; /**< sightings beyond COSLAM_MAX_SIGHTINGS */
     uint32_t export_capacity_drops; /**< identities or landmarks beyond the export tables */
@@ -234,6 +238,7 @@ typedef struct {
     uint8_t export_due;      /**< an export in parts is under way
                                   (fastslam_export_begin); no resampling until done */
     fastslam_counters_t ctr;
+    const view_profile_t *view; /**< the next update's view profile (fastslam_set_view), or NULL */
     fastslam_particle_t particles[COSLAM_MAX_PARTICLES];
     lm_tree_pool_t lm_pool;  /**< every particle's map (lm_tree.h) */
     fastslam_scratch_t scratch;
@@ -270,6 +275,16 @@ coslam_status_t fastslam_predict(fastslam_t *fs, odo_increment_t u);
  * COSLAM_E_NUMERIC if an invalid sighting was skipped, else COSLAM_OK.
  */
 coslam_status_t fastslam_update(fastslam_t *fs, const sighting_t *z, int n);
+
+/**
+ * The obstacles around the robot for the next update only (view.h; NULL
+ * clears it): a landmark the profile hides is not counted as missed
+ * (misses_hidden). Without one every miss counts, as before there was a
+ * laser. The filter keeps the pointer, not a copy (the default profile's
+ * RAM budget): `v` must stay unchanged until the update, which forgets it,
+ * so a stale profile is never used.
+ */
+void fastslam_set_view(fastslam_t *fs, const view_profile_t *v);
 
 /**
  * Pose estimate over the particles: weighted mean (circular mean for the

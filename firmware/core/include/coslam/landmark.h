@@ -16,6 +16,7 @@
 #include "coslam/observe.h"
 #include "coslam/pose2.h"
 #include "coslam/slam_params.h"
+#include "coslam/view.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -125,6 +126,24 @@ cov2_t landmark_offset_floor(const slam_params_t *params, const lm_expect_t *e, 
 
 /** 1 if the predicted sighting lies inside the sensor footprint (with margin). */
 int landmark_should_be_seen(const slam_params_t *params, sighting_t zhat);
+
+/**
+ * 1 if the view profile `v` (view.h; NULL or not valid: never) holds an
+ * obstacle certainly in front of the landmark expected as `e`: a laser
+ * return in its bearing bin nearer than its predicted range by more than
+ * 0.1 m + 3 sqrt(S_rr) (the marker may sit on the obstacle's face). Such a
+ * landmark was hidden, not missed.
+ */
+int landmark_hidden(const view_profile_t *v, const lm_expect_t *e);
+
+/**
+ * 1 if some sighting z[i] (i < ns, i != skip; skip < 0: none) of class
+ * `signature` lies within Mahalanobis distance^2 chi2 of the landmark
+ * expected as `e`: with chi2 = new_landmark_chi2 a sighting that could be
+ * the landmark's. O(ns).
+ */
+int landmark_sighting_near(const lm_expect_t *e, uint8_t signature, const sighting_t *z, int ns, int skip,
+                           double chi2);
 
 /** Positive evidence on an existence counter: the landmark was sighted. */
 void exist_hit(float *exist, const slam_params_t *params);

@@ -93,17 +93,19 @@ typedef struct {
      *  missed for a while survives: from evidence e it stays exported through
      *  floor((e - exist_confirm) / exist_miss_confirmed) consecutive certain
      *  misses and stays in the map through floor(e / exist_miss_confirmed).
-     *  Default 0.125 (exact in binary, so these counts are exact): at the
-     *  5 Hz camera a landmark at exist_max stays exported through K = 40
-     *  consecutive certain misses (8 s of looking at it), drops out of the
-     *  export at the 41st and is removed at the 81st (16 s). A robot crossing
-     *  the line of sight hides a marker for about 2 s (0.5 m of robot and
-     *  marker at 0.25 m/s), a robot standing in front of it during a meeting
-     *  for several seconds; with p_detect 0.9 a real landmark in view gains
-     *  0.9 - 0.1 * 0.125 per frame, so missed detections never matter.
-     *  0.25 (K = 20) removed more real landmarks in the simulated arena,
-     *  where boxes hide markers (docs/core-slam.md). 0 restores the old rule:
-     *  confirmed landmarks never fall below exist_confirm (weakening to it at
+     *  Set from the camera's detection probability by
+     *  slam_exist_miss_for_detection() (a binary Bayes filter on the
+     *  landmark's existence, docs/core-slam.md "Death of confirmed
+     *  landmarks"): the default camera detects a marker in view with
+     *  probability 0.9, which gives 0.5587 (K = 8 certain misses exported,
+     *  removed at the 18th: 3.6 s of looking at it at 5 Hz); MRCLAM's camera
+     *  (about a third) 0.125, its value since Dataset 6 chose it; flat
+     *  markers (the robot app, the simulator) SLAM_EXIST_MISS_FLAT_MARKERS,
+     *  their rate over the filter's view unmeasured. A marker
+     *  hidden behind an obstacle is not missed where the robot has a view
+     *  profile from its laser (view.h); without one (no laser, the replay)
+     *  every certain miss counts. 0 restores the old rule: confirmed
+     *  landmarks never fall below exist_confirm (weakening to it at
      *  exist_miss) and are never removed. */
     float exist_miss_confirmed;
     /** A miss of a confirmed (or once confirmed) landmark counts only if its
@@ -151,6 +153,33 @@ typedef struct {
 /** The noise weights as an array w[0..7] = (w1..w8), for calibration. */
 void slam_noise_to_array(const slam_noise_t *noise, double w[SLAM_NOISE_N_WEIGHTS]);
 void slam_noise_from_array(slam_noise_t *noise, const double w[SLAM_NOISE_N_WEIGHTS]);
+
+/** The chance that a landmark that is not there is paired with some sighting
+ *  in a frame that has it in view (slam_exist_miss_for_detection): chosen so
+ *  that MRCLAM's detection rate (about 1/3, Dataset 6) gives the 0.125 that
+ *  Dataset 6 chose; every other camera's miss weight follows from its own
+ *  detection probability. */
+#define SLAM_EXIST_P_FALSE 0.015
+
+/** exist_miss_confirmed for flat markers, seen only from in front (the
+ *  robot app's default, the simulator's): the formula needs the detection
+ *  rate over the region the filter calls in view, which expects a marker
+ *  from every side; that rate is not measured, so MRCLAM's weight (its
+ *  rate about 1/3) is kept (docs/core-slam.md). */
+#define SLAM_EXIST_MISS_FLAT_MARKERS 0.125f
+
+/**
+ * exist_miss_confirmed for a camera that detects a marker in view with
+ * probability p_detect: the landmark's existence as a binary Bayes filter in
+ * log odds (Thrun, Burgard and Fox 2005, 4.2), in which a sighting paired
+ * with the landmark adds log(p_detect / p_false) and a certain miss
+ * log((1 - p_detect) / (1 - p_false)), p_false = SLAM_EXIST_P_FALSE; with
+ * exist_hit as the unit the miss weighs
+ *   log((1 - p_false) / (1 - p_detect)) / log(p_detect / p_false).
+ * 0.9 -> 0.5587, 1/3 -> 0.1259, 0.33 -> 0.1247. Returns -1 unless
+ * p_false < p_detect < 1 (at 1 a single miss would be certain death).
+ */
+double slam_exist_miss_for_detection(double p_detect);
 
 /**
  * Defaults for the simulated Robotino with the paper's camera: range sd
