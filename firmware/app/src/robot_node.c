@@ -348,7 +348,6 @@ static void use_scan(robot_node_t *n)
     n->ctr.diverged = n->health.episodes;
     n->scan_n = np;
     n->scan_us = n->now_us;
-    n->scan_heading_rad = n->odo_pose.theta;
     n->scan_odo_pose = n->odo_pose;
 }
 
@@ -660,7 +659,7 @@ coslam_status_t robot_node_step(robot_node_t *n)
         in.scan.angle_rad = n->scan_angle_rad;
         in.scan.n = n->scan_n;
         in.scan.stamp_us = n->scan_us;
-        in.scan.heading_rad = n->scan_heading_rad;
+        in.scan.heading_rad = n->scan_odo_pose.theta;
         in.scan.points_m = n->scan_points_m;
         in.scan.n_points = n->scan_n_points;
         in.bumped = bumped;

@@ -42,7 +42,7 @@ coslam_status_t slam_filter_init(slam_filter_t *f, const slam_filter_config_t *c
     f->kind = cfg->kind;
     f->robot_id = cfg->robot_id;
     merge_coverage_init(&f->coverage);
-    view_profile_clear(&f->view);
+    f->view = NULL;
     f->merge_due = NULL;
     memset(&f->merge_late, 0, sizeof f->merge_late);
     f->merges_in_parts = 0U;
@@ -453,36 +453,28 @@ int slam_filter_update_prepare(slam_filter_t *f, int n)
 
 void slam_filter_set_view(slam_filter_t *f, const view_profile_t *v)
 {
-    if (v != NULL && v->valid) {
-        f->view = *v;
-    } else {
-        view_profile_clear(&f->view);
-    }
+    f->view = v != NULL && v->valid ? v : NULL;
 }
 
 coslam_status_t slam_filter_update_apply(slam_filter_t *f, const sighting_t *z, int n)
 {
     if (ekf_holding(f)) {
         if (ekf_hold(f, 1, (odo_increment_t){0.0, 0.0, 0.0}, z, n)) {
-            view_profile_clear(&f->view); /* the held frame applies later without it */
+            f->view = NULL; /* the held frame applies later without it */
             return COSLAM_E_MERGE_PENDING; /* applied once the merge is done (held_failures) */
         }
         ekf_finish_now(f); /* not prepared: it did not fit after all */
     }
     /* this frame's view, to the core just before its update (held frames
-     * applied above went without it); the core keeps the pointer until
-     * the update, then this copy is spent */
+     * applied above went without it); the core's update forgets it */
+    const view_profile_t *view = f->view;
+    f->view = NULL;
     if (f->kind == SLAM_FILTER_EKF) {
-        ekfslam_set_view(&f->u.ekf, &f->view);
-        const coslam_status_t est = ekf_update_now(f, z, n);
-        ekfslam_set_view(&f->u.ekf, NULL);
-        view_profile_clear(&f->view);
-        return est;
+        ekfslam_set_view(&f->u.ekf, view);
+        return ekf_update_now(f, z, n);
     }
-    fastslam_set_view(&f->u.fs, &f->view);
+    fastslam_set_view(&f->u.fs, view);
     const coslam_status_t st = fastslam_update(&f->u.fs, z, n);
-    fastslam_set_view(&f->u.fs, NULL);
-    view_profile_clear(&f->view);
     pose2_t pose;
     cov3_t cov;
     slam_filter_pose(f, &pose, &cov);

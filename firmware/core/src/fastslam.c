@@ -582,13 +582,25 @@ static int revisit_move(const landmark_t *lc, const revisit_fix_t *f, point2_t a
     return (*dx * *dx + *dy * *dy > 1e-8) && isfinite(*dx) && isfinite(*dy);
 }
 
+/* 1 if some sighting of the frame other than `skip`, of lm's class, lies
+ * within chi2 of the expectation e. */
+static int sighting_near(const sighting_t *z, int ns, int skip, const landmark_t *lm, const lm_expect_t *e, double chi2)
+{
+    for (int k = 0; k < ns; ++k) {
+        if (k != skip && z[k].signature == lm->signature && landmark_mahalanobis2(e, z[k]) < chi2) {
+            return 1;
+        }
+    }
+    return 0;
+}
+
 /* A certain miss from expectation e: in view, well placed, no sighting near. */
 static int certain_miss(const fastslam_t *fs, const sighting_t *z, int ns, int skip, const landmark_t *lm,
                         const lm_expect_t *e)
 {
     const slam_params_t *sp = &fs->cfg.slam;
     return landmark_should_be_seen(sp, e->zhat) && landmark_miss_is_certain(sp, e) && !landmark_hidden(fs->view, e) &&
-           !landmark_sighting_near(e, lm->signature, z, ns, skip, sp->new_landmark_chi2);
+           !sighting_near(z, ns, skip, lm, e, sp->new_landmark_chi2);
 }
 
 /* The particle's other landmarks of sighting z's class (in the query's

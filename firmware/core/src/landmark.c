@@ -228,18 +228,6 @@ int landmark_hidden(const view_profile_t *v, const lm_expect_t *e)
     return view_blocks(v, e->zhat.range_m, e->zhat.bearing_rad, 0.1 + 3.0 * sqrt(e->s.xx));
 }
 
-int landmark_sighting_near(const lm_expect_t *e, uint8_t signature, const sighting_t *z, int ns, int skip,
-                           double chi2)
-{
-    for (int k = 0; k < ns; ++k) {
-        if (k != skip && z[k].signature == signature &&
-            landmark_mahalanobis2(e, z[k]) < chi2) {
-            return 1;
-        }
-    }
-    return 0;
-}
-
 void exist_hit(float *exist, const slam_params_t *params)
 {
     const float v = *exist + params->exist_hit;

@@ -517,84 +517,28 @@ void lm_tree_release(lm_tree_pool_t *p, lm_tree_idx_t *root)
     }
 }
 
-static uint32_t walk(const lm_tree_pool_t *p, lm_tree_idx_t root, uint32_t n_slots, double x, double y,
-                     double max_range_m, const landmark_t **out, uint16_t *slot_out)
+/* lm_tree_query's test: ctx = {x, y, max_range^2}. */
+static int box_in_reach(const float box[4], void *ctx)
 {
-    if (root == LM_TREE_NIL || n_slots == 0U) {
-        return 0U;
-    }
-    const int prune = max_range_m >= 0.0;
-    const double r2 = max_range_m * max_range_m;
-    if (prune && box_dist2(p->node[root].box, x, y) > r2) {
-        return 0U;
-    }
-    lm_tree_idx_t cur[LM_TREE_DEPTH];
-    uint32_t pos[LM_TREE_DEPTH];
-    uint32_t base[LM_TREE_DEPTH];
-    uint32_t n = 0U;
-    int l = 0;
-    cur[0] = root;
-    pos[0] = 0U;
-    base[0] = 0U;
-    while (l >= 0) {
-        if (pos[l] == F_) {
-            --l;
-            continue;
-        }
-        const uint32_t q = pos[l]++;
-        const uint32_t first = base[l] + (q << (LM_TREE_FANOUT_LOG2 * (unsigned)(D_ - 1 - l)));
-        if (first >= n_slots) {
-            pos[l] = F_; /* slots are dense: nothing further right */
-            continue;
-        }
-        const lm_tree_idx_t ch = p->node[cur[l]].child[q];
-        if (ch == LM_TREE_NIL) {
-            continue;
-        }
-        if (l == D_ - 1) {
-            out[n] = &p->leaf[ch].lm;
-            if (slot_out != 0) {
-                slot_out[n] = (uint16_t)first;
-            }
-            ++n;
-            continue;
-        }
-        if (prune && box_dist2(p->node[ch].box, x, y) > r2) {
-            continue;
-        }
-        ++l;
-        cur[l] = ch;
-        pos[l] = 0U;
-        base[l] = first;
-    }
-    return n;
+    const double *q = (const double *)ctx;
+    return box_dist2(box, q[0], q[1]) > q[2] ? LM_TREE_BOX_NONE : LM_TREE_BOX_SOME;
 }
 
-uint32_t lm_tree_query(lm_tree_pool_t *p, lm_tree_idx_t root, uint32_t n_slots, double x, double y,
-                       double max_range_m, const landmark_t **out, uint16_t *slot_out)
+/* The slot-order traversal of every reader: `test` (NULL: none) is asked
+ * about each node's box where the box is clean (a stale one may no longer
+ * enclose what is below) and not below an LM_TREE_BOX_ALL answer; a
+ * subtree it answers LM_TREE_BOX_NONE is skipped. all_out (may be NULL)
+ * flags the landmarks taken under an LM_TREE_BOX_ALL answer. Inline, so
+ * that each reader's constant test is inlined into its copy. */
+static inline uint32_t walk(const lm_tree_pool_t *p, lm_tree_idx_t root, uint32_t n_slots, lm_tree_box_fn test,
+                            void *ctx, const landmark_t **out, uint16_t *slot_out, uint8_t *all_out)
 {
-    lm_tree_clean(p, root);
-    return walk(p, root, n_slots, x, y, max_range_m < 0.0 ? 0.0 : max_range_m, out, slot_out);
-}
-
-uint32_t lm_tree_gather(const lm_tree_pool_t *p, lm_tree_idx_t root, uint32_t n_slots, const landmark_t **out,
-                        uint16_t *slot_out)
-{
-    return walk(p, root, n_slots, 0.0, 0.0, -1.0, out, slot_out);
-}
-
-uint32_t lm_tree_select(const lm_tree_pool_t *p, lm_tree_idx_t root, uint32_t n_slots, lm_tree_box_fn may_hold,
-                        void *ctx, const landmark_t **out, uint16_t *slot_out, uint8_t *all_out)
-{
-    /* walk()'s traversal with a caller's box test, tested only where the
-     * box is clean (a stale one may no longer enclose what is below), and
-     * not below an LM_TREE_BOX_ALL answer */
     if (root == LM_TREE_NIL || n_slots == 0U) {
         return 0U;
     }
     uint8_t all[LM_TREE_DEPTH] = {0U}; /* all of it: gcc (arm, -O2) cannot see each level set before read */
-    if (!p->node[root].dirty) {
-        const int a = may_hold(p->node[root].box, ctx);
+    if (test != 0 && !p->node[root].dirty) {
+        const int a = test(p->node[root].box, ctx);
         if (a == LM_TREE_BOX_NONE) {
             return 0U;
         }
@@ -635,8 +579,8 @@ uint32_t lm_tree_select(const lm_tree_pool_t *p, lm_tree_idx_t root, uint32_t n_
             continue;
         }
         uint8_t below = all[l];
-        if (!below && !p->node[ch].dirty) {
-            const int a = may_hold(p->node[ch].box, ctx);
+        if (test != 0 && !below && !p->node[ch].dirty) {
+            const int a = test(p->node[ch].box, ctx);
             if (a == LM_TREE_BOX_NONE) {
                 continue;
             }
@@ -649,4 +593,25 @@ uint32_t lm_tree_select(const lm_tree_pool_t *p, lm_tree_idx_t root, uint32_t n_
         all[l] = below;
     }
     return n;
+}
+
+uint32_t lm_tree_query(lm_tree_pool_t *p, lm_tree_idx_t root, uint32_t n_slots, double x, double y,
+                       double max_range_m, const landmark_t **out, uint16_t *slot_out)
+{
+    lm_tree_clean(p, root);
+    const double r = max_range_m < 0.0 ? 0.0 : max_range_m;
+    double q[3] = {x, y, r * r};
+    return walk(p, root, n_slots, box_in_reach, q, out, slot_out, 0);
+}
+
+uint32_t lm_tree_gather(const lm_tree_pool_t *p, lm_tree_idx_t root, uint32_t n_slots, const landmark_t **out,
+                        uint16_t *slot_out)
+{
+    return walk(p, root, n_slots, 0, 0, out, slot_out, 0);
+}
+
+uint32_t lm_tree_select(const lm_tree_pool_t *p, lm_tree_idx_t root, uint32_t n_slots, lm_tree_box_fn may_hold,
+                        void *ctx, const landmark_t **out, uint16_t *slot_out, uint8_t *all_out)
+{
+    return walk(p, root, n_slots, may_hold, ctx, out, slot_out, all_out);
 }

@@ -210,9 +210,8 @@ typedef struct {
     size_t scan_n_points;
     size_t scan_n;                /**< points of the last good scan (0: none yet) */
     uint64_t scan_us;             /**< when it was read */
-    double scan_heading_rad;      /**< odometry heading then */
-    pose2_t scan_odo_pose;        /**< odometry pose then (the view profile moves the
-                                       scan's points to the camera frame's pose) */
+    pose2_t scan_odo_pose;        /**< odometry pose then (the behaviour's heading; the view
+                                       profile moves the scan's points to the frame's pose) */
     view_profile_t view;          /**< the last frame's view profile (slam_filter_set_view) */
     occ_grid_t grid;
     /* odometry */

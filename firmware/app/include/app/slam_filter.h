@@ -89,9 +89,9 @@ typedef struct slam_filter_s {
     /** Keyframes from which this robot looked (noted after every update);
      *  the merge's negative information (merge_check). */
     merge_coverage_t coverage;
-    /** The next update's view profile (slam_filter_set_view), handed to the
-     *  core just before that update. */
-    view_profile_t view;
+    /** The next update's view profile (slam_filter_set_view, the caller's),
+     *  handed to the core just before that update; NULL: none. */
+    const view_profile_t *view;
     /** A merge in parts not yet done (merge_config_t.step_units): for
      *  Fast-SLAM, its check waiting for the own export or its fusion; for
      *  EKF-SLAM, its fusion (the inputs meanwhile held). The working
@@ -224,7 +224,8 @@ coslam_status_t slam_filter_update_apply(slam_filter_t *f, const sighting_t *z, 
 /**
  * The obstacles around the robot for the next update (fastslam_set_view /
  * ekfslam_set_view; NULL: none): a landmark behind one is not counted as
- * missed. Set it just before slam_filter_update_apply; the update clears
+ * missed. Set it just before slam_filter_update_apply and keep `v`
+ * unchanged until then (the filter keeps the pointer); the update forgets
  * it. A frame held behind an EKF-SLAM merge in parts is applied later
  * without it (its misses count, as without a laser).
  */

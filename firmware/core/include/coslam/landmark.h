@@ -136,14 +136,6 @@ int landmark_should_be_seen(const slam_params_t *params, sighting_t zhat);
  */
 int landmark_hidden(const view_profile_t *v, const lm_expect_t *e);
 
-/**
- * 1 if some sighting z[i] (i < ns, i != skip; skip < 0: none) of class
- * `signature` lies within Mahalanobis distance^2 chi2 of the landmark
- * expected as `e`: with chi2 = new_landmark_chi2 a sighting that could be
- * the landmark's. O(ns).
- */
-int landmark_sighting_near(const lm_expect_t *e, uint8_t signature, const sighting_t *z, int ns, int skip,
-                           double chi2);
 
 /** Positive evidence on an existence counter: the landmark was sighted. */
 void exist_hit(float *exist, const slam_params_t *params);
