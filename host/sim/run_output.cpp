@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iomanip>
+#include <limits>
 #include <sstream>
 #include <stdexcept>
 
@@ -121,6 +122,54 @@ nlohmann::json eval_json(const MapSnapshot &m)
 
 }  // namespace
 
+// The camera's detection rate over the filter's view (detection_tally.hpp)
+// and the miss weight it gives (slam_exist_miss_for_detection); null where
+// nothing was in view.
+// The rate at which a filter finds its confirmed landmarks where it expects
+// them (slam_filter_view_counts); NaN with none.
+double view_pair_rate(const robot_node_t &n)
+{
+    uint32_t pairs = 0, misses = 0;
+    slam_filter_view_counts(&n.filter, &pairs, &misses);
+    return pairs + misses > 0 ? static_cast<double>(pairs) / (static_cast<double>(pairs) + misses)
+                              : std::numeric_limits<double>::quiet_NaN();
+}
+
+// slam_exist_miss_for_detection where the rate allows it
+bool miss_weight_for(double p_d, double *w)
+{
+    if (!(p_d > SLAM_EXIST_P_FALSE && p_d < 1.0)) return false;
+    *w = slam_exist_miss_for_detection(p_d);
+    return true;
+}
+
+nlohmann::json detection_json(const DetectionTally &t, const robot_node_t &n)
+{
+    const slam_params_t &filter = n.cfg.filter.slam;
+    uint32_t pairs = 0, misses = 0;
+    slam_filter_view_counts(&n.filter, &pairs, &misses);
+    const double pr = view_pair_rate(n);
+    double wpr = 0.0;
+    const bool okp = miss_weight_for(pr, &wpr);
+    const double pd = detection_rate(t);
+    const double pdc = detection_rate_clear(t);
+    double wpdc = 0.0;
+    const bool ok = t.in_view_clear > 0 && miss_weight_for(pdc, &wpdc);
+    return {{"frames", t.frames},
+            {"in_view", t.in_view},
+            {"detected", t.detected},
+            {"p_d", measured(t.in_view > 0, pd)},
+            {"in_view_clear", t.in_view_clear},
+            {"detected_clear", t.detected_clear},
+            {"p_d_clear", measured(t.in_view_clear > 0, pdc)},
+            {"exist_miss_for_p_d_clear", measured(ok, wpdc)},
+            {"filter_view_pairs", pairs},
+            {"filter_view_misses", misses},
+            {"filter_pair_rate", measured(pairs + misses > 0, pr)},
+            {"exist_miss_for_pair_rate", measured(okp, wpr)},
+            {"exist_miss_confirmed", filter.exist_miss_confirmed}};
+}
+
 nlohmann::json merge_json(const MergeRecord &m)
 {
     nlohmann::json j = {{"t_s", m.t_s},
@@ -213,6 +262,7 @@ nlohmann::json run_metrics(const Simulation &sim)
             {"first_merge_s", measured(rr.first_merge_s >= 0.0, rr.first_merge_s)},
             {"map", {{"pre_merge", eval_json(rr.pre_merge)}, {"post_merge", eval_json(rr.post_merge)},
                      {"final", eval_json(rr.final_map)}}},
+            {"detection", detection_json(sim.robot(k).detection_tally(), sim.node(k))},
             {"wall_collisions", rr.wall_collisions},
             {"robot_collisions", rr.robot_collisions},
             {"min_wall_clearance_m", rr.min_wall_clearance_m},
@@ -399,6 +449,29 @@ std::string run_summary(const Simulation &sim, const std::string &out_dir)
                           static_cast<unsigned long long>(st.robot_id_errors));
             s << cl;
         }
+    }
+    // the miss weight's input (docs/core-slam.md): said, so a camera that
+    // detects less than its filter is configured for is seen
+    s << "  landmarks found where the filter expects them (its view, a clear line of sight):\n";
+    for (size_t k = 0; k < sim.n_robots(); ++k) {
+        const DetectionTally &t = sim.robot(k).detection_tally();
+        const double pdc = detection_rate_clear(t);
+        const double pr = view_pair_rate(sim.node(k));
+        double wd = 0.0, wp = 0.0;
+        const bool okd = t.in_view_clear > 0 && miss_weight_for(pdc, &wd);
+        const bool okp = miss_weight_for(pr, &wp);
+        char wds[32] = "n/a", wps[32] = "n/a", pds[32] = "n/a", prs[32] = "n/a";
+        if (t.in_view_clear > 0) std::snprintf(pds, sizeof pds, "%.3f", pdc);
+        if (okd) std::snprintf(wds, sizeof wds, "%.3f", wd);
+        if (std::isfinite(pr)) std::snprintf(prs, sizeof prs, "%.3f", pr);
+        if (okp) std::snprintf(wps, sizeof wps, "%.3f", wp);
+        char dl[400];
+        std::snprintf(dl, sizeof dl,
+                      "    %s: camera detected %s (%llu landmark-frames; miss weight %s), filter paired %s of its "
+                      "confirmed landmarks (miss weight %s); %.3f configured\n",
+                      r.robots[k].name.c_str(), pds, static_cast<unsigned long long>(t.in_view_clear), wds, prs, wps,
+                      static_cast<double>(sim.node(k).cfg.filter.slam.exist_miss_confirmed));
+        s << dl;
     }
     s << std::setprecision(3);
     s << "  per robot: pose RMSE before / after its first merge; maps as known/missed/spurious landmarks and\n"

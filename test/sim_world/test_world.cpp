@@ -234,6 +234,57 @@ TEST(SightingOracle, NoiseAndDetectionRateFollowTheConfiguration)
     EXPECT_TRUE(differ);
 }
 
+// The detection tally (detection_tally.hpp): per delivered frame, the true
+// landmarks the FILTER's view model calls in view (its own range, field of
+// view and margin, not the camera's), with a clear line of sight or not, and
+// how many of each were detected. A camera detecting with p 0.5 gives 0.5
+// within 4 binomial sd over the clear ones; one behind a box is in view,
+// never clear and never detected; one the camera sees but the filter's
+// narrower view leaves out, and one beyond its range, are not counted; a
+// frame taken but not delivered is not tallied.
+TEST(SightingOracle, DetectionTallyOverTheFiltersView)
+{
+    World w;
+    w.set_body(0, pose2_t{0, 0, 0}, 0.19);
+    auto at = [&](double r, double b) { return Vector2d(r * std::cos(b), r * std::sin(b)); };
+    w.add_landmark(at(2.0, 0.05), 0);          // 0 in view, clear
+    w.add_landmark(at(3.0, -0.1), 1);          // 1 in view, clear
+    w.add_landmark(at(3.0, 0.2), 2);           // 2 behind a box
+    w.add_box(at(1.5, 0.2), Vector2d(0.2, 0.2), 0.0);
+    w.add_landmark(at(2.5, 20.0 * kDeg), 3);   // 3 the camera's view (+-25 deg), not the filter's (+-15 deg x 0.9)
+    w.add_landmark(at(4.8, 0.0), 0);           // 4 the camera's range (5 m), not the filter's (4 x 0.9)
+    SightingOracleConfig c = exact_oracle();
+    c.p_detect = 0.5;
+    c.period_us = 1000;
+    c.view_model = slam_params_default();
+    c.view_model.sensor_fov_rad = 30.0 * kDeg;
+    c.view_model.sensor_max_range_m = 4.0;
+    c.view_model.visibility_margin = 0.9;
+    SightingOracle o(w, 0, c);
+    const int n = 2000;
+    for (int i = 0; i < n; ++i) {
+        o.set_time_us(static_cast<uint64_t>(i) * 1000u);
+        sighting_frame_t f;
+        ASSERT_EQ(sighting_source_next_frame(o.source(), &f, 0), HAL_OK);
+    }
+    o.set_time_us(static_cast<uint64_t>(n) * 1000u); // taken, never delivered
+    const DetectionTally &t = o.detection_tally();
+    EXPECT_EQ(t.frames, static_cast<uint64_t>(n));
+    EXPECT_EQ(t.in_view, 3u * n);
+    EXPECT_EQ(t.in_view_clear, 2u * n);
+    EXPECT_EQ(t.detected, t.detected_clear); // the box hides landmark 2 from the camera too
+    const double sd = std::sqrt(0.25 / t.in_view_clear);
+    EXPECT_NEAR(detection_rate_clear(t), 0.5, 4.0 * sd);
+    EXPECT_NEAR(detection_rate(t), 0.5 * 2.0 / 3.0, 4.0 * sd);
+    // the camera did detect the ones outside the filter's view
+    EXPECT_GT(o.detections()[3], n / 3);
+    EXPECT_GT(o.detections()[4], n / 3);
+    EXPECT_EQ(o.detections()[2], 0);
+    // nothing in view: NaN, not 0
+    EXPECT_TRUE(std::isnan(detection_rate(DetectionTally{})));
+    EXPECT_TRUE(std::isnan(detection_rate_clear(DetectionTally{})));
+}
+
 // ---------------------------------------------------------------------------
 // scenarios
 // ---------------------------------------------------------------------------
@@ -498,6 +549,26 @@ TEST(Simulation, TheLaserHidesMarkersBehindBoxesFromTheMissCount)
                 f1.u.ekf.ctr.misses_hidden);
     EXPECT_GT(f0.u.fs.ctr.misses_hidden, 0u);
     EXPECT_GT(f1.u.ekf.ctr.misses_hidden, 0u);
+    // the rates the miss weight stands for (docs/core-slam.md): the pixel
+    // camera's detection over the filter's view, every frame the robot
+    // received tallied once; and the filter's own pairing of its confirmed
+    // landmarks where it expects them, which no camera rate can exceed by
+    // much (the filter's misses include its estimates' errors)
+    for (size_t k = 0; k < 2; ++k) {
+        const DetectionTally &t = sim.robot(k).detection_tally();
+        EXPECT_EQ(t.frames, robot_node_counters(&sim.node(k))->frames) << "robot " << k;
+        EXPECT_GT(t.in_view_clear, 500u) << "robot " << k;
+        EXPECT_GT(t.in_view, t.in_view_clear) << "robot " << k; // the boxes hide some
+        EXPECT_GT(detection_rate_clear(t), 0.95) << "robot " << k;
+        uint32_t pairs = 0, misses = 0;
+        slam_filter_view_counts(&sim.node(k).filter, &pairs, &misses);
+        const double pr = static_cast<double>(pairs) / (pairs + misses);
+        std::printf("robot %zu: camera %.3f over its filter's view (clear), filter pairs %.3f (%u of %u)\n", k,
+                    detection_rate_clear(t), pr, pairs, pairs + misses);
+        EXPECT_GT(pairs + misses, 500u) << "robot " << k;
+        EXPECT_GT(pr, 0.8) << "robot " << k;
+        EXPECT_LT(pr, detection_rate_clear(t) + 0.01) << "robot " << k;
+    }
 }
 
 TEST(RunOutput, FilesAreWrittenAndParse)

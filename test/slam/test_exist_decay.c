@@ -598,6 +598,86 @@ static void test_held_sighting_no_miss(void **state)
     assert_false(present(&w, id));
 }
 
+static void view_counts(const world_t *w, uint32_t *pairs, uint32_t *misses)
+{
+    *pairs = w->ekf ? g_ekf.ctr.view_pairs : g_fs.ctr.view_pairs;
+    *misses = w->ekf ? g_ekf.ctr.view_misses : g_fs.ctr.view_misses;
+}
+
+/* The filter's own measure of the rate at which it finds its confirmed
+ * landmarks where it expects them (view_pairs, view_misses): a camera that
+ * detects each marker with p_detect 0.6 gives 0.6 within 4 binomial sd
+ * (Fast-SLAM counts every particle, one frame's draw for all: the sd is
+ * that of the frames' count); a ghost in plain view adds one miss a frame
+ * (per particle) and no pair; one behind a wall the laser sees adds
+ * neither. Without the pairs or the misses counted, with the hidden ones
+ * counted as misses, or with the ghost counted as paired, it fails. */
+static void counts_detection_rate(int ekf)
+{
+    const uint32_t per = ekf ? 1U : (uint32_t)N_PARTICLES;
+    world_t w;
+    const slam_params_t sp = params();
+    world_init(&w, ekf, sp);
+    warm_up(&w);
+    w.p_detect = 0.6;
+    uint32_t p0;
+    uint32_t m0;
+    view_counts(&w, &p0, &m0);
+    enum { FRAMES = 300 };
+    for (int f = 0; f < FRAMES; ++f) {
+        step(&w);
+    }
+    uint32_t p1;
+    uint32_t m1;
+    view_counts(&w, &p1, &m1);
+    const double n = (double)(p1 - p0 + m1 - m0);
+    ASSERT_NEAR(n, (double)(FRAMES * N_REAL * per), 0.0); /* every real marker, every frame, in view */
+    const double rate = (double)(p1 - p0) / n;
+    const double sd = sqrt(0.6 * 0.4 / (n / per));
+    print_message("%s: paired %.3f of the confirmed landmarks in view (camera 0.6, sd %.3f)\n",
+                  ekf ? "EKF-SLAM" : "Fast-SLAM", rate, sd);
+    ASSERT_NEAR(rate, 0.6, 4.0 * sd);
+
+    /* a ghost in plain view: a miss a frame, per particle */
+    w.p_detect = 1.0;
+    (void)inject_ghost(&w, sp.exist_max, 0.01);
+    view_counts(&w, &p0, &m0);
+    for (int f = 0; f < 10; ++f) {
+        step(&w);
+    }
+    view_counts(&w, &p1, &m1);
+    /* every landmark counted once a frame; a Fast-SLAM 1.0 particle whose
+     * sampled pose puts a real marker outside its gate misses it too */
+    assert_int_equal(p1 - p0 + m1 - m0, 10U * (N_REAL + 1) * per);
+    assert_true(p1 - p0 >= 10U * N_REAL * per * 95U / 100U);
+    assert_true(m1 - m0 >= 10U * per);
+
+    /* behind a wall the laser sees: neither */
+    world_init(&w, ekf, sp);
+    warm_up(&w);
+    (void)inject_ghost(&w, sp.exist_max, 0.01);
+    w.wall_m = 1.2;
+    view_counts(&w, &p0, &m0);
+    for (int f = 0; f < 10; ++f) {
+        step(&w);
+    }
+    view_counts(&w, &p1, &m1);
+    assert_int_equal(p1 - p0 + m1 - m0, 10U * N_REAL * per); /* the ghost in neither */
+    assert_true(m1 - m0 <= 10U * N_REAL * per * 5U / 100U);
+}
+
+static void test_fastslam_counts_detection_rate(void **state)
+{
+    (void)state;
+    counts_detection_rate(0);
+}
+
+static void test_ekfslam_counts_detection_rate(void **state)
+{
+    (void)state;
+    counts_detection_rate(1);
+}
+
 /* The default miss weight is the existence filter's for the paper camera
  * (p_detect 0.9); MRCLAM's detection rate (about 1/3) gives its 0.125; more
  * reliable cameras weigh a miss more; outside (p_false, 1) no weight. */
@@ -656,6 +736,8 @@ int main(void)
         cmocka_unit_test(test_fastslam_hidden_by_view),
         cmocka_unit_test(test_ekfslam_hidden_by_view),
         cmocka_unit_test(test_miss_for_detection),
+        cmocka_unit_test(test_fastslam_counts_detection_rate),
+        cmocka_unit_test(test_ekfslam_counts_detection_rate),
         cmocka_unit_test(test_held_sighting_no_miss),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

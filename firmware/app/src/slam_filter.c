@@ -874,6 +874,12 @@ const slam_params_t *slam_filter_params(const slam_filter_t *f)
     return f->kind == SLAM_FILTER_EKF ? &f->u.ekf.cfg.slam : &f->u.fs.cfg.slam;
 }
 
+void slam_filter_view_counts(const slam_filter_t *f, uint32_t *pairs, uint32_t *misses)
+{
+    *pairs = f->kind == SLAM_FILTER_EKF ? f->u.ekf.ctr.view_pairs : f->u.fs.ctr.view_pairs;
+    *misses = f->kind == SLAM_FILTER_EKF ? f->u.ekf.ctr.view_misses : f->u.fs.ctr.view_misses;
+}
+
 /* The check cannot be made in this call (Fast-SLAM: the own export in
  * parts; EKF-SLAM: the local phase completed in parts): w holds the merge
  * until the idle calls have made it, and its outcome is taken from w. */

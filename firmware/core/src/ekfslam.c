@@ -2606,6 +2606,10 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
             ++n_updated;
             d2_sum += d2;
             ekfslam_meta_t *m = &ekf->meta[j];
+            if (!pair_is_closure(ekf, j) && (ekf->lm_confirmed_once[j] || m->exist >= sp->exist_confirm) &&
+                landmark_miss_would_count(sp, ekf->view, &sc->expect[j])) {
+                ekf->ctr.view_pairs++; /* from the frame's prediction, as the misses below */
+            }
             m->last_seen = ekf->ctr.updates;
             exist_hit(&m->exist, sp);
             if (m->n_obs < UINT16_MAX) {
@@ -2665,7 +2669,11 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
             ekf->ctr.misses_held++;
             continue;
         }
-        if (exist_miss(&ekf->meta[j].exist, &ekf->lm_confirmed_once[j], landmark_miss_is_certain(sp, ep), sp)) {
+        const int certain = landmark_miss_is_certain(sp, ep);
+        if (certain && (ekf->lm_confirmed_once[j] || ekf->meta[j].exist >= sp->exist_confirm)) {
+            ekf->ctr.view_misses++;
+        }
+        if (exist_miss(&ekf->meta[j].exist, &ekf->lm_confirmed_once[j], certain, sp)) {
             ekfslam_remove_landmark(ekf, (uint16_t)j);
             ekf->ctr.landmarks_removed++;
         }

@@ -904,6 +904,10 @@ static coslam_status_t update_particle(fastslam_t *fs, uint16_t k, const sightin
             mo->k = fs2 && proposal_assign[i] == j ? sc->gain[i] : 0;
             mo->key = mo->anchor.m[0][0] + mo->anchor.m[1][1];
         }
+        if (closure_j[i] < 0 && (lm->confirmed_once || lm->exist >= sp->exist_confirm) &&
+            landmark_miss_would_count(sp, fs->view, &sc->expect[j])) {
+            fs->ctr.view_pairs++; /* from the pose before the frame, as the misses below */
+        }
         landmark_update(lm, sp, ep, z[i]);
         lm->last_seen = (uint16_t)fs->ctr.updates;
         exist_hit(&lm->exist, sp);
@@ -955,7 +959,11 @@ static coslam_status_t update_particle(fastslam_t *fs, uint16_t k, const sightin
         const landmark_t *lmc = lm_tree_get(&fs->lm_pool, p->lm_root, j);
         float exist = lmc->exist;
         uint8_t confirmed_once = lmc->confirmed_once;
-        if (exist_miss(&exist, &confirmed_once, landmark_miss_is_certain(sp, ep), sp)) {
+        const int certain = landmark_miss_is_certain(sp, ep);
+        if (certain && (confirmed_once || exist >= sp->exist_confirm)) {
+            fs->ctr.view_misses++;
+        }
+        if (exist_miss(&exist, &confirmed_once, certain, sp)) {
             if (particle_remove(fs, p, j)) {
                 fs->ctr.landmarks_removed++;
             } else {

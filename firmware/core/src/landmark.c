@@ -246,6 +246,11 @@ int landmark_miss_is_certain(const slam_params_t *params, const lm_expect_t *e)
     return e->s.yy <= sd_max * sd_max;
 }
 
+int landmark_miss_would_count(const slam_params_t *params, const view_profile_t *v, const lm_expect_t *e)
+{
+    return landmark_should_be_seen(params, e->zhat) && !landmark_hidden(v, e) && landmark_miss_is_certain(params, e);
+}
+
 int exist_miss(float *exist, uint8_t *confirmed_once, int certain, const slam_params_t *params)
 {
     if (*exist >= params->exist_confirm) {

@@ -71,7 +71,8 @@ void PixelCamera::set_time_us(uint64_t t_us, double vx, double vy, double w)
             const uint64_t stamp = next_us_ > exp_us ? next_us_ - exp_us : 0;
             if (cam_.push_frame(frame_.data(), frame_.size(), stamp)) {
                 ++pushed_seq_;
-                truth_.emplace_back(pushed_seq_, scratch_);
+                truth_.push_back(FrameTruth{pushed_seq_, scratch_,
+                                            landmarks_in_filter_view(world_, self_, me->pose, cfg_.view_model)});
                 if (truth_.size() > kTruthFrames) truth_.pop_front();
                 stats_.frames++;
             }
@@ -82,11 +83,13 @@ void PixelCamera::set_time_us(uint64_t t_us, double vx, double vy, double w)
 
 void PixelCamera::evaluate(const sighting_frame_t &f)
 {
-    const std::vector<RenderedMarker> *truth = nullptr;
+    const FrameTruth *ft = nullptr;
     for (const auto &t : truth_) {
-        if (t.first == f.sequence) truth = &t.second;
+        if (t.seq == f.sequence) ft = &t;
     }
-    if (truth == nullptr) return;
+    if (ft == nullptr) return;
+    const std::vector<RenderedMarker> *truth = &ft->markers;
+    detected_scratch_.assign(world_.landmarks().size(), 0);
     if (detections_.size() < world_.landmarks().size()) detections_.resize(world_.landmarks().size(), 0);
     auto near = [](const RenderedMarker &m, double r, double b) {
         return std::fabs(angle_wrap(b - m.bearing_rad)) < std::max(kMatchBearingRad, m.half_width_rad + COSLAM_PI / 180.0) &&
@@ -109,11 +112,15 @@ void PixelCamera::evaluate(const sighting_frame_t &f)
         }
         stats_.landmark_matched++;
         detections_[static_cast<size_t>(best->landmark_id)]++;
+        if (static_cast<size_t>(best->landmark_id) < detected_scratch_.size()) {
+            detected_scratch_[static_cast<size_t>(best->landmark_id)] = 1;
+        }
         const double er = (z.range_m - best->range_m) / best->range_m;
         const double eb = angle_wrap(z.bearing_rad - best->bearing_rad);
         stats_.range_rel_err_sum2 += er * er;
         stats_.bearing_err_sum2 += eb * eb;
     }
+    tally_frame(tally_, ft->viewed, detected_scratch_);
     for (uint16_t i = 0; i < f.n_robots; ++i) {
         const robot_seen_t &r = f.robots[i];
         stats_.robot_sightings++;

@@ -43,6 +43,8 @@ void SightingOracle::capture(uint64_t stamp_us)
     f.stamp_us = stamp_us;
     f.sequence = ++frame_seq_;
     const Eigen::Vector2d cam(me->pose.x, me->pose.y);
+    latest_viewed_ = landmarks_in_filter_view(world_, self_, me->pose, cfg_.view_model);
+    latest_detected_.assign(world_.landmarks().size(), 0);
     const double half_fov = 0.5 * cfg_.fov_rad;
     auto in_view = [&](const Eigen::Vector2d &p, double &r, double &b) {
         const point2_t rel = pose2_apply_inverse(me->pose, point2_t{p.x(), p.y()});
@@ -64,6 +66,7 @@ void SightingOracle::capture(uint64_t stamp_us)
             continue;
         }
         f.landmarks[f.n_landmarks++] = sighting_t{zr, zb, lm.signature};
+        latest_detected_[static_cast<size_t>(lm.id)] = 1;
     }
     for (const auto &other : world_.bodies()) {
         if (other.id == self_) continue;
@@ -94,6 +97,7 @@ hal_status_t SightingOracle::op_next_frame(sighting_source_t *src, sighting_fram
     }
     *out = self->latest_;
     self->have_frame_ = false;
+    tally_frame(self->tally_, self->latest_viewed_, self->latest_detected_);
     return HAL_OK;
 }
 

@@ -68,6 +68,11 @@ SightingOracle &SimRobot::oracle()
     return *oracle_;
 }
 
+const DetectionTally &SimRobot::detection_tally() const
+{
+    return pixels_ ? pixels_->detection_tally() : oracle_->detection_tally();
+}
+
 const std::vector<int> &SimRobot::detections() const
 {
     return oracle_ ? oracle_->detections() : pixels_->detections();

@@ -270,6 +270,13 @@ coslam_status_t slam_filter_merge(slam_filter_t *f, const merge_body_map_t *bm, 
  *  meeting's compensation and the merge check use. */
 const slam_params_t *slam_filter_params(const slam_filter_t *f);
 
+/** The filter's confirmed landmarks a miss would have counted for certain
+ *  (landmark_miss_would_count), paired by a sighting (*pairs) or not
+ *  (*misses), since it started (Fast-SLAM: summed over the particles).
+ *  pairs / (pairs + misses) is the rate at which its map is found where
+ *  expected: the p_d the miss weight stands for (docs/core-slam.md). */
+void slam_filter_view_counts(const slam_filter_t *f, uint32_t *pairs, uint32_t *misses);
+
 /** Caller-owned working memory of one merge (the meeting holds one; one may
  *  serve several filters). Initialise with slam_merge_work_init. */
 typedef struct slam_merge_work_s {

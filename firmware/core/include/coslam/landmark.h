@@ -148,6 +148,15 @@ void exist_hit(float *exist, const slam_params_t *params);
  */
 int landmark_miss_is_certain(const slam_params_t *params, const lm_expect_t *e);
 
+/**
+ * 1 if a confirmed landmark expected as `e` that no sighting pairs would
+ * lose evidence for certain: in view (landmark_should_be_seen), not hidden
+ * by `v` (landmark_hidden) and its miss certain (landmark_miss_is_certain).
+ * The filters count such landmarks, paired or not (view_pairs,
+ * view_misses): the rate at which the map is found where it is expected.
+ */
+int landmark_miss_would_count(const slam_params_t *params, const view_profile_t *v, const lm_expect_t *e);
+
 /** The largest bearing sd [rad] of a certain miss (landmark_miss_is_certain):
  *  exist_miss_bearing_sd_frac * sensor_fov_rad / 2. */
 double landmark_miss_bearing_sd_max(const slam_params_t *params);

@@ -25,7 +25,9 @@
 #include <vector>
 
 #include "app/sighting_source.h"
+#include "coslam/slam_params.h"
 #include "sim/world/camera_renderer.hpp"
+#include "sim/world/detection_tally.hpp"
 #include "sim/world/world.hpp"
 #include "sim_hal/sim_camera.hpp"
 #include "sim_hal/sim_clock.hpp"
@@ -41,6 +43,8 @@ struct PixelCameraConfig {
     vision_config_t detector = vision_config_default();
     std::string lut_path;          ///< "" = the shipped table (firmware/vision/data)
     std::string model_path;        ///< "" = the shipped range model
+    /// the filter's view model, for the detection tally (detection_tally.hpp)
+    slam_params_t view_model = slam_params_default();
 };
 
 /// The shipped colour table and range model.
@@ -77,6 +81,8 @@ public:
 
     const std::vector<int> &detections() const { return detections_; }
     const PixelCameraStats &stats() const { return stats_; }
+    /// Detections over the filter's view, per frame the firmware received.
+    const DetectionTally &detection_tally() const { return tally_; }
     const vision_source_counters_t &source_counters() const { return vs_.ctr; }
     SimCamera &camera() { return cam_; }
     CameraRenderer &renderer() { return renderer_; }
@@ -99,7 +105,14 @@ private:
     std::vector<uint8_t> frame_, grab_buf_;
     uint64_t next_us_;
     uint32_t pushed_seq_ = 0;
-    std::deque<std::pair<uint32_t, std::vector<RenderedMarker>>> truth_;  ///< recent frames' truth by sequence
+    struct FrameTruth {
+        uint32_t seq = 0;
+        std::vector<RenderedMarker> markers;
+        std::vector<ViewedLandmark> viewed;  ///< the filter's view from the rendering pose
+    };
+    std::deque<FrameTruth> truth_;  ///< recent frames' truth by sequence
+    std::vector<uint8_t> detected_scratch_;
+    DetectionTally tally_;
     std::vector<RenderedMarker> scratch_;
     std::vector<int> detections_;
     PixelCameraStats stats_;

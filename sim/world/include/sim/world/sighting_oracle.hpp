@@ -28,6 +28,8 @@
 
 #include "app/sighting_source.h"
 #include "coslam/rng.h"
+#include "coslam/slam_params.h"
+#include "sim/world/detection_tally.hpp"
 #include "sim/world/world.hpp"
 
 namespace coslam::sim {
@@ -46,6 +48,8 @@ struct SightingOracleConfig {
     double robot_range_sd_m = 0.05;
     double robot_bearing_sd_rad = 2.0 * COSLAM_PI / 180.0;
     uint64_t seed = 1;
+    /// the filter's view model, for the detection tally (detection_tally.hpp)
+    slam_params_t view_model = slam_params_default();
 };
 
 class SightingOracle {
@@ -72,6 +76,8 @@ public:
     uint64_t robot_sightings() const { return robot_sightings_; }
     uint64_t dropped() const { return dropped_; }
     const SightingOracleConfig &config() const { return cfg_; }
+    /// Detections over the filter's view, per delivered frame.
+    const DetectionTally &detection_tally() const { return tally_; }
 
 private:
     void capture(uint64_t stamp_us);
@@ -88,6 +94,9 @@ private:
     uint32_t frame_seq_ = 0;
     uint64_t next_us_;
     std::vector<int> detections_;
+    std::vector<ViewedLandmark> latest_viewed_;  ///< the filter's view at latest_'s capture
+    std::vector<uint8_t> latest_detected_;       ///< per landmark id: in latest_
+    DetectionTally tally_;
     uint64_t frames_ = 0;
     uint64_t robot_sightings_ = 0;
     uint64_t dropped_ = 0;

@@ -100,6 +100,8 @@ public:
     const PixelCamera *pixel_camera() const { return pixels_.get(); }
     /// Times true landmark j was detected (from either source).
     const std::vector<int> &detections() const;
+    /// Detections over the filter's view (from either source).
+    const DetectionTally &detection_tally() const;
 
 private:
     double laser_range(double angle_rad) const;
