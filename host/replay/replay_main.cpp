@@ -4,7 +4,7 @@
 //
 //   coslam-replay run DATASET [options]     replay, write out/<run>/, plot
 //   coslam-replay fit-odometry DATASET      fit the odometry model (scale, delay)
-//   coslam-replay fit-noise DATASET         measure the sighting noise model
+//   coslam-replay fit-noise DATASET         measure the sighting noise model and the detection rate
 //   coslam-replay convert DATASET OUT_DIR   write DATASET as a landmark log
 //   coslam-replay print-config [--config F] the configuration in effect, as INI
 #include <CLI/CLI.hpp>
@@ -159,6 +159,73 @@ void print_noise_fit(std::ostream &os, const NoiseFit &nf, const ReplayConfig &c
        << n.range_var_per_m2 << " bearing_var_rad2 " << n.bearing_var_rad2 << "\n";
 }
 
+void print_detection_row(std::ostream &os, const std::string &who, const DetectionStats &s)
+{
+    if (!s.has_truth) {
+        os << std::setw(7) << who << std::setw(8) << s.frames << "  n/a: no ground truth\n";
+        return;
+    }
+    const double em = slam_exist_miss_for_detection(s.p_d());
+    os << std::fixed << std::setw(7) << who << std::setw(8) << s.frames << std::setw(9) << s.no_truth << std::setw(8)
+       << s.used << std::setw(8) << s.other << std::setw(9) << s.in_view << std::setw(9) << s.detected
+       << std::setw(9) << s.out_of_view << std::setprecision(4) << std::setw(8) << s.p_d() << std::setw(10)
+       << s.p_d_truncated << std::setw(12);
+    if (em >= 0.0) {
+        os << em;
+    } else {
+        os << "n/a";
+    }
+    os << "\n";
+}
+
+void print_detection_fit(std::ostream &os, const DetectionFit &df, const ReplayConfig &cfg)
+{
+    const slam_params_t &p = cfg.slam;
+    const double m = p.visibility_margin;
+    const DetectionStats &o = df.overall;
+    os << std::fixed << std::setprecision(3)
+       << "detection rate over the filter's view: true landmarks landmark_should_be_seen calls in view from the true "
+          "pose (range "
+       << p.sensor_min_range_m / m << ".." << p.sensor_max_range_m * m << " m, |bearing| <= "
+       << 0.5 * p.sensor_fov_rad * m << " rad), detected when the frame holds a sighting with that identity\n"
+       << "  robot  frames no_truth    used   other  in_view detected  out_view     p_d p_d_trunc  exist_miss\n";
+    for (const auto &s : df.robots) {
+        print_detection_row(os, std::to_string(s.robot), s);
+    }
+    print_detection_row(os, "all", o);
+    os << "  (frames: logged stamps; other: frames holding a sighting other than an in-view detection; out_view: "
+          "sightings of a true landmark outside the view, not in p_d)\n"
+       << "  bias: a frame is logged only when it holds a sighting, so the " << o.used
+       << " frames counted (those with truth) are frames with at least one detection, and no frame without one "
+          "is: p_d over them is biased upward\n"
+          "  p_d_trunc: the zero-truncated estimate (a frame holding nothing but in-view detections was logged "
+          "because one was detected; detections independent), reported only\n";
+    os << "range bins (all robots, true range): r_m in_view detected p_d\n";
+    for (const auto &b : o.bins) {
+        if (b.in_view == 0) {
+            continue;
+        }
+        os << std::setprecision(1) << "  " << std::setw(4) << b.r_lo_m << "-" << std::setw(4) << b.r_lo_m + df.bin_m
+           << std::setw(9) << b.in_view << std::setw(9) << b.detected << std::setprecision(4) << std::setw(8)
+           << static_cast<double>(b.detected) / static_cast<double>(b.in_view) << "\n";
+    }
+    os << std::setprecision(4) << "exist_miss_confirmed = slam_exist_miss_for_detection(p_d) = log((1 - p_f) / (1 - "
+          "p_d)) / log(p_d / p_f), p_f = "
+       << SLAM_EXIST_P_FALSE << ": ";
+    if (df.exist_miss_confirmed >= 0.0) {
+        os << df.exist_miss_confirmed;
+    } else {
+        os << "n/a (needs p_f < p_d < 1)";
+    }
+    os << " (p_d " << o.p_d() << "); of p_d_trunc " << o.p_d_truncated << ": ";
+    if (df.exist_miss_confirmed_truncated >= 0.0) {
+        os << df.exist_miss_confirmed_truncated;
+    } else {
+        os << "n/a";
+    }
+    os << "; configuration in effect: " << p.exist_miss_confirmed << "\n";
+}
+
 // Why a plot command run through std::system failed, for the error line.
 std::string plot_failure(int status)
 {
@@ -252,7 +319,9 @@ int replay_main(int argc, char **argv)
     NoiseFitOptions nopt;
     fitn->add_option("dataset", dataset, "dataset folder (needs robot and landmark ground truth)")->required();
     fitn->add_option("--format", format, "auto | mrclam | log");
-    fitn->add_option("-c,--config", config_files, "INI file(s): [input] range limits, and the values compared with");
+    fitn->add_option("-c,--config", config_files,
+                     "INI file(s): [input] range limits, the [slam] view of the detection rate, and the values compared "
+                     "with");
     fitn->add_option("-o,--out", noise_out, "write the fitted [slam] noise keys to this INI file");
     fitn->add_option("--bin", nopt.bin_m, "range bin width of the range fit [m]")->check(finite_in(0.0, 1e3, true));
     fitn->add_option("--reject-sd", nopt.reject_sd, "reject residuals beyond this many robust sd")
@@ -262,6 +331,9 @@ int replay_main(int argc, char **argv)
     fitn->add_option("--track-gap", nopt.track_gap_s, "sightings further apart start a new track [s]")
         ->check(finite_in(0.0, 1e6, true));
     fitn->add_option("--max-lag", nopt.max_lag, "autocorrelation lags 1..N [sightings]")->check(int_in(1, 1000));
+    DetectionOptions dopt;
+    fitn->add_option("--detect-bin", dopt.bin_m, "range bin width of the detection-rate table [m]")
+        ->check(finite_in(0.0, 1e3, true));
 
     auto *conv = app.add_subcommand("convert", "write a dataset in the generic landmark-log format");
     std::string conv_out;
@@ -322,9 +394,14 @@ int replay_main(int argc, char **argv)
             nopt.max_range_m = cfg.input.max_range_m;
             const NoiseFit nf = fit_noise(ds, nopt);
             print_noise_fit(std::cout, nf, cfg);
+            // p_d over the view of the slam parameters `run -c` would use
+            dopt.min_range_m = cfg.input.min_range_m;
+            dopt.max_range_m = cfg.input.max_range_m;
+            const DetectionFit df = fit_detection(ds, cfg.slam, dopt);
+            print_detection_fit(std::cout, df, cfg);
             if (!noise_out.empty()) {
                 std::ofstream f = coslam::cli::open_checked(noise_out);
-                write_noise_ini(nf, ds, f, noise_inflate);
+                write_noise_ini(nf, ds, f, noise_inflate, &df);
                 coslam::cli::close_checked(f, noise_out);
                 std::cout << "wrote " << noise_out << "\n";
             }

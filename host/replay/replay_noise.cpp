@@ -4,9 +4,13 @@
 #include <algorithm>
 #include <cmath>
 #include <iomanip>
+#include <limits>
 #include <map>
 #include <ostream>
+#include <set>
 
+#include "coslam/landmark.h"
+#include "coslam/observe.h"
 #include "replay_truth.h"
 
 namespace coslam::replay {
@@ -336,7 +340,203 @@ void fit_correlation(const std::vector<Residual> &pooled, const NoiseFitOptions 
     fit.bearing_var_rad2_eff = fit.bearing_corr.factor * o.bearing_var_rad2;
 }
 
+// One logged frame's in-view count n, detections among them k, and whether
+// something else in it would have had it logged anyway (replay_noise.h).
+struct FrameCount {
+    long n;
+    long k;
+    bool other;
+    bool operator<(const FrameCount &o) const
+    {
+        return n != o.n ? n < o.n : (k != o.k ? k < o.k : other < o.other);
+    }
+};
+
+// Frames as the replay groups them (replay_run.cpp build_frames): the
+// sightings of one stamp, landmarks and robots together.
+bool same_stamp(double a, double b) { return std::fabs(a - b) <= 1e-9 * std::max(1.0, std::fabs(a)); }
+
+// log(1 - (1 - p)^n), accurate for small p.
+double log_any_detected(double p, long n)
+{
+    return std::log(-std::expm1(static_cast<double>(n) * std::log1p(-p)));
+}
+
+// The zero-truncated maximum likelihood p (replay_noise.h): golden-section
+// search of the log likelihood over (0, 1); a binomial term and the
+// truncation term are each unimodal in p and so is their sum over frames in
+// practice (checked in the tests against the truth). NaN without frames.
+double p_truncated(const std::map<FrameCount, long> &frames)
+{
+    long in_view = 0;
+    for (const auto &[f, c] : frames) {
+        in_view += f.n * c;
+    }
+    if (in_view == 0) {
+        return std::nan("");
+    }
+    auto ll = [&](double p) {
+        double s = 0.0;
+        for (const auto &[f, c] : frames) {
+            if (f.n == 0) {
+                continue;
+            }
+            double l = static_cast<double>(f.k) * std::log(p) + static_cast<double>(f.n - f.k) * std::log1p(-p);
+            if (!f.other) {
+                l -= log_any_detected(p, f.n);
+            }
+            s += static_cast<double>(c) * l;
+        }
+        return s;
+    };
+    const double g = 0.5 * (std::sqrt(5.0) - 1.0);
+    double a = 1e-9, b = 1.0 - 1e-9;
+    double x1 = b - g * (b - a), x2 = a + g * (b - a);
+    double f1 = ll(x1), f2 = ll(x2);
+    for (int i = 0; i < 200 && b - a > 1e-12; ++i) {
+        if (f1 < f2) {
+            a = x1;
+            x1 = x2;
+            f1 = f2;
+            x2 = a + g * (b - a);
+            f2 = ll(x2);
+        } else {
+            b = x2;
+            x2 = x1;
+            f2 = f1;
+            x1 = b - g * (b - a);
+            f1 = ll(x1);
+        }
+    }
+    return 0.5 * (a + b);
+}
+
+void add_counts(DetectionStats &to, const DetectionStats &s)
+{
+    to.frames += s.frames;
+    to.no_truth += s.no_truth;
+    to.used += s.used;
+    to.other += s.other;
+    to.in_view += s.in_view;
+    to.detected += s.detected;
+    to.out_of_view += s.out_of_view;
+    if (to.bins.size() < s.bins.size()) {
+        const size_t n0 = to.bins.size();
+        to.bins.resize(s.bins.size());
+        for (size_t i = n0; i < to.bins.size(); ++i) {
+            to.bins[i].r_lo_m = s.bins[i].r_lo_m;
+        }
+    }
+    for (size_t i = 0; i < s.bins.size(); ++i) {
+        to.bins[i].in_view += s.bins[i].in_view;
+        to.bins[i].detected += s.bins[i].detected;
+    }
+}
+
+// The counts of one robot with truth into `s`, its frames' (n, k, other) into `fc`.
+void detection_of(const Dataset &ds, const RobotLog &log, const slam_params_t &params, const DetectionOptions &opt,
+                  DetectionStats &s, std::map<FrameCount, long> &fc)
+{
+    const TruthTrack tt(log.truth, opt.max_gap_s);
+    size_t iz = 0, ir = 0;
+    std::set<int> seen;
+    while (iz < log.z.size() || ir < log.rz.size()) {
+        const double inf = std::numeric_limits<double>::infinity();
+        const double t = std::min(iz < log.z.size() ? log.z[iz].t_s : inf, ir < log.rz.size() ? log.rz[ir].t_s : inf);
+        s.frames++;
+        bool other = false;
+        seen.clear();
+        for (; iz < log.z.size() && same_stamp(log.z[iz].t_s, t); ++iz) {
+            const LandmarkSighting &z = log.z[iz];
+            if (z.landmark_id >= 0 && ds.landmark(z.landmark_id) != nullptr && z.range_m >= opt.min_range_m &&
+                z.range_m <= opt.max_range_m) {
+                seen.insert(z.landmark_id);
+            } else {
+                other = true;
+            }
+        }
+        for (; ir < log.rz.size() && same_stamp(log.rz[ir].t_s, t); ++ir) {
+            other = true;
+        }
+        const auto pose = tt.at(t);
+        if (!pose) {
+            s.no_truth++;
+            continue;
+        }
+        s.used++;
+        FrameCount f{0, 0, false};
+        for (const LandmarkTruth &lm : ds.landmarks) {
+            const sighting_t zhat = observe_predict(*pose, lm.pos);
+            const bool detected = seen.count(lm.id) != 0;
+            if (!landmark_should_be_seen(&params, zhat)) {
+                if (detected) {
+                    s.out_of_view++;
+                    other = true;
+                }
+                continue;
+            }
+            const size_t b = static_cast<size_t>(std::floor(zhat.range_m / opt.bin_m));
+            while (s.bins.size() <= b) {
+                DetectionBin nb;
+                nb.r_lo_m = static_cast<double>(s.bins.size()) * opt.bin_m;
+                s.bins.push_back(nb);
+            }
+            f.n++;
+            s.in_view++;
+            s.bins[b].in_view++;
+            if (detected) {
+                f.k++;
+                s.detected++;
+                s.bins[b].detected++;
+            }
+        }
+        f.other = other;
+        s.other += other ? 1 : 0;
+        fc[f]++;
+    }
+}
+
 } // namespace
+
+DetectionFit fit_detection(const Dataset &ds, const slam_params_t &params, const DetectionOptions &opt)
+{
+    if (ds.landmarks.empty()) {
+        throw ReplayError(ds.source, 0,
+                          "no landmark ground truth: the detection rate is counted over the true landmarks in view "
+                          "(Landmark_Groundtruth.dat or landmarks_truth.txt)");
+    }
+    if (std::none_of(ds.robots.begin(), ds.robots.end(), [](const RobotLog &r) { return !r.truth.empty(); })) {
+        throw ReplayError(ds.source, 0,
+                          "no robot has ground truth: the detection rate is counted from the true robot poses "
+                          "(RobotN_Groundtruth.dat or robot<k>_truth.txt)");
+    }
+    if (!(opt.bin_m > 0.0)) {
+        throw ReplayError("fit_detection: bin_m must be > 0");
+    }
+    DetectionFit fit;
+    fit.bin_m = opt.bin_m;
+    fit.overall.has_truth = true;
+    std::map<FrameCount, long> all;
+    for (const RobotLog &log : ds.robots) {
+        DetectionStats s;
+        s.robot = log.id;
+        s.has_truth = !log.truth.empty();
+        std::map<FrameCount, long> fc;
+        detection_of(ds, log, params, opt, s, fc); // without truth: frames counted, all no_truth
+        if (s.has_truth) {
+            s.p_d_truncated = p_truncated(fc);
+            for (const auto &[f, c] : fc) {
+                all[f] += c;
+            }
+            add_counts(fit.overall, s);
+        }
+        fit.robots.push_back(std::move(s));
+    }
+    fit.overall.p_d_truncated = p_truncated(all);
+    fit.exist_miss_confirmed = slam_exist_miss_for_detection(fit.overall.p_d());
+    fit.exist_miss_confirmed_truncated = slam_exist_miss_for_detection(fit.overall.p_d_truncated);
+    return fit;
+}
 
 NoiseFit fit_noise(const Dataset &ds, const NoiseFitOptions &opt)
 {
@@ -349,7 +549,8 @@ NoiseFit fit_noise(const Dataset &ds, const NoiseFitOptions &opt)
         std::any_of(ds.robots.begin(), ds.robots.end(), [](const RobotLog &r) { return !r.truth.empty(); });
     if (!any_truth) {
         throw ReplayError(ds.source, 0,
-                          "no robot has ground truth: the sighting noise is measured against the true robot poses "
+                          "no robot has ground truth: the sighting noise (and fit-noise's detection rate) is measured "
+                          "against the true robot poses "
                           "(RobotN_Groundtruth.dat or robot<k>_truth.txt)");
     }
     NoiseFit fit;
@@ -386,7 +587,8 @@ NoiseFit fit_noise(const Dataset &ds, const NoiseFitOptions &opt)
     return fit;
 }
 
-void write_noise_ini(const NoiseFit &fit, const Dataset &ds, std::ostream &out, bool inflate)
+void write_noise_ini(const NoiseFit &fit, const Dataset &ds, std::ostream &out, bool inflate,
+                     const DetectionFit *det)
 {
     const NoiseStats &o = fit.overall;
     const double rv0 = inflate ? fit.range_var_m2_eff : o.range_var_m2;
@@ -426,6 +628,21 @@ void write_noise_ini(const NoiseFit &fit, const Dataset &ds, std::ostream &out, 
         << std::setprecision(6) << "range_var_m2 = " << range_var << "\n"
         << "range_var_per_m2 = " << rv1 << "\n"
         << "bearing_var_rad2 = " << bearing_var << "\n";
+    if (det != nullptr) {
+        const DetectionStats &d = det->overall;
+        out << std::setprecision(4) << "; detection rate over the filter's view (landmark_should_be_seen from the true "
+            << "pose): p_d = " << d.detected << " / " << d.in_view << " = " << d.p_d() << "\n"
+            << "; (logged frames only, each with a detection: biased upward; zero-truncated estimate "
+            << d.p_d_truncated << ")\n";
+        if (det->exist_miss_confirmed >= 0.0) {
+            out << "; exist_miss_confirmed = log((1 - p_f) / (1 - p_d)) / log(p_d / p_f), p_f = " << SLAM_EXIST_P_FALSE
+                << " (slam_exist_miss_for_detection)\n"
+                << std::setprecision(6) << "exist_miss_confirmed = " << det->exist_miss_confirmed << "\n";
+        } else {
+            out << "; exist_miss_confirmed not written: slam_exist_miss_for_detection needs p_f = "
+                << SLAM_EXIST_P_FALSE << " < p_d < 1\n";
+        }
+    }
     out.flags(old);
     out.precision(prec);
 }

@@ -38,9 +38,11 @@
 #ifndef COSLAM_HOST_REPLAY_NOISE_H
 #define COSLAM_HOST_REPLAY_NOISE_H
 
+#include <cmath>
 #include <iosfwd>
 #include <vector>
 
+#include "coslam/slam_params.h"
 #include "replay_data.h"
 
 namespace coslam::replay {
@@ -112,13 +114,95 @@ struct NoiseFit {
 /// sighting.
 NoiseFit fit_noise(const Dataset &ds, const NoiseFitOptions &opt = {});
 
+// The camera's detection rate over the region the filter calls in view:
+// p_d of the existence filter's miss weight (slam_exist_miss_for_detection,
+// docs/core-slam.md "The miss weight from the camera's detection rate").
+//
+// A logged frame is one stamp of a robot's sightings (landmarks and robots
+// alike, grouped as the replay groups them). At each frame with robot
+// ground truth (the truth pose interpolated at the stamp, as for the
+// residuals above), every true landmark that landmark_should_be_seen()
+// calls in view from the true pose (observe_predict of its surveyed
+// position; the footprint and visibility_margin of the slam parameters the
+// replay runs with) is one landmark-frame in view; it is detected when the
+// frame holds a sighting whose true identity is that landmark and whose
+// range lies within [min_range_m, max_range_m] (the [input] limits: the
+// filter never sees what they drop). p_d = detected / in view.
+//
+// Bias: a frame enters the log only if it holds at least one sighting
+// (MRCLAM writes no frame without one), so the frames counted are the
+// frames with a detection, and p_d over them is biased upward: a frame in
+// which every landmark in view was missed and nothing else was seen is
+// absent. p_d_truncated corrects for that under a model, and is reported
+// only: detections independent across the landmarks in view with one
+// probability p; a frame that holds some other sighting (a robot, a
+// landmark out of view, an unknown identity, one outside the [input]
+// limits) would have been logged anyway, so its in-view detections count
+// as Binomial(n, p); a frame with nothing else was logged because k >= 1,
+// so its count is Binomial(n, p) conditioned on k >= 1 (zero-truncated).
+// p_d_truncated maximises that likelihood over p (frames with n = 1 and
+// nothing else carry no information on p: k = 1 is certain).
+
+struct DetectionOptions {
+    double bin_m = 1.0;         ///< range bin width of the table [m]
+    double max_gap_s = 0.5;     ///< truth gaps longer than this give no truth (TruthTrack)
+    double min_range_m = 0.0;   ///< sightings outside [min, max] are not detections (as [input] drops them)
+    double max_range_m = 1e9;
+};
+
+/// Landmark-frames in view whose true range lies in [r_lo_m, r_lo_m + bin_m).
+struct DetectionBin {
+    double r_lo_m = 0.0;
+    long in_view = 0;
+    long detected = 0;
+};
+
+/// Detection counts of one robot, or of all robots pooled (robot = 0).
+struct DetectionStats {
+    int robot = 0;
+    bool has_truth = false;
+    long frames = 0;          ///< logged frames (each holds at least one sighting)
+    long no_truth = 0;        ///< of them, without robot truth at the stamp (not counted below)
+    long used = 0;            ///< frames with truth
+    long other = 0;           ///< used frames that hold a sighting other than an in-view detection
+    long in_view = 0;         ///< landmark-frames landmark_should_be_seen calls in view
+    long detected = 0;        ///< of them, with a sighting of that landmark in the frame
+    long out_of_view = 0;     ///< sightings of a true landmark the view model calls out of view (not in p_d)
+    std::vector<DetectionBin> bins; ///< every bin up to the farthest in-view range, bin i from i * bin_m
+    double p_d_truncated = std::nan(""); ///< zero-truncated estimate (above); NaN when nothing is in view
+
+    /// detected / in view; NaN when nothing was in view.
+    double p_d() const
+    {
+        return in_view > 0 ? static_cast<double>(detected) / static_cast<double>(in_view) : std::nan("");
+    }
+};
+
+struct DetectionFit {
+    std::vector<DetectionStats> robots; ///< by increasing id, robots without truth included (has_truth false)
+    DetectionStats overall;             ///< every robot with truth pooled
+    double bin_m = 1.0;
+    /// slam_exist_miss_for_detection(overall.p_d()): -1 unless p_f < p_d < 1
+    double exist_miss_confirmed = -1.0;
+    /// the same of overall.p_d_truncated (reported, not written)
+    double exist_miss_confirmed_truncated = -1.0;
+};
+
+/// Measure the detection rate of `ds` over the view of `params`
+/// (landmark_should_be_seen). Throws ReplayError when the dataset has no
+/// landmark ground truth or no robot with ground truth. O(frames x landmarks).
+DetectionFit fit_detection(const Dataset &ds, const slam_params_t &params, const DetectionOptions &opt = {});
+
 /// The fitted (overall) values as an INI fragment of the replay
-/// configuration ([slam] range_var_m2, range_var_per_m2, bearing_var_rad2).
+/// configuration ([slam] range_var_m2, range_var_per_m2, bearing_var_rad2;
+/// with `det`, also exist_miss_confirmed from its p_d, when the formula
+/// gives one, with a comment line stating p_d and the formula).
 /// The variances are floored at 1e-6 (the filter requires them > 0; a
 /// comment line in the file says when a floor was applied). With `inflate`
 /// the inflated values (the *_eff members) are written instead, with a
 /// comment stating tau and the rule.
-void write_noise_ini(const NoiseFit &fit, const Dataset &ds, std::ostream &out, bool inflate = false);
+void write_noise_ini(const NoiseFit &fit, const Dataset &ds, std::ostream &out, bool inflate = false,
+                     const DetectionFit *det = nullptr);
 
 } // namespace coslam::replay
 
