@@ -6,7 +6,10 @@
 //    with bounds on pose and landmark error and a merge whose transform
 //    error is bounded (skipped with a message when the data is absent);
 //  - the sighting noise fitted against Dataset 6's ground truth (fit_noise)
-//    is a plausible, valid sensor model; without truth it is an error.
+//    is a plausible, valid sensor model; without truth it is an error;
+//  - the detection rate over the filter's view (fit_detection) on synthetic
+//    frames with a known rate, with the logged-frames-only truncation, and
+//    with landmarks outside the view model left out.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -20,7 +23,10 @@
 #include <iostream>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <random>
 
+#include "coslam/landmark.h"
+#include "coslam/observe.h"
 #include "replay_config.h"
 #include "replay_data.h"
 #include "replay_noise.h"
@@ -818,4 +824,203 @@ TEST(MrclamNoise, FitNoiseWithoutRobotTruthThrows)
     ds.robots[0].truth.push_back({0.0, {0.0, 0.0, 0.0}});
     ds.landmarks.clear();
     EXPECT_THROW(fit_noise(ds), ReplayError);
+}
+
+namespace {
+
+// A robot standing still at the origin facing +x, truth every 0.1 s, and
+// landmarks at (range, bearing) from it: the replay's view (MRCLAM: range
+// 1.11..5.4 m, |bearing| <= 0.36 rad) holds the first `n_in` of them.
+struct ViewWorld {
+    Dataset ds;
+    slam_params_t params = replay_config_default().slam;
+    std::vector<int> in_view_ids;
+    std::vector<int> out_of_view_ids;
+};
+
+ViewWorld view_world(int frames)
+{
+    ViewWorld w;
+    w.ds.source = "synthetic-view";
+    RobotLog r;
+    r.id = 1;
+    for (int i = 0; i <= frames; ++i) {
+        r.truth.push_back({0.1 * i, {0.0, 0.0, 0.0}});
+    }
+    w.ds.robots.push_back(r);
+    // in view: 2, 3 and 4 m, inside the field of view
+    const double in_view[3][2] = {{2.0, 0.0}, {3.0, 0.2}, {4.0, -0.3}};
+    // out of view: beyond sensor_max_range_m x margin (5.4 m), outside the
+    // field of view (|bearing| > 0.36 rad), nearer than min / margin (1.11 m)
+    const double out_view[3][2] = {{8.0, 0.0}, {3.0, 1.0}, {0.5, 0.0}};
+    int id = 6;
+    for (const auto &rb : in_view) {
+        w.ds.landmarks.push_back({id, {rb[0] * std::cos(rb[1]), rb[0] * std::sin(rb[1])}});
+        w.in_view_ids.push_back(id++);
+    }
+    for (const auto &rb : out_view) {
+        w.ds.landmarks.push_back({id, {rb[0] * std::cos(rb[1]), rb[0] * std::sin(rb[1])}});
+        w.out_of_view_ids.push_back(id++);
+    }
+    // the world is what the test says it is
+    for (const auto &lm : w.ds.landmarks) {
+        const sighting_t z = observe_predict({0.0, 0.0, 0.0}, lm.pos);
+        const bool in = std::find(w.in_view_ids.begin(), w.in_view_ids.end(), lm.id) != w.in_view_ids.end();
+        EXPECT_EQ(landmark_should_be_seen(&w.params, z) != 0, in) << "landmark " << lm.id;
+    }
+    return w;
+}
+
+void add_sighting(RobotLog &r, double t, const LandmarkTruth &lm)
+{
+    const sighting_t z = observe_predict({0.0, 0.0, 0.0}, lm.pos);
+    r.z.push_back({t, lm.id, z.range_m, z.bearing_rad});
+}
+
+} // namespace
+
+// Every in-view landmark detected with probability 0.5 in each of 3000
+// frames; every frame is logged (each holds a sighting of another robot, as
+// if the camera logged empty frames too), so p_d over them is the rate
+// itself: within 4 binomial sd of 0.5. The out-of-view landmarks are never
+// detected: counted in view, they would pull p_d to 1/4.
+TEST(MrclamNoise, DetectionRateOverViewMatchesKnownRate)
+{
+    const int frames = 3000;
+    ViewWorld w = view_world(frames);
+    RobotLog &r = w.ds.robots[0];
+    std::mt19937_64 rng(20261207);
+    std::bernoulli_distribution coin(0.5);
+    for (int i = 0; i < frames; ++i) {
+        const double t = 0.1 * i + 0.05;
+        for (const LandmarkTruth &lm : w.ds.landmarks) {
+            if (std::find(w.in_view_ids.begin(), w.in_view_ids.end(), lm.id) != w.in_view_ids.end() && coin(rng)) {
+                add_sighting(r, t, lm);
+            }
+        }
+        r.rz.push_back({t, 2, 3.0, 0.1});
+    }
+    const DetectionFit fit = fit_detection(w.ds, w.params);
+    ASSERT_EQ(fit.robots.size(), 1u);
+    const DetectionStats &o = fit.overall;
+    EXPECT_EQ(o.frames, frames);
+    EXPECT_EQ(o.used, frames);
+    EXPECT_EQ(o.other, frames);
+    EXPECT_EQ(o.in_view, 3L * frames);
+    EXPECT_EQ(o.out_of_view, 0);
+    const double sd = std::sqrt(0.25 / static_cast<double>(o.in_view));
+    EXPECT_NEAR(o.p_d(), 0.5, 4.0 * sd);
+    // nothing truncated (every frame has another sighting): the same estimate
+    EXPECT_NEAR(o.p_d_truncated, o.p_d(), 1e-6);
+    EXPECT_DOUBLE_EQ(fit.exist_miss_confirmed, slam_exist_miss_for_detection(o.p_d()));
+    EXPECT_GT(fit.exist_miss_confirmed, 0.0);
+    // the range table: one landmark per 1 m bin at 2, 3 and 4 m
+    ASSERT_EQ(o.bins.size(), 5u);
+    for (size_t b = 0; b < 2; ++b) {
+        EXPECT_EQ(o.bins[b].in_view, 0) << b;
+    }
+    long detected = 0;
+    for (size_t b = 2; b < 5; ++b) {
+        EXPECT_DOUBLE_EQ(o.bins[b].r_lo_m, static_cast<double>(b));
+        EXPECT_EQ(o.bins[b].in_view, frames) << b;
+        EXPECT_NEAR(static_cast<double>(o.bins[b].detected) / frames, 0.5, 4.0 * std::sqrt(0.25 / frames)) << b;
+        detected += o.bins[b].detected;
+    }
+    EXPECT_EQ(detected, o.detected);
+
+    // the INI fit-noise writes carries exist_miss_confirmed, and run -c takes it
+    const NoiseFit nf = fit_noise(w.ds);
+    std::ostringstream ini;
+    write_noise_ini(nf, w.ds, ini, false, &fit);
+    EXPECT_NE(ini.str().find("exist_miss_confirmed = "), std::string::npos) << ini.str();
+    ReplayConfig cfg = replay_config_default();
+    replay_config_load_string(cfg, ini.str(), "fit-noise.ini");
+    EXPECT_NO_THROW(replay_config_validate(cfg));
+    EXPECT_NEAR(cfg.slam.exist_miss_confirmed, fit.exist_miss_confirmed, 1e-5);
+}
+
+// As MRCLAM logs: a frame with no detection is not in the log. Three
+// landmarks in view at p = 0.5, nothing else seen: the frames logged are
+// those with k >= 1, and detected / in view is biased up (E[k | k >= 1] / 3
+// = 4/7 = 0.571); the zero-truncated estimate recovers 0.5 within 4 sd (its
+// Fisher information at n = 3, p = 1/2 is 7.84 per logged frame, against 12
+// for a binomial).
+TEST(MrclamNoise, DetectionRateTruncatedToLoggedFrames)
+{
+    const int frames = 4000;
+    ViewWorld w = view_world(frames);
+    RobotLog &r = w.ds.robots[0];
+    std::mt19937_64 rng(7);
+    std::bernoulli_distribution coin(0.5);
+    long logged = 0;
+    for (int i = 0; i < frames; ++i) {
+        const double t = 0.1 * i + 0.05;
+        bool any = false;
+        for (int id : w.in_view_ids) {
+            if (coin(rng)) {
+                add_sighting(r, t, *w.ds.landmark(id));
+                any = true;
+            }
+        }
+        logged += any ? 1 : 0;
+    }
+    const DetectionFit fit = fit_detection(w.ds, w.params);
+    const DetectionStats &o = fit.overall;
+    EXPECT_EQ(o.frames, logged);
+    EXPECT_EQ(o.other, 0);
+    EXPECT_EQ(o.in_view, 3L * logged);
+    EXPECT_NEAR(o.p_d(), 4.0 / 7.0, 4.0 * std::sqrt(0.25 / static_cast<double>(o.in_view)));
+    EXPECT_GT(o.p_d(), 0.53);
+    EXPECT_NEAR(o.p_d_truncated, 0.5, 4.0 / std::sqrt(7.84 * static_cast<double>(logged)));
+    EXPECT_DOUBLE_EQ(fit.exist_miss_confirmed_truncated, slam_exist_miss_for_detection(o.p_d_truncated));
+}
+
+// Landmarks the view model calls out of view (beyond the range, outside the
+// field of view, too near) are not landmark-frames in view even when they
+// are detected in every frame: they are counted apart (out_of_view). The one
+// landmark in view is detected in every other frame: p_d is 1/2 exactly
+// (with the three others counted in view it would be 7/8).
+TEST(MrclamNoise, DetectionRateLeavesOutLandmarksOutsideTheView)
+{
+    const int frames = 200;
+    ViewWorld w = view_world(frames);
+    RobotLog &r = w.ds.robots[0];
+    for (int i = 0; i < frames; ++i) {
+        const double t = 0.1 * i + 0.05;
+        if (i % 2 == 0) {
+            add_sighting(r, t, *w.ds.landmark(w.in_view_ids[0]));
+        }
+        for (int id : w.out_of_view_ids) {
+            add_sighting(r, t, *w.ds.landmark(id));
+        }
+    }
+    // only the first landmark stays in view
+    w.ds.landmarks.erase(std::remove_if(w.ds.landmarks.begin(), w.ds.landmarks.end(),
+                                        [&](const LandmarkTruth &lm) {
+                                            return lm.id == w.in_view_ids[1] || lm.id == w.in_view_ids[2];
+                                        }),
+                         w.ds.landmarks.end());
+    const DetectionFit fit = fit_detection(w.ds, w.params);
+    const DetectionStats &o = fit.overall;
+    EXPECT_EQ(o.frames, frames);
+    EXPECT_EQ(o.in_view, frames);
+    EXPECT_EQ(o.detected, frames / 2);
+    EXPECT_EQ(o.out_of_view, 3L * frames);
+    EXPECT_EQ(o.other, frames); // an out-of-view detection would have the frame logged anyway
+    EXPECT_DOUBLE_EQ(o.p_d(), 0.5);
+    EXPECT_DOUBLE_EQ(fit.exist_miss_confirmed, slam_exist_miss_for_detection(0.5));
+
+    // robot without truth: n/a, not zeros; no truth anywhere: an error
+    RobotLog r2;
+    r2.id = 2;
+    r2.z.push_back({0.0, w.in_view_ids[0], 2.0, 0.0});
+    w.ds.robots.push_back(r2);
+    const DetectionFit fit2 = fit_detection(w.ds, w.params);
+    ASSERT_EQ(fit2.robots.size(), 2u);
+    EXPECT_FALSE(fit2.robots[1].has_truth);
+    EXPECT_EQ(fit2.robots[1].frames, 1);
+    EXPECT_EQ(fit2.robots[1].in_view, 0);
+    EXPECT_EQ(fit2.overall.frames, frames);
+    w.ds.robots.erase(w.ds.robots.begin());
+    EXPECT_THROW(fit_detection(w.ds, w.params), ReplayError);
 }
