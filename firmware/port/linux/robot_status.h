@@ -17,6 +17,9 @@
  *   the filter's loss counters (slam_filter_limits: lm_capacity_drops,
  *     sighting_capacity_drops, export_capacity_drops, rejected_controls,
  *     rejected_sightings, numeric_faults, merge_pair_drops), 0 when nothing was lost;
+ *   view_pairs view_misses (slam_filter_view_counts: the filter's
+ *     confirmed landmarks a miss would count, found or not; their ratio is
+ *     the rate the miss weight stands for, docs/core-slam.md);
  *   urg_* the laser driver's (scans_ok, the err_ counters, resyncs,
  *     bytes_discarded, messages_skipped, fields_truncated, stamp_backwards);
  *   link_mode: auth | insecure | off(no_fleet_key) | off(no_dds_in_build)
