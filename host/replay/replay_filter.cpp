@@ -155,7 +155,7 @@ std::map<std::string, long> RobotFilter::counters() const
         m["sends_forced"] = f_->sends_forced;
         m["merges_forced"] = f_->merges_forced;
     }
-    uint32_t view_pairs = 0, view_misses = 0;
+    uint64_t view_pairs = 0, view_misses = 0;
     slam_filter_view_counts(f_.get(), &view_pairs, &view_misses);
     m["view_pairs"] = view_pairs;   // the rate the miss weight stands for (docs/core-slam.md)
     m["view_misses"] = view_misses;

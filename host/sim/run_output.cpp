@@ -129,7 +129,7 @@ nlohmann::json eval_json(const MapSnapshot &m)
 // them (slam_filter_view_counts); NaN with none.
 double view_pair_rate(const robot_node_t &n)
 {
-    uint32_t pairs = 0, misses = 0;
+    uint64_t pairs = 0, misses = 0;
     slam_filter_view_counts(&n.filter, &pairs, &misses);
     return pairs + misses > 0 ? static_cast<double>(pairs) / (static_cast<double>(pairs) + misses)
                               : std::numeric_limits<double>::quiet_NaN();
@@ -146,7 +146,7 @@ bool miss_weight_for(double p_d, double *w)
 nlohmann::json detection_json(const DetectionTally &t, const robot_node_t &n)
 {
     const slam_params_t &filter = n.cfg.filter.slam;
-    uint32_t pairs = 0, misses = 0;
+    uint64_t pairs = 0, misses = 0;
     slam_filter_view_counts(&n.filter, &pairs, &misses);
     const double pr = view_pair_rate(n);
     double wpr = 0.0;

@@ -560,11 +560,12 @@ TEST(Simulation, TheLaserHidesMarkersBehindBoxesFromTheMissCount)
         EXPECT_GT(t.in_view_clear, 500u) << "robot " << k;
         EXPECT_GT(t.in_view, t.in_view_clear) << "robot " << k; // the boxes hide some
         EXPECT_GT(detection_rate_clear(t), 0.95) << "robot " << k;
-        uint32_t pairs = 0, misses = 0;
+        uint64_t pairs = 0, misses = 0;
         slam_filter_view_counts(&sim.node(k).filter, &pairs, &misses);
         const double pr = static_cast<double>(pairs) / (pairs + misses);
-        std::printf("robot %zu: camera %.3f over its filter's view (clear), filter pairs %.3f (%u of %u)\n", k,
-                    detection_rate_clear(t), pr, pairs, pairs + misses);
+        std::printf("robot %zu: camera %.3f over its filter's view (clear), filter pairs %.3f (%llu of %llu)\n", k,
+                    detection_rate_clear(t), pr, static_cast<unsigned long long>(pairs),
+                    static_cast<unsigned long long>(pairs + misses));
         EXPECT_GT(pairs + misses, 500u) << "robot " << k;
         EXPECT_GT(pr, 0.8) << "robot " << k;
         EXPECT_LT(pr, detection_rate_clear(t) + 0.01) << "robot " << k;

@@ -598,7 +598,7 @@ static void test_held_sighting_no_miss(void **state)
     assert_false(present(&w, id));
 }
 
-static void view_counts(const world_t *w, uint32_t *pairs, uint32_t *misses)
+static void view_counts(const world_t *w, uint64_t *pairs, uint64_t *misses)
 {
     *pairs = w->ekf ? g_ekf.ctr.view_pairs : g_fs.ctr.view_pairs;
     *misses = w->ekf ? g_ekf.ctr.view_misses : g_fs.ctr.view_misses;
@@ -620,15 +620,15 @@ static void counts_detection_rate(int ekf)
     world_init(&w, ekf, sp);
     warm_up(&w);
     w.p_detect = 0.6;
-    uint32_t p0;
-    uint32_t m0;
+    uint64_t p0;
+    uint64_t m0;
     view_counts(&w, &p0, &m0);
     enum { FRAMES = 300 };
     for (int f = 0; f < FRAMES; ++f) {
         step(&w);
     }
-    uint32_t p1;
-    uint32_t m1;
+    uint64_t p1;
+    uint64_t m1;
     view_counts(&w, &p1, &m1);
     const double n = (double)(p1 - p0 + m1 - m0);
     ASSERT_NEAR(n, (double)(FRAMES * N_REAL * per), 0.0); /* every real marker, every frame, in view */

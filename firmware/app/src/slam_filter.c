@@ -874,7 +874,7 @@ const slam_params_t *slam_filter_params(const slam_filter_t *f)
     return f->kind == SLAM_FILTER_EKF ? &f->u.ekf.cfg.slam : &f->u.fs.cfg.slam;
 }
 
-void slam_filter_view_counts(const slam_filter_t *f, uint32_t *pairs, uint32_t *misses)
+void slam_filter_view_counts(const slam_filter_t *f, uint64_t *pairs, uint64_t *misses)
 {
     *pairs = f->kind == SLAM_FILTER_EKF ? f->u.ekf.ctr.view_pairs : f->u.fs.ctr.view_pairs;
     *misses = f->kind == SLAM_FILTER_EKF ? f->u.ekf.ctr.view_misses : f->u.fs.ctr.view_misses;

@@ -141,8 +141,8 @@ void robot_status_collect(robot_status_t *s, robot_node_t *node, const robot_dev
     /* how often the filter finds its confirmed landmarks where it expects
      * them (slam_filter_view_counts): a camera or a map going wrong shows
      * as a falling view_pairs / (view_pairs + view_misses) */
-    uint32_t view_pairs = 0;
-    uint32_t view_misses = 0;
+    uint64_t view_pairs = 0;
+    uint64_t view_misses = 0;
     slam_filter_view_counts(&node->filter, &view_pairs, &view_misses);
     u64(s, "view_pairs", view_pairs);
     u64(s, "view_misses", view_misses);

@@ -275,7 +275,7 @@ const slam_params_t *slam_filter_params(const slam_filter_t *f);
  *  (*misses), since it started (Fast-SLAM: summed over the particles).
  *  pairs / (pairs + misses) is the rate at which its map is found where
  *  expected: the p_d the miss weight stands for (docs/core-slam.md). */
-void slam_filter_view_counts(const slam_filter_t *f, uint32_t *pairs, uint32_t *misses);
+void slam_filter_view_counts(const slam_filter_t *f, uint64_t *pairs, uint64_t *misses);
 
 /** Caller-owned working memory of one merge (the meeting holds one; one may
  *  serve several filters). Initialise with slam_merge_work_init. */

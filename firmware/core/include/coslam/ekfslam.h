@@ -205,10 +205,10 @@ typedef struct {
     uint32_t misses_held;             /**< landmarks in view not counted as missed because a
                                            sighting held back as a possible revisit of them
                                            (a loop-closing candidate of it) was in the frame */
-    uint32_t view_pairs;              /**< confirmed landmarks a miss would have counted for
+    uint64_t view_pairs;              /**< confirmed landmarks a miss would have counted for
                                            certain (in view, not hidden) that a sighting
                                            paired (fastslam_counters_t.view_pairs) */
-    uint32_t view_misses;             /**< ... that none paired: certain misses counted */
+    uint64_t view_misses;             /**< ... that none paired: certain misses counted */
     uint32_t lm_capacity_drops;       /**< state full: sighting not mapped */
     uint32_t sighting_capacity_drops; /**< sightings beyond COSLAM_MAX_SIGHTINGS */
     uint32_t export_capacity_drops;

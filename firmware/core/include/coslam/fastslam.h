@@ -156,12 +156,12 @@ typedef struct {
     uint32_t misses_hidden;         /**< landmarks in view not counted as missed because the
                                          view profile (fastslam_set_view) put an obstacle in
                                          front of them, all particles */
-    uint32_t view_pairs;            /**< confirmed landmarks a miss would have counted for
+    uint64_t view_pairs;            /**< confirmed landmarks a miss would have counted for
                                          certain (in view, not hidden) that a sighting paired,
                                          all particles; with view_misses the rate at which
                                          the map's landmarks are found where expected: the
                                          p_d slam_exist_miss_for_detection asks for */
-    uint32_t view_misses;           /**< ... that none paired: certain misses counted */
+    uint64_t view_misses;           /**< ... that none paired: certain misses counted */
     uint32_t lm_capacity_drops;     /**< a particle's map was full: sighting not mapped */
     uint32_t sighting_capacity_drops; /**< sightings beyond COSLAM_MAX_SIGHTINGS */
     uint32_t export_capacity_drops; /**< identities or landmarks beyond the export tables */
