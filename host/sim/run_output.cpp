@@ -122,20 +122,15 @@ nlohmann::json eval_json(const MapSnapshot &m)
 
 }  // namespace
 
-// The camera's detection rate over the filter's view (detection_tally.hpp)
-// and the miss weight it gives (slam_exist_miss_for_detection); null where
-// nothing was in view.
 // The rate at which a filter finds its confirmed landmarks where it expects
-// them (slam_filter_view_counts); NaN with none.
-double view_pair_rate(const robot_node_t &n)
+// them, from slam_filter_view_counts; NaN with none.
+double view_pair_rate(uint64_t pairs, uint64_t misses)
 {
-    uint64_t pairs = 0, misses = 0;
-    slam_filter_view_counts(&n.filter, &pairs, &misses);
-    return pairs + misses > 0 ? static_cast<double>(pairs) / (static_cast<double>(pairs) + misses)
+    return pairs + misses > 0 ? static_cast<double>(pairs) / static_cast<double>(pairs + misses)
                               : std::numeric_limits<double>::quiet_NaN();
 }
 
-// slam_exist_miss_for_detection where the rate allows it
+// slam_exist_miss_for_detection where the rate allows it (not NaN)
 bool miss_weight_for(double p_d, double *w)
 {
     if (!(p_d > SLAM_EXIST_P_FALSE && p_d < 1.0)) return false;
@@ -143,22 +138,23 @@ bool miss_weight_for(double p_d, double *w)
     return true;
 }
 
+// The camera's detection rate over the filter's view (detection_tally.hpp),
+// the filter's own rate, and the miss weight each gives; null where nothing
+// was in view.
 nlohmann::json detection_json(const DetectionTally &t, const robot_node_t &n)
 {
-    const slam_params_t &filter = n.cfg.filter.slam;
     uint64_t pairs = 0, misses = 0;
     slam_filter_view_counts(&n.filter, &pairs, &misses);
-    const double pr = view_pair_rate(n);
+    const double pr = view_pair_rate(pairs, misses);
     double wpr = 0.0;
     const bool okp = miss_weight_for(pr, &wpr);
-    const double pd = detection_rate(t);
     const double pdc = detection_rate_clear(t);
     double wpdc = 0.0;
-    const bool ok = t.in_view_clear > 0 && miss_weight_for(pdc, &wpdc);
+    const bool ok = miss_weight_for(pdc, &wpdc);
     return {{"frames", t.frames},
             {"in_view", t.in_view},
             {"detected", t.detected},
-            {"p_d", measured(t.in_view > 0, pd)},
+            {"p_d", measured(t.in_view > 0, detection_rate(t))},
             {"in_view_clear", t.in_view_clear},
             {"detected_clear", t.detected_clear},
             {"p_d_clear", measured(t.in_view_clear > 0, pdc)},
@@ -167,7 +163,7 @@ nlohmann::json detection_json(const DetectionTally &t, const robot_node_t &n)
             {"filter_view_misses", misses},
             {"filter_pair_rate", measured(pairs + misses > 0, pr)},
             {"exist_miss_for_pair_rate", measured(okp, wpr)},
-            {"exist_miss_confirmed", filter.exist_miss_confirmed}};
+            {"exist_miss_confirmed", n.cfg.filter.slam.exist_miss_confirmed}};
 }
 
 nlohmann::json merge_json(const MergeRecord &m)
@@ -456,9 +452,11 @@ std::string run_summary(const Simulation &sim, const std::string &out_dir)
     for (size_t k = 0; k < sim.n_robots(); ++k) {
         const DetectionTally &t = sim.robot(k).detection_tally();
         const double pdc = detection_rate_clear(t);
-        const double pr = view_pair_rate(sim.node(k));
+        uint64_t pairs = 0, misses = 0;
+        slam_filter_view_counts(&sim.node(k).filter, &pairs, &misses);
+        const double pr = view_pair_rate(pairs, misses);
         double wd = 0.0, wp = 0.0;
-        const bool okd = t.in_view_clear > 0 && miss_weight_for(pdc, &wd);
+        const bool okd = miss_weight_for(pdc, &wd);
         const bool okp = miss_weight_for(pr, &wp);
         char wds[32] = "n/a", wps[32] = "n/a", pds[32] = "n/a", prs[32] = "n/a";
         if (t.in_view_clear > 0) std::snprintf(pds, sizeof pds, "%.3f", pdc);

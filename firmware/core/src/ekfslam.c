@@ -2600,13 +2600,14 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
         if (ekf->cfg.iekf_max_iters > 0U) {
             batch_flush(ekf); /* pair_spread and the iteration read P */
         }
-        const int iterate = ekf->cfg.iekf_max_iters > 0U && pair_is_closure(ekf, j) && pair_spread(ekf, j) > iekf_spread;
+        const int closing = pair_is_closure(ekf, j); /* last_seen and the frame's S: the same after the update */
+        const int iterate = ekf->cfg.iekf_max_iters > 0U && closing && pair_spread(ekf, j) > iekf_spread;
         double d2 = 0.0;
         if (update_one(ekf, (uint16_t)j, z[i], iterate, &d2) == COSLAM_OK) {
             ++n_updated;
             d2_sum += d2;
             ekfslam_meta_t *m = &ekf->meta[j];
-            if (!pair_is_closure(ekf, j) && (ekf->lm_confirmed_once[j] || m->exist >= sp->exist_confirm) &&
+            if (!closing && exist_confirmed(m->exist, ekf->lm_confirmed_once[j], sp) &&
                 landmark_miss_would_count(sp, ekf->view, &sc->expect[j])) {
                 ekf->ctr.view_pairs++; /* from the frame's prediction, as the misses below */
             }
@@ -2670,7 +2671,7 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
             continue;
         }
         const int certain = landmark_miss_is_certain(sp, ep);
-        if (certain && (ekf->lm_confirmed_once[j] || ekf->meta[j].exist >= sp->exist_confirm)) {
+        if (certain && exist_confirmed(ekf->meta[j].exist, ekf->lm_confirmed_once[j], sp)) {
             ekf->ctr.view_misses++;
         }
         if (exist_miss(&ekf->meta[j].exist, &ekf->lm_confirmed_once[j], certain, sp)) {

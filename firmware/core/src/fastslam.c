@@ -904,7 +904,7 @@ static coslam_status_t update_particle(fastslam_t *fs, uint16_t k, const sightin
             mo->k = fs2 && proposal_assign[i] == j ? sc->gain[i] : 0;
             mo->key = mo->anchor.m[0][0] + mo->anchor.m[1][1];
         }
-        if (closure_j[i] < 0 && (lm->confirmed_once || lm->exist >= sp->exist_confirm) &&
+        if (closure_j[i] < 0 && exist_confirmed(lm->exist, lm->confirmed_once, sp) &&
             landmark_miss_would_count(sp, fs->view, &sc->expect[j])) {
             fs->ctr.view_pairs++; /* from the pose before the frame, as the misses below */
         }
@@ -960,7 +960,7 @@ static coslam_status_t update_particle(fastslam_t *fs, uint16_t k, const sightin
         float exist = lmc->exist;
         uint8_t confirmed_once = lmc->confirmed_once;
         const int certain = landmark_miss_is_certain(sp, ep);
-        if (certain && (confirmed_once || exist >= sp->exist_confirm)) {
+        if (certain && exist_confirmed(exist, confirmed_once, sp)) {
             fs->ctr.view_misses++;
         }
         if (exist_miss(&exist, &confirmed_once, certain, sp)) {

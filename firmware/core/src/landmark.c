@@ -251,11 +251,14 @@ int landmark_miss_would_count(const slam_params_t *params, const view_profile_t 
     return landmark_should_be_seen(params, e->zhat) && !landmark_hidden(v, e) && landmark_miss_is_certain(params, e);
 }
 
+int exist_confirmed(float exist, uint8_t confirmed_once, const slam_params_t *params)
+{
+    return confirmed_once || exist >= params->exist_confirm;
+}
+
 int exist_miss(float *exist, uint8_t *confirmed_once, int certain, const slam_params_t *params)
 {
-    if (*exist >= params->exist_confirm) {
-        *confirmed_once = 1U;
-    }
+    *confirmed_once = (uint8_t)exist_confirmed(*exist, *confirmed_once, params);
     if (params->exist_miss_confirmed > 0.0f && *confirmed_once) {
         /* one slow rate from exist_max to removal; uncertain misses say
          * nothing about a confirmed landmark */

@@ -157,6 +157,11 @@ int landmark_miss_is_certain(const slam_params_t *params, const lm_expect_t *e);
  */
 int landmark_miss_would_count(const slam_params_t *params, const view_profile_t *v, const lm_expect_t *e);
 
+/** 1 if a landmark with evidence `exist` and flag `confirmed_once` counts as
+ *  confirmed for the miss rule: confirmed now or once (exist_miss sets the
+ *  flag when it first sees the evidence at exist_confirm). */
+int exist_confirmed(float exist, uint8_t confirmed_once, const slam_params_t *params);
+
 /** The largest bearing sd [rad] of a certain miss (landmark_miss_is_certain):
  *  exist_miss_bearing_sd_frac * sensor_fov_rad / 2. */
 double landmark_miss_bearing_sd_max(const slam_params_t *params);

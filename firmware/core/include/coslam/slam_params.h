@@ -101,7 +101,8 @@ typedef struct {
      *  removed at the 18th: 3.6 s of looking at it at 5 Hz); MRCLAM's camera
      *  (about a third) 0.125, its value since Dataset 6 chose it; flat
      *  markers (the robot app, the simulator) SLAM_EXIST_MISS_FLAT_MARKERS,
-     *  their rate over the filter's view unmeasured. A marker
+     *  below what their measured rate gives, because one marker's misses
+     *  are not independent. A marker
      *  hidden behind an obstacle is not missed where the robot has a view
      *  profile from its laser (view.h); without one (no laser, the replay)
      *  every certain miss counts. 0 restores the old rule: confirmed
@@ -156,16 +157,18 @@ void slam_noise_from_array(slam_noise_t *noise, const double w[SLAM_NOISE_N_WEIG
 
 /** The chance that a landmark that is not there is paired with some sighting
  *  in a frame that has it in view (slam_exist_miss_for_detection): chosen so
- *  that MRCLAM's detection rate (about 1/3, Dataset 6) gives the 0.125 that
- *  Dataset 6 chose; every other camera's miss weight follows from its own
- *  detection probability. */
+ *  that MRCLAM's detection rate (about 1/3, Dataset 6; fit-noise measures
+ *  0.29-0.36) gives the 0.125 that Dataset 6 chose; every other camera's
+ *  miss weight follows from its own detection probability. */
 #define SLAM_EXIST_P_FALSE 0.015
 
-/** exist_miss_confirmed for flat markers, seen only from in front (the
- *  robot app's default, the simulator's): the formula needs the detection
- *  rate over the region the filter calls in view, which expects a marker
- *  from every side; that rate is not measured, so MRCLAM's weight (its
- *  rate about 1/3) is kept (docs/core-slam.md). */
+/** exist_miss_confirmed for flat markers on walls and box faces (the robot
+ *  app's default, the simulator's). Their detection rate over the filter's
+ *  view is measured (the simulator's cameras 0.91-0.999, the filters' own
+ *  view_pairs / view_misses 0.88-0.98), but at the weight it gives the
+ *  simulator loses real markers: an estimate a few decimetres off is
+ *  missed from viewpoint after viewpoint, not independently. So MRCLAM's
+ *  weight is kept (docs/core-slam.md "The rate, measured three ways"). */
 #define SLAM_EXIST_MISS_FLAT_MARKERS 0.125f
 
 /**
