@@ -248,6 +248,17 @@ static void note_gap(robot_node_t *n, uint64_t from, uint64_t to)
     n->stall_us = to - from > UINT32_MAX ? UINT32_MAX : (uint32_t)(to - from);
 }
 
+/* The laser driver's search count since the last call into the node's
+ * total. Called every step, so the 32-bit count cannot wrap twice between
+ * calls (a step looks at a few receive buffers, not 4 GiB), and before
+ * the driver is reset. */
+static void laser_rx_search_add(robot_node_t *n)
+{
+    const uint32_t now = urg_scip2_rx_search_bytes(&n->urg);
+    n->laser_rx_search_bytes += (uint32_t)(now - n->laser_rx_search_seen);
+    n->laser_rx_search_seen = now;
+}
+
 /* laser_optional: connect in the background, notice a laser that went
  * silent. The connect does not wait (laser_connect_step): the base goes on
  * meanwhile, without translating while no scan comes (scan_max_age_us). */
@@ -262,10 +273,12 @@ static coslam_status_t laser_background(robot_node_t *n)
         n->ctr.laser_lost++;
         n->laser_retry_at_us = n->now_us;
         /* a fresh driver state (receive buffer, streaming flag); its
-         * counters go on */
+         * counters go on, its search count in the node's total */
         const urg_scip2_stats_t keep = *urg_scip2_stats(&n->urg);
+        laser_rx_search_add(n);
         (void)urg_scip2_init(&n->urg, n->io.laser, &n->cfg.urg);
         n->urg.stats = keep;
+        n->laser_rx_search_seen = 0U;
         n->laser_phase = 0U;
     }
     if (n->now_us < n->laser_retry_at_us) {
@@ -577,6 +590,7 @@ coslam_status_t robot_node_step(robot_node_t *n)
         note_gap(n, n->last_step_us, now); /* a late step: the process stalled between steps */
     }
     n->last_step_us = now;
+    laser_rx_search_add(n);
     if (n->state == ROBOT_NODE_SHUTDOWN) {
         if (n->drive_started) {
             (void)cia402_omni_poll(&n->drive, now); /* let the disable sequence finish */
@@ -818,4 +832,10 @@ const meeting_counters_t *robot_node_meeting_counters(const robot_node_t *n)
 const urg_scip2_stats_t *robot_node_laser_stats(const robot_node_t *n)
 {
     return urg_scip2_stats(&n->urg);
+}
+
+uint64_t robot_node_laser_rx_search_bytes(const robot_node_t *n)
+{
+    /* what the driver counted since the last step's addition, too */
+    return n->laser_rx_search_bytes + (uint32_t)(urg_scip2_rx_search_bytes(&n->urg) - n->laser_rx_search_seen);
 }

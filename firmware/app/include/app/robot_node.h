@@ -232,6 +232,9 @@ typedef struct {
     uint64_t laser_alive_us;      /**< laser_optional: connected at */
     uint8_t laser_phase;          /**< the connect's next command: 0 SCIP2.0, 1 PP, 2 MD */
     uint64_t laser_cmd_at_us;     /**< the connect's command under way was sent at */
+    uint64_t laser_rx_search_bytes; /**< urg_scip2_rx_search_bytes since robot_node_init, across the
+                                         driver's resets (robot_node_laser_rx_search_bytes) */
+    uint32_t laser_rx_search_seen;  /**< the driver's own count when last added to it */
     int hold;                     /**< robot_node_hold */
     health_t health;              /**< the filter's health monitor (reads the filter only) */
 } robot_node_t;
@@ -376,6 +379,12 @@ const health_t *robot_node_health(const robot_node_t *n);
 const robot_node_counters_t *robot_node_counters(const robot_node_t *n);
 const meeting_counters_t *robot_node_meeting_counters(const robot_node_t *n);
 const urg_scip2_stats_t *robot_node_laser_stats(const robot_node_t *n);
+
+/** The bytes the laser driver looked at while waiting for whole messages
+ *  (urg_scip2_rx_search_bytes) since robot_node_init. A lost laser resets
+ *  the driver, which starts its own 32-bit count again (and it wraps at
+ *  2^32); this total goes on across both, so it never goes back. O(1). */
+uint64_t robot_node_laser_rx_search_bytes(const robot_node_t *n);
 
 #ifdef __cplusplus
 }
