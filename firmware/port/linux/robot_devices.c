@@ -627,7 +627,13 @@ static void close_dev(robot_devices_t *d, robot_dev_t id)
 {
     switch (id) {
     case ROBOT_DEV_LASER: hal_serial_close(&d->laser_dev); break;
-    case ROBOT_DEV_CAN: hal_can_close(&d->can_state.can); break;
+    case ROBOT_DEV_CAN:
+        /* the session's count into the total: the next open (on the
+         * opener, the slot down) starts it again */
+        d->can_stamps_unbelieved_past += d->can_state.stamps_unbelieved;
+        d->can_state.stamps_unbelieved = 0U;
+        hal_can_close(&d->can_state.can);
+        break;
     case ROBOT_DEV_GPIO: hal_gpio_close(gpio_backend(d)); break;
     case ROBOT_DEV_CAMERA:
         /* the stream's counters into the totals: its reopen starts them
@@ -1061,6 +1067,14 @@ void robot_devices_live_counters(const robot_devices_t *d, uint32_t *live_bad, u
     if (live_robots_refused != NULL) {
         *live_robots_refused = d->live_robots_refused_past + (up ? d->replay.live_robots_refused : 0U);
     }
+}
+
+uint64_t robot_devices_can_stamps_unbelieved(const robot_devices_t *d)
+{
+    /* up, lost or not: the opener runs only while the slot is down, and a
+     * lost slot's session is added at its close (robot_devices_service) */
+    const int up = d->dev[ROBOT_DEV_CAN].state == ROBOT_DEV_UP;
+    return d->can_stamps_unbelieved_past + (up ? d->can_state.stamps_unbelieved : 0U);
 }
 
 hal_storage_t *robot_devices_storage(robot_devices_t *d)

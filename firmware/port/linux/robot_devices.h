@@ -180,7 +180,9 @@ typedef struct robot_devices {
     /* backends */
     hal_serial_t laser_dev;
     hal_serial_linux_t laser_state;
-    hal_can_socketcan_t can_state;
+    hal_can_socketcan_t can_state;   /**< reset by each open (the opener's while the slot is not up) */
+    uint64_t can_stamps_unbelieved_past; /**< can_state.stamps_unbelieved of the sessions closed before
+                                              (robot_devices_can_stamps_unbelieved; the loop's) */
     hal_can_filter_t can_filters[HAL_CAN_MAX_FILTERS];
     size_t can_filter_count;
 #if COSLAM_HAVE_GPIOD
@@ -277,6 +279,15 @@ robot_node_io_t robot_devices_io(robot_devices_t *d);
  *  (robot_live_open), so these are what the status reports: they never go
  *  back. Either pointer may be NULL. */
 void robot_devices_live_counters(const robot_devices_t *d, uint32_t *live_bad, uint32_t *live_robots_refused);
+
+/** The CAN backend's kernel stamps not believed (hal_can_socketcan.h
+ *  `stamps_unbelieved`: in the future or older than
+ *  HAL_CAN_SOCKETCAN_MAX_AGE_US, the read-out time used) since the start:
+ *  the sessions closed before plus, while the slot is up, the open one's.
+ *  Each open starts the backend's own count again (on the opener thread,
+ *  while the slot is not up, so the open session's is read only while
+ *  it is up), so this is what the status reports: it never goes back. */
+uint64_t robot_devices_can_stamps_unbelieved(const robot_devices_t *d);
 
 /** A snapshot save of `bytes` failed (ws HAL_E_IO or HAL_E_CLOSED: the
  *  medium, `reason` in words): the storage goes down as robot_devices_fail,
