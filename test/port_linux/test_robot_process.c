@@ -516,7 +516,8 @@ static void sigterm(void **state)
                                                       "\"lm_capacity_drops\"", "\"rejected_sightings\"",
                                                       "\"numeric_faults\"", "\"urg_err_capacity\"",
                                                       "\"urg_bytes_discarded\"", "\"stalls\"", "\"stall_resets\"",
-                                                      "\"health_unjudged\"", NULL};
+                                                      "\"health_unjudged\"", "\"can_stamps_unbelieved\"",
+                                                      "\"urg_rx_search_bytes\"", NULL};
          *k != NULL; ++k) {
         if (strstr(json, *k) == NULL) {
             fprintf(stderr, "status file lacks %s\n", *k);
@@ -773,7 +774,11 @@ static void laser_pty(void **state)
     assert_true(last_value(log, "urg_scans_ok") >= 10);
     assert_int_equal(last_value(log, "scan_errors"), 0);
     assert_int_equal(last_value(log, "laser_lost"), 0);
-    fprintf(stderr, "laser_pty: %ld scans in 2.5 s\n", last_value(log, "scans"));
+    /* every scan message (about 1,260 bytes over the 140 degrees) was
+     * looked at while the driver waited for it whole */
+    assert_true(last_value(log, "urg_rx_search_bytes") >= 1000L * last_value(log, "urg_scans_ok"));
+    fprintf(stderr, "laser_pty: %ld scans in 2.5 s, %ld bytes searched\n", last_value(log, "scans"),
+            last_value(log, "urg_rx_search_bytes"));
     remove_dir(dir);
 }
 

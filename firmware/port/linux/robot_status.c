@@ -98,6 +98,7 @@ void robot_status_collect(robot_status_t *s, robot_node_t *node, const robot_dev
     u64(s, "diverged_now", (uint64_t)robot_node_diverged(node));
     u64(s, "health_unjudged", node->health.unjudged_frames);
     u64(s, "can_errors", c->can_errors);
+    u64(s, "can_stamps_unbelieved", robot_devices_can_stamps_unbelieved(dev)); /* since the start, across reopens */
 
     const meeting_counters_t *m = robot_node_meeting_counters(node);
     u64(s, "mt_sent", m->sent);
@@ -176,6 +177,7 @@ void robot_status_collect(robot_status_t *s, robot_node_t *node, const robot_dev
     u64(s, "urg_messages_skipped", u->messages_skipped);
     u64(s, "urg_fields_truncated", u->fields_truncated);
     u64(s, "urg_stamp_backwards", u->stamp_backwards);
+    u64(s, "urg_rx_search_bytes", robot_node_laser_rx_search_bytes(node)); /* since the start, across resets */
 
     pose2_t pose;
     cov3_t cov;

@@ -13,6 +13,9 @@
  *   laser_streaming (1 while the node has the laser connected);
  *   the robot node's counters (robot_node_counters_t, same names), and
  *     diverged_now (the health monitor's judgement now);
+ *   can_stamps_unbelieved (the SocketCAN backend's kernel stamps not
+ *     believed, robot_devices_can_stamps_unbelieved: since the start,
+ *     across the bus's reopens);
  *   mt_* the meeting's counters (meeting_counters_t), mt_rebased;
  *   the filter's loss counters (slam_filter_limits: lm_capacity_drops,
  *     sighting_capacity_drops, export_capacity_drops, rejected_controls,
@@ -21,7 +24,10 @@
  *     confirmed landmarks a miss would count, found or not; their ratio is
  *     the rate the miss weight stands for, docs/core-slam.md);
  *   urg_* the laser driver's (scans_ok, the err_ counters, resyncs,
- *     bytes_discarded, messages_skipped, fields_truncated, stamp_backwards);
+ *     bytes_discarded, messages_skipped, fields_truncated, stamp_backwards;
+ *     urg_rx_search_bytes, the bytes it looked at waiting for whole
+ *     messages, robot_node_laser_rx_search_bytes: since the start, across
+ *     the driver's resets at a lost laser);
  *   link_mode: auth | insecure | off(no_fleet_key) | off(no_dds_in_build)
  *     | off(no_auth_in_build); on stderr a link that is not authenticated
  *     also ends every line with "WARNING: link: ..." (robot_link_warning);
