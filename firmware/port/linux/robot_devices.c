@@ -1058,9 +1058,11 @@ robot_node_io_t robot_devices_io(robot_devices_t *d)
 
 void robot_devices_live_counters(const robot_devices_t *d, uint32_t *live_bad, uint32_t *live_robots_refused)
 {
-    /* the open stream's only while up: while down its opener may be
-     * writing them (robot_live_open starts them at 0) */
-    const int up = usable(d, ROBOT_DEV_CAMERA);
+    /* the open stream's only while up, lost or not: while down its opener
+     * may be writing them (robot_live_open starts them at 0), and a lost
+     * stream's are added to the totals at its close, not before (with
+     * usable() a report between the loss and the close dipped) */
+    const int up = d->dev[ROBOT_DEV_CAMERA].state == ROBOT_DEV_UP;
     if (live_bad != NULL) {
         *live_bad = d->live_bad_past + (up ? d->replay.live_bad : 0U);
     }
