@@ -8,7 +8,9 @@
  * the kernel's receive stamp is moved an hour back by a link-time wrap of
  * recvmsg (as test_socketcan does), so every frame's stamp is not
  * believed. The status used to have no such key; the backend's own count
- * goes back to 0 at each reopen.
+ * goes back to 0 at each reopen. And the live sighting stream's refusals
+ * (robot_devices_live_counters), which must not dip while a lost stream
+ * waits for its close.
  */
 #include <setjmp.h>
 #include <stdarg.h>
@@ -127,8 +129,69 @@ static void can_stamps_unbelieved_across_reopen(void **state)
     close(sv[1]);
 }
 
+/* The live sighting stream (--sightings-fd) counts the datagrams it
+ * refuses; the status reads them since the start. A stream found lost is
+ * closed by the next service, and its counts are added to the totals at
+ * that close: in between they must still be read (the status reported
+ * that loop pass's counts without the open stream's, a dip of a report). */
+static void live_counters_do_not_dip_while_lost(void **state)
+{
+    (void)state;
+    int sv[2];
+    assert_int_equal(socketpair(AF_UNIX, SOCK_SEQPACKET, 0, sv), 0);
+    robot_config_default(&cfg);
+    cfg.laser_device[0] = '\0';
+    cfg.can_interface[0] = '\0';
+    cfg.gpio_chip[0] = '\0';
+    cfg.camera_device[0] = '\0';
+    cfg.camera_replay_log[0] = '\0';
+    cfg.storage_dir[0] = '\0';
+    cfg.fleet_key_file[0] = '\0';
+    cfg.camera_live_fd = sv[1];
+    cfg.retry_period_s = 0.1;
+    char msg[512];
+    FILE *log = fopen("/dev/null", "w");
+    assert_non_null(log);
+    assert_int_equal(robot_devices_init(&dev, &cfg, hal_clock_linux(), log, 0, msg, sizeof msg), COSLAM_OK);
+    robot_devices_open_all(&dev, 0U);
+    assert_int_equal(dev.dev[ROBOT_DEV_CAMERA].state, ROBOT_DEV_UP);
+    uint32_t bad = 99U;
+    uint32_t refused = 99U;
+    robot_devices_live_counters(&dev, &bad, &refused);
+    assert_int_equal(bad, 0u);
+    assert_int_equal(refused, 0u);
+
+    /* two datagrams without a T line: refused, counted */
+    static const char junk[] = "this is not a frame\n";
+    for (int i = 0; i < 2; ++i) {
+        assert_int_equal(write(sv[0], junk, sizeof junk - 1U), (ssize_t)(sizeof junk - 1U));
+    }
+    sighting_frame_t fr;
+    assert_int_equal(sighting_source_next_frame(&dev.sightings, &fr, 0U), HAL_E_TIMEOUT);
+    robot_devices_live_counters(&dev, &bad, NULL);
+    assert_int_equal(bad, 2u);
+
+    /* the peer goes away: lost at once, closed by the next service */
+    close(sv[0]);
+    (void)sighting_source_next_frame(&dev.sightings, &fr, 0U);
+    assert_int_equal(dev.dev[ROBOT_DEV_CAMERA].lost, 1);
+    assert_int_equal(dev.dev[ROBOT_DEV_CAMERA].state, ROBOT_DEV_UP);
+    robot_devices_live_counters(&dev, &bad, NULL);
+    assert_int_equal(bad, 2u); /* 0 before: the open stream's counts were left out while lost */
+    (void)robot_devices_service(&dev, 1000000U);
+    assert_int_equal(dev.dev[ROBOT_DEV_CAMERA].state, ROBOT_DEV_DOWN);
+    robot_devices_live_counters(&dev, &bad, NULL);
+    assert_int_equal(bad, 2u); /* added once, at the close */
+    robot_devices_close_all(&dev);
+    robot_devices_live_counters(&dev, &bad, NULL);
+    assert_int_equal(bad, 2u);
+    fclose(log);
+    close(sv[1]);
+}
+
 int main(void)
 {
-    const struct CMUnitTest tests[] = {cmocka_unit_test(can_stamps_unbelieved_across_reopen)};
+    const struct CMUnitTest tests[] = {cmocka_unit_test(can_stamps_unbelieved_across_reopen),
+                                       cmocka_unit_test(live_counters_do_not_dip_while_lost)};
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
