@@ -924,6 +924,47 @@ static void test_ekfslam_held_queue_under_load(void **state)
     assert_true(same_ekf(&g_a.u.ekf, &g_c.u.ekf));
 }
 
+/* Fast-SLAM's landmark tree pool is sized for the worst case, but a build
+ * may lower it (LM_TREE_MAX_LEAVES / _NODES): running out skips the change
+ * and counts it (tree_capacity_drops). That is a capacity like the map's,
+ * so it is one of the limits every tool reports (slam_filter_limits: the
+ * LIMIT line, the robot's status key, the tools' exit code 3); it was
+ * counted in the core only. EKF-SLAM has no tree: never reported. */
+static void test_fastslam_tree_pool_is_a_limit(void **state)
+{
+    (void)state;
+    const pose2_t p0 = {0.0, 0.0, 0.0};
+    init_filter(&g_a, SLAM_FILTER_FASTSLAM2, 1U, p0);
+    fastslam_t *fs = &g_a.u.fs;
+    slam_filter_limit_t lim[SLAM_FILTER_N_LIMITS];
+    assert_int_equal(slam_filter_limits(&g_a, lim), 0);
+    lm_tree_pool_init(&fs->lm_pool, 0U, 3U); /* 3 leaves: far below 20 maps */
+    landmark_t lm;
+    memset(&lm, 0, sizeof lm);
+    lm.mean = (point2_t){1.0, 2.0};
+    lm.cov = cov2_make(0.01, 0.0, 0.01);
+    lm.id = 1U;
+    for (int j = 0; j < 3; ++j) {
+        assert_int_equal(fastslam_particle_add(fs, 0, &lm), COSLAM_OK);
+    }
+    assert_int_equal(fastslam_particle_add(fs, 0, &lm), COSLAM_E_CAPACITY);
+    assert_int_equal(fastslam_particle_add(fs, 1, &lm), COSLAM_E_CAPACITY);
+    assert_int_equal(fs->ctr.tree_capacity_drops, 2u);
+    assert_int_equal(slam_filter_limits(&g_a, lim), 1);
+    assert_string_equal(lim[0].counter, "tree_capacity_drops");
+    assert_non_null(lim[0].capacity_macro);
+    assert_string_equal(lim[0].capacity_macro, "LM_TREE_MAX_LEAVES");
+    assert_true(lim[0].capacity == (long)LM_TREE_MAX_LEAVES);
+    assert_int_equal(lim[0].value, 2u);
+    char line[512];
+    (void)slam_filter_limit_format(&lim[0], 1U, line, sizeof line);
+    assert_non_null(strstr(line, "LIMIT robot 1: 2 Fast-SLAM landmark changes skipped"));
+    assert_non_null(strstr(line, "-DLM_TREE_MAX_LEAVES=N"));
+    /* EKF-SLAM: nothing of the kind */
+    init_filter(&g_b, SLAM_FILTER_EKF, 2U, p0);
+    assert_int_equal(slam_filter_limits(&g_b, lim), 0);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -940,6 +981,7 @@ int main(void)
         cmocka_unit_test(test_fastslam_late_part_capacity),
         cmocka_unit_test(test_ekfslam_merge_in_parts),
         cmocka_unit_test(test_ekfslam_held_queue_under_load),
+        cmocka_unit_test(test_fastslam_tree_pool_is_a_limit),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

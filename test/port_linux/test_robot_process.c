@@ -517,7 +517,8 @@ static void sigterm(void **state)
                                                       "\"numeric_faults\"", "\"urg_err_capacity\"",
                                                       "\"urg_bytes_discarded\"", "\"stalls\"", "\"stall_resets\"",
                                                       "\"health_unjudged\"", "\"can_stamps_unbelieved\"",
-                                                      "\"urg_rx_search_bytes\"", NULL};
+                                                      "\"urg_rx_search_bytes\"", "\"merge_pair_drops\"",
+                                                      "\"tree_capacity_drops\"", NULL};
          *k != NULL; ++k) {
         if (strstr(json, *k) == NULL) {
             fprintf(stderr, "status file lacks %s\n", *k);

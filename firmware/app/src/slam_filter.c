@@ -1010,8 +1010,10 @@ int slam_filter_limits(const slam_filter_t *f, slam_filter_limit_t out[SLAM_FILT
     uint32_t v[SLAM_FILTER_N_LIMITS];
     if (f->kind == SLAM_FILTER_EKF) {
         SLAM_FILTER_LOSS_COUNTERS(v, &f->u.ekf.ctr);
+        v[7] = 0U; /* no landmark tree */
     } else {
         SLAM_FILTER_LOSS_COUNTERS(v, &f->u.fs.ctr);
+        v[7] = f->u.fs.ctr.tree_capacity_drops;
     }
 #undef SLAM_FILTER_LOSS_COUNTERS
     static const slam_filter_limit_t table[SLAM_FILTER_N_LIMITS] = {
@@ -1031,6 +1033,10 @@ int slam_filter_limits(const slam_filter_t *f, slam_filter_limit_t out[SLAM_FILT
          "merge pairings with more candidate duplicate pairs than fit (the nearest kept; an incoming landmark that "
          "lost one was neither fused nor added)",
          "COSLAM_MERGE_MAX_PAIRS", COSLAM_MERGE_MAX_PAIRS, 0U},
+        {"tree_capacity_drops",
+         "Fast-SLAM landmark changes skipped: the landmark tree's pool ran out (it holds LM_TREE_MAX_LEAVES leaves "
+         "and LM_TREE_MAX_NODES nodes, the worst case unless lowered)",
+         "LM_TREE_MAX_LEAVES", (long)LM_TREE_MAX_LEAVES, 0U},
     };
     int n = 0;
     for (int i = 0; i < SLAM_FILTER_N_LIMITS; ++i) {

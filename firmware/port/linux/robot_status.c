@@ -129,7 +129,7 @@ void robot_status_collect(robot_status_t *s, robot_node_t *node, const robot_dev
     const int n_lim = slam_filter_limits(&node->filter, lim);
     static const char *const loss_keys[] = {"lm_capacity_drops",   "sighting_capacity_drops", "export_capacity_drops",
                                             "rejected_controls",   "rejected_sightings",      "numeric_faults",
-                                            "merge_pair_drops"};
+                                            "merge_pair_drops",    "tree_capacity_drops"};
     for (size_t k = 0; k < sizeof loss_keys / sizeof loss_keys[0]; ++k) {
         uint64_t v = 0;
         for (int i = 0; i < n_lim; ++i) {

@@ -19,7 +19,8 @@
  *   mt_* the meeting's counters (meeting_counters_t), mt_rebased;
  *   the filter's loss counters (slam_filter_limits: lm_capacity_drops,
  *     sighting_capacity_drops, export_capacity_drops, rejected_controls,
- *     rejected_sightings, numeric_faults, merge_pair_drops), 0 when nothing was lost;
+ *     rejected_sightings, numeric_faults, merge_pair_drops,
+ *     tree_capacity_drops), 0 when nothing was lost;
  *   view_pairs view_misses (slam_filter_view_counts: the filter's
  *     confirmed landmarks a miss would count, found or not; their ratio is
  *     the rate the miss weight stands for, docs/core-slam.md);

@@ -426,15 +426,16 @@ typedef struct {
 } slam_filter_limit_t;
 
 /** Number of entries slam_filter_limits can write. */
-#define SLAM_FILTER_N_LIMITS 7
+#define SLAM_FILTER_N_LIMITS 8
 
 /**
  * The filter's loss counters (every tool reports limits from this one
  * table: coslam-replay, coslam-sim, coslam-robot): map full
  * (COSLAM_MAX_LANDMARKS), sightings over COSLAM_MAX_SIGHTINGS in a frame,
  * exported map cut (COSLAM_MAX_EXPORT_IDS), refused controls, refused
- * sightings, numeric faults, merge pairings over COSLAM_MERGE_MAX_PAIRS.
- * Writes those with a non-zero value, in that
+ * sightings, numeric faults, merge pairings over COSLAM_MERGE_MAX_PAIRS,
+ * Fast-SLAM's landmark tree pool run out (LM_TREE_MAX_LEAVES and _NODES;
+ * only if the pool was made smaller than the worst case). Writes those with a non-zero value, in that
  * order, to out (room for SLAM_FILTER_N_LIMITS); returns how many. O(1).
  */
 int slam_filter_limits(const slam_filter_t *f, slam_filter_limit_t out[SLAM_FILTER_N_LIMITS]);
