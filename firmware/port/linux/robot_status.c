@@ -87,6 +87,16 @@ void robot_status_collect(robot_status_t *s, robot_node_t *node, const robot_dev
     u64(s, "odometry_errors", c->odometry_errors);
     u64(s, "drive_faults", c->drive_faults);
     u64(s, "drive_errors", c->drive_errors);
+    /* the drive driver's own (cia402_omni_t, since the node's start: the
+     * driver is initialised once): odometry restarted for a silent wheel,
+     * commands scaled down, frames the HAL lost or no wheel claimed, master
+     * heartbeats refused */
+    const cia402_omni_t *dr = &node->drive;
+    u64(s, "drive_odo_gaps", dr->odo_gaps);
+    u64(s, "drive_saturations", dr->saturations);
+    u64(s, "drive_rx_overflows", dr->rx_overflows);
+    u64(s, "drive_rx_foreign", dr->rx_foreign);
+    u64(s, "drive_hb_failures", dr->master_hb_failures);
     u64(s, "stalls", c->stalls);
     u64(s, "stall_resets", c->stall_resets);
     u64(s, "stop_steps", c->stop_steps);

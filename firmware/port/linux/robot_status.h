@@ -13,6 +13,9 @@
  *   laser_streaming (1 while the node has the laser connected);
  *   the robot node's counters (robot_node_counters_t, same names), and
  *     diverged_now (the health monitor's judgement now);
+ *   drive_odo_gaps drive_saturations drive_rx_overflows drive_rx_foreign
+ *     drive_hb_failures: the drive driver's (cia402_omni_t odo_gaps,
+ *     saturations, rx_overflows, rx_foreign, master_hb_failures);
  *   can_stamps_unbelieved (the SocketCAN backend's kernel stamps not
  *     believed, robot_devices_can_stamps_unbelieved: since the start,
  *     across the bus's reopens);
@@ -65,8 +68,9 @@
 extern "C" {
 #endif
 
-/** Longest list of pairs (about 125 with every device and the camera; the
- *  last slot is kept for "status_dropped", below). */
+/** Longest list of pairs (177 with every device and the camera, counted
+ *  from robot_status_collect; the last slot is kept for "status_dropped",
+ *  below). */
 #define ROBOT_STATUS_MAX_KV 192
 /** Longest value text [characters, without NUL]. */
 #define ROBOT_STATUS_VALUE_MAX 31u
