@@ -71,25 +71,40 @@ static void frames_through_proxy(int peer, int n)
     }
 }
 
-static void can_stamps_unbelieved_across_reopen(void **state)
+/* The slots with one device only, the CAN bus (--can-fd) or the live
+ * sighting stream (--sightings-fd), on a SOCK_SEQPACKET pair: sv[1] is the
+ * robot's end (inherited), sv[0] the peer's. Returns the log (closed by the
+ * caller). */
+static FILE *open_one_device(int sv[2], robot_dev_t which)
 {
-    (void)state;
-    int sv[2];
     assert_int_equal(socketpair(AF_UNIX, SOCK_SEQPACKET, 0, sv), 0);
     robot_config_default(&cfg);
     cfg.laser_device[0] = '\0';
+    cfg.can_interface[0] = '\0';
     cfg.gpio_chip[0] = '\0';
     cfg.camera_device[0] = '\0';
     cfg.camera_replay_log[0] = '\0';
     cfg.storage_dir[0] = '\0';
     cfg.fleet_key_file[0] = '\0';
-    cfg.can_fd = sv[1];
+    if (which == ROBOT_DEV_CAN) {
+        cfg.can_fd = sv[1];
+    } else {
+        cfg.camera_live_fd = sv[1];
+    }
     cfg.retry_period_s = 0.1;
     char msg[512];
     FILE *log = fopen("/dev/null", "w");
     assert_non_null(log);
     assert_int_equal(robot_devices_init(&dev, &cfg, hal_clock_linux(), log, 0, msg, sizeof msg), COSLAM_OK);
     robot_devices_open_all(&dev, 0U);
+    return log;
+}
+
+static void can_stamps_unbelieved_across_reopen(void **state)
+{
+    (void)state;
+    int sv[2];
+    FILE *log = open_one_device(sv, ROBOT_DEV_CAN);
     assert_int_equal(dev.dev[ROBOT_DEV_CAN].state, ROBOT_DEV_UP);
     assert_true(robot_devices_can_stamps_unbelieved(&dev) == 0U);
 
@@ -138,22 +153,7 @@ static void live_counters_do_not_dip_while_lost(void **state)
 {
     (void)state;
     int sv[2];
-    assert_int_equal(socketpair(AF_UNIX, SOCK_SEQPACKET, 0, sv), 0);
-    robot_config_default(&cfg);
-    cfg.laser_device[0] = '\0';
-    cfg.can_interface[0] = '\0';
-    cfg.gpio_chip[0] = '\0';
-    cfg.camera_device[0] = '\0';
-    cfg.camera_replay_log[0] = '\0';
-    cfg.storage_dir[0] = '\0';
-    cfg.fleet_key_file[0] = '\0';
-    cfg.camera_live_fd = sv[1];
-    cfg.retry_period_s = 0.1;
-    char msg[512];
-    FILE *log = fopen("/dev/null", "w");
-    assert_non_null(log);
-    assert_int_equal(robot_devices_init(&dev, &cfg, hal_clock_linux(), log, 0, msg, sizeof msg), COSLAM_OK);
-    robot_devices_open_all(&dev, 0U);
+    FILE *log = open_one_device(sv, ROBOT_DEV_CAMERA);
     assert_int_equal(dev.dev[ROBOT_DEV_CAMERA].state, ROBOT_DEV_UP);
     uint32_t bad = 99U;
     uint32_t refused = 99U;
