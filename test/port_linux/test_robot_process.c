@@ -518,7 +518,8 @@ static void sigterm(void **state)
                                                       "\"urg_bytes_discarded\"", "\"stalls\"", "\"stall_resets\"",
                                                       "\"health_unjudged\"", "\"can_stamps_unbelieved\"",
                                                       "\"urg_rx_search_bytes\"", "\"merge_pair_drops\"",
-                                                      "\"tree_capacity_drops\"", "\"drive_odo_gaps\"", "\"drive_saturations\"",
+                                                      "\"tree_capacity_drops\"", "\"drive_odo_gaps\"",
+                                                      "\"drive_saturations\"",
                                                       "\"drive_rx_overflows\"", "\"drive_rx_foreign\"",
                                                       "\"drive_hb_failures\"", NULL};
          *k != NULL; ++k) {

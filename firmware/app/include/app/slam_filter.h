@@ -435,8 +435,9 @@ typedef struct {
  * exported map cut (COSLAM_MAX_EXPORT_IDS), refused controls, refused
  * sightings, numeric faults, merge pairings over COSLAM_MERGE_MAX_PAIRS,
  * Fast-SLAM's landmark tree pool run out (LM_TREE_MAX_LEAVES and _NODES;
- * only if the pool was made smaller than the worst case). Writes those with a non-zero value, in that
- * order, to out (room for SLAM_FILTER_N_LIMITS); returns how many. O(1).
+ * only if the pool was made smaller than the worst case). Writes those
+ * with a non-zero value, in that order, to out (room for
+ * SLAM_FILTER_N_LIMITS); returns how many. O(1).
  */
 int slam_filter_limits(const slam_filter_t *f, slam_filter_limit_t out[SLAM_FILTER_N_LIMITS]);
 
