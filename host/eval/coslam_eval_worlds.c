@@ -7,18 +7,19 @@
  *
  *   coslam-eval-worlds [--world paper|loop|large|arena] [--filter ekf|fs1|fs2]
  *                      [-p N] [--seeds N] [--seed0 S] [--out DIR]
- *                      [--active-radius R]
+ *                      [--active-radius R] [--mh-frames N]
  *                      [--write-log DIR]   (the world of seed0 as a landmark
  *                                           log for coslam-replay, no runs)
  *
  * --active-radius R sets EKF-SLAM's active_radius_m (0: the full EKF; the
- * default is the profile's, ekfslam_config_default()). The step time by
+ * default is the profile's, ekfslam_config_default()); --mh-frames N its
+ * mh_frames (0: revisits not kept as two hypotheses; default 50). The step time by
  * map size (run_result_t.size_bin_us, bins of 2^k landmarks) goes to
  * stderr, one line per seed.
  *
  * Numbers are read whole (a malformed or out-of-range value is refused with
  * the option named, exit 2: -p 1..COSLAM_MAX_PARTICLES, --seeds 1..1000,
- * --seed0 >= 0, --active-radius finite >= 0, --robots 1..9); --help prints
+ * --seed0 >= 0, --active-radius finite >= 0, --mh-frames 0..100000, --robots 1..9); --help prints
  * the usage and exits 0. A write error on the .md table or the log files
  * is said with the file's path, exit 1.
  *
@@ -195,7 +196,7 @@ out:
 static void usage(FILE *to)
 {
     fprintf(to, "usage: coslam-eval-worlds [--world paper|loop|large|arena] [--filter ekf|fs1|fs2] [-p N] [--seeds N] "
-                "[--seed0 S] [--out DIR] [--trace] [--active-radius R] [--write-log DIR [--robots N]]\n");
+                "[--seed0 S] [--out DIR] [--trace] [--active-radius R] [--mh-frames N] [--write-log DIR [--robots N]]\n");
 }
 
 /* Whole-number options: the benches' parser (host/cli/bench_args.h). */
@@ -236,6 +237,7 @@ static int eval_worlds_main(int argc, char **argv)
     int seeds = 10;
     long seed0 = 1;
     double active_radius_m = -1.0;
+    int mh_frames = -1;
     for (int i = 1; i < argc; ++i) {
         const int more = i + 1 < argc;
         int bad = 0;
@@ -256,6 +258,9 @@ static int eval_worlds_main(int argc, char **argv)
         else if (!strcmp(argv[i], "--write-log") && more) log_dir = argv[++i];
         else if (!strcmp(argv[i], "--robots") && more) {
             bad = parse_int("--robots", argv[i + 1], 1, 9, &n_robots);
+            ++i;
+        } else if (!strcmp(argv[i], "--mh-frames") && more) {
+            bad = parse_int("--mh-frames", argv[i + 1], 0, 100000, &mh_frames);
             ++i;
         } else if (!strcmp(argv[i], "--active-radius") && more) {
             bad = parse_nonneg("--active-radius", argv[i + 1], &active_radius_m);
@@ -322,7 +327,10 @@ static int eval_worlds_main(int argc, char **argv)
     if (md) fputs(line, md);
     for (int s = 0; s < seeds; ++s) {
         const uint64_t seed = (uint64_t)seed0 + (uint64_t)s;
-        if (eval_world_run_ekf_radius(wk, fk, particles, seed, active_radius_m, r) != 0) {
+        run_opts_t o = eval_world_opts(wk, fk, particles, seed, active_radius_m);
+        o.ekf_mh_frames = mh_frames;
+        const synth_config_t sc = eval_world_config(wk, seed);
+        if (run_synth(&sc, &o, r) != 0) {
             fprintf(stderr, "coslam-eval-worlds: run failed (seed %llu)\n", (unsigned long long)seed);
             free(r);
             return 1;
@@ -330,8 +338,6 @@ static int eval_worlds_main(int argc, char **argv)
         eval_summary_add(&sum, r);
         if (trace) {
             /* position error every 5 s of the run */
-            const synth_config_t sc = eval_world_config(wk, seed);
-            const run_opts_t o = eval_world_opts(wk, fk, particles, seed, active_radius_m);
             run_trace_t tr;
             run_result_t *r2 = malloc(sizeof *r2);
             if (r2 != NULL && run_synth_traced(&sc, &o, r2, &tr) == 0) {

@@ -234,6 +234,7 @@ std::vector<Key> keys_of(ReplayConfig &c)
         ikey("filter", "iekf_max_iters", &c.filter.iekf_max_iters, 0, 255),
         dkey("filter", "nis_inflate", &c.filter.nis_inflate),
         ikey("filter", "active_spread_madds", &c.filter.active_spread_madds, 0, 4294967295L),
+        ikey("filter", "mh_frames", &c.filter.mh_frames, 0, 100000),
         ikey("filter", "seed", &c.filter.seed, 0, 2000000000),
         dkey("filter", "predict_period_s", &c.filter.predict_period_s),
         dkey("input", "min_range_m", &c.input.min_range_m),

@@ -15,7 +15,7 @@
 //               export_min_weight, closure_drift_ratio, closure_gap,
 //               closure_ambiguity_ll, closure_misses_per_support,
 //               closure_chance_max, closure_unsupported_every, assoc (jcbb | nn), jcbb_max_nodes, fej,
-//               iekf_max_iters, nis_inflate, active_spread_madds, seed,
+//               iekf_max_iters, nis_inflate, active_spread_madds, mh_frames, seed,
 //               predict_period_s
 //   [input]     min_range_m, max_range_m (sightings outside are dropped, counted),
 //               known_id_gate_rad, known_id_gate_chi2, known_id_log_lik
@@ -66,6 +66,7 @@ struct FilterConfig {
     int iekf_max_iters = 0; ///< ekfslam_config_t::iekf_max_iters
     double nis_inflate = 3.0; ///< ekfslam_config_t::nis_inflate (0: off)
     uint32_t active_spread_madds = 8000000; ///< ekfslam_config_t::active_spread_madds
+    uint32_t mh_frames = 50; ///< ekfslam_config_t::mh_frames (0: off)
     uint64_t seed = 1;
     /// Odometry is folded into one prediction at most this long [s] (and
     /// always right before a camera frame): the robot's control rate.

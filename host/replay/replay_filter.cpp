@@ -36,6 +36,7 @@ RobotFilter::RobotFilter(FilterKind kind, const ReplayConfig &cfg, uint8_t core_
     c.iekf_max_iters = static_cast<uint8_t>(cfg.filter.iekf_max_iters);
     c.nis_inflate = cfg.filter.nis_inflate;
     c.active_spread_madds = cfg.filter.active_spread_madds;
+    c.mh_frames = cfg.filter.mh_frames;
     if (slam_filter_init(f_.get(), &c, pose0) != COSLAM_OK) {
         throw ReplayError(std::string(slam_filter_kind_name(c.kind)) + ": the core refused the configuration");
     }
@@ -123,6 +124,9 @@ std::map<std::string, long> RobotFilter::counters() const
         m["iekf_updates"] = c.iekf_updates;
         m["iekf_iterations"] = c.iekf_iterations;
         m["nis_inflations"] = c.nis_inflations;
+        m["mh_forks"] = c.mh_forks;
+        m["mh_reverted"] = c.mh_reverted;
+        m["mh_decided_early"] = c.mh_decided_early;
         m["landmarks_in_state"] = ekf->n_lm;
         m["merges_in_parts"] = f_->merges_in_parts;
         m["merges_late_partial"] = f_->merges_late_partial;

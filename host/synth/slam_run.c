@@ -19,6 +19,7 @@ run_opts_t run_opts_default(run_filter_t filter)
     o.gate_m = 1.0;
     o.min_seen = 5;
     o.ekf_active_radius_m = -1.0;
+    o.ekf_mh_frames = -1;
     return o;
 }
 
@@ -62,6 +63,7 @@ int run_synth_traced(const synth_config_t *scfg, const run_opts_t *opts, run_res
     synth_step_t *st = malloc(sizeof *st);
     fastslam_t *fs = NULL;
     ekfslam_t *ekf = NULL;
+    ekfslam_t *ekf_alt = NULL; /* a revisit's second hypothesis (ekfslam_set_alt) */
     map_estimate_t *map_est = NULL; /* map checkpoints of the trace (large: heap) */
     map_eval_t *map_ev = NULL;
     if (w == NULL || st == NULL) {
@@ -88,19 +90,25 @@ int run_synth_traced(const synth_config_t *scfg, const run_opts_t *opts, run_res
     const pose2_t start = synth_start_pose(scfg);
     if (opts->filter == RUN_EKFSLAM) {
         ekf = malloc(sizeof *ekf);
+        ekf_alt = malloc(sizeof *ekf_alt);
         ekfslam_config_t c = ekfslam_config_default();
         c.slam = opts->params;
         if (opts->ekf_active_radius_m >= 0.0) {
             c.active_radius_m = opts->ekf_active_radius_m;
         }
-        if (ekf == NULL || ekfslam_init(ekf, &c, start) != COSLAM_OK) {
+        if (opts->ekf_mh_frames >= 0) {
+            c.mh_frames = (uint32_t)opts->ekf_mh_frames;
+        }
+        if (ekf == NULL || ekf_alt == NULL || ekfslam_init(ekf, &c, start) != COSLAM_OK) {
             free(ekf);
+            free(ekf_alt);
             free(map_est);
             free(map_ev);
             free(w);
             free(st);
             return -1;
         }
+        ekfslam_set_alt(ekf, ekf_alt);
     } else {
         fs = malloc(sizeof *fs);
         fastslam_config_t c = fastslam_config_default();
@@ -275,6 +283,7 @@ int run_synth_traced(const synth_config_t *scfg, const run_opts_t *opts, run_res
     free(map_ev);
     free(fs);
     free(ekf);
+    free(ekf_alt);
     free(w);
     free(st);
     return 0;

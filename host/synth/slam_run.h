@@ -31,6 +31,7 @@ typedef struct {
     int stop_after_steps;       /**< end the run early (0: run to the end) */
     int nees_every;             /**< pose NEES checkpoint period in steps (0: 50) */
     double ekf_active_radius_m; /**< EKF-SLAM: ekfslam_config_t.active_radius_m (< 0: the default) */
+    long ekf_mh_frames;         /**< EKF-SLAM: ekfslam_config_t.mh_frames (< 0: the default) */
     int score_rigid_fit;        /**< also score the final map after the best rigid fit (run_result_t.map_fit) */
     int trace_map_every;        /**< run_synth_traced: score the map every this many steps
                                      into the trace (0: never; costs an export and eval_map each) */

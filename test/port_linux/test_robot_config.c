@@ -187,8 +187,9 @@ static void closure_keys_reach_the_filter(void **state)
     assert_true(cfg.node.filter.closure_chance_max == fc.closure_chance_max);
     assert_true(cfg.node.filter.nis_inflate == ekfslam_config_default().nis_inflate);
     assert_true(cfg.node.filter.active_spread_madds == ekfslam_config_default().active_spread_madds);
+    assert_true(cfg.node.filter.mh_frames == ekfslam_config_default().mh_frames);
     const char *text = "[filter]\nclosure_drift_ratio = 0\nclosure_gap = 7\nclosure_ambiguity_ll = 1.5\nnis_inflate = 0\n"
-                       "active_spread_madds = 2000000\nclosure_misses_per_support = 3.5\nclosure_unsupported_every = 5\nclosure_chance_max = 0.5\n";
+                       "active_spread_madds = 2000000\nmh_frames = 9\nclosure_misses_per_support = 3.5\nclosure_unsupported_every = 5\nclosure_chance_max = 0.5\n";
     assert_int_equal(robot_config_load_string(&cfg, text, "c.ini", msg, sizeof msg), COSLAM_OK);
     assert_true(cfg.node.filter.closure_drift_ratio == 0.0);
     assert_int_equal(cfg.node.filter.closure_gap, 7);
@@ -207,6 +208,8 @@ static void closure_keys_reach_the_filter(void **state)
     assert_int_equal(slam_filter_init(&f, &cfg.node.filter, (pose2_t){0.0, 0.0, 0.0}), COSLAM_OK);
     assert_true(f.u.ekf.cfg.nis_inflate == 0.0);
     assert_true(f.u.ekf.cfg.active_spread_madds == 2000000U);
+    assert_true(f.u.ekf.cfg.mh_frames == 9U);
+    assert_true(f.u.ekf.alt == &f.u.ekf2.alt); /* the second hypothesis has its storage */
 }
 
 /* The drive-side watchdog's keys: the drivers' defaults, read, printed

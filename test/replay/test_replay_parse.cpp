@@ -520,10 +520,13 @@ TEST(Config, ClosureKeysReachTheFilter)
     EXPECT_EQ(f.app()->u.fs.cfg.closure_unsupported_every, 5);
     EXPECT_EQ(f.app()->u.fs.cfg.closure_chance_max, 0.5);
     EXPECT_EQ(c.filter.active_spread_madds, ekfslam_config_default().active_spread_madds);
-    replay_config_load_string(c, "[filter]\nnis_inflate = 0\nactive_spread_madds = 2000000\n", "n.ini");
+    EXPECT_EQ(c.filter.mh_frames, ekfslam_config_default().mh_frames);
+    replay_config_load_string(c, "[filter]\nnis_inflate = 0\nactive_spread_madds = 2000000\nmh_frames = 0\n", "n.ini");
     RobotFilter e(FilterKind::Ekf, c, 0, pose2_t{0.0, 0.0, 0.0}, 1);
     EXPECT_EQ(e.app()->u.ekf.cfg.nis_inflate, 0.0);
     EXPECT_EQ(e.app()->u.ekf.cfg.active_spread_madds, 2000000U);
+    EXPECT_EQ(e.app()->u.ekf.cfg.mh_frames, 0U);
+    EXPECT_EQ(e.app()->u.ekf.alt, &e.app()->u.ekf2.alt);
 }
 
 TEST(Config, ErrorsNameFileLineAndKey)

@@ -906,6 +906,212 @@ static void test_innovation_monitor(void **state)
     assert_true(fabs(on.theta - turn) < fabs(off.theta - turn));
 }
 
+/* --- Revisits as two hypotheses (ekfslam_config_t.mh_frames) ---------- */
+static ekfslam_t g_alt;
+static ekfslam_t g_mh;
+static ekfslam_t g_mh_twin;
+
+#define MH_FRAMES 4U
+
+/* Landmarks of class 1 the robot sighted in the last update */
+#define MH_RECENT 3
+static const point2_t k_mh_recent[MH_RECENT] = {{2.0, -2.0}, {2.0, 2.0}, {4.0, 1.5}};
+
+/* The robot at the origin (sd 0.3 m) knows an old landmark L of class 0 at
+ * (3, 0), last sighted 100 updates ago, and MH_RECENT landmarks of class 1
+ * (k_mh_recent) sighted in the last update, all to 1 cm. A frame with one
+ * sighting of class 0 taken from `truth` pairs it with L: a lone revisit
+ * that moves the robot (single_closure_used). `e` gets that state, with
+ * the second hypothesis's storage if `alt` is given; z[0] is the lone
+ * sighting, z[1..MH_RECENT] the recent landmarks seen from `truth`. */
+static void mh_setup(ekfslam_t *e, ekfslam_t *alt, sighting_t z[1 + MH_RECENT], pose2_t truth, point2_t l_true)
+{
+    ekfslam_config_t c = config();
+    c.mh_frames = MH_FRAMES;
+    c.mh_min_sightings = 1U;
+    c.slam.noise.range_var_m2 = 0.0004; /* 2 cm, 0.6 deg: the offsets below are many sd */
+    c.slam.noise.bearing_var_rad2 = 0.0001;
+    point2_t lms[1 + MH_RECENT] = {{3.0, 0.0}};
+    for (int k = 0; k < MH_RECENT; ++k) {
+        lms[1 + k] = k_mh_recent[k];
+        z[1 + k] = observe_predict(truth, k_mh_recent[k]);
+        z[1 + k].signature = 1U;
+    }
+    const pose2_t p0 = {0.0, 0.0, 0.0};
+    landmark_t lm;
+    memset(&lm, 0, sizeof lm);
+    lm.mean = lms[0];
+    lm.cov = cov2_make(1e-4, 0.0, 1e-4);
+    const cov3_t pc = cov3_diag(0.09, 0.09, 1e-4);
+    lm_expect_t ex;
+    z[0] = observe_predict(truth, l_true);
+    assert_int_equal(landmark_expect(&lm, &c.slam, p0, &pc, &ex), COSLAM_OK);
+    c.slam.new_landmark_log_lik = landmark_log_lik(&ex, landmark_mahalanobis2(&ex, z[0])) - 3.0;
+    init_decorrelated(&c, lms, 1 + MH_RECENT, 0.09, 1e-4);
+    g_ekf.ctr.updates = 100U;
+    g_ekf.meta[0].last_seen = 0U;
+    for (int k = 1; k <= MH_RECENT; ++k) {
+        g_ekf.meta[k].signature = 1U;
+        g_ekf.meta[k].last_seen = 100U;
+    }
+    *e = g_ekf;
+    ekfslam_set_alt(e, alt);
+}
+
+/* The state both filters describe: mean, covariance and landmarks (not
+ * their identities, which a fork keeps apart on purpose). */
+static void assert_same_state(const ekfslam_t *a, const ekfslam_t *b)
+{
+    assert_int_equal(a->n_lm, b->n_lm);
+    const int d = 3 + 2 * a->n_lm;
+    for (int r = 0; r < d; ++r) {
+        assert_true(a->x[r] == b->x[r]);
+        for (int k = 0; k < d; ++k) {
+            assert_true(PE(a, r, k) == PE(b, r, k));
+        }
+    }
+    for (int j = 0; j < a->n_lm; ++j) {
+        assert_int_equal(a->meta[j].signature, b->meta[j].signature);
+        assert_int_equal(a->meta[j].n_obs, b->meta[j].n_obs);
+        assert_int_equal(a->meta[j].last_seen, b->meta[j].last_seen);
+        assert_true(a->meta[j].exist == b->meta[j].exist);
+    }
+}
+
+/* The chance revisit of test_mh_reverts_a_chance_revisit: the robot at
+ * the origin sights N at (3, -0.25), and g_mh forks on pairing it with L. */
+static void mh_chance_fork(sighting_t z[1 + MH_RECENT])
+{
+    const pose2_t truth = {0.0, 0.0, 0.0};
+    const point2_t n = {3.0, -0.25};
+    mh_setup(&g_mh, &g_alt, z, truth, n);
+    assert_int_equal(ekfslam_update(&g_mh, z, 1), COSLAM_OK);
+    assert_int_equal(g_mh.ctr.mh_forks, 1U);
+    assert_int_equal(g_mh.mh_left, MH_FRAMES);
+    assert_true(fabs(g_mh.x[1]) > 0.1); /* the chance revisit moved the robot */
+}
+
+/* The revisit is right (the robot is at (0, 0.25), L is the landmark it
+ * sees): the fork is decided for it, and the filter is the one without
+ * forks, number for number. */
+static void test_mh_keeps_a_true_revisit(void **state)
+{
+    (void)state;
+    static ekfslam_t e;
+    const pose2_t truth = {0.0, 0.25, 0.0};
+    const point2_t l = {3.0, 0.0};
+    sighting_t z[1 + MH_RECENT];
+    mh_setup(&e, &g_alt, z, truth, l);
+    mh_setup(&g_mh_twin, NULL, z, truth, l);
+    assert_int_equal(ekfslam_update(&e, z, 1), COSLAM_OK);
+    assert_int_equal(e.ctr.mh_forks, 1U);
+    assert_int_equal(e.mh_left, MH_FRAMES);
+    ASSERT_NEAR(e.x[1], 0.25, 0.1); /* the revisit moved the robot */
+    assert_int_equal(ekfslam_update(&g_mh_twin, z, 1), COSLAM_OK);
+    assert_int_equal(g_mh_twin.ctr.mh_forks, 0U); /* no storage: no fork */
+    for (uint32_t f = 0; f < MH_FRAMES + 2U; ++f) {
+        assert_int_equal(ekfslam_predict(&e, (odo_increment_t){0.0, 0.0, 0.0}), COSLAM_OK);
+        assert_int_equal(ekfslam_predict(&g_mh_twin, (odo_increment_t){0.0, 0.0, 0.0}), COSLAM_OK);
+        assert_int_equal(ekfslam_update(&e, z, 1 + MH_RECENT), COSLAM_OK);
+        assert_int_equal(ekfslam_update(&g_mh_twin, z, 1 + MH_RECENT), COSLAM_OK);
+        assert_int_equal(e.mh_left, f + 1U < MH_FRAMES ? MH_FRAMES - f - 1U : 0U);
+    }
+    assert_int_equal(e.ctr.mh_reverted, 0U);
+    assert_int_equal(e.n_lm, 1 + MH_RECENT); /* no copy of L */
+    assert_same_state(&e, &g_mh_twin);
+    assert_true(e.mh_sum > e.mh_sum_alt);
+}
+
+/* The revisit is a chance one: the robot is at the origin and sees
+ * another landmark N at (3, -0.25), which L's pairing takes for L and
+ * moves the robot 0.25 m off. The next frames see R where the unmoved
+ * robot has it: the fork goes back to the hypothesis without the revisit,
+ * which is the filter that never allowed it (L's pairing not a candidate
+ * for the fork's frames), number for number, and the counters of the
+ * filter that ran. */
+static void test_mh_reverts_a_chance_revisit(void **state)
+{
+    (void)state;
+    ekfslam_t *const e = &g_mh;
+    sighting_t z[1 + MH_RECENT];
+    mh_chance_fork(z);
+    mh_setup(&g_mh_twin, NULL, z, (pose2_t){0.0, 0.0, 0.0}, (point2_t){3.0, -0.25});
+    g_mh_twin.mh_forbid = 1U;         /* the hypothesis that nothing here is a revisit */
+    assert_int_equal(ekfslam_update(&g_mh_twin, z, 1), COSLAM_OK);
+    assert_int_equal(g_mh_twin.n_lm, 2 + MH_RECENT); /* N started */
+    for (uint32_t f = 0; f < MH_FRAMES; ++f) {
+        assert_int_equal(ekfslam_predict(e, (odo_increment_t){0.0, 0.0, 0.0}), COSLAM_OK);
+        assert_int_equal(ekfslam_predict(&g_mh_twin, (odo_increment_t){0.0, 0.0, 0.0}), COSLAM_OK);
+        assert_int_equal(ekfslam_update(e, z, 1 + MH_RECENT), COSLAM_OK);
+        assert_int_equal(ekfslam_update(&g_mh_twin, z, 1 + MH_RECENT), COSLAM_OK);
+    }
+    g_mh_twin.mh_forbid = 0U;
+    assert_int_equal(e->ctr.mh_reverted, 1U);
+    assert_int_equal(e->mh_left, 0U);
+    assert_int_equal(e->mh_forbid, 0U);
+    assert_true(e->alt == &g_alt && e->cfg.mh_frames == MH_FRAMES);
+    assert_int_equal(e->ctr.updates, 101U + MH_FRAMES);
+    assert_int_equal(e->ctr.mh_forks, 1U); /* this filter's counters, not the copy's */
+    assert_same_state(e, &g_mh_twin);
+    ASSERT_NEAR(e->x[1], 0.0, 0.02);
+    /* its landmarks' identities are none of those the revisit's hypothesis
+     * gave out */
+    for (int j = 0; j < e->n_lm; ++j) {
+        assert_true(e->meta[j].id < 2U + MH_RECENT || e->meta[j].id >= g_ekf.next_id + (MH_FRAMES + 1U) * COSLAM_MAX_SIGHTINGS);
+    }
+    /* and on from there, as the filter that never allowed it */
+    assert_int_equal(ekfslam_update(e, z, 1 + MH_RECENT), COSLAM_OK);
+    assert_int_equal(ekfslam_update(&g_mh_twin, z, 1 + MH_RECENT), COSLAM_OK);
+    assert_same_state(e, &g_mh_twin);
+}
+
+/* A change from outside while a fork runs (a merge, a landmark added or
+ * removed) ends it on the hypothesis the caller reads, counted; off
+ * without storage, with mh_frames 0, or below mh_min_sightings. */
+static void test_mh_ends_early_and_off(void **state)
+{
+    (void)state;
+    static ekfslam_t e;
+    const pose2_t truth = {0.0, 0.0, 0.0};
+    const point2_t n = {3.0, -0.25};
+    sighting_t z[1 + MH_RECENT];
+    mh_chance_fork(z);
+    e = g_mh;
+    const double y = e.x[1];
+    assert_int_equal(ekfslam_merge_begin(&e, NULL), COSLAM_OK);
+    ekfslam_merge_end(&e);
+    assert_int_equal(e.mh_left, 0U);
+    assert_int_equal(e.ctr.mh_decided_early, 1U);
+    assert_int_equal(e.ctr.mh_reverted, 0U);
+    assert_true(e.x[1] == y);
+
+    mh_setup(&e, &g_alt, z, truth, n);
+    assert_int_equal(ekfslam_update(&e, z, 1), COSLAM_OK);
+    ekfslam_meta_t meta = {77U, 5.0f, 5, 1, 0, 0};
+    assert_int_equal(ekfslam_add_landmark_body(&e, (point2_t){1.0, 1.0}, cov2_make(1e-2, 0.0, 1e-2), &meta),
+                     COSLAM_OK);
+    assert_int_equal(e.ctr.mh_decided_early, 1U);
+    assert_int_equal(e.mh_left, 0U);
+
+    mh_setup(&e, &g_alt, z, truth, n);
+    e.cfg.mh_frames = 0U;
+    assert_int_equal(ekfslam_update(&e, z, 1), COSLAM_OK);
+    assert_int_equal(e.ctr.mh_forks, 0U);
+    mh_setup(&e, &g_alt, z, truth, n);
+    e.cfg.mh_min_sightings = 2U;
+    assert_int_equal(ekfslam_update(&e, z, 1), COSLAM_OK);
+    assert_int_equal(e.ctr.mh_forks, 0U);
+    assert_true(fabs(e.x[1]) > 0.1); /* the revisit itself is taken as before */
+    /* ekfslam_init forgets the storage */
+    mh_setup(&e, &g_alt, z, truth, n);
+    assert_int_equal(ekfslam_init(&e, &e.cfg, truth), COSLAM_OK);
+    assert_null(e.alt);
+    /* a bad mh_min_sightings is refused */
+    ekfslam_config_t c = config();
+    c.mh_min_sightings = 0U;
+    assert_int_equal(ekfslam_init(&e, &c, truth), COSLAM_E_ARG);
+}
+
 int main(void)
 {
     const struct CMUnitTest tests[] = {
@@ -924,6 +1130,9 @@ int main(void)
         cmocka_unit_test(test_iterated_closure_is_map),
         cmocka_unit_test(test_second_pass_only_for_closures),
         cmocka_unit_test(test_innovation_monitor),
+        cmocka_unit_test(test_mh_keeps_a_true_revisit),
+        cmocka_unit_test(test_mh_reverts_a_chance_revisit),
+        cmocka_unit_test(test_mh_ends_early_and_off),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

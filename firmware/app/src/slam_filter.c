@@ -31,6 +31,7 @@ slam_filter_config_t slam_filter_config_default(void)
     c.iekf_max_iters = ec.iekf_max_iters;
     c.nis_inflate = ec.nis_inflate;
     c.active_spread_madds = ec.active_spread_madds;
+    c.mh_frames = ec.mh_frames;
     return c;
 }
 
@@ -95,7 +96,12 @@ coslam_status_t slam_filter_init(slam_filter_t *f, const slam_filter_config_t *c
         c.iekf_max_iters = cfg->iekf_max_iters;
         c.nis_inflate = cfg->nis_inflate;
         c.active_spread_madds = cfg->active_spread_madds;
-        return ekfslam_init(&f->u.ekf, &c, pose0);
+        c.mh_frames = cfg->mh_frames;
+        const coslam_status_t st = ekfslam_init(&f->u.ekf, &c, pose0);
+        if (st == COSLAM_OK) {
+            ekfslam_set_alt(&f->u.ekf, &f->u.ekf2.alt);
+        }
+        return st;
     }
     }
     return COSLAM_E_ARG;
@@ -220,6 +226,10 @@ coslam_status_t slam_filter_seed(slam_filter_t *f, const slam_filter_config_t *c
 
 static void merge_due_run(slam_merge_work_t *w, uint32_t budget);
 
+/* the second hypothesis of EKF-SLAM's revisits costs no memory: it fits in
+ * the union beside Fast-SLAM's state in every profile */
+_Static_assert(sizeof(((slam_filter_t *)0)->u.ekf2) <= sizeof(fastslam_t),
+               "two EKF-SLAM states must fit where one Fast-SLAM state does");
 _Static_assert(SLAM_FILTER_HELD_FRAMES * COSLAM_MAX_SIGHTINGS <= UINT16_MAX && SLAM_FILTER_HELD_INPUTS <= UINT16_MAX,
                "held sightings and inputs are indexed by uint16_t");
 

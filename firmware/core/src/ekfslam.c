@@ -29,6 +29,8 @@ ekfslam_config_t ekfslam_config_default(void)
     c.active_min_landmarks = 128U;
     c.active_spread_madds = 8000000U;
     c.merge_batch = 128U;
+    c.mh_frames = 50U;
+    c.mh_min_sightings = 8U;
     return c;
 }
 
@@ -1081,9 +1083,19 @@ static void cekf_prepare(ekfslam_t *ekf, double max_range_m)
     }
 }
 
+static void idle_one(ekfslam_t *ekf, uint32_t shares);
+
 void ekfslam_idle(ekfslam_t *ekf, uint32_t shares)
 {
     COSLAM_ASSERT(ekf != 0);
+    idle_one(ekf, shares);
+    if (ekf->mh_left > 0U) {
+        idle_one(ekf->alt, shares); /* the other hypothesis of a revisit */
+    }
+}
+
+static void idle_one(ekfslam_t *ekf, uint32_t shares)
+{
     ekfslam_cekf_t *ck = &ekf->cekf;
     if (COSLAM_EKF_MAX_ACTIVE == 0) {
         return;
@@ -1442,7 +1454,7 @@ coslam_status_t ekfslam_init(ekfslam_t *ekf, const ekfslam_config_t *cfg, pose2_
         (cfg->assoc != EKFSLAM_ASSOC_NN && cfg->assoc != EKFSLAM_ASSOC_JCBB) || cfg->jcbb_max_nodes < 1U ||
         !(cfg->jcbb_ambiguity_d2 >= 0.0 && cfg->jcbb_ambiguity_d2 < 1e6) ||
         !(cfg->jcbb_single_closure_d2 >= 0.0 && cfg->jcbb_single_closure_d2 <= cfg->jcbb_ambiguity_d2) ||
-        cfg->jcbb_min_closure_pairs < 1U ||
+        cfg->jcbb_min_closure_pairs < 1U || cfg->mh_min_sightings < 1U ||
         !(cfg->jcbb_closure_max_spread > 0.0) || !(cfg->active_radius_m >= 0.0 && cfg->active_radius_m < 1e6) ||
         (cfg->active_radius_m > 0.0 && COSLAM_EKF_MAX_ACTIVE == 0) ||
         !(cfg->nis_inflate >= 0.0 && cfg->nis_inflate < 1e6) || !pose2_is_finite(pose0)) {
@@ -1469,6 +1481,12 @@ coslam_status_t ekfslam_init(ekfslam_t *ekf, const ekfslam_config_t *cfg, pose2_
     ekf->next_id = 1U;
     memset(&ekf->ctr, 0, sizeof ekf->ctr);
     ekf->view = 0;
+    ekf->alt = 0;
+    ekf->mh_left = 0U;
+    ekf->mh_forbid = 0U;
+    ekf->mh_sum = 0.0;
+    ekf->mh_sum_alt = 0.0;
+    ekf->frame_score = 0.0;
     ekf->x[0] = pose0.x;
     ekf->x[1] = pose0.y;
     ekf->x[2] = angle_wrap(pose0.theta);
@@ -1524,7 +1542,7 @@ double ekfslam_p(const ekfslam_t *ekf, int r, int c)
     return p_now(ekf, r, c);
 }
 
-coslam_status_t ekfslam_predict(ekfslam_t *ekf, odo_increment_t u)
+static coslam_status_t predict_one(ekfslam_t *ekf, odo_increment_t u)
 {
     if (ekf->merging) {
         return COSLAM_E_MERGE_BUSY; /* a merge in parts runs on the state as it was */
@@ -1922,8 +1940,7 @@ static coslam_status_t add_landmark(ekfslam_t *ekf, point2_t m, double gr[2][3],
     return COSLAM_OK;
 }
 
-coslam_status_t ekfslam_add_landmark_body(ekfslam_t *ekf, point2_t m_body, cov2_t cov_body,
-                                          const ekfslam_meta_t *meta)
+static coslam_status_t add_landmark_body(ekfslam_t *ekf, point2_t m_body, cov2_t cov_body, const ekfslam_meta_t *meta)
 {
     if (!cov2_is_finite(cov_body) || !isfinite(m_body.x) || !isfinite(m_body.y)) {
         ekf->ctr.numeric_faults++;
@@ -1971,7 +1988,7 @@ static void pend_remove(ekfslam_t *ekf, uint16_t j, uint16_t last)
     }
 }
 
-void ekfslam_remove_landmark(ekfslam_t *ekf, uint16_t j)
+static void remove_landmark(ekfslam_t *ekf, uint16_t j)
 {
     COSLAM_ASSERT(j < ekf->n_lm);
     cekf_end_phase(ekf); /* pending rows stay pending (pend_remove) */
@@ -2486,6 +2503,148 @@ static void jcbb_associate(ekfslam_t *ekf, const sighting_t *z, int ns, int n_pa
     }
 }
 
+/* Revisits as two hypotheses (ekfslam_config_t.mh_frames; docs/
+ * consistency.md "EKF-SLAM's revisits as two hypotheses"). A loop-closing
+ * pairing is decided by the frame it comes in, against leaving its sighting
+ * unpaired (jcbb_associate); in a dense field of identical markers, after a
+ * metre of drift, the one pairing left after the holds is sometimes a
+ * chance alignment, and the EKF then moves the robot metres the wrong way,
+ * for good. What tells a right revisit from a chance one is what the next
+ * frames see: after a right one, the old landmarks that come into view
+ * are where the corrected map has them. So the frame that would close
+ * forks the filter: this one closes; a copy (alt) is the hypothesis that
+ * nothing here is a revisit: no loop-closing pairing is a candidate in it,
+ * and its sightings start landmarks. Both take the same inputs for
+ * mh_frames updates, each frame scored by its best reading (JCBB's
+ * log-likelihood; a sighting without any candidate as a new landmark,
+ * new_landmark_log_lik, so that both score every sighting); then the one
+ * whose frames sum higher is kept (a tie keeps the revisit). */
+static coslam_status_t update_body(ekfslam_t *ekf, const sighting_t *z, int ns, double max_range_m,
+                                   coslam_status_t result);
+static coslam_status_t update_frame(ekfslam_t *ekf, const sighting_t *z_in, int n_in);
+
+/* The frame's best reading (jcbb_associate) as a log-likelihood of all its
+ * sightings: a sighting without candidates counts as a new landmark. */
+static double frame_score(const ekfslam_t *ekf, int ns)
+{
+    const ekfslam_scratch_t *sc = &ekf->scratch;
+    const double p0 = ekf->cfg.slam.new_landmark_log_lik;
+    int n_none = 0;
+    for (int i = 0; i < ns; ++i) {
+        n_none += sc->cand_begin[i + 1] == sc->cand_begin[i];
+    }
+    /* a search cut before any leaf: every sighting unpaired, a reading
+     * every search has */
+    const double best = isfinite(sc->best_score) ? sc->best_score : (double)(ns - n_none) * p0;
+    return best + (double)n_none * p0;
+}
+
+/* 1 if this frame's reading applies a loop-closing pairing and the filter
+ * may fork on it (storage, not forked already, not itself the other
+ * hypothesis, enough sightings to compare the two by). */
+static int mh_should_fork(const ekfslam_t *ekf, int ns)
+{
+    if (ekf->alt == 0 || ekf->mh_forbid || ekf->mh_left > 0U || ekf->cfg.mh_frames == 0U) {
+        return 0;
+    }
+    const ekfslam_scratch_t *sc = &ekf->scratch;
+    int closing = 0;
+    uint32_t n_cand = 0U;
+    for (int i = 0; i < ns; ++i) {
+        n_cand += sc->cand_begin[i + 1] > sc->cand_begin[i] ? 1U : 0U;
+        closing |= sc->assign[i] >= 0 && sc->closure[sc->assign[i]];
+    }
+    return closing && n_cand >= ekf->cfg.mh_min_sightings;
+}
+
+/* The other hypothesis: this filter as it is before the frame's updates
+ * (its association is redone without loop-closing candidates). Its new
+ * landmarks get identities this one cannot reach in mh_frames updates,
+ * so that an identity never names two landmarks, whichever is kept. */
+static void mh_fork(ekfslam_t *ekf, const sighting_t *z, int ns, double max_range_m)
+{
+    ekfslam_t *alt = ekf->alt;
+    *alt = *ekf;
+    alt->alt = 0;
+    alt->mh_forbid = 1U;
+    alt->mh_left = 0U;
+    alt->next_id = ekf->next_id + (ekf->cfg.mh_frames + 1U) * (uint32_t)COSLAM_MAX_SIGHTINGS;
+    if (alt->next_id == 0U) {
+        alt->next_id = 1U;
+    }
+    (void)update_body(alt, z, ns, max_range_m, COSLAM_OK);
+    ekf->mh_sum = ekf->frame_score;
+    ekf->mh_sum_alt = alt->frame_score;
+    ekf->mh_left = ekf->cfg.mh_frames;
+    ekf->ctr.mh_forks++;
+}
+
+/* mh_frames updates after the fork: keep the hypothesis whose frames
+ * scored higher. Going back to the other one keeps this filter's
+ * configuration, counters, storage and view. */
+static void mh_decide(ekfslam_t *ekf)
+{
+    ekf->mh_left = 0U;
+    if (ekf->mh_sum >= ekf->mh_sum_alt) {
+        return;
+    }
+    ekfslam_t *alt = ekf->alt;
+    const ekfslam_config_t cfg = ekf->cfg;
+    const ekfslam_counters_t ctr = ekf->ctr;
+    const view_profile_t *view = ekf->view;
+    *ekf = *alt;
+    ekf->cfg = cfg;
+    ekf->ctr = ctr;
+    ekf->ctr.mh_reverted++;
+    ekf->alt = alt;
+    ekf->view = view;
+    ekf->mh_forbid = 0U;
+    ekf->mh_left = 0U;
+}
+
+/* A change from outside (a merge, a landmark added or removed) while a
+ * fork runs: the fork ends keeping this hypothesis, the one the caller has
+ * been reading (its landmark indices stay valid). */
+static void mh_end_early(ekfslam_t *ekf)
+{
+    if (ekf->mh_left > 0U) {
+        ekf->mh_left = 0U;
+        ekf->ctr.mh_decided_early++;
+    }
+}
+
+void ekfslam_set_alt(ekfslam_t *ekf, ekfslam_t *alt)
+{
+    COSLAM_ASSERT(ekf != 0 && alt != ekf);
+    ekf->alt = alt;
+    ekf->mh_left = 0U;
+}
+
+coslam_status_t ekfslam_predict(ekfslam_t *ekf, odo_increment_t u)
+{
+    COSLAM_ASSERT(ekf != 0);
+    const coslam_status_t r = predict_one(ekf, u);
+    if (ekf->mh_left > 0U) {
+        (void)predict_one(ekf->alt, u);
+    }
+    return r;
+}
+
+coslam_status_t ekfslam_add_landmark_body(ekfslam_t *ekf, point2_t m_body, cov2_t cov_body,
+                                          const ekfslam_meta_t *meta)
+{
+    COSLAM_ASSERT(ekf != 0);
+    mh_end_early(ekf);
+    return add_landmark_body(ekf, m_body, cov_body, meta);
+}
+
+void ekfslam_remove_landmark(ekfslam_t *ekf, uint16_t j)
+{
+    COSLAM_ASSERT(ekf != 0);
+    mh_end_early(ekf);
+    remove_landmark(ekf, j);
+}
+
 coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
 {
     COSLAM_ASSERT(ekf != 0 && (z_in != 0 || n_in == 0));
@@ -2493,8 +2652,25 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
         ekf->view = 0; /* the frame's view goes with the frame */
         return COSLAM_E_MERGE_BUSY; /* a merge in parts runs on the state as it was */
     }
+    const int forked = ekf->mh_left > 0U;
+    if (forked) {
+        ekf->alt->view = ekf->view;
+        (void)update_frame(ekf->alt, z_in, n_in);
+    }
+    const coslam_status_t r = update_frame(ekf, z_in, n_in);
+    if (forked) {
+        ekf->mh_sum += ekf->frame_score;
+        ekf->mh_sum_alt += ekf->alt->frame_score;
+        if (--ekf->mh_left == 0U) {
+            mh_decide(ekf);
+        }
+    }
+    return r;
+}
+
+static coslam_status_t update_frame(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
+{
     const slam_params_t *sp = &ekf->cfg.slam;
-    ekfslam_scratch_t *sc = &ekf->scratch;
     coslam_status_t result = COSLAM_OK;
     sighting_t z[COSLAM_MAX_SIGHTINGS];
     int ns = 0;
@@ -2516,11 +2692,24 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
         if (z[ns].range_m > max_range_m) {
             max_range_m = z[ns].range_m;
         }
-        sc->n_near[ns] = 0U;
         ++ns;
     }
     ekf->ctr.updates++;
     cekf_prepare(ekf, max_range_m);
+    return update_body(ekf, z, ns, max_range_m, result);
+}
+
+/* The frame after its sightings were checked (update_frame): association,
+ * the updates, misses and new landmarks. Also the other hypothesis's
+ * first frame (mh_fork), on the state as it was before this one. */
+static coslam_status_t update_body(ekfslam_t *ekf, const sighting_t *z, int ns, double max_range_m,
+                                   coslam_status_t result)
+{
+    const slam_params_t *sp = &ekf->cfg.slam;
+    ekfslam_scratch_t *sc = &ekf->scratch;
+    for (int i = 0; i < ns; ++i) {
+        sc->n_near[i] = 0U;
+    }
 
     /* 1-2. expectations and gated, likelihood-ranked candidate pairs */
     const pose2_t pose = robot_pose(ekf);
@@ -2549,6 +2738,9 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
             if (z[i].signature != ekf->meta[j].signature) {
                 continue;
             }
+            if (ekf->mh_forbid && pair_is_closure(ekf, j)) {
+                continue; /* the hypothesis without the revisit (mh_frames) */
+            }
             const double d2 = landmark_mahalanobis2(&sc->expect[j], z[i]);
             const double ll = landmark_log_lik(&sc->expect[j], d2);
             /* JCBB: every pairing inside the gate is a candidate, also one
@@ -2568,8 +2760,10 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
             }
         }
     }
+    ekf->frame_score = 0.0;
     if (jcbb) {
         jcbb_associate(ekf, z, ns, n_pairs);
+        ekf->frame_score = frame_score(ekf, ns);
     } else {
         assoc_greedy(sc->pairs, n_pairs, ns, sc->assign);
         for (int i = 0; i < ns; ++i) {
@@ -2581,6 +2775,9 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
     for (int i = 0; i < ns; ++i) {
         make_new[i] = sc->assign[i] < 0 && !sc->held[i] &&
                       assoc_unpaired_is_new(sc->pairs, n_pairs, i, sc->assign, ns, sc->n_near);
+    }
+    if (jcbb && mh_should_fork(ekf, ns)) {
+        mh_fork(ekf, z, ns, max_range_m); /* before this frame changes the state */
     }
 
     /* 3. sequential updates, relinearised at the current state; a
@@ -2675,7 +2872,7 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
             ekf->ctr.view_misses++;
         }
         if (exist_miss(&ekf->meta[j].exist, &ekf->lm_confirmed_once[j], certain, sp)) {
-            ekfslam_remove_landmark(ekf, (uint16_t)j);
+            remove_landmark(ekf, (uint16_t)j);
             ekf->ctr.landmarks_removed++;
         }
     }
@@ -2697,7 +2894,7 @@ coslam_status_t ekfslam_update(ekfslam_t *ekf, const sighting_t *z_in, int n_in)
         meta.n_obs = 1;
         meta.src_mask = (uint16_t)(1U << ekf->cfg.robot_id);
         meta.signature = z[i].signature;
-        const coslam_status_t st = ekfslam_add_landmark_body(ekf, observe_inverse(origin, z[i]), cb, &meta);
+        const coslam_status_t st = add_landmark_body(ekf, observe_inverse(origin, z[i]), cb, &meta);
         if (st == COSLAM_OK) {
             (void)ekfslam_new_id(ekf);
             ekf->ctr.landmarks_added++;
@@ -3022,6 +3219,7 @@ coslam_status_t ekfslam_merge_begin(ekfslam_t *ekf, const cov3_t *t_cov)
     if (t_cov != 0 && !cov3_is_finite(*t_cov)) {
         return COSLAM_E_NUMERIC;
     }
+    mh_end_early(ekf); /* the merge's pairings were read from this hypothesis */
     ekfslam_sync(ekf); /* the merge runs on the whole state */
     const int d = dim(ekf);
     for (int q = 0; q < 3; ++q) {

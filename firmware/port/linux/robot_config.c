@@ -516,6 +516,7 @@ static const cfg_key_t keys[] = {
     N_("filter", "iekf_max_iters", K_U8, node.filter.iekf_max_iters, 0, 255),
     N_("filter", "nis_inflate", K_F64, node.filter.nis_inflate, 0.0, 1e6),
     N_("filter", "active_spread_madds", K_U32, node.filter.active_spread_madds, 0, 4294967295.0),
+    N_("filter", "mh_frames", K_U32, node.filter.mh_frames, 0, 100000),
     N_("filter", "predict_period_s", K_US, node.filter_period_us, 0.001, 10.0),
 
     NO_("merge", "window_s", K_US, node.meeting.pair_window_us, 0.0, 4000.0),

@@ -157,6 +157,12 @@ void robot_status_collect(robot_status_t *s, robot_node_t *node, const robot_dev
     slam_filter_view_counts(&node->filter, &view_pairs, &view_misses);
     u64(s, "view_pairs", view_pairs);
     u64(s, "view_misses", view_misses);
+    /* EKF-SLAM's revisits kept as two hypotheses, and those decided for
+     * the one without the revisit (ekfslam_config_t.mh_frames; 0 for
+     * Fast-SLAM) */
+    const int is_ekf = node->filter.kind == SLAM_FILTER_EKF;
+    u64(s, "mh_forks", is_ekf ? node->filter.u.ekf.ctr.mh_forks : 0U);
+    u64(s, "mh_reverted", is_ekf ? node->filter.u.ekf.ctr.mh_reverted : 0U);
     /* work in parts (docs/scale.md): merges, sends and the observers' exports */
     const slam_filter_t *fl = &node->filter;
     u64(s, "idle_calls", loop->idle_calls);

@@ -68,7 +68,7 @@
 extern "C" {
 #endif
 
-/** Longest list of pairs (177 with every device and the camera, counted
+/** Longest list of pairs (179 with every device and the camera, counted
  *  from robot_status_collect; the last slot is kept for "status_dropped",
  *  below). */
 #define ROBOT_STATUS_MAX_KV 192

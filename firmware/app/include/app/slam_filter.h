@@ -57,6 +57,9 @@ typedef struct {
     uint32_t active_spread_madds; /**< EKF-SLAM: ekfslam_config_t (0: a global
                                        update's deferred part at once); its time
                                        per step depends on the CPU */
+    uint32_t mh_frames;           /**< EKF-SLAM: revisits as two hypotheses,
+                                       ekfslam_config_t (0: off); the second
+                                       one's storage is u.ekf2.alt */
 } slam_filter_config_t;
 
 struct slam_merge_work_s;
@@ -140,6 +143,14 @@ typedef struct slam_filter_s {
     union {
         fastslam_t fs;
         ekfslam_t ekf;
+        /** EKF-SLAM with the storage of a revisit's second hypothesis
+         *  (ekfslam_set_alt): `first` is `ekf`. Inside the union, so the
+         *  filter is no larger where Fast-SLAM's state is (every profile:
+         *  two ekfslam_t are smaller than one fastslam_t). */
+        struct {
+            ekfslam_t first;
+            ekfslam_t alt;
+        } ekf2;
     } u;
 } slam_filter_t;
 

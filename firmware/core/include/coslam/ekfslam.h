@@ -182,6 +182,23 @@ typedef struct {
      *  many columns of the state. 1 (or a profile without the compressed
      *  EKF): each at once. Equal up to rounding. Default 128. */
     uint16_t merge_batch;
+    /** Revisits kept as two hypotheses (ekfslam.c "Revisits as two
+     *  hypotheses"; docs/consistency.md): a frame that applies a
+     *  loop-closing pairing, with at least mh_min_sightings sightings that
+     *  had candidates, forks the filter into the one that closes (kept
+     *  running) and one in which no loop-closing pairing is allowed (its
+     *  sightings start landmarks), in the storage given by ekfslam_set_alt.
+     *  Both run on the same inputs for mh_frames updates; then the one
+     *  whose best readings of those frames (JCBB's log-likelihood, a
+     *  sighting without candidates scored as a new landmark) sum higher is
+     *  kept. 0, or no storage given: off. Default 50 (10 s at 5 Hz). */
+    uint32_t mh_frames;
+    /** Sightings with candidates a closing frame needs to fork. With one to
+     *  five a frame (MRCLAM's regime, the arena world) the comparison is
+     *  decided by which map is locally fresher, not by the revisit, and it
+     *  made more copies than it saved; the large world's closing frames
+     *  have 11-22. Default 8; >= 1. */
+    uint32_t mh_min_sightings;
 } ekfslam_config_t;
 
 /** Per-landmark bookkeeping beside the state (same meaning as in landmark_t). */
@@ -237,6 +254,12 @@ typedef struct {
     uint32_t cekf_spread_gens_full;   /**< compressed EKF: global updates that found all
                                            EKFSLAM_PEND_GENS generations pending and completed the oldest
                                            at once */
+    uint32_t mh_forks;                /**< revisits kept as two hypotheses (mh_frames) */
+    uint32_t mh_reverted;             /**< ... decided for the one without the revisit: the state
+                                           went back to it (the counters do not: they count what this
+                                           filter did, reverted or not) */
+    uint32_t mh_decided_early;        /**< ... decided before mh_frames updates: a merge or a
+                                           landmark added or removed from outside came first */
 } ekfslam_counters_t;
 
 /** Largest joint innovation handled by JCBB (2 rows per sighting). */
@@ -388,7 +411,7 @@ typedef struct {
     uint16_t pend_act[EKFSLAM_SPREAD_LM];     /**< scratch: flagged active landmarks */
 } ekfslam_cekf_t;
 
-typedef struct {
+typedef struct ekfslam_s {
     ekfslam_config_t cfg;
     uint16_t n_lm;
     uint32_t next_id;
@@ -417,6 +440,14 @@ typedef struct {
     /** A flush of those columns in parts (ekfslam_merge_flush_run): the
      *  active positions below it have them applied; 0: none begun. */
     int32_t merge_flush_r0;
+    /** Revisits as two hypotheses (ekfslam_config_t.mh_frames): the other
+     *  hypothesis's storage (ekfslam_set_alt), NULL: none. */
+    struct ekfslam_s *alt;
+    uint32_t mh_left;      /**< updates until the hypotheses are compared; 0: no fork */
+    uint8_t mh_forbid;     /**< 1 in the other hypothesis: no loop-closing pairing */
+    double mh_sum;         /**< this one's best readings since the fork */
+    double mh_sum_alt;     /**< the other's */
+    double frame_score;    /**< the last update's best reading (log-likelihood) */
 } ekfslam_t;
 
 /** Defaults: slam_params_default(), robot 0, JCBB with a 20000-node budget, FEJ on. */
@@ -437,6 +468,14 @@ coslam_status_t ekfslam_init(ekfslam_t *ekf, const ekfslam_config_t *cfg, pose2_
  * compressed EKF.
  */
 void ekfslam_idle(ekfslam_t *ekf, uint32_t shares);
+
+/** Storage for the second hypothesis of a revisit (ekfslam_config_t.
+ *  mh_frames), owned by the caller, not used for anything else while
+ *  `ekf` runs; NULL: revisits are not forked. Call after ekfslam_init
+ *  (which forgets it). A fork copies the whole filter into it (sizeof
+ *  (ekfslam_t)); while a fork runs, predict, update and idle do the work
+ *  twice. */
+void ekfslam_set_alt(ekfslam_t *ekf, ekfslam_t *alt);
 
 /** Prediction with an odometry increment. Non-finite: E_NUMERIC, counted, no change. O(L).
  *  Between ekfslam_merge_begin and _end (a merge in parts): E_MERGE_BUSY,
