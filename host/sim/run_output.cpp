@@ -166,6 +166,18 @@ nlohmann::json detection_json(const DetectionTally &t, const robot_node_t &n)
             {"exist_miss_confirmed", n.cfg.filter.slam.exist_miss_confirmed}};
 }
 
+// EKF-SLAM's revisits kept as two hypotheses (ekfslam_config_t.mh_frames):
+// forks, those decided against the revisit, those ended by a merge; null
+// for Fast-SLAM, which has none
+nlohmann::json revisit_hypotheses_json(const slam_filter_t &f)
+{
+    if (f.kind != SLAM_FILTER_EKF) {
+        return nullptr;
+    }
+    const ekfslam_counters_t &c = f.u.ekf.ctr;
+    return {{"forks", c.mh_forks}, {"reverted", c.mh_reverted}, {"decided_early", c.mh_decided_early}};
+}
+
 nlohmann::json merge_json(const MergeRecord &m)
 {
     nlohmann::json j = {{"t_s", m.t_s},
@@ -298,7 +310,9 @@ nlohmann::json run_metrics(const Simulation &sim)
                          {"ignored_disagreed", rr.meeting.ignored_disagreed},
                          {"weak_not_sent", rr.meeting.weak_not_sent}}},
             {"laser", {{"scans_ok", rr.laser.scans_ok}, {"err_checksum", rr.laser.err_checksum},
-                       {"err_line", rr.laser.err_line}, {"err_timeout", rr.laser.err_timeout}}},
+                       {"err_line", rr.laser.err_line}, {"err_timeout", rr.laser.err_timeout},
+                       {"rx_search_bytes", robot_node_laser_rx_search_bytes(&sim.node(k))}}},
+            {"revisit_hypotheses", revisit_hypotheses_json(sim.node(k).filter)},
         };
         j["robots"].push_back(rj);
     }

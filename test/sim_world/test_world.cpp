@@ -606,6 +606,14 @@ TEST(RunOutput, FilesAreWrittenAndParse)
     EXPECT_EQ(m["robots"].size(), 2u);
     EXPECT_EQ(m["robots"][1]["filter"], "ekf");
     EXPECT_GT(m["timing"]["realtime_factor"].get<double>(), 1.0);
+    // the laser driver's search bytes and EKF-SLAM's revisit hypotheses
+    // (null for robot 0's Fast-SLAM)
+    EXPECT_EQ(m["robots"][0]["laser"]["rx_search_bytes"].get<uint64_t>(),
+              robot_node_laser_rx_search_bytes(&sim.node(0)));
+    EXPECT_GT(m["robots"][0]["laser"]["rx_search_bytes"].get<uint64_t>(), 0u);
+    EXPECT_TRUE(m["robots"][0]["revisit_hypotheses"].is_null());
+    EXPECT_EQ(m["robots"][1]["revisit_hypotheses"]["forks"].get<uint32_t>(), sim.node(1).filter.u.ekf.ctr.mh_forks);
+    EXPECT_TRUE(m["robots"][1]["revisit_hypotheses"].contains("reverted"));
     std::ifstream pgm(dir + "/robot0_grid.pgm", std::ios::binary);
     std::string magic;
     int w = 0, h = 0, maxv = 0;
