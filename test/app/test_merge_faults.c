@@ -28,6 +28,8 @@
 #include <cmocka.h>
 
 #include "app/slam_filter.h"
+#include "coslam/landmark.h"
+#include "coslam/observe.h"
 
 #define N_WORLD 16
 
@@ -924,6 +926,78 @@ static void test_ekfslam_held_queue_under_load(void **state)
     assert_true(same_ekf(&g_a.u.ekf, &g_c.u.ekf));
 }
 
+/* EKF-SLAM's revisit hypotheses (ekfslam_config_t.mh_frames) through the
+ * robot's path: the robot at the origin (sd 0.3 m) sees a landmark N at
+ * (3, -0.25) that it pairs with an old one of its class at (3, 0), a lone
+ * revisit that moves it 0.24 m off; the next frames see three recent
+ * landmarks where the unmoved robot has them, and the fork is reverted.
+ * The merge coverage keyframe noted from the hypothesis given up is
+ * dropped (the robot never looked from there), the ones before the fork
+ * stay, and the next one is where the robot is. */
+static void test_ekfslam_revert_drops_its_keyframes(void **state)
+{
+    (void)state;
+    const pose2_t origin = {0.0, 0.0, 0.0};
+    const point2_t lms[4] = {{3.0, 0.0}, {2.0, -2.0}, {2.0, 2.0}, {4.0, 1.5}};
+    slam_filter_config_t cfg = slam_filter_config_default();
+    cfg.kind = SLAM_FILTER_EKF;
+    cfg.slam.noise.range_var_m2 = 0.0004;
+    cfg.slam.noise.range_var_per_m2 = 0.0;
+    cfg.slam.noise.bearing_var_rad2 = 0.0001;
+    cfg.mh_frames = 4U;
+    sighting_t z[4];
+    z[0] = observe_predict(origin, (point2_t){3.0, -0.25});
+    for (int k = 1; k < 4; ++k) {
+        z[k] = observe_predict(origin, lms[k]);
+        z[k].signature = 1U;
+    }
+    /* the revisit is taken, 20:1 over a new landmark */
+    landmark_t lm;
+    memset(&lm, 0, sizeof lm);
+    lm.mean = lms[0];
+    lm.cov = cov2_make(1e-4, 0.0, 1e-4);
+    const cov3_t pc = cov3_diag(0.09, 0.09, 1e-4);
+    lm_expect_t ex;
+    assert_int_equal(landmark_expect(&lm, &cfg.slam, origin, &pc, &ex), COSLAM_OK);
+    cfg.slam.new_landmark_log_lik = landmark_log_lik(&ex, landmark_mahalanobis2(&ex, z[0])) - 3.0;
+    slam_filter_t *f = &g_a;
+    assert_int_equal(slam_filter_init(f, &cfg, origin), COSLAM_OK);
+    ekfslam_t *e = &f->u.ekf;
+    e->cfg.mh_min_sightings = 1U;
+    for (int k = 0; k < 4; ++k) {
+        ekfslam_meta_t meta = {(uint32_t)(k + 1), 5.0f, 5, 1, 0, 0};
+        assert_int_equal(ekfslam_add_landmark_body(e, lms[k], cov2_make(1e-4, 0.0, 1e-4), &meta), COSLAM_OK);
+    }
+    for (int r = 0; r < 11; ++r) {
+        for (int c = 0; c < 11; ++c) {
+            e->p[r * EKFSLAM_DIM + c] = r != c ? 0.0 : r < 2 ? 0.09 : r == 2 ? 1e-4 : 1e-4;
+        }
+    }
+    e->ctr.updates = 100U;
+    e->meta[0].last_seen = 0U; /* the old one: a revisit */
+    for (int k = 1; k < 4; ++k) {
+        e->meta[k].signature = 1U;
+        e->meta[k].last_seen = 100U; /* sighted in the last update */
+    }
+    /* keyframes before, far from here */
+    merge_coverage_note(&f->coverage, (pose2_t){5.0, 5.0, 0.0});
+    merge_coverage_note(&f->coverage, (pose2_t){6.0, 5.0, 0.0});
+    const uint16_t n0 = f->coverage.n;
+    assert_int_equal(slam_filter_update(f, z, 1), COSLAM_OK);
+    assert_int_equal(e->ctr.mh_forks, 1U);
+    assert_int_equal(f->coverage.n, n0 + 1U);
+    assert_true(fabs(f->coverage.pose[n0].y) > 0.1); /* looked from the revisit's pose */
+    for (uint32_t k = 0; k < cfg.mh_frames; ++k) {
+        assert_int_equal(slam_filter_predict(f, (odo_increment_t){0.0, 0.0, 0.0}, 0.1), COSLAM_OK);
+        assert_int_equal(slam_filter_update(f, z, 4), COSLAM_OK);
+    }
+    assert_int_equal(e->ctr.mh_reverted, 1U);
+    assert_int_equal(f->coverage_dropped, 1U);
+    assert_int_equal(f->coverage.n, n0 + 1U); /* the dropped one, and the pose now */
+    assert_true(f->coverage.pose[0].x == 5.0 && f->coverage.pose[1].x == 6.0);
+    assert_true(fabs(f->coverage.pose[n0].y) < 0.02);
+}
+
 /* Fast-SLAM's landmark tree pool is sized for the worst case, but a build
  * may lower it (LM_TREE_MAX_LEAVES / _NODES): running out skips the change
  * and counts it (tree_capacity_drops). That is a capacity like the map's,
@@ -982,6 +1056,7 @@ int main(void)
         cmocka_unit_test(test_ekfslam_merge_in_parts),
         cmocka_unit_test(test_ekfslam_held_queue_under_load),
         cmocka_unit_test(test_fastslam_tree_pool_is_a_limit),
+        cmocka_unit_test(test_ekfslam_revert_drops_its_keyframes),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

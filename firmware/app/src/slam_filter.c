@@ -43,6 +43,9 @@ coslam_status_t slam_filter_init(slam_filter_t *f, const slam_filter_config_t *c
     f->kind = cfg->kind;
     f->robot_id = cfg->robot_id;
     merge_coverage_init(&f->coverage);
+    f->coverage_at_fork = 0U;
+    f->thinned_at_fork = 0U;
+    f->coverage_dropped = 0U;
     f->view = NULL;
     f->merge_due = NULL;
     memset(&f->merge_late, 0, sizeof f->merge_late);
@@ -252,7 +255,20 @@ static int ekf_holding(const slam_filter_t *f)
 
 static coslam_status_t ekf_update_now(slam_filter_t *f, const sighting_t *z, int n)
 {
+    const uint32_t forks = f->u.ekf.ctr.mh_forks;
+    const uint32_t reverted = f->u.ekf.ctr.mh_reverted;
     const coslam_status_t st = ekfslam_update(&f->u.ekf, z, n);
+    if (f->u.ekf.ctr.mh_forks != forks) {
+        f->coverage_at_fork = f->coverage.n; /* the keyframes below were looked from where both agree */
+        f->thinned_at_fork = f->coverage.thinned;
+    }
+    if (f->u.ekf.ctr.mh_reverted != reverted && f->coverage.thinned == f->thinned_at_fork &&
+        f->coverage_at_fork <= f->coverage.n) {
+        /* the keyframes noted since the fork are poses of the hypothesis
+         * given up: where the robot did not look from */
+        f->coverage_dropped += (uint32_t)(f->coverage.n - f->coverage_at_fork);
+        f->coverage.n = f->coverage_at_fork;
+    }
     pose2_t pose;
     cov3_t cov;
     ekfslam_pose(&f->u.ekf, &pose, &cov); /* the filter's own: held predictions are not yet in it */

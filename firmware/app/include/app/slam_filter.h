@@ -92,6 +92,10 @@ typedef struct slam_filter_s {
     /** Keyframes from which this robot looked (noted after every update);
      *  the merge's negative information (merge_check). */
     merge_coverage_t coverage;
+    uint16_t coverage_at_fork;   /**< EKF-SLAM: keyframes before the running revisit fork
+                                      (ekfslam_config_t.mh_frames); a revert drops those after */
+    uint32_t thinned_at_fork;    /**< coverage.thinned then (thinned since: the keyframes stay) */
+    uint32_t coverage_dropped;   /**< keyframes dropped with a hypothesis given up */
     /** The next update's view profile (slam_filter_set_view, the caller's),
      *  handed to the core just before that update; NULL: none. */
     const view_profile_t *view;
