@@ -80,7 +80,7 @@ std::optional<point2_t> RobotFilter::landmark_of_signature(uint8_t sig) const
     int best_obs = -1;
     if (const ekfslam_t *ekf = ekfslam()) {
         for (uint16_t j = 0; j < ekf->n_lm; ++j) {
-            if (ekf->meta[j].signature == sig && ekf->meta[j].n_obs > best_obs) {
+            if (ekfslam_landmark_live(ekf, j) && ekf->meta[j].signature == sig && ekf->meta[j].n_obs > best_obs) {
                 best_obs = ekf->meta[j].n_obs;
                 best = ekfslam_landmark_mean(ekf, j);
             }
@@ -127,7 +127,7 @@ std::map<std::string, long> RobotFilter::counters() const
         m["mh_forks"] = c.mh_forks;
         m["mh_reverted"] = c.mh_reverted;
         m["mh_decided_early"] = c.mh_decided_early;
-        m["landmarks_in_state"] = ekf->n_lm;
+        m["landmarks_in_state"] = ekfslam_n_landmarks(ekf);
         m["merges_in_parts"] = f_->merges_in_parts;
         m["merges_late_partial"] = f_->merges_late_partial;
         m["merges_forced"] = f_->merges_forced;

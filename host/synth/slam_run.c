@@ -171,7 +171,7 @@ int run_synth_traced(const synth_config_t *scfg, const run_opts_t *opts, run_res
             idle_sum += now_us() - ti;
         }
         t_sum += dt;
-        const int bin = size_bin(ekf != NULL ? ekf->n_lm : fs->particles[0].n_lm);
+        const int bin = size_bin(ekf != NULL ? ekfslam_n_landmarks(ekf) : fs->particles[0].n_lm);
         res->size_bin_us[bin] += dt;
         res->size_bin_steps[bin]++;
         if (dt > res->step_us_max) {

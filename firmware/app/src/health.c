@@ -169,6 +169,9 @@ void health_before_update(health_t *h, const slam_filter_t *f, const occ_grid_t 
         const ekfslam_t *e = &f->u.ekf;
         const pose2_t p = {e->x[0], e->x[1], e->x[2]};
         for (uint16_t j = 0; j < e->n_lm; ++j) {
+            if (!ekfslam_landmark_live(e, j)) {
+                continue; /* removed; out of the state when the local phase ends */
+            }
             const point2_t m = ekfslam_landmark_mean(e, j);
             if (in_view(h, g, sp, p, m)) {
                 mark(h, e->meta[j].signature);

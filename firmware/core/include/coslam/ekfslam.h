@@ -216,6 +216,10 @@ typedef struct {
     uint32_t updates;
     uint32_t landmarks_added;
     uint32_t landmarks_removed;
+    uint32_t removals_deferred;       /**< ... of those, decided in a compressed EKF's local phase:
+                                           dead at once (no association, miss or export reads
+                                           them), out of the state when the phase ends
+                                           (ekfslam_landmark_live) */
     uint32_t misses_hidden;           /**< landmarks in view not counted as missed because the
                                            view profile (ekfslam_set_view) put an obstacle in
                                            front of them */
@@ -429,6 +433,11 @@ typedef struct ekfslam_s {
      *  (exist_miss(); like landmark_t.confirmed_once, kept beside meta so
      *  that callers filling an ekfslam_meta_t need not know it) */
     uint8_t lm_confirmed_once[COSLAM_EKF_MAX_LANDMARKS];
+    /** 1 for a landmark removed in a local phase of the compressed EKF and
+     *  still in the state until the phase ends (ekfslam.c "Removal in a
+     *  local phase"); n_dead of them. Never set outside a local phase. */
+    uint8_t lm_dead[COSLAM_EKF_MAX_LANDMARKS];
+    uint16_t n_dead;
     ekfslam_cekf_t cekf;
     ekfslam_scratch_t scratch;
     /** A merge's updates not yet applied to p (ekfslam.c "A merge's updates
@@ -609,10 +618,28 @@ void ekfslam_merge_end(ekfslam_t *ekf);
 int ekfslam_merge_room(const ekfslam_t *ekf);
 int ekfslam_merge_flush_run(ekfslam_t *ekf, double budget, double *spent);
 
-/** Remove landmark j, deleting its rows and columns. O(L), after ekfslam_sync
- *  (compressed EKF with active_spread_madds > 0: after the spread global
- *  update, pending entries stay pending). */
+/** Remove landmark j now, deleting its rows and columns. O(L), after
+ *  ekfslam_sync (compressed EKF with active_spread_madds > 0: after the
+ *  spread global update, pending entries stay pending). In a local phase
+ *  the landmarks the filter's own misses removed go too (they were dead,
+ *  ekfslam_landmark_live): indices of other landmarks may change. */
 void ekfslam_remove_landmark(ekfslam_t *ekf, uint16_t j);
+
+/** 0 for a landmark the filter removed in a compressed EKF's local phase,
+ *  which stays in the state, unread, until the phase ends (a removal does
+ *  not end the phase: ekfslam.c "Removal in a local phase"). Readers that
+ *  walk the landmarks without ekfslam_sync skip it; exports and merges
+ *  never see one (ekfslam_sync takes them out). */
+static inline int ekfslam_landmark_live(const ekfslam_t *ekf, uint16_t j)
+{
+    return ekf->lm_dead[j] == 0U;
+}
+
+/** Landmarks in the map: in the state and not dead. */
+static inline uint16_t ekfslam_n_landmarks(const ekfslam_t *ekf)
+{
+    return (uint16_t)(ekf->n_lm - ekf->n_dead);
+}
 
 /** A fresh landmark identity (never 0). */
 uint32_t ekfslam_new_id(ekfslam_t *ekf);
