@@ -521,7 +521,8 @@ static void sigterm(void **state)
                                                       "\"tree_capacity_drops\"", "\"drive_odo_gaps\"",
                                                       "\"drive_saturations\"",
                                                       "\"drive_rx_overflows\"", "\"drive_rx_foreign\"",
-                                                      "\"drive_hb_failures\"", "\"mh_forks\"", "\"mh_reverted\"", NULL};
+                                                      "\"drive_hb_failures\"", "\"mh_forks\"", "\"mh_reverted\"",
+                                                      "\"cekf_active_overflows\"", NULL};
          *k != NULL; ++k) {
         if (strstr(json, *k) == NULL) {
             fprintf(stderr, "status file lacks %s\n", *k);

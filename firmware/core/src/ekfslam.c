@@ -978,7 +978,9 @@ static void cekf_select(ekfslam_t *ekf, double max_range_m)
     for (uint16_t j = 0; j < ekf->n_lm; ++j) {
         const int a = 3 + 2 * j;
         const double reach = radius + near_reach(max_range_m, P_(ekf, a, a) + P_(ekf, a + 1, a + 1), var_r);
-        const int in = hypot(ekf->x[a] - pose.x, ekf->x[a + 1] - pose.y) <= reach;
+        /* a dead landmark (removed in the phase this update's start ended)
+         * stays passive until this phase ends and takes it out */
+        const int in = !ekf->lm_dead[j] && hypot(ekf->x[a] - pose.x, ekf->x[a + 1] - pose.y) <= reach;
         ck->slot[j] = in ? 0 : -1;
         n += in;
     }
@@ -2821,12 +2823,11 @@ static coslam_status_t update_body(ekfslam_t *ekf, const sighting_t *z, int ns, 
             continue;
         }
         sc->near[j] = 1;
+        /* the hypothesis without the revisit (mh_frames): no loop-closing candidate */
+        const int forbidden = ekf->mh_forbid && pair_is_closure(ekf, j);
         for (int i = 0; i < ns; ++i) {
-            if (z[i].signature != ekf->meta[j].signature) {
+            if (z[i].signature != ekf->meta[j].signature || forbidden) {
                 continue;
-            }
-            if (ekf->mh_forbid && pair_is_closure(ekf, j)) {
-                continue; /* the hypothesis without the revisit (mh_frames) */
             }
             const double d2 = landmark_mahalanobis2(&sc->expect[j], z[i]);
             const double ll = landmark_log_lik(&sc->expect[j], d2);

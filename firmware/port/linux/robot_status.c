@@ -163,6 +163,10 @@ void robot_status_collect(robot_status_t *s, robot_node_t *node, const robot_dev
     const int is_ekf = node->filter.kind == SLAM_FILTER_EKF;
     u64(s, "mh_forks", is_ekf ? node->filter.u.ekf.ctr.mh_forks : 0U);
     u64(s, "mh_reverted", is_ekf ? node->filter.u.ekf.ctr.mh_reverted : 0U);
+    /* the compressed EKF's regions with more landmarks in reach than
+     * COSLAM_EKF_MAX_ACTIVE: those frames ran the full update (slower,
+     * not lossy; 0 where the profile has no compressed EKF) */
+    u64(s, "cekf_active_overflows", is_ekf ? node->filter.u.ekf.ctr.cekf_active_overflows : 0U);
     /* work in parts (docs/scale.md): merges, sends and the observers' exports */
     const slam_filter_t *fl = &node->filter;
     u64(s, "idle_calls", loop->idle_calls);
