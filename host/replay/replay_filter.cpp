@@ -109,6 +109,7 @@ std::map<std::string, long> RobotFilter::counters() const
         m["updates"] = c.updates;
         m["landmarks_added"] = c.landmarks_added;
         m["landmarks_removed"] = c.landmarks_removed;
+        m["removals_deferred"] = c.removals_deferred; /* decided in a compressed EKF's local phase */
         m["lm_capacity_drops"] = c.lm_capacity_drops;
         m["sighting_capacity_drops"] = c.sighting_capacity_drops;
         m["export_capacity_drops"] = c.export_capacity_drops;
