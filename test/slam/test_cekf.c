@@ -873,6 +873,58 @@ static void test_sync_in_parts(void **state)
     assert_int_equal(ekfslam_sync_run(&g_cekf, 20000.0, NULL), 1);
 }
 
+/* A full map with dead landmarks in it (removed in a local phase, still
+ * in the state): a new landmark takes the place they leave (the phase
+ * ends and they go first), so nothing is refused for capacity. */
+static void test_dead_make_room(void **state)
+{
+    (void)state;
+    synth_config_t sc = world(7U);
+    sc.clutter_per_frame = 0.5;
+    sc.loops = 0.5;
+    ekfslam_config_t cfg = w5_config(&sc);
+    cfg.active_radius_m = 1.5;
+    cfg.active_min_landmarks = 16U;
+    assert_int_equal(ekfslam_init(&g_cekf, &cfg, synth_start_pose(&sc)), COSLAM_OK);
+    synth_init(&g_world, &sc);
+    synth_step_t st;
+    while (synth_next(&g_world, &st) && !(g_cekf.cekf.local && g_cekf.n_dead > 0U)) {
+        (void)ekfslam_predict(&g_cekf, st.u);
+        if (st.is_frame) {
+            (void)ekfslam_update(&g_cekf, st.z, st.n_z);
+        }
+    }
+    assert_true(g_cekf.cekf.local && g_cekf.n_dead > 0U);
+    uint32_t dead_id[COSLAM_EKF_MAX_LANDMARKS];
+    int n_dead = 0;
+    for (uint16_t j = 0; j < g_cekf.n_lm; ++j) {
+        if (!ekfslam_landmark_live(&g_cekf, j)) {
+            dead_id[n_dead++] = g_cekf.meta[j].id;
+        }
+    }
+    assert_int_equal(n_dead, g_cekf.n_dead);
+    /* fill the state with landmarks far out of view (their own classes) */
+    for (int i = 0; g_cekf.n_lm < COSLAM_EKF_MAX_LANDMARKS; ++i) {
+        ekfslam_meta_t meta = {ekfslam_new_id(&g_cekf), 5.0f, 5, 1, (uint8_t)(200 + i % 50), 0};
+        const point2_t far = {60.0 + 0.5 * (i % 20), 60.0 + 0.5 * (i / 20)};
+        assert_int_equal(ekfslam_add_landmark_body(&g_cekf, far, cov2_make(0.01, 0.0, 0.01), &meta), COSLAM_OK);
+    }
+    assert_int_equal(g_cekf.n_dead, n_dead); /* still there: nothing ended with them */
+    const uint32_t drops = g_cekf.ctr.lm_capacity_drops;
+    ekfslam_meta_t meta = {ekfslam_new_id(&g_cekf), 5.0f, 5, 1, 250, 0};
+    const point2_t far = {80.0, 80.0};
+    assert_int_equal(ekfslam_add_landmark_body(&g_cekf, far, cov2_make(0.01, 0.0, 0.01), &meta), COSLAM_OK);
+    assert_int_equal(g_cekf.ctr.lm_capacity_drops, drops);
+    assert_int_equal(g_cekf.n_dead, 0);
+    assert_int_equal(g_cekf.n_lm, COSLAM_EKF_MAX_LANDMARKS - n_dead + 1);
+    for (uint16_t j = 0; j < g_cekf.n_lm; ++j) {
+        for (int q = 0; q < n_dead; ++q) {
+            assert_true(g_cekf.meta[j].id != dead_id[q]);
+        }
+    }
+    assert_true(g_cekf.meta[g_cekf.n_lm - 1].id == meta.id);
+}
+
 static void test_config(void **state)
 {
     (void)state;
@@ -910,6 +962,7 @@ int main(int argc, char **argv)
         cmocka_unit_test(test_local_phase_is_small),
         cmocka_unit_test(test_merge_batched),
         cmocka_unit_test(test_sync_in_parts),
+        cmocka_unit_test(test_dead_make_room),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -434,8 +434,10 @@ typedef struct ekfslam_s {
      *  that callers filling an ekfslam_meta_t need not know it) */
     uint8_t lm_confirmed_once[COSLAM_EKF_MAX_LANDMARKS];
     /** 1 for a landmark removed in a local phase of the compressed EKF and
-     *  still in the state until the phase ends (ekfslam.c "Removal in a
-     *  local phase"); n_dead of them. Never set outside a local phase. */
+     *  still in the state until a phase ends (ekfslam.c "Removal in a
+     *  local phase"; passive in a phase started before they went); n_dead
+     *  of them. Set only in a local phase; a full map takes them out to
+     *  make room. */
     uint8_t lm_dead[COSLAM_EKF_MAX_LANDMARKS];
     uint16_t n_dead;
     ekfslam_cekf_t cekf;
