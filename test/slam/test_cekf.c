@@ -502,12 +502,19 @@ static ekfslam_config_t w5_config(const synth_config_t *sc)
  * w5_sum), clutter (tentative landmarks die in local phases: dead until the
  * phase ends, and the readers checked while they are; then out, the
  * pending rows moving with the swap) */
-static void test_exact_w5_clutter(void **state)
+/* world 7 with clutter, half a loop: tentative landmarks die (test_exact_w5_clutter, test_dead_make_room) */
+static synth_config_t clutter_world(void)
 {
-    (void)state;
     synth_config_t sc = world(7U);
     sc.clutter_per_frame = 0.5;
     sc.loops = 0.5;
+    return sc;
+}
+
+static void test_exact_w5_clutter(void **state)
+{
+    (void)state;
+    const synth_config_t sc = clutter_world();
     ekfslam_config_t cfg = w5_config(&sc);
     tally_t t;
     run_pair(&sc, cfg, 1.5, 0, &t);
@@ -879,9 +886,7 @@ static void test_sync_in_parts(void **state)
 static void test_dead_make_room(void **state)
 {
     (void)state;
-    synth_config_t sc = world(7U);
-    sc.clutter_per_frame = 0.5;
-    sc.loops = 0.5;
+    const synth_config_t sc = clutter_world();
     ekfslam_config_t cfg = w5_config(&sc);
     cfg.active_radius_m = 1.5;
     cfg.active_min_landmarks = 16U;
