@@ -170,10 +170,11 @@ static int is_current(const ekfslam_t *ekf, int r)
  * (cekf_finish): ekfslam_sync (exports, merges, a full active part), a
  * frame that runs the full EKF (cekf_prepare). A removal (outside a
  * local phase, or ekfslam_remove_landmark, which ends it) moves the last
- * landmark's flags and u rows with it ("Removal in a local phase"). Const readers add the corrections
- * themselves (p_final, col_final). The reach tests read the stored
- * variance: it is the value (A landmarks' own blocks are never pending)
- * or larger (psi is positive semi-definite), so they stay safe bounds;
+ * landmark's flags and u rows with it ("Removal in a local phase"). Const
+ * readers add the corrections themselves (p_final, col_final). The reach
+ * tests read the stored variance: it is the value (A landmarks' own
+ * blocks are never pending) or larger (psi is positive semi-definite), so
+ * they stay safe bounds;
  * cekf_select's only picks A', and any A' gives the same numbers; a
  * passive landmark with pending entries against A0' has no drift_gain
  * (-1) until they are complete and is always tested exactly. */
