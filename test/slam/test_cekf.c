@@ -498,10 +498,6 @@ static ekfslam_config_t w5_config(const synth_config_t *sc)
     return cfg;
 }
 
-/* NN, no FEJ, landmark process noise (w5 reaches the passive part through
- * w5_sum), clutter (tentative landmarks die in local phases: dead until the
- * phase ends, and the readers checked while they are; then out, the
- * pending rows moving with the swap) */
 /* world 7 with clutter, half a loop: tentative landmarks die (test_exact_w5_clutter, test_dead_make_room) */
 static synth_config_t clutter_world(void)
 {
@@ -511,6 +507,10 @@ static synth_config_t clutter_world(void)
     return sc;
 }
 
+/* NN, no FEJ, landmark process noise (w5 reaches the passive part through
+ * w5_sum), clutter (tentative landmarks die in local phases: dead until the
+ * phase ends, and the readers checked while they are; then out, the
+ * pending rows moving with the swap) */
 static void test_exact_w5_clutter(void **state)
 {
     (void)state;
